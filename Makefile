@@ -1,0 +1,20 @@
+# Single entry point: `make demo` runs the default scene, `make test` runs every check.
+PY := .venv/bin/python
+
+.PHONY: setup demo test bench clean
+
+setup:
+	@bash tools/setup.sh
+
+demo: setup
+	$(PY) -m host_emulator run default --out out/default
+
+test: setup
+	$(PY) -m pytest -q -n 2 tests
+
+bench: setup
+	.venv/bin/pip install -q -e '.[bench]'
+	$(PY) -m host_emulator bench
+
+clean:
+	rm -rf build out .pio

@@ -1,0 +1,122 @@
+"""Build the firmware library (and the emulator's compiled plant) for the host and load it with cffi.
+
+Like Klipper's chelper: the very C sources that ship on the cells are compiled
+with the host compiler into one extension module, cached by a hash of the
+sources. The FFI declarations are generated from the shipped headers
+(preprocessed with ``-DMC_CDEF``), so there is no hand-kept copy of the API.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LIB_SRC = ROOT / "lib" / "metacell" / "src"
+HOST_CSRC = Path(__file__).resolve().parent / "csrc"
+BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
+
+CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fno-strict-aliasing"]
+
+_lock = threading.Lock()
+_cache: dict[str, object] = {}
+
+
+def _sources() -> list[Path]:
+    srcs = sorted(LIB_SRC.rglob("*.c")) + sorted(HOST_CSRC.glob("*.c"))
+    return srcs
+
+
+def _headers() -> list[Path]:
+    return sorted(LIB_SRC.rglob("*.h")) + sorted(HOST_CSRC.glob("*.h"))
+
+
+def _digest(paths: list[Path]) -> str:
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(str(p.relative_to(ROOT)).encode())
+        h.update(p.read_bytes())
+    h.update(" ".join(CFLAGS).encode())
+    h.update(sys.version.encode())
+    return h.hexdigest()[:16]
+
+
+_DEFINE_RE = re.compile(r"^#define\s+(MC_[A-Z0-9_]+|HE_[A-Z0-9_]+)\s+\(?(-?(?:0x[0-9A-Fa-f]+|\d+))[uUlL]*\)?\s*(?:/\*.*)?$")
+
+
+def cdef_source(headers: list[Path] | None = None) -> str:
+    """Declarations of every shipped header, preprocessed for cffi."""
+    headers = headers if headers is not None else _headers()
+    cc = os.environ.get("CC", "cc")
+    with tempfile.TemporaryDirectory() as tmp:
+        fake = Path(tmp) / "inc"
+        fake.mkdir()
+        for name in ("stdint.h", "stddef.h", "stdbool.h"):
+            (fake / name).write_text("")
+        umbrella = Path(tmp) / "all.h"
+        umbrella.write_text("".join(f'#include "{h}"\n' for h in headers))
+        out = subprocess.run(
+            [cc, "-E", "-P", "-nostdinc", "-I", str(fake), "-DMC_CDEF", str(umbrella)],
+            check=True, capture_output=True, text=True,
+        ).stdout
+    # integer-literal suffixes are C, not cffi
+    out = re.sub(r"\b(\d+)[uU]\b", r"\1", out)
+    defines = []
+    seen = set()
+    for h in headers:
+        for line in h.read_text().splitlines():
+            m = _DEFINE_RE.match(line.strip())
+            if m and m.group(1) not in seen:
+                seen.add(m.group(1))
+                defines.append(f"#define {m.group(1)} {m.group(2)}")
+    return "\n".join(defines) + "\n" + out
+
+
+def load():
+    """Return (ffi, lib) of the host build, compiling it on first use."""
+    srcs = _sources()
+    key = _digest(srcs + _headers())
+    with _lock:
+        if key in _cache:
+            return _cache[key]
+        mod = _build(srcs, key)
+        _cache[key] = (mod.ffi, mod.lib)
+        return _cache[key]
+
+
+def _build(srcs: list[Path], key: str):
+    name = f"_mcfw_{key}"
+    outdir = BUILD_DIR / key
+    so = next(outdir.glob(f"{name}*.so"), None) if outdir.exists() else None
+    if so is None:
+        import cffi
+
+        ffi = cffi.FFI()
+        ffi.cdef(cdef_source())
+        includes = "".join(f'#include "{h}"\n' for h in _headers())
+        ffi.set_source(
+            name, includes,
+            sources=[str(s) for s in srcs],
+            include_dirs=[str(LIB_SRC), str(HOST_CSRC)],
+            extra_compile_args=CFLAGS,
+        )
+        tmp = Path(tempfile.mkdtemp(prefix="mcfw-", dir=BUILD_DIR.parent if BUILD_DIR.parent.exists() else None))
+        try:
+            built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
+            outdir.mkdir(parents=True, exist_ok=True)
+            so = outdir / built.name
+            shutil.copy2(built, so)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    spec = importlib.util.spec_from_file_location(name, so)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

@@ -1,0 +1,121 @@
+/* Configuration-time conversions (physical units -> fixed point). Not in the
+ * control path: the only file of the library allowed to divide. */
+#include "mc_reaction.h"
+#include "../drivers/mc_drive.h"
+#include "../sensors/mc_velocity.h"
+#include "../mc_fixed.h"
+
+/* TU/count per uN*m/rad = (2*pi/400) * 32 = 0.50265482457..., as Q24. */
+#define MC_GAIN_PER_UNM_Q24 8433149LL
+/* Q4 counts per urad = 400*16/(2*pi*1e6) = 1.01859163578813e-3, as Q32. */
+#define MC_ASTAR_PER_URAD_Q32 4374818LL
+
+static int32_t round_shift_i64(int64_t v, int s)
+{
+    int64_t half = (int64_t)1 << (s - 1);
+    return (int32_t)(v >= 0 ? (v + half) >> s : -((-v + half) >> s));
+}
+
+int mc_reaction_set_raw(mc_reaction_t *out, int32_t g_ab, int32_t g_sigma,
+                        int32_t g1, int32_t g2, int32_t astar_q4)
+{
+    if (!out)
+        return MC_ERR_ARG;
+    if (g_ab < -MC_GAIN_MAX || g_ab > MC_GAIN_MAX || g_sigma < -MC_GAIN_MAX ||
+        g_sigma > MC_GAIN_MAX || g1 < -MC_GAIN_MAX || g1 > MC_GAIN_MAX ||
+        g2 < -MC_GAIN_MAX || g2 > MC_GAIN_MAX)
+        return MC_ERR_RANGE;
+    if (astar_q4 < 0 || astar_q4 > MC_COUNTS_PER_REV * 16)
+        return MC_ERR_RANGE;
+    if (g1 <= 0 || g1 <= g2)
+        return MC_ERR_SHAPE;
+    mc_reaction_t r;
+    r.g_ab = g_ab;
+    r.g_sigma = g_sigma;
+    r.g1 = g1;
+    r.g2 = g2;
+    r.astar_q4 = astar_q4;
+    r.c1 = round_shift_i64((int64_t)g1 * astar_q4, MC_ASTAR_FRAC_BITS);
+    *out = r;
+    return MC_OK;
+}
+
+static int gain_from_unm(int32_t k_unm, int32_t *g)
+{
+    if (k_unm < -MC_K_MAX_UNM || k_unm > MC_K_MAX_UNM)
+        return MC_ERR_RANGE;
+    *g = round_shift_i64((int64_t)k_unm * MC_GAIN_PER_UNM_Q24, 24);
+    return MC_OK;
+}
+
+int mc_reaction_from_phys(mc_reaction_t *out, const mc_reaction_phys_t *p)
+{
+    int32_t g_ab, g_sigma, g1, g2;
+    if (!out || !p)
+        return MC_ERR_ARG;
+    if (gain_from_unm(p->k_ab_unm, &g_ab) || gain_from_unm(p->sigma_unm, &g_sigma) ||
+        gain_from_unm(p->k1_unm, &g1) || gain_from_unm(p->k2_unm, &g2))
+        return MC_ERR_RANGE;
+    if (p->astar_urad < 0 || p->astar_urad > MC_ASTAR_MAX_URAD)
+        return MC_ERR_RANGE;
+    int32_t astar_q4 = round_shift_i64((int64_t)p->astar_urad * MC_ASTAR_PER_URAD_Q32, 32);
+    return mc_reaction_set_raw(out, g_ab, g_sigma, g1, g2, astar_q4);
+}
+
+/* (2*pi/400) * 1e6 * 2^24, rounded: converts counts/s to Q24 urad/s. */
+#define MC_RAD_PER_COUNT_E6_Q24 263535892666LL
+
+void mc_drive_default_config(mc_drive_config_t *cfg)
+{
+    cfg->supply_mv = 9000;
+    cfg->vmax_mv = MC_VMAX_ABS_MV;
+    cfg->kt_unm_per_v = 7500;
+    cfg->kv_mrad_per_vs = 49800;
+    cfg->pwm_top = 2400;
+    cfg->ctrl_rate_hz = 2000;
+    cfg->vel_window_log2 = -1;
+}
+
+int mc_drive_configure(mc_drive_t *out, const mc_drive_config_t *c)
+{
+    if (!out || !c)
+        return MC_ERR_ARG;
+    if (c->supply_mv < 4500 || c->supply_mv > 37000 || c->vmax_mv < 1 ||
+        c->vmax_mv > MC_VMAX_ABS_MV || c->vmax_mv > c->supply_mv ||
+        c->kt_unm_per_v < 1000 || c->kt_unm_per_v > 100000 ||
+        c->kv_mrad_per_vs < 1000 || c->kv_mrad_per_vs > 1000000 ||
+        c->pwm_top < 255 || c->pwm_top > 4095 || c->ctrl_rate_hz < 100 ||
+        c->ctrl_rate_hz > 50000 || c->vel_window_log2 < -1 ||
+        c->vel_window_log2 > MC_VEL_RING_LOG2_MAX)
+        return MC_ERR_CONFIG;
+    int w = c->vel_window_log2;
+    if (w < 0) { /* smallest window >= 16 ms, capped */
+        w = 0;
+        while (w < MC_VEL_RING_LOG2_MAX && ((int64_t)1000 << w) < (int64_t)16 * c->ctrl_rate_hz)
+            w++;
+    }
+    /* tq_mul = 128 TU in N*m * 2^16 * 2^13 / (Kt * Vs) */
+    int64_t ktv = (int64_t)c->kt_unm_per_v * c->supply_mv;
+    int64_t tq = (2147483648000LL + ktv / 2) / ktv;
+    /* bemf_mul = (2pi/400) * f / (S_L * 2^w) / Vs * 2^16 * 2^8 */
+    int64_t den = ((int64_t)c->kv_mrad_per_vs * c->supply_mv) << w;
+    int64_t bm = ((int64_t)c->ctrl_rate_hz * MC_RAD_PER_COUNT_E6_Q24 + den / 2) / den;
+    if (tq < 1 || tq >= 65536 || bm > (1 << 20))
+        return MC_ERR_CONFIG;
+    mc_drive_t d;
+    d.tq_mul = (int32_t)tq;
+    d.bemf_mul = (int32_t)bm;
+    d.d_max = (int32_t)(((int64_t)c->vmax_mv << 16) / c->supply_mv);
+    d.pwm_top = c->pwm_top;
+    d.duty_max = (int32_t)(((int64_t)c->vmax_mv * c->pwm_top) / c->supply_mv);
+    d.duty_limit = d.duty_max;
+    d.vel_log2 = w;
+    *out = d;
+    return MC_OK;
+}
+
+int32_t mc_drive_set_limit(mc_drive_t *d, int32_t duty_limit)
+{
+    d->duty_limit = mc_clamp_i32(duty_limit, 0, d->duty_max);
+    return d->duty_limit;
+}

@@ -1,0 +1,70 @@
+/* Fixed-point primitives shared by the cell library: formats, saturation, IRQ save. */
+#ifndef MC_FIXED_H
+#define MC_FIXED_H
+
+#include <stdint.h>
+
+/*
+ * Units and formats used throughout the library (all integer, no float):
+ *
+ *   angle   int32  encoder counts, 400 per revolution (1 count = 2*pi/400 rad).
+ *                  Decoder positions saturate at INT32_MIN/INT32_MAX, never wrap.
+ *                  The control law clamps its inputs to +-MC_ANGLE_CLAMP counts.
+ *   torque  int32  "TU" = 2^-5 uN*m = 31.25 nN*m (MC_TORQUE_FRAC_BITS = 5).
+ *   gain    int32  TU per count (so Q5 uN*m per count); |gain| <= MC_GAIN_MAX.
+ *                  1 N*m/rad = 1e6 * (2*pi/400) * 32 TU/count = 502654.8 TU/count.
+ *   astar   int32  Q4 counts (1/16 count = 2*pi/6400 rad).
+ *   duty    int32  Q16 fraction of the motor supply voltage (65536 = supply),
+ *                  then PWM timer ticks 0..pwm_top.
+ */
+#define MC_COUNTS_PER_REV     400
+#define MC_TORQUE_FRAC_BITS   5
+#define MC_ASTAR_FRAC_BITS    4
+#define MC_ANGLE_CLAMP        2048          /* counts: 5.12 rev */
+#define MC_GAIN_MAX           131071        /* 2^17 - 1 TU/count = 0.2608 N*m/rad */
+#define MC_TORQUE_CLAMP       4194304       /* 2^22 TU = 0.131 N*m */
+#define MC_DUTY_ONE           65536         /* Q16 supply fraction */
+
+#ifndef MC_CDEF /* inline helpers are invisible to the host FFI */
+static inline int32_t mc_clamp_i32(int32_t x, int32_t lo, int32_t hi)
+{
+    return x < lo ? lo : (x > hi ? hi : x);
+}
+
+/* a + b with saturation at the int32 limits (no wrap into the wrong sign). */
+static inline int32_t mc_sat_add_i32(int32_t a, int32_t b)
+{
+    if (b > 0 && a > INT32_MAX - b)
+        return INT32_MAX;
+    if (b < 0 && a < INT32_MIN - b)
+        return INT32_MIN;
+    return a + b;
+}
+
+static inline int32_t mc_abs_i32(int32_t x)
+{
+    return x < 0 ? -x : x;   /* callers pass clamped values, never INT32_MIN */
+}
+
+/* Interrupt mask save/restore: the one per-architecture piece of the library.
+ * On the Cortex-M0+ it masks PRIMASK; on the host (single-threaded emulator) it
+ * is a no-op. Keep the section between them to a few loads and stores. */
+#if defined(__arm__) && defined(__thumb__)
+static inline uint32_t mc_irq_save(void)
+{
+    uint32_t primask;
+    __asm volatile("mrs %0, primask\n\tcpsid i" : "=r"(primask)::"memory");
+    return primask;
+}
+static inline void mc_irq_restore(uint32_t primask)
+{
+    __asm volatile("msr primask, %0" ::"r"(primask) : "memory");
+}
+#else
+static inline uint32_t mc_irq_save(void) { return 0; }
+static inline void mc_irq_restore(uint32_t primask) { (void)primask; }
+#endif
+
+#endif /* MC_CDEF */
+
+#endif /* MC_FIXED_H */
