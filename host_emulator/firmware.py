@@ -113,7 +113,9 @@ def _build(srcs: list[Path], key: str):
             built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
             outdir.mkdir(parents=True, exist_ok=True)
             so = outdir / built.name
-            shutil.copy2(built, so)
+            part = outdir / f".{built.name}.{os.getpid()}"
+            shutil.copy2(built, part)
+            os.replace(part, so)  # atomic: parallel test workers may build at once
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     spec = importlib.util.spec_from_file_location(name, so)
