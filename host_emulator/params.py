@@ -1,0 +1,132 @@
+"""Physical constants of the rig (SPEC section 1 and 2) and the explicit choices where the source is silent.
+
+Everything is SI (N*m, rad, s, V) unless a name says otherwise. A `Params`
+instance is immutable; use ``dataclasses.replace`` or ``Params.with_overrides``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+# ---- measured constants (SPEC 1.1, 1.2) -------------------------------------
+LATTICE_M = 0.060            # a, lattice parameter
+R_ALPHA_M = 0.010            # r, alpha cylinder radius (alpha bands at r)
+R_BETA_ARM_M = 0.020         # 2r, beta band attachment radius
+I_ALPHA = 6.39e-7            # kg m^2
+I_BETA = 3.13e-7             # kg m^2
+ETA_ALPHA = 4.18e-4          # N m s (honey, measured)
+K_ALPHA_TABLE = 1.46e-2      # N m / rad, linearised band stiffness (table)
+K_BETA_TABLE = 4.57e-2       # N m / rad
+L_ALPHA_M = 0.083            # band rest lengths
+L_BETA_M = 0.055
+DELTA_A0_M = LATTICE_M + R_ALPHA_M * math.pi - L_ALPHA_M   # 8.4 mm pre-stretch
+DELTA_B0_M = LATTICE_M - L_BETA_M                           # 5 mm
+
+# cubic band force fits f(delta) [N], delta in metres: c0 + c1 d + c2 d^2 + c3 d^3
+BAND_A_COEF = (0.28, 268.08, -8817.84, 123843.17)
+BAND_B_COEF = (0.19, 164.96, -5965.25, 118186.51)
+
+# ---- motor and driver (SPEC 2) ----------------------------------------------
+MOTOR_KT_NM_PER_V = 0.09 / 12.0      # stall torque / rated voltage
+MOTOR_SPEED_CONST = 49.8             # S_L, rad/(V s), measured (datasheet 47.9)
+SUPPLY_V = 9.0
+VMAX_V = 5.86                        # DRV8874 2.1 A limit at 9 V
+COUNTS_PER_REV = 400
+
+# ---- reaction law (SPEC 1.3) -------------------------------------------------
+SIGMA_MAIN = 9 / 125
+SIGMA_REGIMES = {"conditional": 9 / 125, "unconditional": 6 / 125, "stable": 14 / 125}
+
+
+def band_force(coef, delta):
+    """Cubic fit f(delta) [N] (works on floats and numpy arrays)."""
+    c0, c1, c2, c3 = coef
+    return c0 + delta * (c1 + delta * (c2 + delta * c3))
+
+
+def band_slope(coef, delta):
+    c0, c1, c2, c3 = coef
+    return c1 + delta * (2 * c2 + delta * 3 * c3)
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of one lattice. Defaults are the SPEC's experiment values.
+
+    Explicit choices where the source is silent or inconsistent:
+
+    * ``gamma`` = eta_b / eta_a. Not measured; the source assumes 0.1 "for
+      numerical stability". Default 0.1.
+    * ``band_scale``: the piecewise band formulas of SPEC 1.2 have a
+      small-deflection slope of 2 r^2 f'(delta0) (alpha) and 8 r^2 f'(delta0)
+      (beta), twice the table's k. The torque from the non-linear band law is
+      multiplied by ``band_scale``; the default 0.5 makes its slope equal the
+      table k (the values that reproduce the source's stability analysis).
+      1.0 is the literal reading of the formulas.
+    * ``slack_f0``: a slack band contributes f(0) != 0 in the source's formula.
+      True (default) keeps that literal reading; False makes a slack band push 0.
+    * ``eta_scale`` multiplies both eta_a and eta_b (scene 4 uses 10).
+    """
+
+    cells: int = 16
+    # reaction law, N m / rad (alpha_star in rad)
+    k_ab: float = 1 / 50
+    k1: float = 3 / 50
+    k2: float = -3 / 50
+    alpha_star: float = 3 * math.pi / 8
+    sigma: float = SIGMA_MAIN
+    # mechanics
+    I_a: float = I_ALPHA
+    I_b: float = I_BETA
+    eta_a: float = ETA_ALPHA
+    gamma: float = 0.1
+    eta_scale: float = 1.0
+    k_a: float = K_ALPHA_TABLE
+    k_b: float = K_BETA_TABLE
+    band_scale: float = 0.5
+    slack_f0: bool = True
+    # motor / driver / control
+    supply_v: float = SUPPLY_V
+    vmax_v: float = VMAX_V
+    kt: float = MOTOR_KT_NM_PER_V
+    speed_const: float = MOTOR_SPEED_CONST
+    control_rate_hz: float = 2000.0
+    pwm_top: int = 2400
+    bemf_comp: bool = True
+
+    @property
+    def eta_alpha(self) -> float:
+        return self.eta_a * self.eta_scale
+
+    @property
+    def eta_beta(self) -> float:
+        return self.eta_a * self.gamma * self.eta_scale
+
+    @property
+    def d(self) -> float:
+        """Stiffness ratio k_b / k_a (about 3.12)."""
+        return self.k_b / self.k_a
+
+    @property
+    def eta_bemf(self) -> float:
+        """Extra viscous coefficient of an uncompensated motor: Kt / S_L."""
+        return self.kt / self.speed_const
+
+    def with_overrides(self, **kw) -> "Params":
+        names = {f.name for f in dataclasses.fields(self)}
+        bad = sorted(set(kw) - names)
+        if bad:
+            raise KeyError(f"unknown parameter(s): {', '.join(bad)}; known: {', '.join(sorted(names))}")
+        return dataclasses.replace(self, **kw)
+
+    def psi_prime(self, alpha):
+        """Tri-linear psi'(alpha) of SPEC 1.3 (float or numpy array)."""
+        import numpy as np
+
+        a = np.asarray(alpha, dtype=float)
+        b = self.k1 * self.alpha_star / (self.k1 - self.k2)
+        out = np.where(a < -b, self.k1 * (a + self.alpha_star),
+                       np.where(a > b, self.k1 * (a - self.alpha_star), self.k2 * a))
+        return out if out.ndim else float(out)
