@@ -1,0 +1,1 @@
+"""Laptop-side tools: flashing, logging, commands, firmware checks."""
