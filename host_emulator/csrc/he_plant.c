@@ -1,0 +1,176 @@
+/* Plant physics of the emulated lattice: torques only (equations beside the code; steppers in he_step.c). */
+#include <math.h>
+#include "he_plant.h"
+
+static double cubic(const double *c, double d) { return c[0] + d * (c[1] + d * (c[2] + d * c[3])); }
+static double cubic_slope(const double *c, double d) { return c[1] + d * (2.0 * c[2] + d * 3.0 * c[3]); }
+
+/* Band force with the slack rule: g(d) = f(d) for d > 0, else f(0) (slack_f0) or 0. */
+static double band_force(const he_plant_t *p, int ch, double d)
+{
+    if (d > 0.0)
+        return cubic(p->coef[ch], d);
+    return p->slack_f0 ? p->coef[ch][0] : 0.0;
+}
+
+int he_plant_check(const he_plant_t *p)
+{
+    if (!p || p->n < 1 || p->n > HE_MAX_CELLS || p->npert < 0 || p->npert > HE_MAX_PERT)
+        return HE_ERR_ARG;
+    if (p->bands != HE_BANDS_LINEAR && p->bands != HE_BANDS_CUBIC)
+        return HE_ERR_ARG;
+    if (p->beta_geometry != HE_BETA_SMALL && p->beta_geometry != HE_BETA_GEOMETRIC)
+        return HE_ERR_ARG;
+    if (p->reaction != HE_REACT_NONE && p->reaction != HE_REACT_IDEAL)
+        return HE_ERR_ARG;
+    for (int ch = 0; ch < 2; ch++) {
+        if (p->inertia && !(p->I[ch] > 0.0 && isfinite(p->I[ch])))
+            return HE_ERR_ARG;
+        if (!(p->lever[ch] > 0.0) || !isfinite(p->k_lin[ch]) || !isfinite(p->delta0[ch]))
+            return HE_ERR_ARG;
+        for (int j = 0; j < p->n; j++) {
+            double c = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;
+            if (!isfinite(p->eta[ch][j]) || p->eta[ch][j] < 0.0 || !isfinite(p->kscale[ch][j]) ||
+                !isfinite(p->mgain[ch][j]) || !isfinite(p->volt[ch][j]))
+                return HE_ERR_ARG;
+            if (!p->inertia && !(c > 0.0))
+                return HE_ERR_ARG;   /* overdamped needs damping on every cylinder */
+        }
+    }
+    if (!(p->lattice_m > 0.0) || !(p->speed_const > 0.0) || !isfinite(p->band_scale))
+        return HE_ERR_ARG;
+    for (int i = 0; i < p->npert; i++)
+        if (p->pert[i].cell < 0 || p->pert[i].cell >= p->n || p->pert[i].chain < 0 ||
+            p->pert[i].chain > 1 || !isfinite(p->pert[i].torque))
+            return HE_ERR_ARG;
+    return HE_OK;
+}
+
+double he_band_torque(const he_plant_t *p, int ch, int bond, double xs, double xo)
+{
+    double ks = p->kscale[ch][bond];
+    if (p->bands == HE_BANDS_LINEAR)
+        return ks * p->k_lin[ch] * (xs - xo);           /* tau = k*(x_j - x_nb) */
+    double L = p->lever[ch], d0 = p->delta0[ch];
+    if (ch == 0 || p->beta_geometry == HE_BETA_SMALL) {
+        /* delta+- = delta0 +- L*(x_j - x_nb);  tau = s*L*[g(delta+) - g(delta-)] */
+        double u = L * (xs - xo);
+        return ks * p->band_scale * L * (band_force(p, ch, d0 + u) - band_force(p, ch, d0 - u));
+    }
+    /* full geometric beta (SPEC 1.2), a = lattice, L = 2r:
+     *   ds = sin b_j - sin b_nb, dc = cos b_j - cos b_nb
+     *   Delta+- = sqrt((a +- L ds)^2 + (L dc)^2) - a,  delta+- = delta0 + Delta+-
+     *   fT+- = g(delta+-) * (cos b_j (a +- L ds) -+ L sin b_j dc) / (a + Delta+-)
+     *   tau  = s*L*(fT+ - fT-) */
+    double a = p->lattice_m;
+    double sj = sin(xs), cj = cos(xs);
+    double ds = sj - sin(xo), dc = cj - cos(xo);
+    double xp = a + L * ds, xm = a - L * ds, yy = L * dc;
+    double lp = sqrt(xp * xp + yy * yy), lm = sqrt(xm * xm + yy * yy);   /* a + Delta+- */
+    double fp = band_force(p, ch, d0 + (lp - a)) * (cj * xp - L * sj * dc) / lp;
+    double fm = band_force(p, ch, d0 + (lm - a)) * (cj * xm + L * sj * dc) / lm;
+    return ks * p->band_scale * L * (fp - fm);
+}
+
+void he_reaction(const he_plant_t *p, double al, double be, double *ra, double *rb)
+{
+    /* psi'(x) = sign(x) * max(k2|x|, k1|x| - k1 a*)  (= the tri-linear law for k1 > k2) */
+    double ax = fabs(al);
+    double in = p->k2 * ax, out = p->k1 * ax - p->k1 * p->astar;
+    double psi = in > out ? in : out;
+    if (al < 0.0)
+        psi = -psi;
+    *ra = p->k_ab * (be - al) - psi - p->sigma * be;  /* R_a = k_ab(b - a) - psi'(a) - sigma b */
+    *rb = p->k_ab * (al - be);                        /* R_b = k_ab(a - b) */
+}
+
+void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C)
+{
+    int n = p->n;
+    for (int ch = 0; ch < 2; ch++) {
+        const double *xc = x + ch * n;
+        double *Fc = F + ch * n;
+        for (int j = 0; j < n; j++) {
+            Fc[j] = p->mgain[ch][j] * p->volt[ch][j];            /* Kt*V */
+            C[ch * n + j] = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;  /* eta + Kt/S_L */
+        }
+        if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+            /* reciprocal bond: torque -T on j and +T on j+1 */
+            for (int j = 0; j + 1 < n; j++) {
+                double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+                Fc[j] -= T;
+                Fc[j + 1] += T;
+            }
+        } else {
+            for (int j = 0; j + 1 < n; j++) {
+                Fc[j] -= he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+                Fc[j + 1] -= he_band_torque(p, ch, j, xc[j + 1], xc[j]);
+            }
+        }
+    }
+    if (p->reaction == HE_REACT_IDEAL) {
+        for (int j = 0; j < n; j++) {
+            double ra, rb;
+            he_reaction(p, x[j], x[n + j], &ra, &rb);
+            F[j] += ra;
+            F[n + j] += rb;
+        }
+    }
+    for (int i = 0; i < p->npert; i++) {
+        const he_pert_t *q = &p->pert[i];
+        if (t >= q->t0 && t < q->t1)
+            F[q->chain * n + q->cell] += q->torque;    /* P_j(t) */
+    }
+}
+
+void he_plant_bounds(const he_plant_t *p, double w2[2], double cmin[2], double cmax[2], double rate[2])
+{
+    /* Gershgorin bound of the linearised stiffness rows:
+     *   alpha: 4*kband + max|k_ab + psi''| + |k_ab - sigma|
+     *   beta : 4*kband + 2|k_ab|
+     * kband: linear k*max(kscale); cubic s*2*L^2*max f' over [0, delta_max]
+     * (f' is convex, so its maximum is at an end), plus the geometric tension term. */
+    for (int ch = 0; ch < 2; ch++) {
+        double ksmax = 0.0;
+        for (int j = 0; j + 1 < p->n; j++)
+            ksmax = fabs(p->kscale[ch][j]) > ksmax ? fabs(p->kscale[ch][j]) : ksmax;
+        if (p->n < 2)
+            ksmax = 0.0;
+        double kb;
+        if (p->bands == HE_BANDS_LINEAR) {
+            kb = fabs(p->k_lin[ch]);
+        } else {
+            double L = p->lever[ch];
+            double dmax = p->delta_max[ch];
+            double s0 = fabs(cubic_slope(p->coef[ch], 0.0)), s1 = fabs(cubic_slope(p->coef[ch], dmax));
+            kb = fabs(p->band_scale) * 2.0 * L * L * (s0 > s1 ? s0 : s1);
+            if (ch == 1 && p->beta_geometry == HE_BETA_GEOMETRIC)
+                kb += fabs(p->band_scale) * 2.0 * fabs(cubic(p->coef[ch], dmax)) * L * L / p->lattice_m;
+        }
+        double kr;
+        if (p->reaction == HE_REACT_IDEAL) {
+            double e1 = fabs(p->k_ab + p->k1), e2 = fabs(p->k_ab + p->k2);
+            kr = ch == 0 ? (e1 > e2 ? e1 : e2) + fabs(p->k_ab - p->sigma) : 2.0 * fabs(p->k_ab);
+        } else {
+            kr = 0.0;
+        }
+        double K = 4.0 * kb * ksmax + kr;
+        double c_lo = INFINITY, c_hi = 0.0;
+        for (int j = 0; j < p->n; j++) {
+            double c = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;
+            c_lo = c < c_lo ? c : c_lo;
+            c_hi = c > c_hi ? c : c_hi;
+        }
+        if (p->inertia) {
+            w2[ch] = K / p->I[ch];
+            cmin[ch] = c_lo / p->I[ch];
+            cmax[ch] = c_hi / p->I[ch];
+            rate[ch] = 0.0;
+        } else {
+            w2[ch] = 0.0;
+            cmin[ch] = c_lo;
+            cmax[ch] = c_hi;
+            rate[ch] = c_lo > 0.0 ? K / c_lo : INFINITY;
+        }
+    }
+}

@@ -1,0 +1,88 @@
+/* Emulated lattice plant (SPEC 1): band, honey, reaction and motor torques; physics only, no stepping. */
+#ifndef HE_PLANT_H
+#define HE_PLANT_H
+
+#include <stdint.h>
+
+/*
+ * State layout (doubles, SI): x[0..n-1] = alpha_j, x[n..2n-1] = beta_j (rad),
+ * v likewise (rad/s). The physics is written as
+ *
+ *     I_i * x_i'' = F_i(t, x) - C_i * x_i'          (inertia on)
+ *           C_i * x_i' = F_i(t, x)                  (inertia off, overdamped)
+ *
+ * F_i = -sum_bonds tau(x_i, x_nb) + R_i(alpha_j, beta_j) + P_i(t) + m_i*V_i
+ * C_i = eta_i + m_i / S_L
+ * where tau is the band torque (linear, cubic with slack, or geometric beta),
+ * R the ideal floating-point reaction (SPEC 1.3) when reaction == HE_REACT_IDEAL,
+ * P the external perturbations active at time t, and m_i*V_i the motor torque
+ * Kt*(V - omega/S_L) with m_i = Kt while the driver is awake, 0 when it coasts
+ * (hil: V_i is held by the control loop over a tick).
+ * Steppers only ever call he_plant_forces(); this split keeps damping (linear in
+ * v) separate so semi-implicit steppers can treat it implicitly.
+ */
+#define HE_MAX_CELLS 1024
+#define HE_MAX_PERT 64
+
+enum { HE_BANDS_LINEAR = 0, HE_BANDS_CUBIC = 1 };
+enum { HE_BETA_SMALL = 0, HE_BETA_GEOMETRIC = 1 };
+enum { HE_REACT_NONE = 0, HE_REACT_IDEAL = 1 };
+
+enum {
+    HE_OK = 0,
+    HE_ERR_ARG = -1,        /* invalid plant configuration */
+    HE_ERR_NONFINITE = -2,  /* state became NaN/inf */
+    HE_ERR_DIVERGED = -3,   /* |angle| beyond HE_ANGLE_LIMIT_RAD or |speed| beyond HE_SPEED_LIMIT */
+    HE_ERR_STEP = -4,       /* step larger than the stable limit */
+    HE_ERR_STEPPER = -5,    /* unknown stepper id */
+};
+#define HE_ANGLE_LIMIT_RAD 10000
+#define HE_SPEED_LIMIT_RAD_S 1000000
+
+typedef struct {
+    int32_t cell;        /* 0-based */
+    int32_t chain;       /* 0 alpha, 1 beta */
+    double torque;       /* N*m */
+    double t0, t1;       /* active for t0 <= t < t1 (s) */
+} he_pert_t;
+
+typedef struct {
+    int32_t n;               /* cells, 1..HE_MAX_CELLS */
+    int32_t inertia;         /* 1: second order, 0: overdamped first order */
+    int32_t bands;           /* HE_BANDS_* */
+    int32_t beta_geometry;   /* HE_BETA_* (cubic bands only) */
+    int32_t reaction;        /* HE_REACT_* */
+    int32_t slack_f0;        /* 1: a slack band still pulls f(0); 0: it pulls nothing */
+    double I[2];             /* inertia alpha, beta, kg m^2 */
+    double k_lin[2];         /* table stiffness, N m/rad (linear bands) */
+    double band_scale;       /* multiplies the cubic-law torque (SPEC 1.2 choice) */
+    double lever[2];         /* r (alpha) and 2r (beta arm), m */
+    double lattice_m;        /* a, m */
+    double delta0[2];        /* pre-stretch, m */
+    double delta_max[2];     /* largest band stretch the step limit allows for (fit range: 0.3*L_rest), m */
+    double coef[2][4];       /* cubic force fits f(delta) = c0 + c1 d + c2 d^2 + c3 d^3 */
+    double k_ab, sigma, k1, k2, astar;   /* reaction law, N m/rad and rad */
+    double speed_const;      /* S_L, rad/(V s) */
+    double eta[2][HE_MAX_CELLS];     /* viscous coefficient per cell, N m s */
+    double kscale[2][HE_MAX_CELLS];  /* band stiffness factor of bond (j, j+1), [n-1] used */
+    double mgain[2][HE_MAX_CELLS];   /* motor gain Kt while driving, 0 coasting, N m/V */
+    double volt[2][HE_MAX_CELLS];    /* motor voltage held over the step, V */
+    int32_t npert;
+    he_pert_t pert[HE_MAX_PERT];
+} he_plant_t;
+
+/* Check sizes and finiteness; HE_OK or HE_ERR_ARG. */
+int he_plant_check(const he_plant_t *p);
+/* F and C of the header comment at time t for positions x (2n each). */
+void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C);
+/* Band torque on cylinder x_self from the bond to x_other (chain 0/1, bond index
+ * for the stiffness spread): the tau(x_self, x_other) of SPEC 1.2. */
+double he_band_torque(const he_plant_t *p, int chain, int bond, double x_self, double x_other);
+/* Ideal reaction torques R_a, R_b of SPEC 1.3. */
+void he_reaction(const he_plant_t *p, double alpha, double beta, double *ra, double *rb);
+/* Upper bounds used for the stable step limit: per chain the largest
+ * stiffness/inertia w2 (1/s^2), the smallest and largest damping/inertia c (1/s),
+ * and for the overdamped system the largest stiffness/damping rate (1/s). */
+void he_plant_bounds(const he_plant_t *p, double w2[2], double cmin[2], double cmax[2], double rate[2]);
+
+#endif /* HE_PLANT_H */
