@@ -1,0 +1,124 @@
+"""`python -m host_emulator dispersion`: linear stability of the rest state for given parameters, as JSON or a table."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+
+from host_emulator.params import Params
+
+from .stability import dispersion
+
+__all__ = ["dispersion_main", "parse_set"]
+
+KEYS = ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s", "unstable_band_cells")
+
+
+def parse_set(params: Params, items) -> Params:
+    """Apply KEY=VALUE overrides (Params field names) with the field's type; ValueError/KeyError on bad input."""
+    fields = {f.name: f for f in dataclasses.fields(params)}
+    kw = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ValueError(f"--set {item!r}: expected KEY=VALUE")
+        key, val = (s.strip() for s in item.split("=", 1))
+        key = key.removeprefix("params.")
+        if key not in fields:
+            raise KeyError(f"--set {key}: unknown parameter; known: {', '.join(sorted(fields))}")
+        cur = getattr(params, key)
+        if isinstance(cur, bool):
+            low = val.lower()
+            if low not in ("true", "false", "1", "0", "yes", "no"):
+                raise ValueError(f"--set {key}={val!r}: expected true/false")
+            kw[key] = low in ("true", "1", "yes")
+        elif isinstance(cur, int):
+            kw[key] = int(val)
+        else:
+            kw[key] = _number(val, key)
+    return params.with_overrides(**kw)
+
+
+def _number(text, what):
+    """A float, also accepting a simple fraction such as 9/125."""
+    try:
+        if "/" in text:
+            num, den = text.split("/", 1)
+            v = float(num) / float(den)
+        else:
+            v = float(text)
+    except (ValueError, ZeroDivisionError):
+        raise ValueError(f"{what}={text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{what}={text!r} must be finite")
+    return v
+
+
+def _fmt(v, unit=""):
+    if v is None:
+        return "-"
+    if isinstance(v, list):
+        return "[" + ", ".join("inf" if x is None else f"{x:.3f}" for x in v) + "]" + unit
+    if isinstance(v, float):
+        return f"{v:.4g}{unit}"
+    return str(v)
+
+
+def dispersion_main(argv) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator dispersion",
+                                 description="Linear stability of the uniform rest state (SPEC 1.4).")
+    ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
+    ap.add_argument("--inertia", action="store_true", help="include cylinder inertia (4 roots per mode)")
+    ap.add_argument("--eta-scale", type=str, default=None, help="multiply both viscous coefficients")
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument("--discrete", dest="discrete", action="store_true", default=True,
+                   help="lattice dispersion, kappa^2 -> 2(1 - cos kappa) (default)")
+    g.add_argument("--continuum", dest="discrete", action="store_false", help="continuum dispersion")
+    ap.add_argument("--cells", type=int, default=None, help="also list the modes of a free-end chain of N cells")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a Params field")
+    ap.add_argument("--json", action="store_true", help="print JSON")
+    ap.add_argument("--curve", action="store_true", help="include the sampled curve in the JSON")
+    args = ap.parse_args(argv)
+    try:
+        p = Params()
+        if args.sigma is not None:
+            p = p.with_overrides(sigma=_number(args.sigma, "--sigma"))
+        if args.eta_scale is not None:
+            p = p.with_overrides(eta_scale=_number(args.eta_scale, "--eta-scale"))
+        p = parse_set(p, args.set)
+        if args.cells is not None and args.cells < 1:
+            raise ValueError("--cells must be >= 1")
+        res = dispersion(p, inertia=args.inertia, discrete=args.discrete, n_cells=args.cells)
+    except (ValueError, KeyError, FloatingPointError) as e:
+        print(f"dispersion: error: {e.args[0] if e.args else e}", file=sys.stderr)
+        return 2
+    if not args.curve:
+        res.pop("curve")
+    if args.json:
+        print(json.dumps(res, indent=2, allow_nan=False))
+        return 0
+    print(f"sigma = {p.sigma:.6g} N m/rad, eta_scale = {p.eta_scale:g}, gamma = {p.gamma:g}, "
+          f"{res['model']}{', inertia' if res['inertia'] else ', no inertia'}")
+    rows = [("regime", res["regime"].replace("_", " ")),
+            ("fastest wavelength", _fmt(res["fastest_lambda_cells"], " cells")),
+            ("fastest growth rate", _fmt(res["fastest_growth_per_s"], " 1/s")),
+            ("oscillation period", _fmt(res["oscillation_period_s"], " s")),
+            ("unstable band", _fmt(res["unstable_band_cells"], " cells")),
+            ("uniform mode growth", _fmt(res["uniform_mode_growth_per_s"], " 1/s")),
+            ("uniform mode period", _fmt(res["uniform_mode_period_s"], " s")),
+            ("Turing conditions", "all hold" if res["turing"]["all"] else
+             "fail: " + ", ".join(k for k, v in res["turing"].items() if k != "all" and not v["holds"]))]
+    if "lattice_fastest_mode" in res:
+        m = res["lattice_fastest_mode"]
+        rows.append((f"fastest of {args.cells} cells", f"m={m['m']} lambda={_fmt(m['lambda_cells'])} "
+                                                        f"growth={m['growth_per_s']:.4g} 1/s"))
+    w = max(len(r[0]) for r in rows)
+    for k, v in rows:
+        print(f"  {k:<{w}}  {v}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(dispersion_main(sys.argv[1:]))

@@ -1,0 +1,188 @@
+"""Observables of a run (SPEC 1.5): steadiness, spatial period of the pattern, temporal period, amplitude, growth rate.
+
+Definitions (t in s, alpha/beta (T, N) in rad, cells j = 1..N at x_j = j - 1/2):
+
+* steady: over the final window W (default: last 10 % of the run, at least 3 samples) every cell of both
+  chains moves less than tol_rad peak-to-peak: max_j (max_W - min_W) < tol_rad.
+* pattern_period_cells: the final alpha profile u_j minus its mean is fitted, for each wavenumber kappa in
+  [pi/N, pi] (wavelengths 2..2N cells), by least squares with A cos(kappa x_j) + B sin(kappa x_j); the
+  kappa explaining most variance (grid, then refined) gives lambda = 2 pi / kappa. None when the profile
+  is flat (peak-to-peak < tol_rad).
+* oscillation_period_s: on the cell that moves most after the peak excursion, y = alpha - (median over W),
+  zero crossings with hysteresis (|y| must exceed the band on each side) are located by linear
+  interpolation; with >= 3 crossings, period = 2 * (t_last - t_first) / (n_crossings - 1). None otherwise.
+* amplitude_rad: max_j |alpha_j(t_end)|.
+* growth_rate_per_s: A(t) = max_j |alpha_j(t) - alpha_j(0)|. On the rise of A to 0.2 max A (the linear
+  regime, before saturation), the contiguous rise of A ending there; log A is fitted by a straight line
+  over its upper two decades (at least 5 samples, A rising by at least 3x); the slope is reported when the
+  fit is good (R^2 > 0.98), else None.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+__all__ = ["observables", "spatial_period", "temporal_period", "growth_rate", "is_steady"]
+
+ENCODER_STEP_RAD = 2 * math.pi / 400
+DEFAULT_TOL_RAD = 2 * ENCODER_STEP_RAD     # two encoder counts
+
+
+def _as_arrays(t, alpha, beta):
+    t = np.asarray(t, dtype=float)
+    alpha = np.asarray(alpha, dtype=float)
+    beta = np.asarray(beta, dtype=float)
+    if alpha.ndim == 1:
+        alpha = alpha[:, None]
+    if beta.ndim == 1:
+        beta = beta[:, None]
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError("t must be 1-D with at least 2 samples")
+    if alpha.shape[0] != t.size or beta.shape != alpha.shape:
+        raise ValueError(f"shape mismatch: t {t.shape}, alpha {alpha.shape}, beta {beta.shape}; "
+                         "expected alpha and beta (T, N) with T = len(t)")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(alpha)) and np.all(np.isfinite(beta))):
+        raise ValueError("non-finite values in t/alpha/beta (a diverged run?)")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("t must be strictly increasing")
+    return t, alpha, beta
+
+
+def _window(t, settle_window_s):
+    span = t[-1] - t[0]
+    w = 0.1 * span if settle_window_s is None else float(settle_window_s)
+    if not (w >= 0 and math.isfinite(w)):
+        raise ValueError(f"settle_window_s={settle_window_s!r} must be finite and >= 0")
+    idx = np.nonzero(t >= t[-1] - w)[0]
+    if idx.size < 3:
+        idx = np.arange(max(0, t.size - 3), t.size)
+    return idx
+
+
+def is_steady(t, alpha, beta, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD) -> bool:
+    t, alpha, beta = _as_arrays(t, alpha, beta)
+    idx = _window(t, settle_window_s)
+    ptp = max(np.ptp(alpha[idx], axis=0).max(), np.ptp(beta[idx], axis=0).max())
+    return bool(ptp < tol_rad)
+
+
+def spatial_period(profile, *, tol_rad=DEFAULT_TOL_RAD, n_grid=400):
+    """Dominant wavelength (cells) of a 1-D profile sampled at x_j = j - 1/2, or None if flat."""
+    u = np.asarray(profile, dtype=float)
+    n = u.size
+    if n < 3 or np.ptp(u) < tol_rad:
+        return None
+    x = np.arange(n) + 0.5
+    u = u - u.mean()
+
+    def explained(k):
+        basis = np.column_stack([np.cos(k * x), np.sin(k * x), np.ones(n)])
+        coef, *_ = np.linalg.lstsq(basis, u, rcond=None)
+        r = u - basis @ coef
+        return 1.0 - (r @ r) / (u @ u)
+
+    ks = np.linspace(math.pi / n, math.pi, n_grid)
+    ev = np.array([explained(k) for k in ks])
+    i = int(np.argmax(ev))
+    k = ks[i]
+    if 0 < i < ks.size - 1:
+        r = minimize_scalar(lambda kk: -explained(kk), bounds=(ks[i - 1], ks[i + 1]), method="bounded",
+                            options={"xatol": 1e-9})
+        if -r.fun >= ev[i]:
+            k = float(r.x)
+    return 2 * math.pi / k
+
+
+def _crossings(t, y, band):
+    """Times of zero crossings of y with hysteresis: y must leave [-band, band] on alternate sides."""
+    out = []
+    side = 0
+    last_idx = None
+    for i, v in enumerate(y):
+        s = 1 if v > band else (-1 if v < -band else 0)
+        if s == 0:
+            continue
+        if side != 0 and s != side:
+            # the sign change happened between last_idx and i: interpolate the zero between them
+            j = last_idx
+            for k in range(last_idx, i):
+                if (y[k] > 0) != (y[k + 1] > 0) or y[k + 1] == 0:
+                    j = k
+            y0, y1 = y[j], y[j + 1]
+            out.append(t[j] + (t[j + 1] - t[j]) * (y0 / (y0 - y1) if y0 != y1 else 0.5))
+        side = s
+        last_idx = i
+    return out
+
+
+def temporal_period(t, alpha, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD):
+    """Temporal period (s) of the late motion, or None (see module docstring)."""
+    t = np.asarray(t, dtype=float)
+    alpha = np.asarray(alpha, dtype=float)
+    if alpha.ndim == 1:
+        alpha = alpha[:, None]
+    idx = _window(t, settle_window_s)
+    ref = np.median(alpha[idx], axis=0)
+    dev = alpha - ref
+    mag = np.abs(dev).max(axis=1)
+    i0 = int(np.argmax(mag))                       # peak excursion: free motion follows
+    if t.size - i0 < 5:
+        return None
+    j = int(np.argmax(np.ptp(dev[i0:], axis=0)))
+    y = dev[i0:, j]
+    band = max(0.5 * tol_rad, 1e-9 * np.abs(y).max())   # one encoder count: quantisation jitter is no oscillation
+    cr = _crossings(t[i0:], y, band)
+    if len(cr) < 3:
+        return None
+    return 2.0 * (cr[-1] - cr[0]) / (len(cr) - 1)
+
+
+def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
+    """Early exponential growth rate (1/s) of A(t) = max_j |alpha_j - alpha_j(0)|, or None."""
+    t = np.asarray(t, dtype=float)
+    alpha = np.asarray(alpha, dtype=float)
+    if alpha.ndim == 1:
+        alpha = alpha[:, None]
+    amp = np.abs(alpha - alpha[0]).max(axis=1)
+    amax = amp.max()
+    if not amax > min_amplitude_rad:
+        return None
+    i_hi = int(np.argmax(amp >= 0.2 * amax))       # first sample at 20 % of the peak
+    if i_hi < 4:
+        return None
+    # the contiguous rise ending at i_hi, restricted to its upper two decades
+    i_lo = i_hi
+    while i_lo > 0 and amp[i_lo - 1] < amp[i_lo]:
+        i_lo -= 1
+    while i_lo < i_hi and amp[i_lo] < max(amp[i_hi] * 1e-2, min_amplitude_rad):
+        i_lo += 1
+    if i_hi - i_lo + 1 < 5 or amp[i_hi] < 3 * amp[i_lo]:
+        return None
+    tt = t[i_lo: i_hi + 1]
+    ly = np.log(amp[i_lo: i_hi + 1])
+    slope, icpt = np.polyfit(tt, ly, 1)
+    res = ly - (slope * tt + icpt)
+    r2 = 1.0 - (res @ res) / max(((ly - ly.mean()) ** 2).sum(), 1e-300)
+    if r2 < 0.98 or slope <= 0:
+        return None
+    return float(slope)
+
+
+def observables(t, alpha, beta, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD) -> dict:
+    """All observables of a run as a JSON-ready dict (see module docstring for definitions)."""
+    if not (math.isfinite(tol_rad) and tol_rad > 0):
+        raise ValueError(f"tol_rad={tol_rad!r} must be finite and > 0")
+    t, alpha, beta = _as_arrays(t, alpha, beta)
+    steady = is_steady(t, alpha, beta, settle_window_s=settle_window_s, tol_rad=tol_rad)
+    return {
+        "steady": steady,
+        "pattern_period_cells": spatial_period(alpha[-1], tol_rad=tol_rad),
+        "oscillation_period_s": temporal_period(t, alpha, settle_window_s=settle_window_s, tol_rad=tol_rad),
+        "amplitude_rad": float(np.abs(alpha[-1]).max()),
+        "final_alpha_rad": [float(v) for v in alpha[-1]],
+        "final_beta_rad": [float(v) for v in beta[-1]],
+        "growth_rate_per_s": growth_rate(t, alpha),
+    }

@@ -1,0 +1,220 @@
+"""Continuum model: the reaction-diffusion PDE of SPEC 1.4 (inertia dropped, full non-linear psi') on a 1-D grid.
+
+Equations (x in lattice units, i.e. cells, so k a^2 d^2/dx^2 with x = a * xbar becomes k d^2/dxbar^2)::
+
+    eta_a alpha_t = k_a alpha_xx + R_a(alpha, beta) + P_a(x, t)
+    eta_b beta_t  = k_b beta_xx  + R_b(alpha, beta) + P_b(x, t)
+    R_a = k_ab (beta - alpha) - psi'(alpha) - sigma beta,     R_b = k_ab (alpha - beta)
+
+on x in [0, N] (cell j occupies [j-1, j], its centre at j - 1/2) with free ends alpha_x = beta_x = 0.
+
+Discretisation (method of lines, finite volumes of width h = 1/M, M = points_per_cell, centres
+x_i = (i + 1/2) h)::
+
+    (L u)_i = (u_{i-1} - 2 u_i + u_{i+1}) / h^2,  ghost u_{-1} = u_0, u_{n} = u_{n-1}   (zero flux)
+
+so that sum_i h (L u)_i = 0 exactly (a pure-diffusion run conserves sum_i h eta u_i). A perturbing torque
+T (N m) on cylinder j is a torque density T per unit x over [j-1, j]; its integral over the cell is T,
+matching the lattice where cylinder j spans one unit of x. Time stepping: scipy's stiff BDF with the
+analytic sparse Jacobian, restarted at every switch-on/off of a perturbation so no pulse is stepped over.
+Output is linearly interpolated to the cell centres.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.integrate import solve_ivp
+
+__all__ = ["simulate_continuum", "ContinuumError", "validate_perturbations"]
+
+_PERT_KEYS = {"cell", "chain", "torque_Nm", "start_s", "duration_s"}
+
+
+class ContinuumError(RuntimeError):
+    """The continuum integration failed or diverged; the message names the cause and the time."""
+
+
+def validate_perturbations(perturbations, cells):
+    """Check a perturbation list (clear ValueError naming the entry and field); returns normalised copies."""
+    out = []
+    for n, p in enumerate(perturbations or []):
+        where = f"perturbation #{n + 1}"
+        if not isinstance(p, dict):
+            raise ValueError(f"{where}: expected a table/dict, got {type(p).__name__}")
+        missing = _PERT_KEYS - set(p)
+        extra = set(p) - _PERT_KEYS
+        if missing or extra:
+            raise ValueError(f"{where}: missing {sorted(missing)} unknown {sorted(extra)}; "
+                             f"keys are {sorted(_PERT_KEYS)}")
+        cell = p["cell"]
+        if isinstance(cell, bool) or not isinstance(cell, (int, np.integer)) or not 1 <= cell <= cells:
+            raise ValueError(f"{where}: cell={cell!r} must be an integer in 1..{cells}")
+        if p["chain"] not in ("alpha", "beta"):
+            raise ValueError(f"{where}: chain={p['chain']!r} must be 'alpha' or 'beta'")
+        vals = {}
+        for k in ("torque_Nm", "start_s", "duration_s"):
+            try:
+                vals[k] = float(p[k])
+            except (TypeError, ValueError):
+                raise ValueError(f"{where}: {k}={p[k]!r} is not a number") from None
+            if not math.isfinite(vals[k]):
+                raise ValueError(f"{where}: {k}={p[k]!r} must be finite")
+        if vals["start_s"] < 0 or vals["duration_s"] <= 0:
+            raise ValueError(f"{where}: need start_s >= 0 and duration_s > 0")
+        out.append({"cell": int(cell), "chain": p["chain"], **vals})
+    return out
+
+
+def _psi_prime_and_slope(params, a):
+    """psi'(alpha) (tri-linear, odd) and psi''(alpha), elementwise. k1 == k2 means psi' = k2 alpha."""
+    k1, k2, ast = params.k1, params.k2, params.alpha_star
+    if k1 == k2:
+        return k2 * a, np.full_like(a, k2)
+    b = k1 * ast / (k1 - k2)                           # breakpoint |alpha| = k1 alpha* / (k1 - k2)
+    outer = np.abs(a) > b
+    pp = np.where(outer, k1 * (a - np.sign(a) * ast), k2 * a)
+    return pp, np.where(outer, k1, k2)
+
+
+def _laplacian(n, h):
+    """Zero-flux second difference (sparse, n x n)."""
+    main = np.full(n, -2.0)
+    main[0] = main[-1] = -1.0
+    if n == 1:
+        main[0] = 0.0
+    off = np.ones(n - 1)
+    return sp.diags([off, main, off], [-1, 0, 1], shape=(n, n), format="csr") / (h * h)
+
+
+def _check_params(params):
+    bad = []
+    for name in ("eta_alpha", "eta_beta", "k_a", "k_b"):
+        v = getattr(params, name)
+        if not (math.isfinite(v) and v > 0):
+            bad.append(f"{name}={v!r} must be finite and > 0")
+    for name in ("k_ab", "k1", "k2", "sigma", "alpha_star"):
+        v = getattr(params, name)
+        if not math.isfinite(v):
+            bad.append(f"{name}={v!r} must be finite")
+    if params.k1 != params.k2 and params.k1 * params.alpha_star / (params.k1 - params.k2) < 0:
+        bad.append("psi' breakpoint k1*alpha_star/(k1-k2) is negative (need k1 > k2, alpha_star >= 0)")
+    if bad:
+        raise ValueError("invalid parameters for the continuum model: " + "; ".join(bad))
+
+
+def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, points_per_cell=4,
+                       rtol=1e-6, atol=1e-9, initial=None, max_angle_rad=1e4, method="BDF"):
+    """Integrate the PDE from rest (or ``initial``) and return (t, alpha, beta) sampled at the cell centres.
+
+    t: (T,) s from 0 to t_end_s every dt_out_s (t_end_s included); alpha, beta: (T, cells) rad.
+    perturbations: dicts {cell (1-based), chain, torque_Nm, start_s, duration_s} (see module docstring).
+    initial: optional callable x -> (alpha0, beta0) evaluated at the grid points x (cells, 0..cells),
+        for linear-theory checks; default: rest.
+    Raises ValueError for bad input, ContinuumError if the solver fails or |angle| exceeds max_angle_rad.
+    """
+    _check_params(params)
+    if isinstance(cells, bool) or not isinstance(cells, (int, np.integer)) or cells < 1:
+        raise ValueError(f"cells={cells!r} must be a positive integer")
+    t_end_s, dt_out_s = float(t_end_s), float(dt_out_s)
+    if not (math.isfinite(t_end_s) and t_end_s > 0):
+        raise ValueError(f"t_end_s={t_end_s!r} must be finite and > 0")
+    if not (math.isfinite(dt_out_s) and 0 < dt_out_s <= t_end_s):
+        raise ValueError(f"dt_out_s={dt_out_s!r} must be in (0, t_end_s]")
+    if isinstance(points_per_cell, bool) or not isinstance(points_per_cell, (int, np.integer)) \
+            or points_per_cell < 1:
+        raise ValueError(f"points_per_cell={points_per_cell!r} must be a positive integer")
+    pert = validate_perturbations(perturbations, cells)
+
+    m = int(points_per_cell)
+    n = cells * m
+    h = 1.0 / m
+    x = (np.arange(n) + 0.5) * h
+    lap = _laplacian(n, h)
+    ea, eb = params.eta_alpha, params.eta_beta
+    kab, sig = params.k_ab, params.sigma
+    da = (params.k_a / ea) * lap
+    db = (params.k_b / eb) * lap
+    eye = sp.identity(n, format="csr")
+    c_ab = sp.csr_matrix(eye * ((kab - sig) / ea))     # d(alpha_t)/d(beta)
+    c_ba = sp.csr_matrix(eye * (kab / eb))             # d(beta_t)/d(alpha)
+    jbb = db - eye * (kab / eb)
+
+    y0 = np.zeros(2 * n)
+    if initial is not None:
+        a0, b0 = initial(x.copy())
+        y0[:n] = np.broadcast_to(np.asarray(a0, dtype=float), (n,))
+        y0[n:] = np.broadcast_to(np.asarray(b0, dtype=float), (n,))
+        if not np.all(np.isfinite(y0)):
+            raise ValueError("initial state is not finite")
+
+    def forcing(t_mid):
+        """Torque density per unit x on the grid, divided by eta, for the segment containing t_mid."""
+        fa = np.zeros(n)
+        fb = np.zeros(n)
+        for p in pert:
+            if p["start_s"] <= t_mid < p["start_s"] + p["duration_s"]:
+                sl = slice((p["cell"] - 1) * m, p["cell"] * m)
+                if p["chain"] == "alpha":
+                    fa[sl] += p["torque_Nm"] / ea
+                else:
+                    fb[sl] += p["torque_Nm"] / eb
+        return fa, fb
+
+    def make_rhs(fa, fb):
+        def rhs(_t, y):
+            a, b = y[:n], y[n:]
+            pp, _ = _psi_prime_and_slope(params, a)
+            # eta_a a_t = k_a L a + k_ab (b - a) - psi'(a) - sigma b + P_a ;  eta_b b_t = k_b L b + k_ab (a - b) + P_b
+            at = da @ a + (kab * (b - a) - pp - sig * b) / ea + fa
+            bt = db @ b + (kab * (a - b)) / eb + fb
+            return np.concatenate([at, bt])
+        return rhs
+
+    def jac(_t, y):
+        _, slope = _psi_prime_and_slope(params, y[:n])
+        jaa = da - sp.diags((kab + slope) / ea)
+        return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
+
+    # output times and segment boundaries (perturbation switch-on/off)
+    n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
+    t_out = np.arange(n_out) * dt_out_s
+    if t_end_s - t_out[-1] > 1e-9 * t_end_s:
+        t_out = np.append(t_out, t_end_s)
+    cuts = {0.0, t_end_s}
+    for p in pert:
+        for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
+            if 0.0 < tb < t_end_s:
+                cuts.add(tb)
+    cuts = sorted(cuts)
+
+    ys = np.empty((len(t_out), 2 * n))
+    ys[0] = y0
+    y = y0
+    for t0, t1 in zip(cuts[:-1], cuts[1:]):
+        fa, fb = forcing(0.5 * (t0 + t1))
+        sel = np.nonzero((t_out > t0) & (t_out <= t1))[0]
+        sol = solve_ivp(make_rhs(fa, fb), (t0, t1), y, method=method, jac=jac, rtol=rtol, atol=atol,
+                        t_eval=np.append(t_out[sel], t1) if sel.size == 0 or t_out[sel[-1]] != t1 else t_out[sel])
+        if not sol.success:
+            raise ContinuumError(f"continuum solver failed at t = {sol.t[-1]:.6g} s: {sol.message}")
+        if not np.all(np.isfinite(sol.y)):
+            raise ContinuumError(f"continuum state became non-finite in [{t0:.6g}, {t1:.6g}] s")
+        peak = float(np.max(np.abs(sol.y)))
+        if peak > max_angle_rad:
+            raise ContinuumError(f"continuum state diverged: |angle| = {peak:.3g} rad > {max_angle_rad:g} rad "
+                                 f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)")
+        ys[sel] = sol.y[:, :sel.size].T
+        y = sol.y[:, -1]
+
+    # linear interpolation of the grid to the cell centres x_c = j - 1/2
+    xc = np.arange(cells) + 0.5
+    samp = np.empty((cells, n))
+    eye_n = np.eye(n)
+    for j in range(n):
+        samp[:, j] = np.interp(xc, x, eye_n[j])
+    alpha = ys[:, :n] @ samp.T
+    beta = ys[:, n:] @ samp.T
+    return t_out, alpha, beta
