@@ -30,13 +30,21 @@ _lock = threading.Lock()
 _cache: dict[str, object] = {}
 
 
+def _tracked_filter(paths: list[Path]) -> list[Path]:
+    """With MC_FW_TRACKED_ONLY=1, keep only files git tracks (skip others' work in progress)."""
+    if os.environ.get("MC_FW_TRACKED_ONLY") != "1":
+        return paths
+    out = subprocess.run(["git", "-C", str(ROOT), "ls-files"], capture_output=True, text=True, check=True)
+    tracked = {ROOT / line for line in out.stdout.splitlines()}
+    return [p for p in paths if p in tracked]
+
+
 def _sources() -> list[Path]:
-    srcs = sorted(LIB_SRC.rglob("*.c")) + sorted(HOST_CSRC.glob("*.c"))
-    return srcs
+    return _tracked_filter(sorted(LIB_SRC.rglob("*.c")) + sorted(HOST_CSRC.glob("*.c")))
 
 
 def _headers() -> list[Path]:
-    return sorted(LIB_SRC.rglob("*.h")) + sorted(HOST_CSRC.glob("*.h"))
+    return _tracked_filter(sorted(LIB_SRC.rglob("*.h")) + sorted(HOST_CSRC.glob("*.h")))
 
 
 def _digest(paths: list[Path]) -> str:

@@ -100,7 +100,10 @@ int mc_drive_configure(mc_drive_t *out, const mc_drive_config_t *c)
     /* bemf_mul = (2pi/400) * f / (S_L * 2^w) / Vs * 2^16 * 2^8 */
     int64_t den = ((int64_t)c->kv_mrad_per_vs * c->supply_mv) << w;
     int64_t bm = ((int64_t)c->ctrl_rate_hz * MC_RAD_PER_COUNT_E6_Q24 + den / 2) / den;
-    if (tq < 1 || tq >= 65536 || bm > (1 << 20))
+    /* the torque clamp (2^22 TU = 0.131 N*m) must reach at least 2*vmax, so that
+     * clamping the torque never changes a command (even against back-EMF) */
+    if (tq < 1 || tq >= 65536 || bm > (1 << 20) ||
+        (int64_t)c->kt_unm_per_v * c->vmax_mv > 65536000LL)
         return MC_ERR_CONFIG;
     mc_drive_t d;
     d.tq_mul = (int32_t)tq;

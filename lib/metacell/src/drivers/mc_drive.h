@@ -18,7 +18,9 @@
  * d_max and duty_limit come from vmax_mv, itself capped by MC_VMAX_ABS_MV (5.86 V,
  * the DRV8874 2.1 A limit at 9 V): the cap is applied at configuration, at the
  * Q16 stage and again on the final tick count, so no input, parameter or
- * overflow can exceed it. Right shifts of negative values are arithmetic (GCC
+ * overflow can exceed it. A configuration is refused (MC_ERR_CONFIG) unless
+ * tq_mul < 2^16, bemf_mul <= 2^20 and kt*vmax <= 0.0655 N*m (the torque clamp
+ * then covers 2*vmax, so clamping never alters a command). Right shifts of negative values are arithmetic (GCC
  * and Clang define them so).
  */
 #define MC_VMAX_ABS_MV 5860

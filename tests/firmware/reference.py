@@ -1,0 +1,66 @@
+"""Independent floating-point reference of the cell library, written from SPEC 1.3 and 2."""
+
+from __future__ import annotations
+
+import math
+
+TU_NM = 2.0 ** -5 * 1e-6               # one torque unit in N*m
+RAD_PER_COUNT = 2 * math.pi / 400
+ANGLE_CLAMP = 2048
+
+
+def clamp(x, lo, hi):
+    return lo if x < lo else hi if x > hi else x
+
+
+def psi_prime_piecewise(g1, g2, astar_counts, x):
+    """SPEC 1.3 tri-linear psi' with its breakpoint b = k1 a*/(k1 - k2), in TU for x in counts."""
+    b = g1 * astar_counts / (g1 - g2)
+    if x < -b:
+        return g1 * (x + astar_counts)
+    if x > b:
+        return g1 * (x - astar_counts)
+    return g2 * x
+
+
+def reaction(law, alpha, beta):
+    """(R_a, R_b) in TU (float) from the fixed-point gains actually held by the firmware."""
+    xa = clamp(alpha, -ANGLE_CLAMP, ANGLE_CLAMP)
+    xb = clamp(beta, -ANGLE_CLAMP, ANGLE_CLAMP)
+    astar = law["astar_q4"] / 16.0
+    ra = law["g_ab"] * (xb - xa) - psi_prime_piecewise(law["g1"], law["g2"], astar, xa) - law["g_sigma"] * xb
+    rb = law["g_ab"] * (xa - xb)
+    return ra, rb
+
+
+def reaction_si(k_ab, sigma, k1, k2, astar, alpha_rad, beta_rad):
+    """SPEC 1.3 in SI units (N*m), no quantisation at all."""
+    b = k1 * astar / (k1 - k2)
+    a = alpha_rad
+    psi = k1 * (a + astar) if a < -b else k1 * (a - astar) if a > b else k2 * a
+    return k_ab * (beta_rad - a) - psi - sigma * beta_rad, k_ab * (a - beta_rad)
+
+
+def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
+    """Signed PWM duty (ticks) a perfect real-valued driver would command.
+
+    V = tau/Kt + omega/S_L (back-EMF term only if on, itself limited to +-vmax),
+    limited to +-vmax, duty = round(|V|/V_s * top), capped at floor(vmax*top/V_s).
+    """
+    vs = cfg["supply_mv"] / 1000.0
+    vmax = cfg["vmax_mv"] / 1000.0
+    kt = cfg["kt_unm_per_v"] * 1e-6
+    sl = cfg["kv_mrad_per_vs"] / 1000.0
+    top = cfg["pwm_top"]
+    v = tau_tu * TU_NM / kt
+    if bemf_on:
+        dth = clamp(dtheta_w, -1024, 1024)
+        omega = dth * RAD_PER_COUNT * cfg["ctrl_rate_hz"] / (1 << window_log2)
+        v += clamp(omega / sl, -vmax, vmax)
+    v = clamp(v, -vmax, vmax)
+    duty = round(abs(v) / vs * top)
+    cap = math.floor(cfg["vmax_mv"] * top / cfg["supply_mv"])
+    if duty_limit is not None:
+        cap = min(cap, duty_limit)
+    duty = min(duty, cap)
+    return duty if v >= 0 else -duty
