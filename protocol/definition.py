@@ -1,0 +1,223 @@
+"""The single definition of every wire format of the rig: I2C register map and blocks, CAN (SLCAN) frames.
+
+Pure data (Python literals), no imports from the project. ``protocol/generate.py``
+turns it into ``lib/metacell/src/bus/mc_proto.h`` (C) and ``protocol/metacell.dbc``
+(CAN database); the Python tools read it directly. Change the map here, bump
+PROTO_VERSION when a layout changes, and rerun ``python protocol/generate.py``;
+``tests/firmware/test_bus_proto.py`` fails while the generated files are stale.
+
+All multi-byte fields are little-endian. Types: u8 i8 u16 i16 u32 i32.
+"""
+
+PROTO_VERSION = 1
+
+# ---------------------------------------------------------------------------
+# Addressing: cell j (1..16) answers at 7-bit address ADDR_BASE + j - 1.
+# 0x10..0x1F avoids the reserved ranges 0x00-0x07 and 0x78-0x7F.
+N_CELLS = 16
+ADDR_BASE = 0x10
+
+# ---------------------------------------------------------------------------
+# CRC-8 on every I2C write and on every read block: polynomial x^8+x^2+x+1
+# (0x07), initial value 0x00, no reflection, no final xor (SMBus PEC). The CRC of
+# a write also covers the address byte (addr << 1, R/W bit 0), so a write that
+# reaches the wrong cell is rejected; the CRC of a read block covers its bytes,
+# which start with a tag byte and the cell address.
+CRC8_POLY = 0x07
+CRC8_INIT = 0x00
+
+# ---------------------------------------------------------------------------
+# I2C transactions (see docs/datapath.md):
+#   write:  S addr+W  reg seq payload[len(reg)] crc8  P      (always ended by STOP)
+#   read:   S addr+R  block[...] crc8                P      (separate transaction)
+# A read returns the block the read pointer selects (snapshot by default); the
+# pointer returns to the snapshot after every read. No repeated start is used.
+#
+# Read blocks. Byte 0 of every block is its tag = (PROTO_VERSION << 4) | block id,
+# byte 1 the cell address; the last byte is CRC-8 of all bytes before it.
+BLOCKS = {
+    "SNAPSHOT": {
+        "id": 0,
+        "doc": "one consistent sample taken at a single control tick",
+        "fields": [
+            ("tag", "u8", "(PROTO_VERSION << 4) | block id"),
+            ("addr", "u8", "7-bit address of the cell"),
+            ("tick", "u32", "control ticks since the cell booted"),
+            ("alpha", "i16", "alpha angle, encoder counts (400/rev), zeroed, clamped to +-2048"),
+            ("beta", "i16", "beta angle, encoder counts, zeroed, clamped to +-2048"),
+            ("faults", "u16", "latched MC_FAULT_* flags"),
+            ("flags", "u8", "CELL_FLAGS bits"),
+            ("cmd_seq", "u8", "sequence byte of the last write processed (0 = none yet)"),
+            ("cmd_result", "u8", "RESULT code of that write"),
+            ("rejected", "u8", "writes rejected since boot (wraps at 256)"),
+            ("dec_err_a", "u16", "illegal quadrature transitions, alpha (wraps)"),
+            ("dec_err_b", "u16", "illegal quadrature transitions, beta (wraps)"),
+            ("bus_err", "u16", "bad or dropped I2C writes seen by the cell (wraps)"),
+            ("crc", "u8", "CRC-8 of all bytes before"),
+        ],
+    },
+    "IDENT": {
+        "id": 1,
+        "doc": "identity: protocol, address, firmware version and build",
+        "fields": [
+            ("tag", "u8", "(PROTO_VERSION << 4) | block id"),
+            ("addr", "u8", "7-bit address of the cell"),
+            ("fw_version", "u16", "MC_FW_VERSION, major << 8 | minor"),
+            ("build", "u32", "build identifier given by the glue (e.g. git hash prefix)"),
+            ("map_id", "u16", "MC_PROTO_MAP_ID: CRC-16 of this definition's layouts"),
+            ("crc", "u8", "CRC-8 of all bytes before"),
+        ],
+    },
+    "PARAMS": {
+        "id": 2,
+        "doc": "parameters in force (the last accepted values)",
+        "fields": [
+            ("tag", "u8", "(PROTO_VERSION << 4) | block id"),
+            ("addr", "u8", "7-bit address of the cell"),
+            ("k_ab", "i32", "uN*m/rad"),
+            ("sigma", "i32", "uN*m/rad"),
+            ("k1", "i32", "uN*m/rad"),
+            ("k2", "i32", "uN*m/rad"),
+            ("astar", "i32", "urad"),
+            ("pwm_limit", "u16", "PWM limit in force, timer ticks"),
+            ("crc", "u8", "CRC-8 of all bytes before"),
+        ],
+    },
+}
+
+CELL_FLAGS = {
+    "ENABLED": 0,      # drive enable requested
+    "BEMF": 1,         # back-EMF compensation on
+    "PERTURBING": 2,   # a perturbation is running
+    "PENDING": 3,      # a write waits for the next tick boundary
+    "FAULT": 4,        # faults != 0 (drivers off)
+}
+
+# Writable registers. Payloads are the same bytes in the I2C write and in the
+# CAN command frame (after reg and seq), so one layout serves both.
+# "range" is informative for tools; the cell library is the authority and
+# rejects anything it does not accept (RESULT RANGE/SHAPE/CONFIG).
+REGISTERS = {
+    "POINTER":      {"id": 0x01, "payload": [("block", "u8", None)],
+                     "doc": "select the block returned by the next read (SNAPSHOT after it); applied at once"},
+    "K_AB":         {"id": 0x10, "payload": [("value", "i32", "uN*m/rad")], "doc": "k_ab, -250000..250000"},
+    "SIGMA":        {"id": 0x11, "payload": [("value", "i32", "uN*m/rad")], "doc": "sigma, -250000..250000"},
+    "K1":           {"id": 0x12, "payload": [("value", "i32", "uN*m/rad")], "doc": "k1 (> 0, > k2)"},
+    "K2":           {"id": 0x13, "payload": [("value", "i32", "uN*m/rad")], "doc": "k2 (< k1)"},
+    "ASTAR":        {"id": 0x14, "payload": [("value", "i32", "urad")], "doc": "alpha*, 0..6283185"},
+    "ENABLE":       {"id": 0x20, "payload": [("on", "u8", None)], "doc": "drive enable, 0 or 1"},
+    "BEMF":         {"id": 0x21, "payload": [("on", "u8", None)], "doc": "back-EMF compensation, 0 or 1"},
+    "PERTURB":      {"id": 0x22, "payload": [("chain", "u8", None), ("torque", "i16", "4 uN*m"),
+                                             ("ticks", "u16", "control ticks")],
+                     "doc": "perturbing torque on chain 0=alpha 1=beta, |torque*4| <= 131000 uN*m"},
+    "ZERO":         {"id": 0x23, "payload": [], "doc": "make the current positions the zero of both angles"},
+    "PWM_LIMIT":    {"id": 0x24, "payload": [("ticks", "u16", "timer ticks")], "doc": "PWM duty limit (clamped to the 5.86 V cap)"},
+    "CLEAR_FAULTS": {"id": 0x25, "payload": [], "doc": "clear latched faults"},
+}
+
+# Results (snapshot cmd_result, CAN CMD_RESULT.result). Codes >= 0x10 come from
+# the primary, not from the cell.
+RESULTS = {
+    "NONE": 0x00,        # no write processed yet
+    "OK": 0x01,
+    "RANGE": 0x02,       # value outside its range (library MC_ERR_RANGE)
+    "SHAPE": 0x03,       # k1 <= k2 or k1 <= 0 (MC_ERR_SHAPE)
+    "CONFIG": 0x04,      # drive configuration refused (MC_ERR_CONFIG)
+    "LENGTH": 0x05,      # frame length does not match the register
+    "CRC": 0x06,         # CRC-8 mismatch
+    "REG": 0x07,         # unknown register
+    "NACK": 0x10,        # cell did not acknowledge the write (after retries)
+    "TIMEOUT": 0x11,     # no acknowledgement in the cell's snapshot in time
+    "BUSY": 0x12,        # a command to this cell is still in flight
+    "NO_CELL": 0x13,     # cell number outside 1..N_CELLS
+    "BAD_FRAME": 0x14,   # CAN command frame malformed (dlc, reg)
+}
+
+# ---------------------------------------------------------------------------
+# CAN frames on the SLCAN link (11-bit ids). "{j}" frames exist per cell j=1..16
+# at base + j. Signals: (name, type, scale, offset, unit, comment).
+# Signals are packed little-endian in order, starting at byte 0.
+FRAMES = {
+    "CELL_SAMPLE": {
+        "base": 0x100, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "doc": "one snapshot of cell j, sent for every successful poll",
+        "signals": [
+            ("seq", "u8", 1, 0, "", "per-cell sample counter (wraps at 256): gaps = lost samples"),
+            ("alpha", "i16", 1, 0, "count", "alpha angle, 400 counts/rev"),
+            ("beta", "i16", 1, 0, "count", "beta angle, 400 counts/rev"),
+            ("t128", "u16", 128e-6, 0, "s", "primary clock at the read, 128 us units (wraps)"),
+            ("flags", "u8", 1, 0, "", "CELL_FLAGS bits"),
+        ],
+    },
+    "CELL_STATUS": {
+        "base": 0x200, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "doc": "cell-side status of cell j (every STATUS_EVERY cycles and on change)",
+        "signals": [
+            ("faults", "u16", 1, 0, "", "latched MC_FAULT_* flags"),
+            ("tick_lo", "u16", 1, 0, "tick", "cell control tick, low 16 bits"),
+            ("rejected", "u8", 1, 0, "", "writes rejected by the cell (wraps)"),
+            ("dec_err_a", "u8", 1, 0, "", "alpha decoder errors, low 8 bits"),
+            ("dec_err_b", "u8", 1, 0, "", "beta decoder errors, low 8 bits"),
+            ("bus_err", "u8", 1, 0, "", "cell-side bus errors, low 8 bits"),
+        ],
+    },
+    "CELL_LINK": {
+        "base": 0x280, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "doc": "primary-side link counters of cell j (every STATUS_EVERY cycles)",
+        "signals": [
+            ("nack", "u16", 1, 0, "", "address/data NACKs (wraps)"),
+            ("integrity", "u16", 1, 0, "", "bad tag, address or CRC in read blocks (wraps)"),
+            ("timeout", "u16", 1, 0, "", "transactions that hit their timeout (wraps)"),
+            ("skipped", "u16", 1, 0, "", "polls skipped by back-off (wraps)"),
+        ],
+    },
+    "CMD": {
+        "base": 0x300, "per_cell": True, "sender": "LAPTOP", "dlc": None,
+        "doc": "command to cell j: reg, seq, payload of REGISTERS[reg] (dlc = 2 + payload)",
+        "multiplexed": True,
+    },
+    "CMD_RESULT": {
+        "base": 0x380, "per_cell": True, "sender": "PRIMARY", "dlc": 4,
+        "doc": "result of a CMD to cell j",
+        "signals": [
+            ("reg", "u8", 1, 0, "", "register of the command"),
+            ("seq", "u8", 1, 0, "", "seq of the command as sent by the laptop"),
+            ("result", "u8", 1, 0, "", "RESULTS code"),
+            ("retries", "u8", 1, 0, "", "I2C write retries used"),
+        ],
+    },
+    "PRIMARY_STATUS": {
+        "base": 0x0F0, "per_cell": False, "sender": "PRIMARY", "dlc": 8,
+        "doc": "primary heartbeat, once per second",
+        "signals": [
+            ("uptime_ms", "u32", 1e-3, 0, "s", "primary clock (wraps after 49.7 days)"),
+            ("cycles", "u16", 1, 0, "", "full polling cycles in the last second"),
+            ("slcan_err", "u8", 1, 0, "", "malformed SLCAN lines (wraps)"),
+            ("tx_drop", "u8", 1, 0, "", "frames dropped because the USB queue was full (wraps)"),
+        ],
+    },
+    "PRIMARY_REJECT": {
+        "base": 0x0F1, "per_cell": False, "sender": "PRIMARY", "dlc": 8,
+        "doc": "a frame from the laptop was rejected by the primary",
+        "signals": [
+            ("reason", "u8", 1, 0, "", "RESULTS code (BAD_FRAME, NO_CELL, ...)"),
+            ("bad_id", "u32", 1, 0, "", "CAN id of the rejected frame (bit 31: extended)"),
+            ("bad_dlc", "u8", 1, 0, "", "its DLC"),
+            ("count", "u16", 1, 0, "", "rejected frames since boot (wraps)"),
+        ],
+    },
+}
+
+# ---------------------------------------------------------------------------
+# Primary schedule defaults (configurable at run time; documented here so the C
+# and Python sides agree).
+SCHEDULE = {
+    "I2C_HZ": 400000,          # bus clock
+    "STATUS_EVERY": 64,        # cycles between CELL_STATUS/CELL_LINK frames per cell
+    "TXN_TIMEOUT_US": 2000,    # per-transaction timeout
+    "ACK_TIMEOUT_US": 50000,   # command acknowledgement timeout
+    "WRITE_RETRIES": 2,        # extra attempts of a NACKed write
+    "BACKOFF_MAX": 64,         # cycles a repeatedly timing-out cell is skipped (max)
+}
+
+TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4}
