@@ -1,0 +1,125 @@
+/* Cell program: wires the metacell library to the XIAO's pins, timer and USB serial. */
+#include <Arduino.h>
+#include "cell_config.h"
+#include "metacell.h"
+#include "samd21_hw.h"
+#include "cell_app.h"
+#include "bus_glue.h"
+
+/*
+ * No control arithmetic here: every tick is
+ *   snapshot both decoders -> mc_cell_tick() -> hw_apply(out[alpha], out[beta])
+ * The USB serial port answers the identity request "ID?" (src/common/mc_ident.h)
+ * and nothing else; the bus glue (issue 4) carries every other command.
+ */
+
+enum { SETUP_OK = 0, SETUP_ERR_PINS, SETUP_ERR_DRIVE, SETUP_ERR_TICK };
+static const char *const k_setup_err[] = {"", "pins", "drive", "tick"};
+
+static mc_cell_t g_cell;
+static mc_quad_t g_quad[2];
+static volatile uint32_t g_ticks;
+static int g_setup_err = SETUP_OK;
+static mc_ident_rx_t g_rx;
+
+static void control_tick(void)
+{
+    mc_quad_snap_t a, b;
+    mc_quad_snapshot(&g_quad[MC_ALPHA], &a);
+    mc_quad_snapshot(&g_quad[MC_BETA], &b);
+    if (hw_nfault_active())
+        mc_cell_report_driver_fault(&g_cell);
+    mc_cell_tick(&g_cell, &a, &b);
+    hw_apply(&g_cell.out[MC_ALPHA], &g_cell.out[MC_BETA]);
+    g_ticks = g_ticks + 1u;
+}
+
+mc_cell_t *cell_app_cell(void) { return &g_cell; }
+void cell_app_lock(void) { hw_tick_mask(); }
+void cell_app_unlock(void) { hw_tick_unmask(); }
+uint8_t cell_app_index(void) { return MC_CELL_INDEX; }
+uint8_t cell_app_addr(void) { return MC_CELL_ADDR; }
+uint32_t cell_app_ticks(void) { return g_ticks; }
+
+void cell_app_positions(int32_t *pos_a, int32_t *pos_b)
+{
+    mc_quad_snap_t a, b;
+    mc_quad_snapshot(&g_quad[MC_ALPHA], &a);
+    mc_quad_snapshot(&g_quad[MC_BETA], &b);
+    *pos_a = a.pos;
+    *pos_b = b.pos;
+}
+
+void cell_app_zero(void)
+{
+    int32_t pa, pb;
+    cell_app_lock();
+    cell_app_positions(&pa, &pb);
+    mc_cell_zero(&g_cell, pa, pb);
+    cell_app_unlock();
+}
+
+static void answer_identity(void)
+{
+    char line[MC_IDENT_LINE_MAX];
+    if (g_setup_err != SETUP_OK) {
+        Serial.print("MC error=");
+        Serial.print(k_setup_err[g_setup_err]);
+        Serial.print("\r\n");
+    }
+    int n = mc_ident_format(line, sizeof(line), MC_IDENT_ROLE_CELL, MC_CELL_INDEX,
+                            MC_CELL_ADDR, MC_FW_VERSION);
+    if (n > 0)
+        Serial.write((const uint8_t *)line, (size_t)n);
+}
+
+void setup()
+{
+    hw_drivers_init();   /* drivers asleep before anything else */
+    pinMode(LED_BUILTIN, OUTPUT);
+    digitalWrite(LED_BUILTIN, HIGH);   /* XIAO user LED is active low: off */
+    Serial.begin(115200);              /* USB CDC: the rate is ignored, never 1200 */
+    mc_ident_rx_init(&g_rx);
+
+    if (hw_check_pins() != 0) {
+        g_setup_err = SETUP_ERR_PINS;
+        return;
+    }
+    mc_cell_init(&g_cell);
+    mc_drive_config_t cfg;
+    mc_drive_default_config(&cfg);
+    cfg.pwm_top = MC_PWM_TOP;
+    cfg.ctrl_rate_hz = MC_CTRL_RATE_HZ;
+    if (mc_cell_set_drive(&g_cell, &cfg) != MC_OK) {
+        g_setup_err = SETUP_ERR_DRIVE;
+        return;
+    }
+    hw_pwm_init(MC_PWM_TOP);
+    hw_encoders_init(&g_quad[MC_ALPHA], &g_quad[MC_BETA]);
+    int32_t pa, pb;
+    cell_app_positions(&pa, &pb);
+    mc_cell_zero(&g_cell, pa, pb);
+    mc_cell_enable(&g_cell, MC_ENABLE_AT_BOOT);
+    if (hw_tick_start(MC_CTRL_RATE_HZ, control_tick) == 0) {
+        g_setup_err = SETUP_ERR_TICK;
+        return;
+    }
+    if (MC_CELL_INDEX != 0)
+        bus_setup(MC_CELL_ADDR);
+}
+
+void loop()
+{
+    while (Serial.available() > 0) {
+        if (mc_ident_rx_feed(&g_rx, (uint8_t)Serial.read()))
+            answer_identity();
+    }
+    if (g_setup_err == SETUP_OK)
+        bus_service();
+    /* LED: fast blink = start-up error (drive never enabled), on = latched fault. */
+    uint32_t ms = millis();
+    if (g_setup_err != SETUP_OK)
+        digitalWrite(LED_BUILTIN, (ms >> 7) & 1u ? LOW : HIGH);
+    else
+        digitalWrite(LED_BUILTIN, g_cell.faults ? LOW : HIGH);
+}

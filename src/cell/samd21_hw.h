@@ -1,0 +1,37 @@
+/* The per-chip layer of the cell program (SAMD21 / XIAO): PWM, DIR, sleep, encoders, tick. */
+#ifndef SAMD21_HW_H
+#define SAMD21_HW_H
+
+#include <stdint.h>
+#include "metacell.h"
+
+/*
+ * Everything register-level lives in samd21_hw.cpp; main.cpp only calls these.
+ * Porting to another chip means rewriting that one file behind this interface.
+ */
+
+/* Check the variant's pin table against the port/bit constants the fast paths
+ * assume. Returns 0, or the Arduino pin number that does not match. */
+int hw_check_pins(void);
+/* DIR and nSLEEP as outputs, low (drivers asleep, outputs off). */
+void hw_drivers_init(void);
+/* TCC0 normal PWM on D2 (WO[2]) and D3 (WO[3]) from GCLK0 = 48 MHz, period `top`
+ * ticks (f = 48 MHz / top), both duties 0. */
+void hw_pwm_init(uint16_t top);
+/* Apply both drivers' commands: PH levels, EN duties (TCC0 CCB, takes effect at the
+ * next PWM period), nSLEEP = a.enable || b.enable (one pin for both drivers). */
+void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b);
+/* Sample both encoders, initialise the decoders from the levels, then attach the
+ * pin-change interrupts (EIC, both edges) that call mc_quad_update. */
+void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta);
+/* Start TC3 calling fn() at rate_hz (MFRQ mode, NVIC priority 1: below the pin
+ * interrupts and USB, above the I2C SERCOM). Returns the timer period in timer
+ * clocks (rate error < 1 / period), or 0 if rate_hz cannot be reached. */
+uint32_t hw_tick_start(uint32_t rate_hz, void (*fn)(void));
+/* Hold off / release the control tick (for commands that touch the cell state). */
+void hw_tick_mask(void);
+void hw_tick_unmask(void);
+/* 1 when the drivers' nFAULT line is low (0 when MC_PIN_NFAULT is not wired). */
+int hw_nfault_active(void);
+
+#endif /* SAMD21_HW_H */
