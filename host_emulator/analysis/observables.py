@@ -10,9 +10,10 @@ Definitions (t in s, alpha/beta (T, N) in rad, cells j = 1..N at x_j = j - 1/2):
   is flat (peak-to-peak < tol_rad).
 * oscillation_period_s: on the cell that moves most after the peak excursion, y = alpha - (median over W),
   zero crossings with hysteresis (|y| must exceed the band on each side) are located by linear
-  interpolation; with >= 3 crossings, period = 2 * (t_last - t_first) / (n_crossings - 1). None otherwise.
+  interpolation; with >= 3 crossings c_0..c_n, period = 2 (c_k - c_0) / k with k the largest even index
+  (same-direction crossings, so an offset reference does not bias it). None otherwise.
 * amplitude_rad: max_j |alpha_j(t_end)|.
-* growth_rate_per_s: A(t) = max_j |alpha_j(t) - alpha_j(0)|. On the rise of A to 0.2 max A (the linear
+* growth_rate_per_s: A(t) = max_j |alpha_j(t)| (distance from rest). On the rise of A to 0.2 max A (the linear
   regime, before saturation), the contiguous rise of A ending there; log A is fitted by a straight line
   over its upper two decades (at least 5 samples, A rising by at least 3x); the slope is reported when the
   fit is good (R^2 > 0.98), else None.
@@ -137,16 +138,17 @@ def temporal_period(t, alpha, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD):
     cr = _crossings(t[i0:], y, band)
     if len(cr) < 3:
         return None
-    return 2.0 * (cr[-1] - cr[0]) / (len(cr) - 1)
+    k = (len(cr) - 1) // 2 * 2          # whole periods only: crossings in the same direction
+    return 2.0 * (cr[k] - cr[0]) / k
 
 
 def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
-    """Early exponential growth rate (1/s) of A(t) = max_j |alpha_j - alpha_j(0)|, or None."""
+    """Early exponential growth rate (1/s) of A(t) = max_j |alpha_j(t)|, or None."""
     t = np.asarray(t, dtype=float)
     alpha = np.asarray(alpha, dtype=float)
     if alpha.ndim == 1:
         alpha = alpha[:, None]
-    amp = np.abs(alpha - alpha[0]).max(axis=1)
+    amp = np.abs(alpha).max(axis=1)                # distance from the rest state alpha = 0
     amax = amp.max()
     if not amax > min_amplitude_rad:
         return None

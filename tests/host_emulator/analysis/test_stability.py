@@ -1,0 +1,239 @@
+"""Linear stability analysis checked against closed forms, polynomial roots and the assembled lattice matrix."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import linear_sum_assignment
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from host_emulator.analysis import stability as stab
+from host_emulator.params import Params
+
+SIGMAS = {"conditionally_unstable": 9 / 125, "unconditionally_unstable": 6 / 125, "stable": 14 / 125}
+
+
+def omega_closed_form(p, kappa, discrete):
+    """SPEC 1.4 as written: Omega = (tr J_k +- sqrt(tr^2 - 4 det)) / 2 / eta_a, J_k = J - q diag(k_a, k_b/gamma)."""
+    g = p.gamma
+    j = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab / g, -p.k_ab / g]])
+    q = 2 * (1 - np.cos(kappa)) if discrete else kappa ** 2
+    a = j[0, 0] - q * p.k_a
+    d = j[1, 1] - q * p.k_b / g
+    tr, det = a + d, a * d - j[0, 1] * j[1, 0]
+    root = np.sqrt((tr * tr - 4 * det).astype(complex))
+    return np.stack([(tr + root) / 2, (tr - root) / 2], axis=1) / p.eta_alpha
+
+
+def quartic_roots(p, kappa, discrete):
+    """Roots of det(I s^2 + E s - A(q)) = 0 built as a polynomial (independent of the companion matrix)."""
+    q = 2 * (1 - math.cos(kappa)) if discrete else kappa ** 2
+    a00 = -p.k_ab - p.k2 - q * p.k_a
+    a01 = p.k_ab - p.sigma
+    a10 = p.k_ab
+    a11 = -p.k_ab - q * p.k_b
+    pa = np.array([p.I_a, p.eta_alpha, -a00])
+    pb = np.array([p.I_b, p.eta_beta, -a11])
+    poly = np.polymul(pa, pb)
+    poly[-1] -= a01 * a10
+    return np.roots(poly)
+
+
+def sort_desc(z):
+    z = np.asarray(z)
+    return z[np.lexsort((-z.imag, -z.real))]
+
+
+params_st = st.builds(
+    lambda s, kab, k2, g, es: Params(sigma=s, k_ab=kab, k2=k2, gamma=g, eta_scale=es),
+    st.floats(0.0, 0.2), st.floats(0.005, 0.05), st.floats(-0.1, 0.02), st.floats(0.05, 1.0),
+    st.floats(0.5, 20.0))
+
+
+@settings(max_examples=60, deadline=None)
+@given(params_st, st.floats(0.0, 6.0), st.booleans())
+def test_growth_rates_match_spec_closed_form(p, kappa, discrete):
+    got = stab.growth_rates(p, [kappa], discrete=discrete)[0]
+    want = sort_desc(omega_closed_form(p, np.array([kappa]), discrete)[0])
+    scale = max(1.0, np.abs(want).max())
+    assert np.allclose(got, want, rtol=1e-9, atol=1e-7 * scale)
+    assert got[0].real >= got[1].real
+
+
+@settings(max_examples=40, deadline=None)
+@given(params_st, st.floats(0.0, 3.0), st.booleans())
+def test_inertial_growth_rates_match_quartic_roots(p, kappa, discrete):
+    got = stab.growth_rates(p, [kappa], discrete=discrete, inertia=True)[0]
+    want = quartic_roots(p, kappa, discrete)
+    scale = np.abs(want).max()
+    # compare as multisets: each computed root has a polynomial root nearby
+    for z in got:
+        assert np.min(np.abs(want - z)) < 1e-6 * scale
+    assert np.all(np.diff(got.real) <= 1e-9 * scale)
+
+
+def test_inertia_negligible_when_slow():
+    """Tiny inertia: the two slow roots of the quartic approach the overdamped rates."""
+    p = Params(I_a=1e-15, I_b=1e-15)
+    k = np.linspace(0.1, 3, 7)
+    slow = stab.growth_rates(p, k, inertia=True)[:, :2]
+    over = stab.growth_rates(p, k)
+    assert np.allclose(slow, over, rtol=1e-4, atol=1e-3)
+
+
+def assembled_matrix(p, n, periodic, inertia):
+    """Linearised equations of motion of an n-cell chain, state (alpha_1..n, beta_1..n[, velocities])."""
+    lap = np.zeros((n, n))
+    for j in range(n):
+        for nb in (j - 1, j + 1):
+            if periodic or 0 <= nb < n:
+                lap[j, nb % n] += 1.0
+                lap[j, j] -= 1.0          # a missing neighbour contributes no torque (free end)
+    jr = stab.reaction_jacobian(p)
+    eye = np.eye(n)
+    a = np.block([[p.k_a * lap + jr[0, 0] * eye, jr[0, 1] * eye], [jr[1, 0] * eye, p.k_b * lap + jr[1, 1] * eye]])
+    eta = np.concatenate([np.full(n, p.eta_alpha), np.full(n, p.eta_beta)])
+    if not inertia:
+        return a / eta[:, None]
+    inert = np.concatenate([np.full(n, p.I_a), np.full(n, p.I_b)])
+    z = np.zeros((2 * n, 2 * n))
+    return np.block([[z, np.eye(2 * n)], [a / inert[:, None], -np.diag(eta / inert)]])
+
+
+@pytest.mark.parametrize("sigma", list(SIGMAS.values()))
+@pytest.mark.parametrize("periodic", [False, True])
+@pytest.mark.parametrize("inertia", [False, True])
+def test_discrete_dispersion_matches_assembled_lattice(sigma, periodic, inertia):
+    n = 16
+    p = Params(sigma=sigma)
+    ev = np.linalg.eigvals(assembled_matrix(p, n, periodic, inertia))
+    km = (2 * np.pi * np.arange(n) / n) if periodic else (np.pi * np.arange(n) / n)
+    pred = stab.growth_rates(p, km, discrete=True, inertia=inertia).ravel()
+    scale = np.abs(ev).max()
+    assert len(pred) == len(ev)
+    # multiset match (degenerate +-kappa pairs of the periodic chain make sorting ambiguous)
+    rows, cols = linear_sum_assignment(np.abs(ev[:, None] - pred[None, :]))
+    assert np.abs(ev[rows] - pred[cols]).max() < 1e-8 * scale
+    if not periodic:
+        d = stab.dispersion(p, inertia=inertia, n_cells=n)
+        top = max(m["growth_per_s"] for m in d["lattice_modes"])
+        assert top == pytest.approx(ev.real.max(), rel=1e-9, abs=1e-9 * scale)
+
+
+def band_closed_form(p, discrete):
+    """Wavelength band (cells) where det A(q) < 0, from the quadratic k_a k_b q^2 - b q + det Jr = 0."""
+    jr = stab.reaction_jacobian(p)
+    c2, c1, c0 = p.k_a * p.k_b, -(jr[0, 0] * p.k_b + jr[1, 1] * p.k_a), np.linalg.det(jr)
+    qs = np.sort(np.roots([c2, c1, c0]).real)
+
+    def lam(q):
+        if q <= 0:
+            return None
+        if discrete:
+            return None if q >= 4 else 2 * np.pi / np.arccos(1 - q / 2)
+        return 2 * np.pi / np.sqrt(q)
+    lo = 2.0 if discrete and qs[1] >= 4 else lam(qs[1])
+    return [lo, lam(qs[0])]
+
+
+@pytest.mark.parametrize("discrete", [True, False])
+@pytest.mark.parametrize("regime", list(SIGMAS))
+def test_three_sigmas_classify_as_the_source(regime, discrete):
+    p = Params(sigma=SIGMAS[regime])
+    d = stab.dispersion(p, discrete=discrete, n_cells=16)
+    assert d["regime"] == regime
+    if regime == "stable":
+        assert d["unstable_band_cells"] is None and d["fastest_growth_per_s"] < 0
+    else:
+        want = band_closed_form(p, discrete)
+        got = d["unstable_band_cells"]
+        assert got[0] == pytest.approx(want[0], rel=1e-7)
+        if regime == "unconditionally_unstable":
+            assert got[1] is None and d["uniform_mode_growth_per_s"] > 0
+        else:
+            assert got[1] == pytest.approx(want[1], rel=1e-7)
+        assert got[0] < d["fastest_lambda_cells"] < (got[1] or np.inf)
+
+
+@pytest.mark.parametrize("discrete", [True, False])
+@pytest.mark.parametrize("regime", list(SIGMAS))
+def test_regimes_with_inertia_and_tenfold_eta(regime, discrete):
+    """Scene 4's setting (eta x10): inertia is a small correction, the classification is kept."""
+    p = Params(sigma=SIGMAS[regime], eta_scale=10.0)
+    assert stab.dispersion(p, discrete=discrete, inertia=True)["regime"] == regime
+
+
+def test_inertia_at_nominal_eta_destabilises_the_stable_sigma_by_an_oscillation():
+    """Finding: at 14/125 with eta_b = 0.1 eta_a, inertia makes the long waves oscillate with growing amplitude."""
+    p = Params(sigma=14 / 125)
+    d = stab.dispersion(p, inertia=True)
+    k0 = stab.growth_rates(p, [0.0], inertia=True)[0, 0]
+    assert d["regime"] == "unconditionally_unstable"
+    assert k0.real > 0 and abs(k0.imag) > 0
+    assert d["oscillation_period_s"] == pytest.approx(2 * np.pi / abs(k0.imag), rel=1e-9)
+
+
+def test_fastest_mode_is_the_grid_maximum():
+    for sigma in (9 / 125, 6 / 125):
+        for discrete in (True, False):
+            p = Params(sigma=sigma)
+            d = stab.dispersion(p, discrete=discrete, n_kappa=200)
+            k = np.linspace(1e-4, np.pi, 200001)
+            re = stab.growth_rates(p, k, discrete=discrete)[:, 0].real
+            assert d["fastest_growth_per_s"] == pytest.approx(re.max(), rel=1e-8)
+            assert d["fastest_lambda_cells"] == pytest.approx(2 * np.pi / k[np.argmax(re)], rel=1e-3)
+
+
+def test_uniform_mode_period_closed_form():
+    p = Params(sigma=14 / 125, eta_scale=10.0)
+    j = stab.jacobian(p)
+    tr, det = np.trace(j), np.linalg.det(j)
+    assert 4 * det > tr * tr
+    d = stab.dispersion(p)
+    assert d["uniform_mode_period_s"] == pytest.approx(4 * np.pi * p.eta_alpha / np.sqrt(4 * det - tr * tr), rel=1e-9)
+    assert d["oscillation_period_s"] is None      # the least stable mode (lambda ~ 5 cells) is real
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.0, 0.2), st.floats(0.005, 0.05), st.floats(-0.1, 0.0), st.floats(0.05, 1.0))
+def test_turing_conditions_vs_sign_of_max_growth(sigma, kab, k2, gamma):
+    p = Params(sigma=sigma, k_ab=kab, k2=k2, gamma=gamma)
+    tc = stab.turing_conditions(p)
+    # stay away from the thresholds, where the sign of a tiny max growth is a rounding question
+    assume(abs(tc["trace_negative"]["value"]) > 1e-4 and abs(tc["det_positive"]["value"]) > 1e-6)
+    assert tc["trace_negative"]["holds"] == (np.trace(stab.jacobian(p)) < 0)
+    assert tc["det_positive"]["holds"] == (np.linalg.det(stab.jacobian(p)) > 0)
+    if tc["diffusion_driven"]["value"] is not None:
+        assume(abs(tc["diffusion_driven"]["value"]) > 1e-4)
+    d = stab.dispersion(p, discrete=False, n_kappa=400)
+    if tc["trace_negative"]["holds"] and tc["det_positive"]["holds"]:
+        # uniform state stable; something grows iff diffusion destabilises (condition 3)
+        assert (d["regime"] != "stable") == tc["diffusion_driven"]["holds"]
+        assert d["regime"] != "unconditionally_unstable"
+    else:
+        assert d["regime"] == "unconditionally_unstable"
+
+
+def test_bad_input_is_rejected():
+    with pytest.raises(ValueError, match="eta_alpha"):
+        stab.dispersion(Params(eta_a=-1.0))
+    with pytest.raises(ValueError, match="I_a"):
+        stab.growth_rates(Params(I_a=0.0), [1.0], inertia=True)
+    with pytest.raises(ValueError, match="kappa"):
+        stab.growth_rates(Params(), [np.nan])
+    with pytest.raises(ValueError, match="n_cells"):
+        stab.dispersion(Params(), n_cells=0)
+
+
+def test_dispersion_is_json_ready():
+    import json
+    for inertia in (False, True):
+        d = stab.dispersion(Params(sigma=6 / 125), inertia=inertia, n_cells=16)
+        json.dumps(d, allow_nan=False)
+
+
+def test_plot_dispersion_agg():
+    ax = stab.plot_dispersion(Params(), inertia=True)
+    assert len(ax.get_lines()) >= 3
+    assert ax.get_xlabel().startswith("wavelength")
