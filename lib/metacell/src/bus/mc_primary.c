@@ -1,0 +1,394 @@
+/* Primary poll scheduler, command forwarding and SLCAN link (portable C99, no division, time passed in). */
+#include "mc_primary.h"
+#include "mc_crc8.h"
+
+#define QMASK (MC_PRIMARY_QLEN - 1)
+#if (MC_PRIMARY_QLEN & QMASK) != 0
+#error "MC_PRIMARY_QLEN must be a power of two"
+#endif
+
+static int due(uint32_t now, uint32_t t) { return (int32_t)(now - t) >= 0; }
+
+void mc_primary_init(mc_primary_t *p, uint32_t now_us)
+{
+    uint8_t *raw = (uint8_t *)p;
+    for (uint32_t k = 0; k < sizeof(*p); k++)
+        raw[k] = 0;
+    p->period_us = 0;
+    p->txn_timeout_us = MC_SCHED_TXN_TIMEOUT_US;
+    p->ack_timeout_us = MC_SCHED_ACK_TIMEOUT_US;
+    p->status_every = MC_SCHED_STATUS_EVERY;
+    p->last_us = now_us;
+}
+
+int mc_primary_configure(mc_primary_t *p, uint32_t period_us, uint32_t txn_timeout_us,
+                         uint32_t ack_timeout_us, uint32_t status_every)
+{
+    if (period_us > 10000000u || txn_timeout_us < 100u || txn_timeout_us > 100000u ||
+        ack_timeout_us < 1000u || ack_timeout_us > 10000000u || status_every < 16u ||
+        status_every > 65535u)
+        return -1;
+    p->period_us = period_us;
+    p->txn_timeout_us = txn_timeout_us;
+    p->ack_timeout_us = ack_timeout_us;
+    p->status_every = status_every;
+    return 0;
+}
+
+/* ms += (d + rem) / 1000 as a multiply-shift: floor(n / 1000) = (n * 274877907) >> 38,
+ * exact for n < 2^33; rem keeps the microseconds left over. */
+uint32_t mc_primary_ms(mc_primary_t *p, uint32_t now_us)
+{
+    uint64_t n = (uint64_t)(uint32_t)(now_us - p->last_us) + p->us_rem;
+    uint32_t q = (uint32_t)((n * 274877907u) >> 38);
+    p->last_us = now_us;
+    p->ms += q;
+    p->us_rem = (uint32_t)(n - (uint64_t)q * 1000u);
+    return p->ms;
+}
+
+static void push(mc_primary_t *p, uint32_t id, uint8_t dlc, const uint8_t *d)
+{
+    uint8_t nh = (uint8_t)((p->q_head + 1u) & QMASK);
+    if (nh == p->q_tail) {
+        p->tx_drop++;
+        return;
+    }
+    mc_can_frame_t *f = &p->q[p->q_head];
+    f->id = id;
+    f->dlc = dlc;
+    for (uint32_t k = 0; k < 8; k++)
+        f->data[k] = k < dlc ? d[k] : 0;
+    p->q_head = nh;
+}
+
+int mc_primary_pop(mc_primary_t *p, mc_can_frame_t *f)
+{
+    if (p->q_tail == p->q_head)
+        return 0;
+    *f = p->q[p->q_tail];
+    p->q_tail = (uint8_t)((p->q_tail + 1u) & QMASK);
+    return 1;
+}
+
+static void report(mc_primary_t *p, uint32_t j, uint8_t reg, uint8_t lseq, uint8_t result,
+                   uint8_t tries)
+{
+    uint8_t d[MC_CAN_CMD_RESULT_DLC];
+    d[MC_CAN_CMD_RESULT_REG] = reg;
+    d[MC_CAN_CMD_RESULT_SEQ] = lseq;
+    d[MC_CAN_CMD_RESULT_RESULT] = result;
+    d[MC_CAN_CMD_RESULT_RETRIES] = tries;
+    push(p, MC_CAN_CMD_RESULT + j, MC_CAN_CMD_RESULT_DLC, d);
+}
+
+static void reject(mc_primary_t *p, uint8_t reason, const mc_can_frame_t *f)
+{
+    uint8_t d[MC_CAN_PRIMARY_REJECT_DLC];
+    p->reject_count++;
+    d[MC_CAN_PRIMARY_REJECT_REASON] = reason;
+    mc_put_u32(d + MC_CAN_PRIMARY_REJECT_BAD_ID, f->id);
+    d[MC_CAN_PRIMARY_REJECT_BAD_DLC] = f->dlc;
+    mc_put_u16(d + MC_CAN_PRIMARY_REJECT_COUNT, p->reject_count);
+    push(p, MC_CAN_PRIMARY_REJECT, MC_CAN_PRIMARY_REJECT_DLC, d);
+}
+
+static void emit_status(mc_primary_t *p, uint32_t i)
+{
+    const mc_pcell_t *c = &p->cell[i];
+    uint8_t d[8];
+    if (c->seen) {
+        mc_put_u16(d + MC_CAN_CELL_STATUS_FAULTS, c->last_faults);
+        mc_put_u16(d + MC_CAN_CELL_STATUS_TICK_LO, (uint16_t)c->tick);
+        d[MC_CAN_CELL_STATUS_REJECTED] = c->rejected;
+        d[MC_CAN_CELL_STATUS_DEC_ERR_A] = c->dec_a;
+        d[MC_CAN_CELL_STATUS_DEC_ERR_B] = c->dec_b;
+        d[MC_CAN_CELL_STATUS_BUS_ERR] = c->bus_err;
+        push(p, MC_CAN_CELL_STATUS + i + 1, MC_CAN_CELL_STATUS_DLC, d);
+    }
+}
+
+static void emit_link(mc_primary_t *p, uint32_t i)
+{
+    const mc_pcell_t *c = &p->cell[i];
+    uint8_t d[8];
+    mc_put_u16(d + MC_CAN_CELL_LINK_NACK, c->nack);
+    mc_put_u16(d + MC_CAN_CELL_LINK_INTEGRITY, c->integrity);
+    mc_put_u16(d + MC_CAN_CELL_LINK_TIMEOUT, c->timeout);
+    mc_put_u16(d + MC_CAN_CELL_LINK_SKIPPED, c->skipped);
+    push(p, MC_CAN_CELL_LINK + i + 1, MC_CAN_CELL_LINK_DLC, d);
+}
+
+void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f)
+{
+    uint32_t id = f->id & MC_CAN_ID_MASK;
+    if ((f->id & (MC_CAN_EFF | MC_CAN_RTR)) || f->dlc > 8) {
+        reject(p, MC_RES_BAD_FRAME, f);
+        return;
+    }
+    if (id < MC_CAN_CMD || id >= MC_CAN_CMD_RESULT) {
+        reject(p, MC_RES_BAD_FRAME, f);   /* not a command id */
+        return;
+    }
+    uint32_t j = id - MC_CAN_CMD;
+    if (j < 1 || j > MC_N_CELLS) {
+        reject(p, MC_RES_NO_CELL, f);
+        return;
+    }
+    mc_pcell_t *c = &p->cell[j - 1];
+    uint8_t reg = f->dlc > 0 ? f->data[0] : 0;
+    uint8_t lseq = f->dlc > 1 ? f->data[1] : 0;
+    int plen = mc_proto_reg_len(reg);
+    uint8_t res = 0;
+    if (f->dlc < 2)
+        res = MC_RES_BAD_FRAME;
+    else if (plen < 0 || reg == MC_REG_POINTER)
+        res = MC_RES_REG;
+    else if (f->dlc != (uint32_t)plen + 2 && f->dlc != 8)   /* exact, or DBC-padded to 8 */
+        res = MC_RES_BAD_FRAME;
+    else if (c->cmd_state != MC_CMD_IDLE)
+        res = MC_RES_BUSY;
+    if (res) {
+        p->reject_count++;
+        report(p, j, reg, lseq, res, 0);
+        return;
+    }
+    c->cmd_reg = reg;
+    c->cmd_lseq = lseq;
+    c->cmd_len = (uint8_t)plen;
+    for (int k = 0; k < plen; k++)
+        c->cmd_payload[k] = f->data[2 + k];
+    c->cmd_tries = 0;
+    c->cmd_deadline = now_us + p->ack_timeout_us;
+    c->cmd_state = MC_CMD_PENDING;
+}
+
+static void start(mc_primary_t *p, uint32_t now, mc_txn_t *t)
+{
+    t->timeout_us = p->txn_timeout_us;
+    p->txn = *t;
+    p->txn_start = now;
+    p->busy = 1;
+}
+
+static void heartbeat(mc_primary_t *p)
+{
+    if (p->ms - p->hb_ms < 1000u)
+        return;
+    p->hb_ms = (p->ms - p->hb_ms < 2000u) ? p->hb_ms + 1000u : p->ms;
+    uint8_t d[8];
+    mc_put_u32(d + MC_CAN_PRIMARY_STATUS_UPTIME_MS, p->ms);
+    mc_put_u16(d + MC_CAN_PRIMARY_STATUS_CYCLES, p->cycles_window);
+    d[MC_CAN_PRIMARY_STATUS_SLCAN_ERR] = (uint8_t)p->slcan_err;
+    d[MC_CAN_PRIMARY_STATUS_TX_DROP] = p->tx_drop;
+    push(p, MC_CAN_PRIMARY_STATUS, MC_CAN_PRIMARY_STATUS_DLC, d);
+    p->cycles_window = 0;
+}
+
+int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
+{
+    mc_primary_ms(p, now);
+    if (p->busy)
+        return 0;
+    heartbeat(p);
+    /* command deadlines */
+    for (uint32_t i = 0; i < MC_N_CELLS; i++) {
+        mc_pcell_t *c = &p->cell[i];
+        if (c->cmd_state != MC_CMD_IDLE && due(now, c->cmd_deadline)) {
+            uint8_t r = (c->cmd_state == MC_CMD_PENDING && c->nack_streak) ? MC_RES_NACK
+                                                                             : MC_RES_TIMEOUT;
+            report(p, i + 1, c->cmd_reg, c->cmd_lseq, r, c->cmd_tries);
+            c->cmd_state = MC_CMD_IDLE;
+        }
+    }
+    /* pending writes first: S addr+W reg seq payload crc P */
+    for (uint32_t i = 0; i < MC_N_CELLS; i++) {
+        mc_pcell_t *c = &p->cell[i];
+        if (c->cmd_state != MC_CMD_PENDING || !c->seen)
+            continue;
+        uint8_t w = (uint8_t)(c->cell_seq + 1u);
+        if (w == 0)
+            w = 1;   /* 0 means "no write yet" in the snapshot */
+        c->cmd_wseq = w;
+        t->kind = MC_TXN_WRITE;
+        t->cell = (uint8_t)i;
+        t->addr = (uint8_t)(MC_ADDR_BASE + i);
+        t->len = (uint8_t)(c->cmd_len + MC_WRITE_OVERHEAD);
+        t->buf[0] = c->cmd_reg;
+        t->buf[1] = w;
+        for (uint32_t k = 0; k < c->cmd_len; k++)
+            t->buf[2 + k] = c->cmd_payload[k];
+        uint8_t hdr = (uint8_t)(t->addr << 1);
+        t->buf[t->len - 1] = mc_crc8_update(mc_crc8(&hdr, 1), t->buf, t->len - 1u);
+        start(p, now, t);
+        return 1;
+    }
+    /* round-robin snapshot reads */
+    if (!p->in_cycle) {
+        if (p->started && !due(now, p->cycle_start + p->period_us))
+            return 0;
+        /* keep the period's phase unless more than one period behind */
+        if (p->started && p->period_us && !due(now, p->cycle_start + 2 * p->period_us))
+            p->cycle_start += p->period_us;
+        else
+            p->cycle_start = now;
+        p->started = 1;
+        p->in_cycle = 1;
+        p->next = 0;
+    }
+    while (p->next < MC_N_CELLS) {
+        uint32_t i = p->next++;
+        mc_pcell_t *c = &p->cell[i];
+        c->seq++;
+        if (c->backoff) {
+            c->backoff--;
+            c->skipped++;
+            continue;
+        }
+        t->kind = MC_TXN_READ;
+        t->cell = (uint8_t)i;
+        t->addr = (uint8_t)(MC_ADDR_BASE + i);
+        t->len = MC_BLK_SNAPSHOT_LEN;
+        start(p, now, t);
+        return 1;
+    }
+    /* end of cycle: status and link frames of one cell per cycle, in rotation */
+    p->in_cycle = 0;
+    p->cycles++;
+    p->cycles_window++;
+    if (p->status_ctr < MC_N_CELLS) {
+        emit_status(p, p->status_ctr);
+        emit_link(p, p->status_ctr);
+    }
+    if (++p->status_ctr >= p->status_every)
+        p->status_ctr = 0;
+    return 0;
+}
+
+static void back_off(mc_pcell_t *c)
+{
+    uint32_t n = c->backoff_len ? 2u * c->backoff_len : 1u;
+    if (n > MC_SCHED_BACKOFF_MAX)
+        n = MC_SCHED_BACKOFF_MAX;
+    c->backoff_len = (uint8_t)n;
+    c->backoff = (uint8_t)n;
+}
+
+void mc_primary_complete(mc_primary_t *p, uint32_t now, int status, const uint8_t *rx,
+                         uint32_t len)
+{
+    if (!p->busy)
+        return;
+    p->busy = 0;
+    mc_pcell_t *c = &p->cell[p->txn.cell];
+    uint32_t j = p->txn.cell + 1u;
+    if (status == MC_I2C_OK && now - p->txn_start > p->txn.timeout_us)
+        status = MC_I2C_TIMEOUT;   /* late: treat as timed out, data may be stale */
+    if (status == MC_I2C_NACK_ADDR || status == MC_I2C_NACK_DATA) {
+        c->nack++;
+        if (c->nack_streak < 255)
+            c->nack_streak++;
+    } else if (status != MC_I2C_OK) {
+        c->timeout++;
+        back_off(c);
+    }
+    if (p->txn.kind == MC_TXN_WRITE) {
+        if (c->cmd_state != MC_CMD_PENDING)
+            return;
+        if (status == MC_I2C_OK) {
+            c->cmd_state = MC_CMD_AWAIT;
+            c->nack_streak = 0;
+        } else if (++c->cmd_tries > MC_SCHED_WRITE_RETRIES) {
+            report(p, j, c->cmd_reg, c->cmd_lseq,
+                   status == MC_I2C_NACK_ADDR || status == MC_I2C_NACK_DATA ? MC_RES_NACK
+                                                                             : MC_RES_TIMEOUT,
+                   c->cmd_tries);
+            c->cmd_state = MC_CMD_IDLE;
+        }
+        return;
+    }
+    if (status != MC_I2C_OK)
+        return;
+    /* integrity: length, tag, address, CRC (an all-0xFF read fails the tag) */
+    if (len != MC_BLK_SNAPSHOT_LEN || rx[MC_SNAPSHOT_TAG] != MC_BLK_SNAPSHOT_TAG ||
+        rx[MC_SNAPSHOT_ADDR] != p->txn.addr ||
+        mc_crc8(rx, MC_BLK_SNAPSHOT_LEN - 1) != rx[MC_SNAPSHOT_CRC]) {
+        c->integrity++;
+        return;
+    }
+    c->nack_streak = 0;
+    c->backoff_len = 0;
+    c->seen = 1;
+    c->cell_seq = rx[MC_SNAPSHOT_CMD_SEQ];
+    c->alpha = (int16_t)mc_get_i16(rx + MC_SNAPSHOT_ALPHA);
+    c->beta = (int16_t)mc_get_i16(rx + MC_SNAPSHOT_BETA);
+    c->tick = mc_get_u32(rx + MC_SNAPSHOT_TICK);
+    c->rejected = rx[MC_SNAPSHOT_REJECTED];
+    c->dec_a = rx[MC_SNAPSHOT_DEC_ERR_A];
+    c->dec_b = rx[MC_SNAPSHOT_DEC_ERR_B];
+    c->bus_err = rx[MC_SNAPSHOT_BUS_ERR];
+    uint8_t flags = rx[MC_SNAPSHOT_FLAGS];
+    uint16_t faults = mc_get_u16(rx + MC_SNAPSHOT_FAULTS);
+
+    uint8_t d[8];
+    d[MC_CAN_CELL_SAMPLE_SEQ] = c->seq;
+    d[MC_CAN_CELL_SAMPLE_ALPHA] = rx[MC_SNAPSHOT_ALPHA];
+    d[MC_CAN_CELL_SAMPLE_ALPHA + 1] = rx[MC_SNAPSHOT_ALPHA + 1];
+    d[MC_CAN_CELL_SAMPLE_BETA] = rx[MC_SNAPSHOT_BETA];
+    d[MC_CAN_CELL_SAMPLE_BETA + 1] = rx[MC_SNAPSHOT_BETA + 1];
+    mc_put_u16(d + MC_CAN_CELL_SAMPLE_T128, (uint16_t)(now >> 7));   /* 128 us units */
+    d[MC_CAN_CELL_SAMPLE_FLAGS] = flags;
+    push(p, MC_CAN_CELL_SAMPLE + j, MC_CAN_CELL_SAMPLE_DLC, d);
+
+    if (c->cmd_state == MC_CMD_AWAIT && c->cell_seq == c->cmd_wseq) {
+        report(p, j, c->cmd_reg, c->cmd_lseq, rx[MC_SNAPSHOT_CMD_RESULT], c->cmd_tries);
+        c->cmd_state = MC_CMD_IDLE;
+    }
+    /* status frame at once when faults or the steady flags change */
+    uint8_t steady = (uint8_t)(flags & (MC_CF_ENABLED | MC_CF_BEMF | MC_CF_FAULT));
+    if (faults != c->last_faults || steady != c->last_flags) {
+        c->last_faults = faults;
+        c->last_flags = steady;
+        emit_status(p, p->txn.cell);
+    }
+}
+
+void mc_link_init(mc_link_t *l, uint32_t now_us)
+{
+    mc_primary_init(&l->p, now_us);
+    mc_slcan_init(&l->s);
+}
+
+uint32_t mc_link_rx(mc_link_t *l, uint32_t now_us, const uint8_t *in, uint32_t n,
+                    uint32_t *used, char *out, uint32_t cap)
+{
+    uint32_t o = 0, k = 0;
+    for (; k < n && cap - o >= MC_SLCAN_REPLY_MAX; k++) {
+        mc_can_frame_t f;
+        char reply[MC_SLCAN_REPLY_MAX];
+        int ev = mc_slcan_rx(&l->s, in[k], &f, reply);
+        if (ev == MC_SLCAN_EV_FRAME)
+            mc_primary_can_rx(&l->p, now_us, &f);
+        for (uint32_t r = 0; reply[r]; r++)
+            out[o++] = reply[r];
+    }
+    l->p.slcan_err = l->s.errors;
+    if (used)
+        *used = k;
+    return o;
+}
+
+uint32_t mc_link_tx(mc_link_t *l, uint32_t now_us, char *out, uint32_t cap)
+{
+    uint32_t o = 0;
+    mc_can_frame_t f;
+    uint32_t ms = mc_primary_ms(&l->p, now_us);
+    while (l->p.q_tail != l->p.q_head) {
+        if (l->s.open && cap - o < MC_SLCAN_FRAME_MAX)
+            break;
+        mc_primary_pop(&l->p, &f);
+        if (l->s.open)
+            o += mc_slcan_encode(&l->s, &f, ms, out + o);
+    }
+    return o;
+}

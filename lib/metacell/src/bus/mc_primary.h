@@ -1,0 +1,122 @@
+/* Primary side: round-robin poll scheduler with per-transaction timeouts, command forwarding, CAN frames for the laptop. */
+#ifndef MC_PRIMARY_H
+#define MC_PRIMARY_H
+
+#include <stdint.h>
+#include "mc_proto.h"
+#include "mc_slcan.h"
+
+/*
+ * Time is passed in (now_us, a free-running 32-bit microsecond clock; all
+ * comparisons are on differences modulo 2^32). The I2C transport (Arduino Wire
+ * glue or the emulator's bus model) asks mc_primary_next() for the transaction
+ * to run, runs it, and reports with mc_primary_complete(). The transport must
+ * abort a transaction at txn.timeout_us; the library also treats a completion
+ * reported later than that as a timeout (the data may be stale).
+ *
+ * Schedule: a cycle polls cells 1..16 in order with one SNAPSHOT read each;
+ * cycles start every period_us (0: back to back). Pending command writes go
+ * first. A cell that times out is skipped for a back-off of 1, 2, 4 .. BACKOFF_MAX
+ * cycles (reset by its next good read); a NACK costs one address byte and is
+ * not backed off. So a missing, stuck or babbling cell costs at most one
+ * timeout per back-off period and never stalls the others.
+ *
+ * Per cell, every cycle slot advances a sequence counter; a good read emits
+ * CELL_SAMPLE with it, so the laptop sees failed polls and lost frames as gaps.
+ */
+#define MC_PRIMARY_QLEN 64        /* outgoing CAN frames */
+
+enum { MC_TXN_READ = 0, MC_TXN_WRITE = 1 };
+enum {
+    MC_I2C_OK = 0,
+    MC_I2C_NACK_ADDR = 1,   /* no cell answered its address */
+    MC_I2C_NACK_DATA = 2,   /* a data byte of a write was not acknowledged */
+    MC_I2C_TIMEOUT = 3,     /* transport gave up at the deadline (stuck bus) */
+    MC_I2C_BUS_ERROR = 4,   /* arbitration lost / bus error */
+};
+enum { MC_CMD_IDLE = 0, MC_CMD_PENDING = 1, MC_CMD_AWAIT = 2 };
+
+typedef struct {
+    uint8_t kind;          /* MC_TXN_READ / MC_TXN_WRITE */
+    uint8_t addr;          /* 7-bit */
+    uint8_t cell;          /* index 0..15 */
+    uint8_t len;           /* bytes to read / write */
+    uint8_t buf[MC_WRITE_MAX_LEN];   /* write bytes */
+    uint32_t timeout_us;
+} mc_txn_t;
+
+typedef struct {
+    uint16_t nack, integrity, timeout, skipped;   /* link counters (wrap) */
+    uint8_t seq;            /* cycle-slot counter */
+    uint8_t backoff;        /* cycles still to skip */
+    uint8_t backoff_len;    /* next back-off length */
+    uint8_t nack_streak;    /* consecutive NACKs */
+    uint8_t seen;           /* a good snapshot was read */
+    uint8_t cell_seq;       /* cmd_seq of the last good snapshot */
+    uint8_t last_flags;
+    uint16_t last_faults;
+    uint8_t rejected, dec_a, dec_b, bus_err;   /* low bytes of the cell counters */
+    /* command slot */
+    uint8_t cmd_state;
+    uint8_t cmd_reg, cmd_lseq, cmd_wseq, cmd_len, cmd_tries;
+    uint8_t cmd_payload[MC_REG_MAX_PAYLOAD];
+    uint32_t cmd_deadline;
+    /* last sample (for tools and tests) */
+    int16_t alpha, beta;
+    uint32_t tick;
+} mc_pcell_t;
+
+typedef struct {
+    mc_pcell_t cell[MC_N_CELLS];
+    uint32_t period_us, txn_timeout_us, ack_timeout_us;
+    uint32_t status_every, status_ctr;
+    /* schedule */
+    uint8_t in_cycle, next, busy, started;
+    uint32_t cycle_start;
+    mc_txn_t txn;
+    uint32_t txn_start;
+    uint32_t cycles;          /* completed cycles */
+    uint16_t cycles_window;   /* cycles since the last heartbeat */
+    uint16_t reject_count;
+    /* millisecond clock, kept without division */
+    uint32_t last_us, ms, us_rem, hb_ms;
+    /* outgoing frames */
+    mc_can_frame_t q[MC_PRIMARY_QLEN];
+    uint8_t q_head, q_tail;
+    uint8_t tx_drop;
+    uint16_t slcan_err;       /* copied in by the link */
+} mc_primary_t;
+
+void mc_primary_init(mc_primary_t *p, uint32_t now_us);
+/* period_us: cycle period (0 = as fast as the bus allows, <= 10 s);
+ * txn_timeout_us 100..100000; ack_timeout_us 1000..10000000; status_every 16..65535. */
+int mc_primary_configure(mc_primary_t *p, uint32_t period_us, uint32_t txn_timeout_us,
+                         uint32_t ack_timeout_us, uint32_t status_every);
+/* The transaction to start now, if any (returns 1 and fills *t). */
+int mc_primary_next(mc_primary_t *p, uint32_t now_us, mc_txn_t *t);
+/* Report the end of the transaction started by mc_primary_next. */
+void mc_primary_complete(mc_primary_t *p, uint32_t now_us, int status, const uint8_t *rx,
+                         uint32_t len);
+/* A frame from the laptop (commands); everything else is rejected and reported. */
+void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f);
+/* Pop one outgoing frame; 0 when the queue is empty. */
+int mc_primary_pop(mc_primary_t *p, mc_can_frame_t *f);
+uint32_t mc_primary_ms(mc_primary_t *p, uint32_t now_us);
+
+/* ---- the primary as an SLCAN device: parser + scheduler + encoder ---- */
+typedef struct {
+    mc_primary_t p;
+    mc_slcan_t s;
+} mc_link_t;
+
+void mc_link_init(mc_link_t *l, uint32_t now_us);
+/* Bytes from the laptop; replies are written to out (returns their length).
+ * cap >= MC_SLCAN_REPLY_MAX; input beyond what the replies fit is left unread:
+ * *used tells how many bytes were consumed. */
+uint32_t mc_link_rx(mc_link_t *l, uint32_t now_us, const uint8_t *in, uint32_t n,
+                    uint32_t *used, char *out, uint32_t cap);
+/* Encode queued frames into out (whole lines only); with the channel closed the
+ * queue is emptied without output. Returns the byte count. */
+uint32_t mc_link_tx(mc_link_t *l, uint32_t now_us, char *out, uint32_t cap);
+
+#endif /* MC_PRIMARY_H */
