@@ -181,8 +181,7 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
     # output times and segment boundaries (perturbation switch-on/off)
     n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
     t_out = np.arange(n_out) * dt_out_s
-    if t_end_s - t_out[-1] > 1e-9 * t_end_s:
-        t_out = np.append(t_out, t_end_s)
+    t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)   # t_end exactly, never beyond
     cuts = {0.0, t_end_s}
     for p in pert:
         for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
@@ -190,7 +189,7 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
                 cuts.add(tb)
     cuts = sorted(cuts)
 
-    ys = np.empty((len(t_out), 2 * n))
+    ys = np.full((len(t_out), 2 * n), np.nan)
     ys[0] = y0
     y = y0
     for t0, t1 in zip(cuts[:-1], cuts[1:]):
@@ -208,6 +207,9 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
                                  f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)")
         ys[sel] = sol.y[:, :sel.size].T
         y = sol.y[:, -1]
+
+    if not np.all(np.isfinite(ys)):            # every output row must have been written
+        raise ContinuumError("internal error: some output times were not reached by the integration")
 
     # linear interpolation of the grid to the cell centres x_c = j - 1/2
     xc = np.arange(cells) + 0.5
