@@ -72,6 +72,25 @@ double he_band_torque(const he_plant_t *p, int ch, int bond, double xs, double x
     return ks * p->band_scale * L * (fp - fm);
 }
 
+int he_plant_range_check(const he_plant_t *p, const double *x, int *where)
+{
+    if (p->bands != HE_BANDS_CUBIC)
+        return HE_OK;
+    for (int ch = 0; ch < 2; ch++) {
+        double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
+        const double *xc = x + ch * p->n;
+        for (int j = 0; j + 1 < p->n; j++) {
+            /* the longer band of the pair: delta0 + L*|x_j - x_j+1| (small-angle measure) */
+            if (p->delta0[ch] + p->lever[ch] * fabs(xc[j] - xc[j + 1]) > lim) {
+                if (where)
+                    *where = j + ch * p->n;
+                return HE_ERR_BAND;
+            }
+        }
+    }
+    return HE_OK;
+}
+
 void he_reaction(const he_plant_t *p, double al, double be, double *ra, double *rb)
 {
     /* psi'(x) = sign(x) * max(k2|x|, k1|x| - k1 a*)  (= the tri-linear law for k1 > k2) */

@@ -35,8 +35,10 @@ enum {
     HE_ERR_DIVERGED = -3,   /* |angle| beyond HE_ANGLE_LIMIT_RAD or |speed| beyond HE_SPEED_LIMIT */
     HE_ERR_STEP = -4,       /* step larger than the stable limit */
     HE_ERR_STEPPER = -5,    /* unknown stepper id */
+    HE_ERR_BAND = -6,       /* a band stretched beyond HE_BAND_STOP_FACTOR x the fit's range */
 };
-#define HE_ANGLE_LIMIT_RAD 10000
+#define HE_ANGLE_LIMIT_RAD 1000
+#define HE_BAND_STOP_FACTOR 2
 #define HE_SPEED_LIMIT_RAD_S 1000000
 
 typedef struct {
@@ -80,6 +82,10 @@ void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, 
 double he_band_torque(const he_plant_t *p, int chain, int bond, double x_self, double x_other);
 /* Ideal reaction torques R_a, R_b of SPEC 1.3. */
 void he_reaction(const he_plant_t *p, double alpha, double beta, double *ra, double *rb);
+/* Cubic bands: HE_ERR_BAND if some stretch exceeds HE_BAND_STOP_FACTOR * delta_max
+ * (the motion left the range where the band law means anything), else HE_OK.
+ * *where = 0-based bond index (+ n for the beta chain). */
+int he_plant_range_check(const he_plant_t *p, const double *x, int *where);
 /* Upper bounds used for the stable step limit: per chain the largest
  * stiffness/inertia w2 (1/s^2), the smallest and largest damping/inertia c (1/s),
  * and for the overdamped system the largest stiffness/damping rate (1/s). */

@@ -1,5 +1,6 @@
 /* Steppers for the plant: explicit Euler, semi-implicit (symplectic) Euler, RK4 (equations in he_step.h). */
 #include <math.h>
+#include <stddef.h>
 #include "he_step.h"
 
 int he_state_check(int n2, const double *x, const double *v)
@@ -121,5 +122,6 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
         }
     }
     *t = t0 + (double)nsteps * h;
-    return he_state_check(n2, x, v);
+    int rc = he_state_check(n2, x, v);
+    return rc != HE_OK ? rc : he_plant_range_check(p, x, NULL);
 }

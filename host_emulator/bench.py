@@ -1,0 +1,48 @@
+"""Speed benchmark: real-time factor of a scene (default: the 16-cell hil default) pinned to one core."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+
+
+def bench_main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator bench-speed",
+                                 description="Print the real-time factor (simulated s per wall s) of a scene.")
+    ap.add_argument("scene", nargs="?", default="default")
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs (the median is reported)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--cpu", type=int, default=None, help="pin to this CPU (default: the first allowed one)")
+    args = ap.parse_args(argv)
+
+    from .controller import run_solver
+    from .firmware import load
+    from .models import make_model
+    from .scene import load_scene
+
+    if hasattr(os, "sched_setaffinity"):
+        cpus = sorted(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {args.cpu if args.cpu is not None else cpus[0]})
+    scene = load_scene(args.scene, args.set)
+    load()  # compile outside the timing
+    walls = []
+    for _ in range(max(1, args.repeat)):
+        model = make_model(scene.model, scene.params, scene.perturbations, scene.options)
+        t0 = time.perf_counter()
+        res = run_solver(model.solver(), scene.t_end_s)
+        walls.append(time.perf_counter() - t0)
+    wall = statistics.median(walls)
+    sim = float(res.t[-1])
+    info = res.info
+    print(f"scene {scene.name} ({scene.model}, {scene.cells} cells, {sim:g} s simulated) on one core "
+          f"[{platform.processor() or platform.machine()}, python {platform.python_version()}]")
+    if scene.model == "hil":
+        print(f"  control rate {info['control_rate_hz']} Hz, {info['substeps_per_tick']} plant step(s) per tick "
+              f"({info['stepper']}), output every {info['dt_out_s']} s")
+    print(f"  wall per run: median {wall * 1e3:.1f} ms (min {min(walls) * 1e3:.1f}, max {max(walls) * 1e3:.1f}, "
+          f"{len(walls)} runs)")
+    print(f"  realtime factor: {sim / wall:.0f}x (requirement: >= 100x)")
+    return 0 if sim / wall >= 100 or scene.name != "default" else 1

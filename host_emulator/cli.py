@@ -1,0 +1,155 @@
+"""Command line: `python -m host_emulator scenes | run SCENE | dispersion ... | bench-speed`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _clean(v):
+    """JSON-ready: numpy scalars/arrays to Python, non-finite floats to None (never NaN in a summary)."""
+    if isinstance(v, dict):
+        return {str(k): _clean(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_clean(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return [_clean(x) for x in v.tolist()]
+    if isinstance(v, (np.bool_, bool)):
+        return bool(v)
+    if isinstance(v, (np.integer, int)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v) if math.isfinite(v) else None
+    return v
+
+
+DISPERSION_KEYS = ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s",
+                   "unstable_band_cells")
+
+
+def summarize(scene, res) -> dict:
+    """summary.json content: run figures, observables of the trajectories, dispersion of the scene's params."""
+    from .analysis.observables import observables
+
+    obs = observables(res.t, res.alpha, res.beta)
+    inertia = scene.options.inertia and scene.model != "continuum"
+    try:
+        from .analysis.stability import dispersion
+
+        disp = dispersion(scene.params, inertia=inertia, n_cells=scene.cells)
+        disp = {k: disp.get(k) for k in DISPERSION_KEYS} | {"inertia": inertia}
+    except ImportError:
+        disp = None
+    out = {
+        "scene": scene.name,
+        "model": scene.model,
+        "t_end_s": float(res.t[-1]),
+        "wall_s": res.wall_s,
+        "realtime_factor": res.realtime_factor,
+        **obs,
+        "dispersion": disp,
+        "solver": res.info,
+        "params": scene.as_dict()["params"],
+        "model_options": scene.as_dict()["model_options"],
+        "perturbation": scene.as_dict()["perturbation"],
+    }
+    return _clean(out)
+
+
+def cmd_scenes(args) -> int:
+    from .scene import list_scenes
+
+    for name, model, desc in list_scenes():
+        print(f"{name:22s} {model:9s} {desc}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from .controller import run_scene
+    from .models import ConfigError, NumericalInstability
+    from .plots import plot_run
+    from .scene import load_scene
+
+    try:
+        scene = load_scene(args.scene, args.set)
+    except (ConfigError, KeyError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    out = Path(args.out or Path("out") / scene.name)
+    try:
+        res = run_scene(scene, progress=not args.quiet)
+    except NumericalInstability as e:
+        print(f"error: run stopped: {e}", file=sys.stderr)
+        return 3
+    except (ConfigError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    summary = summarize(scene, res)
+    np.savez_compressed(out / "trajectories.npz", t=res.t, alpha=res.alpha, beta=res.beta)
+    files = [] if args.no_plots else plot_run(res, scene, out, inertia=summary["dispersion"]["inertia"]
+                                             if summary["dispersion"] else False)
+    summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    _print_summary(summary, out, files)
+    return 0
+
+
+def _fmt(v, unit="", nd=4):
+    if v is None:
+        return "none"
+    if isinstance(v, float):
+        return f"{v:.{nd}g}{unit}"
+    return f"{v}{unit}"
+
+
+def _print_summary(s, out, files):
+    d = s.get("dispersion") or {}
+    print(f"scene {s['scene']} ({s['model']}): {s['t_end_s']:.3g} s simulated in {s['wall_s']:.3g} s "
+          f"wall ({s['realtime_factor']:.0f}x real time)")
+    print(f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
+          f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}")
+    print("  final alpha (rad): " + " ".join(f"{v:+.2f}" for v in s["final_alpha_rad"]))
+    if d:
+        print(f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
+              f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, growth {_fmt(d.get('fastest_growth_per_s'), '/s')}")
+    print(f"  wrote {out}/summary.json, trajectories.npz" + ("" if not files else ", plots: " +
+                                                              ", ".join(str(f) for f in files)))
+
+
+def cmd_bench(args) -> int:
+    from .bench import bench_main
+
+    return bench_main(args.rest)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "dispersion":
+        from .analysis.cli import dispersion_main
+
+        return dispersion_main(argv[1:])
+    if argv and argv[0] in ("bench-speed", "bench"):
+        from .bench import bench_main
+
+        return bench_main(argv[1:])
+    ap = argparse.ArgumentParser(prog="python -m host_emulator",
+                                 description="Host emulator of the robotic metamaterial (SPEC 1-2).")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("scenes", help="list the shipped scenes")
+    r = sub.add_parser("run", help="run a scene (shipped name or .toml path)")
+    r.add_argument("scene")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key, e.g. params.sigma=0.048, model_options.inertia=false, t_end_s=5")
+    r.add_argument("--out", default=None, help="output directory (default out/<scene>)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
+    sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
+    args = ap.parse_args(argv)
+    return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

@@ -1,0 +1,74 @@
+"""Controller: runs a model's solver to t_end, feeding every output sample to the trackers (py-pde style)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .models import NumericalInstability, make_model
+from .trackers import ProgressTracker, RecordTracker, Tracker
+
+
+@dataclass
+class RunResult:
+    t: np.ndarray
+    alpha: np.ndarray       # (T, N) rad
+    beta: np.ndarray        # (T, N) rad
+    wall_s: float
+    info: dict = field(default_factory=dict)
+
+    @property
+    def realtime_factor(self) -> float:
+        return float(self.t[-1] / self.wall_s) if self.wall_s > 0 else float("inf")
+
+
+def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResult:
+    """Sample at t = 0, dt_out, ..., t_end (rounded to whole output intervals)."""
+    if not (t_end_s > 0 and np.isfinite(t_end_s)):
+        raise ValueError(f"t_end_s = {t_end_s!r}: must be a positive number")
+    rec = RecordTracker()
+    trackers = [rec, *trackers]
+    t0 = time.perf_counter()
+    if hasattr(solver, "run_all"):
+        t, a, b = solver.run_all(t_end_s)
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+            raise NumericalInstability(f"{solver.model.name}: non-finite state in the output")
+        for tr in trackers:
+            tr.start(solver, t_end_s, len(t))
+        for k in range(len(t)):
+            for tr in trackers:
+                tr.sample(t[k], a[k], b[k])
+    else:
+        n_out = max(1, round(t_end_s / solver.dt_out))
+        for tr in trackers:
+            tr.start(solver, n_out * solver.dt_out, n_out + 1)
+        a, b = solver.state()
+        for tr in trackers:
+            tr.sample(0.0, a, b)
+        try:
+            for _ in range(n_out):
+                solver.advance()
+                a, b = solver.state()
+                for tr in trackers:
+                    tr.sample(solver.t, a, b)
+        finally:
+            for tr in trackers[1:]:
+                tr.finish()
+    wall = time.perf_counter() - t0
+    t, a, b = rec.result()
+    return RunResult(t, a, b, wall, solver.info())
+
+
+def run_scene(scene, *, progress: bool = True, trackers: list[Tracker] = ()) -> RunResult:
+    """Build the scene's model, run it and return the recorded trajectories."""
+    model = make_model(scene.model, scene.params, scene.perturbations, scene.options)
+    solver = model.solver()
+    extra = list(trackers)
+    if progress:
+        extra.append(ProgressTracker())
+    res = run_solver(solver, scene.t_end_s, extra)
+    if hasattr(solver, "faults"):
+        res.info["cell_faults"] = solver.faults()
+    return res

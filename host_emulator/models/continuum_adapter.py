@@ -1,0 +1,50 @@
+"""Continuum model adapter: wraps simulate_continuum (models/continuum.py) behind the controller's solver interface."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .options import ModelOptions, Perturbation
+from .plant import NumericalInstability
+
+
+class ContinuumModel:
+    name = "continuum"
+
+    def __init__(self, params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+        self.params = params
+        self.n = params.cells
+        self.options = options or ModelOptions()
+        self.perturbations = list(perturbations)
+
+    def solver(self):
+        return ContinuumSolver(self)
+
+
+class ContinuumSolver:
+    """Batch solver: the whole run happens in one call (scipy BDF inside simulate_continuum)."""
+
+    def __init__(self, model: ContinuumModel):
+        self.model = model
+        self.dt_out = model.options.dt_out
+
+    def info(self) -> dict:
+        return {"stepper": "scipy BDF (continuum)", "dt_out_s": self.dt_out,
+                "points_per_cell": self.model.options.points_per_cell}
+
+    def run_all(self, t_end_s: float):
+        try:
+            from .continuum import simulate_continuum
+        except ImportError as e:  # pragma: no cover - only while the module is missing
+            raise RuntimeError(f"continuum model unavailable: {e}") from e
+        m = self.model
+        try:
+            t, a, b = simulate_continuum(m.params, m.n, t_end_s, [q.as_dict() for q in m.perturbations],
+                                         dt_out_s=self.dt_out, points_per_cell=m.options.points_per_cell)
+        except (ArithmeticError, FloatingPointError) as e:
+            raise NumericalInstability(f"continuum: {e}") from e
+        except RuntimeError as e:
+            if type(e).__name__ == "ContinuumError":
+                raise NumericalInstability(f"continuum: {e}") from e
+            raise
+        return np.asarray(t), np.asarray(a), np.asarray(b)

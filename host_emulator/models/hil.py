@@ -1,0 +1,187 @@
+"""Hardware-in-the-loop model: the lattice plant driven by the compiled cell firmware through motors, drivers and encoders."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import params as P
+from ..params import Params
+from .lattice import LatticeModel
+from .options import ModelOptions, Perturbation
+from .plant import NumericalInstability, choose_step, error_text
+
+
+def firmware_config(ffi, lib, params: Params):
+    """(mc_reaction_phys_t, mc_drive_config_t) from Params: gains in uN*m/rad, a* in urad, volts in mV."""
+    phys = ffi.new("mc_reaction_phys_t *")
+    phys.k_ab_unm = round(params.k_ab * 1e6)
+    phys.sigma_unm = round(params.sigma * 1e6)
+    phys.k1_unm = round(params.k1 * 1e6)
+    phys.k2_unm = round(params.k2 * 1e6)
+    phys.astar_urad = round(params.alpha_star * 1e6)
+    drv = ffi.new("mc_drive_config_t *")
+    lib.mc_drive_default_config(drv)
+    drv.supply_mv = round(params.supply_v * 1000)
+    drv.vmax_mv = round(params.vmax_v * 1000)
+    drv.kt_unm_per_v = round(params.kt * 1e6)
+    drv.kv_mrad_per_vs = round(params.speed_const * 1000)
+    drv.pwm_top = int(params.pwm_top)
+    drv.ctrl_rate_hz = round(params.control_rate_hz)
+    drv.vel_window_log2 = -1
+    return phys, drv
+
+
+class HilModel(LatticeModel):
+    """Lattice + DRV8874/motor (tau = Kt (V - omega/S_L), PWM duty quantised to pwm_top, DIR, 5.86 V cap in the
+    firmware), 400-count quadrature encoders feeding mc_quad_update, and one compiled mc_cell_t per cell ticking
+    at params.control_rate_hz. The reaction torque reaches the plant only through the motors."""
+
+    name = "hil"
+    ideal_reaction = False
+
+    def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+        super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [],
+                         options)
+        self.all_perturbations = list(perturbations)
+        self.phys, self.drive_cfg = firmware_config(self.ffi, self.lib, params)
+        # trial configuration, so bad parameters fail here with the firmware's verdict
+        c = self.ffi.new("mc_cell_t *")
+        self.lib.mc_cell_init(c)
+        if self.lib.mc_cell_set_params(c, self.phys) != self.lib.MC_OK:
+            raise ValueError("firmware rejected the reaction parameters (|k| <= 0.25 N*m/rad, 0 <= alpha_star <= 2 pi, "
+                             f"k1 > max(k2, 0)): k_ab={params.k_ab}, sigma={params.sigma}, k1={params.k1}, "
+                             f"k2={params.k2}, alpha_star={params.alpha_star}")
+        if self.lib.mc_cell_set_drive(c, self.drive_cfg) != self.lib.MC_OK:
+            raise ValueError("firmware rejected the drive configuration (control_rate_hz 100..50000, pwm_top "
+                             f"255..4095, vmax_v <= 5.86 and <= supply_v): control_rate_hz={params.control_rate_hz}, "
+                             f"pwm_top={params.pwm_top}, vmax_v={params.vmax_v}, supply_v={params.supply_v}")
+        self.rate_hz = int(self.drive_cfg.ctrl_rate_hz)
+
+    def step_limit(self, stepper: str | None = None) -> tuple[float, str]:
+        """The smaller of the limits with every motor driving (back-EMF damping Kt/S_L on) and coasting."""
+        lims = []
+        for g in (0.0, self.params.kt):
+            for ch in range(2):
+                for j in range(self.n):
+                    self.plant.mgain[ch][j] = g
+            lims.append(super().step_limit(stepper))
+        return min(lims)
+
+    def solver(self, x0=None, v0=None) -> "HilSolver":
+        return HilSolver(self, x0, v0)
+
+
+class HilSolver:
+    """Runs whole control ticks in C (he_hil_run); Python only applies firmware perturbation commands."""
+
+    def __init__(self, model: HilModel, x0=None, v0=None):
+        from .steppers import stepper_id
+
+        self.model = model
+        ffi, lib = model.ffi, model.lib
+        opt = model.options
+        n = model.n
+        self.stepper = opt.stepper
+        self.sid = stepper_id(lib, opt.stepper)
+        self.limit, self.limit_chain = model.step_limit()
+        tick = 1.0 / model.rate_hz
+        if opt.substeps is not None:
+            self.substeps = opt.substeps
+            if tick / self.substeps > self.limit:
+                raise ValueError(f"model_options.substeps = {opt.substeps}: plant step {tick / opt.substeps:.4g} s "
+                                 f"exceeds the stable limit {self.limit:.4g} s of stepper {opt.stepper!r} "
+                                 f"({self.limit_chain} chain)")
+        else:
+            _, self.substeps = choose_step(self.limit, tick, opt.dt, opt.stepper, self.limit_chain)
+        self.ticks_per_out = max(1, round(opt.dt_out * model.rate_hz))
+        self.dt_out = self.ticks_per_out / model.rate_hz
+        nz = opt.noise
+        self.cells = ffi.new("mc_cell_t[]", n)
+        self.quad = ffi.new("mc_quad_t[]", 2 * n)
+        self.count = ffi.new("int32_t[]", 2 * n)
+        for j in range(n):
+            c = self.cells + j
+            lib.mc_cell_init(c)
+            lib.mc_cell_set_params(c, model.phys)
+            lib.mc_cell_set_drive(c, model.drive_cfg)
+            lib.mc_cell_set_bemf(c, 1 if model.params.bemf_comp else 0)
+        h = ffi.new("he_hil_t *")
+        h.n = n
+        h.substeps = self.substeps
+        h.stepper = self.sid
+        h.tick_s = tick
+        h.supply_v = model.params.supply_v
+        h.kt = model.params.kt
+        h.counts_per_rad = P.COUNTS_PER_REV / (2 * math.pi)
+        h.jitter_counts = nz.encoder_jitter_counts
+        h.glitch_prob = nz.encoder_glitch_prob
+        h.rng = (nz.seed * 0x9E3779B97F4A7C15 + 0x2545F4914F6CDD1D) % (1 << 64) or 1
+        h.plant = model.plant
+        h.cells = self.cells
+        h.quad = self.quad
+        h.count = self.count
+        self.h = h
+        n2 = 2 * n
+        self.x = np.zeros(n2) if x0 is None else np.array(x0, dtype=float).reshape(n2)
+        self.v = np.zeros(n2) if v0 is None else np.array(v0, dtype=float).reshape(n2)
+        self._px = ffi.from_buffer("double[]", self.x)
+        self._pv = ffi.from_buffer("double[]", self.v)
+        self._pt = ffi.new("double *", 0.0)
+        lib.he_hil_sync_encoders(h, self._px)
+        for j in range(n):
+            # the angle origin (rest) is the encoders' zero; drivers on
+            lib.mc_cell_zero(self.cells + j, 0, 0)
+            lib.mc_cell_enable(self.cells + j, 1)
+        self.events = []
+        if opt.perturb_via == "firmware":
+            for q in model.all_perturbations:
+                unm = round(q.torque_Nm * 1e6)
+                if abs(unm) > 131000:
+                    raise ValueError(f"perturbation torque {q.torque_Nm} N*m: the firmware accepts |torque| <= 0.131 N*m")
+                k0 = round(q.start_s * model.rate_hz)
+                self.events.append((k0, q.cell - 1, 0 if q.chain == "alpha" else 1, unm,
+                                    max(1, round(q.duration_s * model.rate_hz))))
+            self.events.sort()
+        self.tick = 0
+        self.t = 0.0
+
+    def info(self) -> dict:
+        return {"stepper": self.stepper, "dt_s": 1.0 / self.model.rate_hz / self.substeps,
+                "substeps_per_tick": self.substeps, "control_rate_hz": self.model.rate_hz,
+                "stable_step_limit_s": self.limit, "limit_chain": self.limit_chain, "dt_out_s": self.dt_out,
+                "perturb_via": self.model.options.perturb_via,
+                "faults": int(self.h.fault_or), "encoder_errors": self.encoder_errors(),
+                "glitches_injected": int(self.h.glitches)}
+
+    def encoder_errors(self) -> int:
+        return int(sum(self.quad[i].errors for i in range(2 * self.model.n)))
+
+    def faults(self) -> list[int]:
+        return [int(self.cells[j].faults) for j in range(self.model.n)]
+
+    def state(self):
+        n = self.model.n
+        return self.x[:n].copy(), self.x[n:].copy()
+
+    def _run(self, nt):
+        lib = self.model.lib
+        self._pt[0] = self.tick / self.model.rate_hz
+        rc = lib.he_hil_run(self.h, nt, self._pt, self._px, self._pv)
+        if rc != lib.HE_OK:
+            raise NumericalInstability(
+                f"hil: {error_text(lib, rc)} at t = {self._pt[0]:.6g} s (stepper {self.stepper}, "
+                f"{self.substeps} plant steps per control tick, stable limit {self.limit:.3g} s); numerically unstable")
+        self.tick += nt
+
+    def advance(self):
+        lib = self.model.lib
+        end = self.tick + self.ticks_per_out
+        while self.tick < end:
+            while self.events and self.events[0][0] <= self.tick:
+                _, j, ch, unm, nt = self.events.pop(0)
+                lib.mc_cell_perturb(self.cells + j, ch, unm, nt)
+            nxt = min([end] + [e[0] for e in self.events if e[0] > self.tick])
+            self._run(nxt - self.tick)
+        self.t = self.tick / self.model.rate_hz

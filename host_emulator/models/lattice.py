@@ -1,0 +1,96 @@
+"""Lattice model (SPEC 1): discrete equations of motion with the ideal floating-point reaction, stepped in C."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..params import Params
+from .options import ModelOptions, Perturbation
+from .plant import NumericalInstability, build_plant, choose_step, error_text, step_limit
+from .steppers import stepper_id
+
+
+class LatticeModel:
+    """Physics only: the rate function of SPEC 1 (bands, honey, ideal R, perturbations).
+
+    Switches (ModelOptions): inertia on/off, bands cubic/linear, beta small/geometric.
+    ``forces(t, x)`` returns (F, C) with I x'' = F - C x' (or C x' = F when overdamped).
+    """
+
+    name = "lattice"
+    ideal_reaction = True
+
+    def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+        from .. import firmware
+
+        self.params = params
+        self.n = params.cells
+        self.options = options or ModelOptions()
+        self.perturbations = list(perturbations)
+        self.ffi, self.lib = firmware.load()
+        self.plant = build_plant(self.ffi, self.lib, params, self.options, self.n, self.perturbations,
+                                 ideal_reaction=self.ideal_reaction)
+
+    def forces(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = np.ascontiguousarray(x, dtype=float)
+        if x.shape != (2 * self.n,):
+            raise ValueError(f"state must have shape ({2 * self.n},), got {x.shape}")
+        F = np.empty(2 * self.n)
+        C = np.empty(2 * self.n)
+        ffi = self.ffi
+        self.lib.he_plant_forces(self.plant, float(t), ffi.from_buffer("double[]", x),
+                                 ffi.from_buffer("double[]", F), ffi.from_buffer("double[]", C))
+        return F, C
+
+    def step_limit(self, stepper: str | None = None) -> tuple[float, str]:
+        sid = stepper_id(self.lib, stepper or self.options.stepper)
+        return step_limit(self.ffi, self.lib, self.plant, sid)
+
+    def solver(self, x0=None, v0=None) -> "LatticeSolver":
+        return LatticeSolver(self, x0, v0)
+
+
+class LatticeSolver:
+    """Advances a LatticeModel one output interval at a time with the chosen compiled stepper."""
+
+    def __init__(self, model: LatticeModel, x0=None, v0=None):
+        self.model = model
+        opt = model.options
+        self.stepper = opt.stepper
+        self.sid = stepper_id(model.lib, opt.stepper)
+        self.limit, self.limit_chain = model.step_limit()
+        self.dt_out = opt.dt_out
+        self.h, self.nsub = choose_step(self.limit, self.dt_out, opt.dt, opt.stepper, self.limit_chain)
+        n2 = 2 * model.n
+        self.x = np.zeros(n2) if x0 is None else np.array(x0, dtype=float).reshape(n2)
+        self.v = np.zeros(n2) if v0 is None else np.array(v0, dtype=float).reshape(n2)
+        self.t = 0.0
+        self.k = 0
+        ffi = model.ffi
+        self._px = ffi.from_buffer("double[]", self.x)
+        self._pv = ffi.from_buffer("double[]", self.v)
+        self._pt = ffi.new("double *", 0.0)
+
+    def info(self) -> dict:
+        return {"stepper": self.stepper, "dt_s": self.h, "steps_per_sample": self.nsub,
+                "stable_step_limit_s": self.limit, "limit_chain": self.limit_chain, "dt_out_s": self.dt_out}
+
+    def state(self):
+        n = self.model.n
+        return self.x[:n].copy(), self.x[n:].copy()
+
+    def _raise(self, rc, t):
+        raise NumericalInstability(
+            f"{self.model.name}: {error_text(self.model.lib, rc)} at t = {t:.6g} s "
+            f"(stepper {self.stepper}, step {self.h:.3g} s, stable limit {self.limit:.3g} s); "
+            "the run is unstable (physically, if the linear analysis predicts growth for these parameters, "
+            "else numerically: reduce model_options.dt)")
+
+    def advance(self):
+        """One output interval."""
+        self.k += 1
+        self._pt[0] = (self.k - 1) * self.dt_out
+        rc = self.model.lib.he_advance(self.model.plant, self.sid, self.h, self.nsub, self._pt, self._px, self._pv)
+        if rc != self.model.lib.HE_OK:
+            self._raise(rc, self._pt[0])
+        self.t = self.k * self.dt_out

@@ -1,0 +1,107 @@
+"""Fill the compiled plant (he_plant_t) from Params, model options, perturbations and seeded spreads."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import params as P
+from ..params import Params
+from .options import ModelOptions, Perturbation
+
+
+class NumericalInstability(RuntimeError):
+    """The integration left the finite/physical range; the message names the cause."""
+
+
+def spreads(params: Params, options: ModelOptions, n: int):
+    """Per-bond band-stiffness factors (2, n) and per-cell eta factors (2, n) from the seeded noise options.
+
+    Factor = max(0.2, 1 + s * N(0, 1)). Honey (eta_spread) is on the alpha chain only.
+    """
+    nz = options.noise
+    rng = np.random.default_rng(nz.seed)
+    band = np.ones((2, n))
+    eta = np.ones((2, n))
+    if nz.band_spread > 0:
+        band[:, : n - 1] = np.maximum(0.2, 1 + nz.band_spread * rng.standard_normal((2, n - 1)))
+    if nz.eta_spread > 0:
+        eta[0] = np.maximum(0.2, 1 + nz.eta_spread * rng.standard_normal(n))
+    return band, eta
+
+
+def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
+                perturbations: list[Perturbation], *, ideal_reaction: bool):
+    """A new he_plant_t (cffi owned) for n cells. Raises ValueError if the C side rejects it."""
+    if not 1 <= n <= lib.HE_MAX_CELLS:
+        raise ValueError(f"cells = {n}: must be in 1..{lib.HE_MAX_CELLS}")
+    if len(perturbations) > lib.HE_MAX_PERT:
+        raise ValueError(f"{len(perturbations)} perturbations: at most {lib.HE_MAX_PERT}")
+    p = ffi.new("he_plant_t *")
+    p.n = n
+    p.inertia = 1 if options.inertia else 0
+    p.bands = lib.HE_BANDS_CUBIC if options.bands == "cubic" else lib.HE_BANDS_LINEAR
+    p.beta_geometry = lib.HE_BETA_GEOMETRIC if options.beta_geometry == "geometric" else lib.HE_BETA_SMALL
+    p.reaction = lib.HE_REACT_IDEAL if ideal_reaction else lib.HE_REACT_NONE
+    p.slack_f0 = 1 if params.slack_f0 else 0
+    p.I = [params.I_a, params.I_b]
+    p.k_lin = [params.k_a, params.k_b]
+    p.band_scale = params.band_scale
+    p.lever = [P.R_ALPHA_M, P.R_BETA_ARM_M]
+    p.lattice_m = P.LATTICE_M
+    p.delta0 = [P.DELTA_A0_M, P.DELTA_B0_M]
+    p.delta_max = [0.3 * P.L_ALPHA_M, 0.3 * P.L_BETA_M]
+    p.coef = [list(P.BAND_A_COEF), list(P.BAND_B_COEF)]
+    p.k_ab, p.sigma, p.k1, p.k2, p.astar = params.k_ab, params.sigma, params.k1, params.k2, params.alpha_star
+    p.speed_const = params.speed_const
+    band, eta = spreads(params, options, n)
+    for j in range(n):
+        p.eta[0][j] = params.eta_alpha * eta[0, j]
+        p.eta[1][j] = params.eta_beta * eta[1, j]
+        p.kscale[0][j] = band[0, j]
+        p.kscale[1][j] = band[1, j]
+    p.npert = len(perturbations)
+    for i, q in enumerate(perturbations):
+        e = p.pert[i]
+        e.cell = q.cell - 1
+        e.chain = 0 if q.chain == "alpha" else 1
+        e.torque = q.torque_Nm
+        e.t0 = q.start_s
+        e.t1 = q.start_s + q.duration_s
+    if lib.he_plant_check(p) != lib.HE_OK:
+        raise ValueError("plant parameters rejected (non-positive inertia/damping or non-finite value); "
+                         f"check I_a={params.I_a}, I_b={params.I_b}, eta_a={params.eta_a}, gamma={params.gamma}, "
+                         f"eta_scale={params.eta_scale}")
+    return p
+
+
+def step_limit(ffi, lib, plant, stepper: int) -> tuple[float, str]:
+    """(largest stable step in s, which chain limits it)."""
+    ch = ffi.new("int *")
+    h = lib.he_step_limit(plant, stepper, ch)
+    return float(h), ("alpha", "beta", "none")[ch[0]] if ch[0] >= 0 else "none"
+
+
+def error_text(lib, rc: int) -> str:
+    return {
+        lib.HE_ERR_NONFINITE: "state became NaN/inf",
+        lib.HE_ERR_DIVERGED: f"state diverged (|angle| > {lib.HE_ANGLE_LIMIT_RAD} rad or "
+                             f"|speed| > {lib.HE_SPEED_LIMIT_RAD_S} rad/s)",
+        lib.HE_ERR_BAND: (f"a band stretched beyond {lib.HE_BAND_STOP_FACTOR}x the cubic fit's range "
+                          "(30% strain): the motion grew out of the physical range"),
+        lib.HE_ERR_ARG: "invalid plant configuration",
+        lib.HE_ERR_STEPPER: "unknown stepper id",
+    }.get(rc, f"error {rc}")
+
+
+def choose_step(limit: float, span: float, dt_max: float | None, stepper: str, chain: str,
+                what: str = "model_options.dt") -> tuple[float, int]:
+    """Split `span` (s) into m equal steps h <= dt_max (or <= limit/4 when dt_max is None).
+
+    A requested dt above the stable limit is refused with an error naming the limit."""
+    if dt_max is not None and dt_max > limit:
+        raise ValueError(f"{what} = {dt_max:g} s exceeds the stable step limit {limit:.4g} s of stepper "
+                         f"{stepper!r} (stiffest mode on the {chain} chain: inertia/stiffness/damping); "
+                         f"use dt <= {limit:.4g}")
+    target = dt_max if dt_max is not None else limit / 4
+    m = max(1, int(np.ceil(span / target - 1e-9)))
+    return span / m, m

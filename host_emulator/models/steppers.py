@@ -1,0 +1,42 @@
+"""Registry of the compiled plant's time steppers, by name (the C side is host_emulator/csrc/he_step.c)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class StepperInfo:
+    name: str
+    cid: str          # name of the HE_STEP_* constant in the compiled module
+    order: int
+    description: str
+
+
+STEPPERS: dict[str, StepperInfo] = {}
+
+
+def register(info: StepperInfo) -> StepperInfo:
+    """Add a stepper to the registry (its C implementation must exist under `cid`)."""
+    if info.name in STEPPERS:
+        raise ValueError(f"stepper {info.name!r} registered twice")
+    STEPPERS[info.name] = info
+    return info
+
+
+register(StepperInfo("euler", "HE_STEP_EULER", 1,
+                     "explicit Euler (conditionally stable; reference only)"))
+register(StepperInfo("symplectic_euler", "HE_STEP_SYMPLECTIC", 1,
+                     "semi-implicit Euler: velocity first with implicit damping, then position"))
+register(StepperInfo("rk4", "HE_STEP_RK4", 4, "classical fourth-order Runge-Kutta"))
+
+DEFAULT_STEPPER = "symplectic_euler"
+
+
+def stepper_id(lib, name: str) -> int:
+    """The compiled id of a registered stepper; ValueError naming the known ones otherwise."""
+    try:
+        info = STEPPERS[name]
+    except KeyError:
+        raise ValueError(f"unknown stepper {name!r}; known: {', '.join(sorted(STEPPERS))}") from None
+    return int(getattr(lib, info.cid))

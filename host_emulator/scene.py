@@ -1,0 +1,190 @@
+"""Scenes: TOML files naming a model, its parameters, switches and perturbations (shipped in scenes/ or given as a path)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .models.options import (ConfigError, ModelOptions, Perturbation, parse_options, parse_perturbation)
+from .params import Params
+
+SCENE_DIR = Path(__file__).resolve().parent / "scenes"
+MODELS = ("continuum", "lattice", "hil")
+TOP_KEYS = ("name", "description", "model", "cells", "t_end_s", "params", "model_options", "perturbation")
+REQUIRED = ("name", "model", "cells", "t_end_s")
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    description: str
+    model: str
+    cells: int
+    t_end_s: float
+    params: Params
+    options: ModelOptions = field(default_factory=ModelOptions)
+    perturbations: tuple[Perturbation, ...] = ()
+    source: str = ""
+
+    def as_dict(self) -> dict:
+        """JSON-ready record of everything the run used."""
+        opts = dataclasses.asdict(self.options)
+        return {"name": self.name, "description": self.description, "model": self.model, "cells": self.cells,
+                "t_end_s": self.t_end_s, "params": dataclasses.asdict(self.params), "model_options": opts,
+                "perturbation": [p.as_dict() for p in self.perturbations], "source": self.source}
+
+
+def list_scenes() -> list[tuple[str, str, str]]:
+    """(name, model, description) of every shipped scene."""
+    out = []
+    for f in sorted(SCENE_DIR.glob("*.toml")):
+        with open(f, "rb") as fh:
+            d = tomllib.load(fh)
+        out.append((f.stem, d.get("model", "?"), d.get("description", "")))
+    return out
+
+
+def _parse_params(d, cells) -> Params:
+    if not isinstance(d, dict):
+        raise ConfigError("params: expected a table")
+    base = Params()
+    types = {f.name: f.type for f in dataclasses.fields(Params)}
+    kw = {"cells": cells}
+    for k, v in d.items():
+        key = f"params.{k}"
+        if k == "cells":
+            raise ConfigError("params.cells: set the top-level `cells` key instead")
+        if k not in types:
+            raise ConfigError(f"unknown key {key}; known: {', '.join(sorted(n for n in types if n != 'cells'))}")
+        cur = getattr(base, k)
+        if isinstance(cur, bool):
+            if not isinstance(v, bool):
+                raise ConfigError(f"{key} = {v!r}: expected true or false")
+        elif isinstance(cur, int):
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise ConfigError(f"{key} = {v!r}: expected an integer")
+        else:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ConfigError(f"{key} = {v!r}: expected a finite number")
+            v = float(v)
+        kw[k] = v
+    p = base.with_overrides(**kw)
+    for k in ("I_a", "I_b", "eta_a", "gamma", "eta_scale", "k_a", "k_b", "supply_v", "vmax_v", "kt",
+              "speed_const", "control_rate_hz"):
+        if not getattr(p, k) > 0:
+            raise ConfigError(f"params.{k} = {getattr(p, k)!r}: must be > 0")
+    if p.alpha_star < 0:
+        raise ConfigError(f"params.alpha_star = {p.alpha_star!r}: must be >= 0")
+    return p
+
+
+def scene_from_dict(d: dict, source: str = "") -> Scene:
+    """Validate a scene table; ConfigError names the first bad key."""
+    if not isinstance(d, dict):
+        raise ConfigError("scene: expected a table")
+    for k in d:
+        if k not in TOP_KEYS:
+            raise ConfigError(f"unknown key {k!r}; known: {', '.join(TOP_KEYS)}")
+    for k in REQUIRED:
+        if k not in d:
+            raise ConfigError(f"missing key {k!r}")
+    if not isinstance(d["name"], str) or not d["name"]:
+        raise ConfigError(f"name = {d['name']!r}: expected a non-empty string")
+    desc = d.get("description", "")
+    if not isinstance(desc, str):
+        raise ConfigError(f"description = {desc!r}: expected a string")
+    if d["model"] not in MODELS:
+        raise ConfigError(f"model = {d['model']!r}: expected one of {', '.join(MODELS)}")
+    cells = d["cells"]
+    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 1024:
+        raise ConfigError(f"cells = {cells!r}: expected an integer in 1..1024")
+    t_end = d["t_end_s"]
+    if isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not (math.isfinite(t_end) and t_end > 0):
+        raise ConfigError(f"t_end_s = {t_end!r}: expected a positive number")
+    params = _parse_params(d.get("params", {}), cells)
+    options = parse_options(d.get("model_options", {}))
+    perts = d.get("perturbation", [])
+    if isinstance(perts, dict):
+        perts = [perts]
+    if not isinstance(perts, list):
+        raise ConfigError("perturbation: expected [[perturbation]] tables")
+    perturbations = tuple(parse_perturbation(p, cells, f"perturbation[{i + 1}]") for i, p in enumerate(perts))
+    if d["model"] == "hil" and options.perturb_via == "firmware":
+        for i, p in enumerate(perturbations):
+            if abs(p.torque_Nm) > 0.131:
+                raise ConfigError(f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most 0.131 N*m")
+    return Scene(d["name"], desc, d["model"], cells, float(t_end), params, options, perturbations, source)
+
+
+def _value(text: str):
+    """A --set value: TOML scalar (true, 0.048, "x", 12), a fraction like 9/125, or a bare string."""
+    s = text.strip()
+    if "/" in s and not s.startswith(('"', "'")):
+        num, den = s.split("/", 1)
+        try:
+            return float(num) / float(den)
+        except (ValueError, ZeroDivisionError):
+            raise ConfigError(f"{text!r}: not a number or fraction") from None
+    try:
+        return tomllib.loads(f"v = {s}")["v"]
+    except tomllib.TOMLDecodeError:
+        return s
+
+
+def apply_overrides(d: dict, items) -> dict:
+    """Apply KEY=VALUE (dotted keys: params.sigma, model_options.noise.seed, perturbation.1.torque_Nm, t_end_s)."""
+    import copy
+
+    d = copy.deepcopy(d)
+    for item in items or []:
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
+        key, val = item.split("=", 1)
+        parts = key.strip().split(".")
+        node = d
+        for i, part in enumerate(parts[:-1]):
+            if part == "perturbation":
+                lst = node.setdefault("perturbation", [])
+                if i + 1 >= len(parts) - 1 or not parts[i + 1].isdigit():
+                    raise ConfigError(f"--set {key}: use perturbation.N.field (N = 1..{len(lst)})")
+                continue
+            if part.isdigit() and parts[i - 1] == "perturbation":
+                lst = node["perturbation"]
+                k = int(part)
+                if not 1 <= k <= len(lst):
+                    raise ConfigError(f"--set {key}: the scene has {len(lst)} perturbation(s)")
+                node = lst[k - 1]
+                continue
+            nxt = node.setdefault(part, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"--set {key}: {part!r} is not a table")
+            node = nxt
+        node[parts[-1]] = _value(val)
+    return d
+
+
+def resolve(name_or_path: str) -> Path:
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        if not p.is_file():
+            raise ConfigError(f"scene file {name_or_path!r} not found")
+        return p
+    f = SCENE_DIR / f"{name_or_path}.toml"
+    if not f.is_file():
+        names = ", ".join(n for n, _, _ in list_scenes())
+        raise ConfigError(f"unknown scene {name_or_path!r}; shipped scenes: {names} (or give a .toml path)")
+    return f
+
+
+def load_scene(name_or_path: str, overrides=()) -> Scene:
+    """Load a shipped scene by name or a TOML file by path, apply --set overrides, validate."""
+    f = resolve(name_or_path)
+    try:
+        with open(f, "rb") as fh:
+            d = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{f}: invalid TOML: {e}") from None
+    return scene_from_dict(apply_overrides(d, overrides), str(f))

@@ -1,0 +1,84 @@
+"""Trackers called by the controller at every output sample: recording, tqdm progress, live printing."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+
+class Tracker:
+    """Base: start(solver, t_end), sample(t, alpha, beta), finish()."""
+
+    def start(self, solver, t_end_s: float, n_samples: int):
+        pass
+
+    def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray):
+        pass
+
+    def finish(self):
+        pass
+
+
+class RecordTracker(Tracker):
+    """Stores every sample in preallocated arrays (t, alpha (T, N), beta (T, N))."""
+
+    def start(self, solver, t_end_s, n_samples):
+        n = solver.model.n
+        self.t = np.empty(n_samples)
+        self.alpha = np.empty((n_samples, n))
+        self.beta = np.empty((n_samples, n))
+        self.i = 0
+
+    def sample(self, t, alpha, beta):
+        self.t[self.i] = t
+        self.alpha[self.i] = alpha
+        self.beta[self.i] = beta
+        self.i += 1
+
+    def result(self):
+        return self.t[: self.i], self.alpha[: self.i], self.beta[: self.i]
+
+
+class ProgressTracker(Tracker):
+    """A tqdm bar in simulated seconds, shown only once the run has taken over `delay_s` of wall time."""
+
+    def __init__(self, delay_s: float = 1.0, file=None, disable: bool = False):
+        self.delay_s = delay_s
+        self.file = file or sys.stderr
+        self.disable = disable
+
+    def start(self, solver, t_end_s, n_samples):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=round(t_end_s, 6), unit="sim s", delay=self.delay_s, file=self.file,
+                        disable=self.disable, leave=False,
+                        bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}]")
+        self.last = 0.0
+
+    def sample(self, t, alpha, beta):
+        if t > self.last:
+            self.bar.update(t - self.last)
+            self.last = t
+
+    def finish(self):
+        self.bar.close()
+
+
+class LiveTracker(Tracker):
+    """Prints max |alpha|, |beta| every `every_s` simulated seconds (for watching a long run)."""
+
+    def __init__(self, every_s: float = 1.0, file=None):
+        self.every_s = every_s
+        self.file = file or sys.stdout
+
+    def start(self, solver, t_end_s, n_samples):
+        self.next = 0.0
+        self.t0 = time.perf_counter()
+
+    def sample(self, t, alpha, beta):
+        if t + 1e-12 >= self.next:
+            print(f"t={t:7.3f} s  max|alpha|={np.abs(alpha).max():.4f}  max|beta|={np.abs(beta).max():.4f} rad",
+                  file=self.file)
+            self.next += self.every_s
