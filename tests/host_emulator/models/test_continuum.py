@@ -107,3 +107,24 @@ def test_unbounded_growth_stops_with_a_named_cause():
     with pytest.raises(ContinuumError, match="diverged"):
         simulate_continuum(p, N, 5.0, [dict(cell=8, chain="alpha", torque_Nm=0.01, start_s=0.0, duration_s=0.01)],
                            max_angle_rad=100.0)
+
+
+@pytest.mark.parametrize("sigma,eta_scale", [(9 / 125, 1.0), (6 / 125, 1.0), (14 / 125, 10.0)])
+def test_single_kick_outcome_follows_the_regime(sigma, eta_scale):
+    """Scene 3/4 in the continuum: a pattern whose period lies in the unstable band, or a return to rest."""
+    from host_emulator.analysis.observables import observables
+    from host_emulator.analysis.stability import dispersion
+
+    p = Params(sigma=sigma, eta_scale=eta_scale)
+    d = dispersion(p, discrete=False)
+    t, a, b = simulate_continuum(p, N, 3.0 * eta_scale, [dict(cell=8, chain="alpha", torque_Nm=0.01,
+                                                              start_s=0.05, duration_s=0.05)], dt_out_s=0.01)
+    o = observables(t, a, b)
+    assert o["steady"]
+    if d["regime"] == "stable":
+        assert o["pattern_period_cells"] is None and o["amplitude_rad"] < 1e-3
+    else:
+        lo, hi = d["unstable_band_cells"]
+        assert lo < o["pattern_period_cells"] < (hi or 2 * N)
+        # saturated on the outer branches of psi' (|alpha| beyond the breakpoint k1 alpha*/(k1 - k2))
+        assert o["amplitude_rad"] > p.k1 * p.alpha_star / (p.k1 - p.k2)
