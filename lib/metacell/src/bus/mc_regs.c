@@ -229,8 +229,7 @@ static uint8_t apply(mc_regs_t *r, mc_cell_t *c, const uint8_t *b, uint32_t len,
     }
 }
 
-uint16_t mc_regs_tick(mc_regs_t *r, mc_cell_t *c, const mc_quad_snap_t *a,
-                      const mc_quad_snap_t *b)
+void mc_regs_apply(mc_regs_t *r, mc_cell_t *c, const mc_quad_snap_t *a, const mc_quad_snap_t *b)
 {
     if (r->rx_full) {
         uint8_t buf[MC_WRITE_MAX_LEN];
@@ -245,6 +244,18 @@ uint16_t mc_regs_tick(mc_regs_t *r, mc_cell_t *c, const mc_quad_snap_t *a,
             r->rejected++;
         r->rx_full = 0;   /* mailbox free only after the copy */
     }
+}
+
+void mc_regs_publish(mc_regs_t *r, const mc_cell_t *c, const mc_quad_snap_t *a,
+                     const mc_quad_snap_t *b)
+{
+    publish_snapshot(r, c, a, b);
+}
+
+uint16_t mc_regs_tick(mc_regs_t *r, mc_cell_t *c, const mc_quad_snap_t *a,
+                      const mc_quad_snap_t *b)
+{
+    mc_regs_apply(r, c, a, b);
     uint16_t faults = mc_cell_tick(c, a, b);
     publish_snapshot(r, c, a, b);
     return faults;

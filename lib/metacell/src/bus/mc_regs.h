@@ -52,8 +52,15 @@ int mc_regs_init(mc_regs_t *r, const mc_cell_t *c, uint8_t addr, uint32_t build,
 void mc_regs_on_receive(mc_regs_t *r, const uint8_t *data, uint32_t len);
 /* ISR: a read started; fills out[0..cap) and returns the byte count. */
 uint32_t mc_regs_on_request(mc_regs_t *r, uint8_t *out, uint32_t cap);
-/* Control loop, once per tick: apply pending write, tick the cell, publish. */
+/* Control loop, once per tick: apply pending write, tick the cell, publish.
+ * Same as mc_regs_apply(); f = mc_cell_tick(); mc_regs_publish(). */
 uint16_t mc_regs_tick(mc_regs_t *r, mc_cell_t *c, const mc_quad_snap_t *a,
                       const mc_quad_snap_t *b);
+
+/* The two halves of mc_regs_tick, for a loop that ticks the cell itself (the
+ * emulator's compiled plant loop): apply before the tick, publish after it. */
+void mc_regs_apply(mc_regs_t *r, mc_cell_t *c, const mc_quad_snap_t *a, const mc_quad_snap_t *b);
+void mc_regs_publish(mc_regs_t *r, const mc_cell_t *c, const mc_quad_snap_t *a,
+                     const mc_quad_snap_t *b);
 
 #endif /* MC_REGS_H */

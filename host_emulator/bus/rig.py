@@ -1,0 +1,225 @@
+"""The emulated rig's data path: hil plant + compiled cells with their register handlers + compiled primary, on an I2C timing model.
+
+Time is integer microseconds of simulated time. Events, in time order:
+  * control tick k at k * tick_us: every cell with a pending write runs
+    mc_regs_apply (the tick boundary), then the compiled plant loop runs the
+    tick (mc_cell_tick of all cells, motors, encoders; he_hil_run);
+  * a read's onRequest, after START + address byte: the cell's register
+    handler publishes the block of its last tick (lazily: once per tick at
+    most, with the decoder counters as they are then) and copies it out;
+  * a write's onReceive at its STOP;
+  * a transaction's completion, reported to the primary (mc_primary_complete),
+    followed by the primary's next transaction after `sw_overhead_us`
+    (the glue's per-transaction software time).
+Fault injection per cell: `absent` (address NACK), `stuck` (holds SCL until
+the primary's per-transaction timeout aborts it), `babble` (random bytes).
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+
+from .. import firmware
+from .i2c import I2CTiming
+
+
+@dataclass
+class BusOptions:
+    i2c_hz: int = 400_000
+    period_us: int = 0                 # full-cycle period, 0 = back to back
+    sw_overhead_us: int = 10           # primary software time per transaction
+    txn_timeout_us: int | None = None  # default: 2 x longest block read + 200 us
+    ack_timeout_us: int = 50_000
+    status_every: int = 64
+    absent: tuple = ()
+    stuck: tuple = ()
+    babble: tuple = ()
+    build: int = 0
+    seed: int = 1
+
+
+class EmulatedRig:
+    """Compiled cells (mc_regs_t + the hil solver's mc_cell_t) and primary (mc_link_t) on the emulated bus."""
+
+    def __init__(self, solver, opts: BusOptions | None = None):
+        self.opts = opts = opts or BusOptions()
+        self.ffi, self.lib = firmware.load()
+        ffi, lib = self.ffi, self.lib
+        self.solver = solver
+        self.n = solver.model.n
+        if self.n > lib.MC_N_CELLS:
+            raise ValueError(f"the bus addresses {lib.MC_N_CELLS} cells, the scene has {self.n}")
+        self.timing = I2CTiming(opts.i2c_hz)
+        rate = solver.model.rate_hz
+        if 1_000_000 % rate:
+            raise ValueError(f"control rate {rate} Hz does not divide 1 s in whole microseconds")
+        self.tick_us = 1_000_000 // rate
+        self.regs = ffi.new("mc_regs_t[]", self.n)
+        for j in range(self.n):
+            if lib.mc_regs_init(self.regs + j, solver.cells + j, lib.MC_ADDR_BASE + j, opts.build,
+                                solver.model.phys) != lib.MC_OK:
+                raise ValueError("register handler refused its address")
+        self.link = ffi.new("mc_link_t *")
+        lib.mc_link_init(self.link, 0)
+        longest = max(lib.MC_BLK_SNAPSHOT_LEN, lib.MC_BLK_PARAMS_LEN, lib.MC_BLK_IDENT_LEN, lib.MC_WRITE_MAX_LEN)
+        tmo = opts.txn_timeout_us or int(2e6 * self.timing.transaction_s(longest)) + 200
+        if lib.mc_primary_configure(ffi.addressof(self.link, "p"), opts.period_us, tmo, opts.ack_timeout_us,
+                                    opts.status_every) != 0:
+            raise ValueError(f"primary refused period_us={opts.period_us}, txn_timeout_us={tmo}, "
+                             f"ack_timeout_us={opts.ack_timeout_us}, status_every={opts.status_every}")
+        self.p = ffi.addressof(self.link, "p")
+        self.txn = ffi.new("mc_txn_t *")
+        self.rxbuf = ffi.new("uint8_t[64]")
+        self.outbuf = ffi.new("char[]", 8192)
+        self.replybuf = ffi.new("char[]", 4096)
+        self.used = ffi.new("uint32_t *")
+        self.qa = ffi.new("mc_quad_snap_t *")
+        self.qb = ffi.new("mc_quad_snap_t *")
+        self.rng = random.Random(opts.seed)
+        self.t_us = 0
+        self.next_tick_us = 0
+        self.published_tick = [-1] * self.n
+        self.bus_free_us = 0          # when the primary may start its next transaction
+        self.pending = []             # (time_us, kind, payload) of the transaction in flight
+        self.ticks = 0
+        self.transactions = 0
+        self.bus_busy_us = 0.0
+
+    # ---- cells ---------------------------------------------------------------
+    def _snap(self, j):
+        lib, q = self.lib, self.solver.quad
+        lib.mc_quad_snapshot(q + j, self.qa)
+        lib.mc_quad_snapshot(q + self.n + j, self.qb)
+
+    def _tick(self):
+        lib = self.lib
+        for j in range(self.n):
+            if self.regs[j].rx_full:
+                self._snap(j)
+                lib.mc_regs_apply(self.regs + j, self.solver.cells + j, self.qa, self.qb)
+        self.solver._run(1)   # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
+        self.ticks += 1
+        self.next_tick_us += self.tick_us
+
+    def _on_request(self, j, nbytes):
+        if self.published_tick[j] != self.ticks:
+            self._snap(j)
+            self.lib.mc_regs_publish(self.regs + j, self.solver.cells + j, self.qa, self.qb)
+            self.published_tick[j] = self.ticks
+        n = self.lib.mc_regs_on_request(self.regs + j, self.rxbuf, len(self.rxbuf))
+        data = bytes(self.ffi.buffer(self.rxbuf, n))
+        # an empty transmit buffer reads as 0xFF (SAMD21 Wire)
+        return (data + b"\xff" * nbytes)[:nbytes]
+
+    # ---- bus -----------------------------------------------------------------
+    def _start(self, now):
+        lib, t = self.lib, self.txn
+        if not lib.mc_primary_next(self.p, now & 0xFFFFFFFF, t):
+            return False
+        j, addr, kind, nbytes = t.cell, t.addr, t.kind, t.len
+        cell = j + 1
+        tm = self.timing
+        self.transactions += 1
+        if j >= self.n or cell in self.opts.absent:
+            dur = tm.nack_s()
+            self.pending = [(now + round(dur * 1e6), "done", (lib.MC_I2C_NACK_ADDR, b""))]
+        elif cell in self.opts.stuck:
+            dur = t.timeout_us * 1e-6
+            self.pending = [(now + t.timeout_us, "done", (lib.MC_I2C_TIMEOUT, b""))]
+        elif kind == lib.MC_TXN_READ:
+            dur = tm.transaction_s(nbytes)
+            self.pending = [(now + round(tm.request_offset_s() * 1e6), "request", (j, nbytes)),
+                            (now + round(dur * 1e6), "done", None)]
+        else:
+            dur = tm.transaction_s(nbytes)
+            data = bytes(self.ffi.buffer(t.buf, nbytes))
+            end = now + round(dur * 1e6)
+            self.pending = [(end, "receive", (j, data)), (end, "done", (lib.MC_I2C_OK, b""))]
+        self.bus_busy_us += dur * 1e6
+        return True
+
+    def _bus_event(self):
+        when, kind, arg = self.pending.pop(0)
+        lib = self.lib
+        if kind == "request":
+            j, nbytes = arg
+            if j + 1 in self.opts.babble:
+                data = bytes(self.rng.randrange(256) for _ in range(nbytes))
+            else:
+                data = self._on_request(j, nbytes)
+            self.pending[0] = (self.pending[0][0], "done", (lib.MC_I2C_OK, data))
+        elif kind == "receive":
+            j, data = arg
+            self.lib.mc_regs_on_receive(self.regs + j, data, len(data))
+        else:
+            status, data = arg
+            lib.mc_primary_complete(self.p, when & 0xFFFFFFFF, status, data, len(data))
+            self.bus_free_us = when + self.opts.sw_overhead_us
+
+    def advance_to(self, t_end_us: int):
+        """Run ticks and bus events up to simulated time t_end_us."""
+        while True:
+            if not self.pending and self.bus_free_us <= self.next_tick_us and self.bus_free_us <= t_end_us:
+                now = max(self.bus_free_us, self.t_us)
+                self.t_us = now
+                if not self._start(now) and not self._start(now):
+                    self.bus_free_us = now + 20   # primary idle (period not due): look again in 20 us
+                continue
+            t_bus = self.pending[0][0] if self.pending else None
+            if t_bus is not None and t_bus < self.next_tick_us and t_bus <= t_end_us:
+                self.t_us = t_bus
+                self._bus_event()
+            elif self.next_tick_us <= t_end_us and (t_bus is None or self.next_tick_us <= t_bus):
+                self.t_us = self.next_tick_us
+                self._tick()
+            else:
+                self.t_us = t_end_us
+                return
+
+    # ---- laptop side ---------------------------------------------------------
+    def feed(self, data: bytes) -> bytes:
+        """Bytes from the laptop at the current time; returns the SLCAN replies."""
+        out = bytearray()
+        while data:
+            n = self.lib.mc_link_rx(self.link, self.t_us & 0xFFFFFFFF, data, len(data), self.used,
+                                    self.replybuf, len(self.replybuf))
+            out += self.ffi.buffer(self.replybuf, n)
+            data = data[self.used[0]:]
+        return bytes(out)
+
+    def drain(self) -> bytes:
+        """SLCAN text of every queued frame (empty while the channel is closed)."""
+        out = bytearray()
+        while True:
+            n = self.lib.mc_link_tx(self.link, self.t_us & 0xFFFFFFFF, self.outbuf, len(self.outbuf))
+            if n == 0:
+                return bytes(out)
+            out += self.ffi.buffer(self.outbuf, n)
+
+    def frames(self):
+        """Pop queued frames as (id, bytes) without the SLCAN text layer."""
+        f = self.ffi.new("mc_can_frame_t *")
+        out = []
+        while self.lib.mc_primary_pop(self.p, f):
+            out.append((f.id, bytes(f.data)[: f.dlc]))
+        return out
+
+    def angles(self):
+        """Plant angles (alpha, beta) in counts."""
+        import math
+        n = self.n
+        k = 400 / (2 * math.pi)
+        return [x * k for x in self.solver.x[:n]], [x * k for x in self.solver.x[n:]]
+
+
+def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overrides=()):
+    """EmulatedRig over the hil model of a scene (the scene must use model = "hil")."""
+    from ..models.hil import HilModel
+    from ..scene import load_scene
+
+    sc = load_scene(scene_name, overrides)
+    if sc.model != "hil":
+        raise ValueError(f"scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = \"hil\"")
+    model = HilModel(sc.params, list(sc.perturbations), sc.options)
+    return EmulatedRig(model.solver(), opts), sc

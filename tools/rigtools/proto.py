@@ -1,0 +1,113 @@
+"""Python view of protocol/definition.py: constants, cell addresses, CRC-8, command frames and the shipped DBC."""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import struct
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PROTOCOL_DIR = ROOT / "protocol"
+DBC_PATH = PROTOCOL_DIR / "metacell.dbc"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("metacell_protocol_definition", PROTOCOL_DIR / "definition.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+D = _load()
+N_CELLS = D.N_CELLS
+REGISTERS = D.REGISTERS
+RESULTS = D.RESULTS
+RESULT_NAMES = {v: k for k, v in D.RESULTS.items()}
+FRAMES = D.FRAMES
+CELL_FLAGS = D.CELL_FLAGS
+_FMT = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I", "i32": "i"}
+
+
+def cell_address(j: int) -> int:
+    """7-bit I2C address of cell j (1..N_CELLS): the one mapping used everywhere."""
+    if not isinstance(j, int) or not 1 <= j <= N_CELLS:
+        raise ValueError(f"cell number must be 1..{N_CELLS}, got {j!r}")
+    return D.ADDR_BASE + j - 1
+
+
+def cell_of_address(addr: int) -> int:
+    j = addr - D.ADDR_BASE + 1
+    if not 1 <= j <= N_CELLS:
+        raise ValueError(f"address 0x{addr:02X} is not a cell address")
+    return j
+
+
+def crc8(data: bytes, crc: int = D.CRC8_INIT) -> int:
+    """Bitwise reference CRC-8 (poly D.CRC8_POLY, MSB first): independent of the C table."""
+    for b in data:
+        crc ^= b
+        for _ in range(8):
+            crc = ((crc << 1) ^ D.CRC8_POLY) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+def layout(fields) -> tuple[str, list[str]]:
+    """struct format (little-endian) and field names of a block/payload/signal list."""
+    return "<" + "".join(_FMT[f[1]] for f in fields), [f[0] for f in fields]
+
+
+def pack_payload(reg: str, **values) -> bytes:
+    r = REGISTERS[reg]
+    fmt, names = layout(r["payload"])
+    missing = set(names) - set(values)
+    extra = set(values) - set(names)
+    if missing or extra:
+        raise ValueError(f"register {reg}: payload fields are {names}, got {sorted(values)}")
+    try:
+        return struct.pack(fmt, *(values[n] for n in names))
+    except struct.error as e:
+        raise ValueError(f"register {reg}: {e}") from None
+
+
+def i2c_write_frame(j: int, reg: str, seq: int, payload: bytes) -> bytes:
+    """Bytes of an I2C register write to cell j: reg seq payload crc (CRC also covers addr<<1)."""
+    body = bytes([REGISTERS[reg]["id"], seq & 0xFF]) + payload
+    return body + bytes([crc8(bytes([cell_address(j) << 1]) + body)])
+
+
+def decode_block(name: str, data: bytes) -> dict:
+    fmt, names = layout(D.BLOCKS[name]["fields"])
+    return dict(zip(names, struct.unpack(fmt, data)))
+
+
+def cmd_frame_id(j: int) -> int:
+    cell_address(j)  # validates j
+    return FRAMES["CMD"]["base"] + j
+
+
+def cmd_data(reg: str, seq: int, **values) -> bytes:
+    """CAN CMD payload: reg, seq, register payload (DLC = 2 + payload length)."""
+    if reg not in REGISTERS or reg == "POINTER":
+        raise ValueError(f"unknown command register {reg!r}; one of {sorted(k for k in REGISTERS if k != 'POINTER')}")
+    return bytes([REGISTERS[reg]["id"], seq & 0xFF]) + pack_payload(reg, **values)
+
+
+@functools.lru_cache(maxsize=1)
+def database():
+    """The shipped CAN database (cantools)."""
+    import cantools
+
+    return cantools.database.load_file(str(DBC_PATH))
+
+
+def frame_kind(arbitration_id: int) -> tuple[str, int | None]:
+    """(frame name, cell number or None) of a CAN id, ('UNKNOWN', None) otherwise."""
+    for name, f in FRAMES.items():
+        if f["per_cell"]:
+            j = arbitration_id - f["base"]
+            if 1 <= j <= N_CELLS:
+                return name, j
+        elif arbitration_id == f["base"]:
+            return name, None
+    return "UNKNOWN", None
