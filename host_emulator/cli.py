@@ -134,6 +134,10 @@ def main(argv=None) -> int:
         from .analysis.cli import dispersion_main
 
         return dispersion_main(argv[1:])
+    if argv and argv[0] == "serve":
+        from .bus.serve import serve_main
+
+        return serve_main(argv[1:])
     if argv and argv[0] in ("bench-speed", "bench"):
         from .bench import bench_main
 
@@ -150,6 +154,7 @@ def main(argv=None) -> int:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
+    sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
     sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
     args = ap.parse_args(argv)
     return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

@@ -1,0 +1,134 @@
+"""`python -m host_emulator serve [SCENE] --slcan`: run a hil scene paced to real time, the emulated primary speaking SLCAN on a pty.
+
+The first output line is ``slcan pty: <path>``; point python-can at it with
+``-i slcan -c <path>@115200``. Runs until interrupted (or --duration seconds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import os
+import signal
+import sys
+import time
+import tty
+
+from .rig import BusOptions, make_rig
+
+CHUNK_S = 0.005          # simulated time advanced per loop pass
+BACKLOG_MAX = 1 << 16    # bytes kept for a slow reader before new output is dropped
+
+
+def _cells(text: str) -> tuple:
+    if not text:
+        return ()
+    try:
+        cells = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected cell numbers like 3,7, got {text!r}") from None
+    for j in cells:
+        if not 1 <= j <= 16:
+            raise argparse.ArgumentTypeError(f"cell {j} outside 1..16")
+    return cells
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator serve",
+                                 description="Serve the emulated rig's primary as an SLCAN device on a pseudo-terminal.")
+    ap.add_argument("scene", nargs="?", default="default", help="hil scene name or .toml path (default: default)")
+    ap.add_argument("--slcan", action="store_true", help="speak SLCAN on a pty (the only mode; accepted for clarity)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
+    ap.add_argument("--i2c-hz", type=int, default=400_000, choices=(100_000, 400_000))
+    ap.add_argument("--period-us", type=int, default=0, help="poll cycle period (0: as fast as the bus allows)")
+    ap.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: run on)")
+    ap.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second (default 1)")
+    ap.add_argument("--link", default=None, help="also create this symlink to the pty")
+    ap.add_argument("--absent", type=_cells, default=(), help="cells that never answer (e.g. 3,7)")
+    ap.add_argument("--stuck", type=_cells, default=(), help="cells that hold the bus until the timeout")
+    ap.add_argument("--babble", type=_cells, default=(), help="cells that answer random bytes")
+    return ap
+
+
+def open_pty():
+    """(master fd, slave fd, slave path) of a raw pty; the slave stays open so clients may come and go."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    return master, slave, os.ttyname(slave)
+
+
+def serve_main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    if args.speed <= 0:
+        print("serve: --speed must be > 0", file=sys.stderr)
+        return 2
+    try:
+        rig, scene = make_rig(args.scene, BusOptions(i2c_hz=args.i2c_hz, period_us=args.period_us,
+                                                     absent=args.absent, stuck=args.stuck, babble=args.babble),
+                              args.set)
+    except (ValueError, OSError) as e:
+        print(f"serve: {e}", file=sys.stderr)
+        return 2
+    master, slave, path = open_pty()
+    if args.link:
+        try:
+            os.unlink(args.link)
+        except FileNotFoundError:
+            pass
+        os.symlink(path, args.link)
+    print(f"slcan pty: {path}  (python -m can.logger -i slcan -c {path}@115200)", flush=True)
+    print(f"scene {scene.name}: {scene.description}; I2C {args.i2c_hz} Hz, {rig.n} cells", flush=True)
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
+    backlog = bytearray()
+    dropped = 0
+    t0 = time.monotonic()
+    sim_us = 0
+    try:
+        while not stop:
+            if args.duration is not None and sim_us >= args.duration * 1e6:
+                break
+            sim_us += int(CHUNK_S * 1e6)
+            rig.advance_to(sim_us)
+            try:
+                data = os.read(master, 4096)
+            except OSError as e:
+                if e.errno not in (errno.EAGAIN, errno.EIO):
+                    raise
+                data = b""
+            if data:
+                backlog += rig.feed(data)
+            out = rig.drain()
+            if len(backlog) + len(out) > BACKLOG_MAX:
+                dropped += len(out)      # nobody reads: drop new output (gaps show in seq)
+            else:
+                backlog += out
+            if backlog:
+                try:
+                    n = os.write(master, backlog)
+                    del backlog[:n]
+                except OSError as e:
+                    if e.errno not in (errno.EAGAIN, errno.EIO):
+                        raise
+            lag = sim_us / 1e6 / args.speed - (time.monotonic() - t0)
+            if lag > 0:
+                time.sleep(lag)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if args.link:
+            try:
+                os.unlink(args.link)
+            except OSError:
+                pass
+        os.close(master)
+        os.close(slave)
+    p = rig.p
+    print(f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
+          f"{dropped} bytes dropped (no reader)", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(serve_main())
