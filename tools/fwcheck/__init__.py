@@ -1,0 +1,1 @@
+"""Firmware proof offline: ARM cross-build checks, QEMU golden vectors and instruction counts."""

@@ -1,0 +1,93 @@
+"""Command line: `python -m tools.fwcheck report|size|vectors|ticks|golden-header`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import armbuild
+
+
+def _softfloat(objs) -> bool:
+    bad = armbuild.softfloat_violations(objs)
+    print("soft-float helpers in the library: " + ("none" if not bad else str(bad)))
+    return not bad
+
+
+def _division(objs) -> bool:
+    rep = armbuild.division_check(objs)
+    print(f"division helpers reachable from {', '.join(armbuild.CONTROL_ROOTS)}: "
+          + ("none" if not rep.violations else ""))
+    for chain in rep.violations:
+        print("  " + " -> ".join(chain))
+    if rep.indirect:
+        print("  unresolved indirect calls in: " + ", ".join(rep.indirect))
+    print(f"  ({len(rep.reachable)} functions on the control path: {', '.join(rep.reachable)})")
+    return rep.ok
+
+
+def _size(objs) -> None:
+    print("code size of lib/metacell (arm-none-eabi-gcc -Os, cortex-m0plus, bytes):")
+    print(armbuild.format_size(armbuild.code_size(objs)))
+
+
+def _vectors(seed: int) -> bool:
+    from . import qemu
+    c = qemu.golden_compare(seed)
+    print(f"QEMU golden vectors (seed {seed:#x}): {c.identical}/{c.n_host} bit-identical, "
+          f"target reported {c.n_target}, checksum host {c.fnv_host:#010x} "
+          f"target {c.fnv_target:#010x}")
+    if c.first_mismatch:
+        print(c.first_mismatch)
+    return c.ok
+
+
+def _ticks() -> bool:
+    from . import qemu
+    s = qemu.tick_stats()
+    calib_ok = s.calibration == s.expected
+    print(f"instruction counter calibration: {s.calibration} expected {s.expected} "
+          + ("ok" if calib_ok else "MISMATCH"))
+    print("instructions per mc_cell_tick (both motors), Cortex-M0 under QEMU:")
+    for name, (med, mx, n) in s.summary().items():
+        print(f"  {name:<42} median {med:>6g}  max {mx:>5}  ({n} ticks)")
+    print(f"  mc_quad_update (per edge, ISR): median {sorted(s.quad_update)[len(s.quad_update) // 2]}"
+          f", max {max(s.quad_update)}; mc_quad_snapshot: {max(s.snapshot)}")
+    med = s.summary()["enabled, fault-free (budget case)"][0]
+    print(f"  budget {qemu.BUDGET}: " + ("within" if med <= qemu.BUDGET else "OVER"))
+    return calib_ok and med <= qemu.BUDGET
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tools.fwcheck", description=__doc__)
+    ap.add_argument("command", nargs="?", default="report",
+                    choices=["report", "size", "vectors", "ticks", "golden-header"])
+    ap.add_argument("--seed", type=lambda s: int(s, 0), default=None)
+    ap.add_argument("--out", help="golden-header: output path")
+    a = ap.parse_args(argv)
+    try:
+        if a.command == "golden-header":
+            from . import golden
+            path = golden.write_header(a.out)
+            print(f"wrote {path}")
+            return 0
+        objs = armbuild.library_objects()
+        ok = True
+        if a.command in ("report", "size"):
+            if a.command == "report":
+                ok &= _softfloat(objs)
+                ok &= _division(objs)
+            _size(objs)
+        if a.command in ("report", "vectors"):
+            from .qemu import DEFAULT_SEED
+            ok &= _vectors(a.seed if a.seed is not None else DEFAULT_SEED)
+        if a.command in ("report", "ticks"):
+            ok &= _ticks()
+    except armbuild.ToolError as e:
+        print(f"fwcheck: {e}", file=sys.stderr)
+        return 2
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,295 @@
+"""Cross-build the cell library for the Cortex-M0+ and check it: soft-float, division reachability, size.
+
+The library is compiled exactly as the boards need it (Debian ``arm-none-eabi-gcc``,
+``-mcpu=cortex-m0plus -mthumb -Os``), one object per source file. The checks read
+those objects with binutils:
+
+* soft float: the undefined symbols of every object (``nm -u``) against the
+  EABI/libgcc floating-point helper names;
+* division: a call graph built from the relocations in ``objdump -dr`` (calls,
+  branches and literal-pool addresses of functions), walked from the control-path
+  entry points; any reachable division helper is reported with the call chain.
+  Indirect calls in reachable code cannot be resolved and are reported too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+LIB_SRC = ROOT / "lib" / "metacell" / "src"
+BUILD_ROOT = Path(os.environ.get("FWCHECK_BUILD_DIR", ROOT / "build" / "fwcheck"))
+
+CC = "arm-none-eabi-gcc"
+CPU_FLAGS = ["-mcpu=cortex-m0plus", "-mthumb"]
+CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffunction-sections", "-fdata-sections",
+                      "-Wall", "-Wextra", "-Werror"]
+
+#: Control-path entry points: the tick and the decoder ISR/snapshot.
+CONTROL_ROOTS = ("mc_cell_tick", "mc_quad_update", "mc_quad_snapshot")
+
+SOFTFLOAT_RE = re.compile(
+    r"^(__aeabi_(f|d|cf|cd|[iu]?l?2[fd]|ul2[fd])\w*"
+    r"|__(add|sub|mul|div|neg|pow)[sdtx]f3"
+    r"|__(fix|fixuns)[sdtx]f[sdt]i|__float(un)?[sdt]i[sdtx]f"
+    r"|__(extend|trunc)[sdtx]f[sdtx]f2|__(eq|ne|lt|le|gt|ge|unord|cmp)[sdtx]f2)$")
+DIVISION_RE = re.compile(
+    r"^(__aeabi_u?idiv(mod)?|__aeabi_u?ldivmod|__u?(div|mod)[sdt]i3|__udivmod[sdt]i4"
+    r"|__divmod[sdt]i4|__gnu_u?ldivmod_helper)$")
+
+
+class ToolError(RuntimeError):
+    """A cross tool is missing or failed; the message names it."""
+
+
+def _run(cmd: list[str], cwd: Path | None = None) -> str:
+    if shutil.which(cmd[0]) is None:
+        raise ToolError(f"{cmd[0]} not found: run tools/setup.sh (Debian gcc-arm-none-eabi)")
+    p = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    if p.returncode != 0:
+        raise ToolError(f"{' '.join(cmd)} failed:\n{p.stdout}{p.stderr}")
+    return p.stdout
+
+
+def library_sources() -> list[Path]:
+    return sorted(LIB_SRC.rglob("*.c"))
+
+
+def _digest(paths: list[Path], extra: list[str]) -> str:
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(str(p).encode())
+        h.update(p.read_bytes())
+    h.update(" ".join(extra).encode())
+    return h.hexdigest()[:16]
+
+
+def compile_objects(sources: list[Path], outdir: Path, flags: list[str] | None = None,
+                    include_dirs: list[Path] | None = None) -> list[Path]:
+    """Compile each source to outdir/<stem>.o; returns the object paths."""
+    outdir.mkdir(parents=True, exist_ok=True)
+    incs = [f"-I{d}" for d in (include_dirs or [LIB_SRC])]
+    objs = []
+    for src in sources:
+        obj = outdir / (src.stem + (".S.o" if src.suffix == ".S" else ".o"))
+        _run([CC, *(flags if flags is not None else CFLAGS), *incs, "-c", str(src), "-o", str(obj)])
+        objs.append(obj)
+    return objs
+
+
+def _publish(build, key: str, name: str) -> Path:
+    """Build into a private temp dir, then publish atomically under BUILD_ROOT/name-key
+    (parallel test workers may race; the loser's copy is discarded)."""
+    final = BUILD_ROOT / f"{name}-{key}"
+    if (final / ".done").exists():
+        return final
+    BUILD_ROOT.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=BUILD_ROOT))
+    try:
+        build(tmp)
+        (tmp / ".done").write_text("ok\n")
+        try:
+            os.rename(tmp, final)
+        except OSError:
+            if not (final / ".done").exists():
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return final
+
+
+def library_objects() -> list[Path]:
+    """The cross-compiled library objects (cached by a hash of the sources and flags)."""
+    srcs = library_sources()
+    headers = sorted(LIB_SRC.rglob("*.h"))
+    key = _digest(srcs + headers, CFLAGS)
+
+    def build(tmp: Path) -> None:
+        # flatten names: sources in different folders never share a stem here
+        stems = [s.stem for s in srcs]
+        if len(set(stems)) != len(stems):
+            raise ToolError("two library sources share a file name; objects would collide")
+        compile_objects(srcs, tmp)
+
+    d = _publish(build, key, "lib")
+    return [d / (s.stem + ".o") for s in srcs]
+
+
+# --------------------------------------------------------------------------- soft float
+
+def undefined_symbols(obj: Path) -> list[str]:
+    out = _run(["arm-none-eabi-nm", "-u", str(obj)])
+    return [ln.split()[-1] for ln in out.splitlines() if ln.strip()]
+
+
+def softfloat_violations(objs: list[Path]) -> dict[str, list[str]]:
+    """{object name: [soft-float helpers it references]} (empty dict = clean)."""
+    bad = {}
+    for o in objs:
+        syms = [s for s in undefined_symbols(o) if SOFTFLOAT_RE.match(s)]
+        if syms:
+            bad[o.name] = sorted(syms)
+    return bad
+
+
+# --------------------------------------------------------------------------- call graph
+
+_SECTION = re.compile(r"^Disassembly of section (\S+):$")
+_LABEL = re.compile(r"^([0-9a-f]+) <(.+)>:$")
+_RELOC = re.compile(r"^\s+[0-9a-f]+:\s+(R_ARM_\w+)\s+(\S+?)(?:\+0x[0-9a-f]+)?$")
+_INDIRECT = re.compile(r"^\s+[0-9a-f]+:\s+[0-9a-f ]+\s+(blx|bx)\s+(r\d+|ip|sl|fp)\b")
+_CODE_RELOCS = {"R_ARM_THM_CALL", "R_ARM_THM_JUMP24", "R_ARM_THM_JUMP11", "R_ARM_THM_JUMP8",
+                "R_ARM_THM_JUMP19", "R_ARM_CALL", "R_ARM_JUMP24", "R_ARM_ABS32",
+                "R_ARM_THM_PC22"}
+
+
+@dataclass
+class CallGraph:
+    """Functions of a set of objects and what each one references."""
+    edges: dict[str, set[str]] = field(default_factory=dict)     # node -> callees
+    indirect: dict[str, int] = field(default_factory=dict)       # node -> indirect calls
+    defined: dict[str, str] = field(default_factory=dict)        # node -> object name
+
+    def reachable(self, roots: list[str] | tuple[str, ...]) -> dict[str, list[str]]:
+        """Every node reachable from the roots, with one call chain leading to it."""
+        missing = [r for r in roots if r not in self.edges]
+        if missing:
+            raise KeyError(f"entry point(s) not defined in the objects: {missing}")
+        paths: dict[str, list[str]] = {}
+        stack = [(r, [r]) for r in roots]
+        while stack:
+            node, path = stack.pop()
+            if node in paths:
+                continue
+            paths[node] = path
+            for callee in sorted(self.edges.get(node, ())):
+                if callee not in paths:
+                    stack.append((callee, path + [callee]))
+        return paths
+
+
+def _display(node: str) -> str:
+    return node.split(":", 1)[1] if ":" in node else node
+
+
+def call_graph(objs: list[Path]) -> CallGraph:
+    g = CallGraph()
+    per_obj = []
+    global_defs: set[str] = set()
+    for o in objs:
+        syms = _run(["arm-none-eabi-nm", str(o)])
+        glob, local = set(), set()
+        for ln in syms.splitlines():
+            parts = ln.split()
+            if len(parts) == 3 and parts[1] in "TtWw":
+                (glob if parts[1] in "TW" else local).add(parts[2])
+        global_defs |= glob
+        per_obj.append((o, glob, local, _run(["arm-none-eabi-objdump", "-dr", str(o)])))
+
+    for o, glob, local, dis in per_obj:
+        sec_first: dict[str, str] = {}
+        raw: list[tuple[str, str]] = []   # (function, reloc target) in this object
+        indirect: dict[str, int] = {}
+        section = None
+        func = None
+        for ln in dis.splitlines():
+            m = _SECTION.match(ln)
+            if m:
+                section, func = m.group(1), None
+                continue
+            m = _LABEL.match(ln)
+            if m:
+                func = m.group(2)
+                sec_first.setdefault(section, func)
+                continue
+            if func is None:
+                continue
+            m = _RELOC.match(ln)
+            if m and m.group(1) in _CODE_RELOCS:
+                raw.append((func, m.group(2)))
+                continue
+            m = _INDIRECT.match(ln)
+            if m and m.group(2) != "lr":
+                indirect[func] = indirect.get(func, 0) + 1
+
+        def node(name: str) -> str:
+            if name in local and name not in glob:
+                return f"{o.name}:{name}"
+            return name
+
+        for name in glob | local:
+            g.edges.setdefault(node(name), set())
+            g.defined[node(name)] = o.name
+        for fn, cnt in indirect.items():
+            g.indirect[node(fn)] = cnt
+        for fn, target in raw:
+            if target in sec_first:                # section symbol: .text.<fn>
+                target = sec_first[target]
+            elif target.startswith("."):
+                continue                           # data section (tables, constants)
+            if target in local or target in glob:
+                tnode = node(target)
+            elif target in global_defs:
+                tnode = target
+            elif target.startswith("__") or target in ("memset", "memcpy", "memmove"):
+                tnode = target                     # external helper (libgcc/libc)
+            else:
+                tnode = target                     # other external symbol (data or code)
+            if tnode != node(fn):
+                g.edges.setdefault(node(fn), set()).add(tnode)
+    return g
+
+
+@dataclass
+class DivisionReport:
+    reachable: list[str]
+    violations: list[list[str]]       # call chains ending in a division helper
+    indirect: list[str]               # reachable functions with unresolved indirect calls
+
+    @property
+    def ok(self) -> bool:
+        return not self.violations and not self.indirect
+
+
+def division_check(objs: list[Path], roots=CONTROL_ROOTS) -> DivisionReport:
+    g = call_graph(objs)
+    paths = g.reachable(list(roots))
+    viol = [[_display(n) for n in p] for name, p in sorted(paths.items()) if DIVISION_RE.match(name)]
+    indirect = sorted(_display(n) for n in paths if g.indirect.get(n))
+    reach = sorted(_display(n) for n in paths if n in g.defined)
+    return DivisionReport(reach, viol, indirect)
+
+
+# --------------------------------------------------------------------------- size
+
+@dataclass
+class SizeRow:
+    name: str
+    text: int
+    data: int
+    bss: int
+
+
+def code_size(objs: list[Path]) -> list[SizeRow]:
+    """Berkeley sizes per object plus a final 'total' row."""
+    out = _run(["arm-none-eabi-size", "-t", *map(str, objs)])
+    rows = []
+    for ln in out.splitlines()[1:]:
+        parts = ln.split()
+        if len(parts) >= 6:
+            name = "total" if "(TOTALS)" in ln else Path(parts[5]).name
+            rows.append(SizeRow(name, int(parts[0]), int(parts[1]), int(parts[2])))
+    return rows
+
+
+def format_size(rows: list[SizeRow]) -> str:
+    lines = [f"{'object':<16}{'text':>8}{'data':>8}{'bss':>8}"]
+    lines += [f"{r.name:<16}{r.text:>8}{r.data:>8}{r.bss:>8}" for r in rows]
+    return "\n".join(lines)
