@@ -1,0 +1,169 @@
+"""CLI: python -m tools.flash inventory|plan|flash|identify (see docs/hardware.md)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+from pathlib import Path
+
+from . import inventory as inv
+from .boards import PortListError, port_lister, xiao_ports
+from .identity import IdentityError, expected_fw_version, query_identity
+from .plan import ROOT, PlanError, describe, make_plan, parse_only
+from .runner import Flasher, summary
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def default_pio() -> str:
+    if os.environ.get("MC_PIO"):
+        return os.environ["MC_PIO"]
+    found = shutil.which("pio")
+    if found:
+        return found
+    sibling = Path(sys.executable).with_name("pio")
+    return str(sibling) if sibling.exists() else "pio"
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m tools.flash", description=__doc__)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--inventory", default=str(inv.DEFAULT_PATH),
+                        help="board inventory JSON (default: %(default)s)")
+    common.add_argument("--ports-json", metavar="FILE",
+                        help="use this JSON list of ports instead of the USB ports (no hardware)")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+
+    p = sub.add_parser("inventory", parents=[common],
+                       help="show connected boards; --assign one to a cell or the primary")
+    p.add_argument("--assign", metavar="N|primary", help="record a board as cell N or the primary")
+    p.add_argument("--serial", help="which board to assign (default: the only unassigned one connected)")
+    p.add_argument("--replace", action="store_true", help="take the slot from the board holding it")
+
+    for name, helptext in (("plan", "print what flash would do, touching nothing"),
+                           ("flash", "build, upload and verify every board")):
+        p = sub.add_parser(name, parents=[common], help=helptext)
+        p.add_argument("--only", help="boards to include, e.g. '1-4,7,primary' (default: all)")
+        p.add_argument("--skip-missing", action="store_true",
+                       help="flash the connected boards even if some inventory boards are absent")
+        p.add_argument("--pio", default=None, help="PlatformIO executable (default: pio on PATH)")
+        p.add_argument("--project", default=str(ROOT), help="PlatformIO project dir")
+        if name == "flash":
+            p.add_argument("--stop-on-error", action="store_true",
+                           help="stop at the first failed board (default: continue with the rest)")
+            p.add_argument("--log-dir", default=str(Path(".pio") / "flash-logs"))
+            p.add_argument("--upload-timeout", type=float, default=600.0)
+            p.add_argument("--reappear-timeout", type=float, default=20.0)
+
+    sub.add_parser("identify", parents=[common],
+                   help="ask every connected XIAO for its identity; flag duplicate addresses")
+    return ap
+
+
+def cmd_inventory(args, lister, out) -> int:
+    path = Path(args.inventory)
+    boards = inv.load(path) if path.exists() else []
+    ports = xiao_ports(lister())
+    by_serial = {b.serial: b for b in boards}
+    if args.assign:
+        if args.serial:
+            serial = args.serial
+        else:
+            free = [p for p in ports if p.serial_number and p.serial_number not in by_serial]
+            if len(free) != 1:
+                out(f"error: {len(free)} unassigned XIAO boards connected; connect exactly one "
+                    f"new board or name it with --serial", err=True)
+                return EXIT_USAGE
+            serial = free[0].serial_number
+        boards = inv.assign(boards, serial, args.assign, replace=args.replace)
+        inv.save(path, boards)
+        out(f"{path}: serial {serial} is now {next(b for b in boards if b.serial == serial).name}")
+        by_serial = {b.serial: b for b in boards}
+    out(f"connected XIAO boards ({len(ports)}):")
+    for p in ports:
+        b = by_serial.get(p.serial_number)
+        mode = " [bootloader]" if p.in_bootloader else ""
+        out(f"  {p.device:16s} serial {p.serial_number}{mode}: {b.name if b else 'UNASSIGNED'}")
+    present = {p.serial_number for p in ports}
+    for b in boards:
+        if b.serial not in present:
+            out(f"  (not connected) {b.name} serial {b.serial}")
+    return EXIT_OK
+
+
+def cmd_plan_or_flash(args, lister, out) -> int:
+    boards = inv.load(args.inventory)
+    plan = make_plan(boards, lister(), pio=args.pio or default_pio(), project=Path(args.project),
+                     only=parse_only(args.only), skip_missing=args.skip_missing)
+    out(describe(plan))
+    if args.cmd == "plan":
+        return EXIT_OK
+    flasher = Flasher(lister, expected_fw=expected_fw_version(), log_dir=args.log_dir,
+                      upload_timeout=args.upload_timeout, reappear_timeout=args.reappear_timeout,
+                      out=out)
+    outcomes = flasher.flash(plan, stop_on_error=args.stop_on_error)
+    out(summary(outcomes))
+    return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
+
+
+def cmd_identify(args, lister, out, query=query_identity) -> int:
+    path = Path(args.inventory)
+    by_serial = {b.serial: b for b in inv.load(path)} if path.exists() else {}
+    claims: dict[int, list[str]] = {}
+    problems = 0
+    for p in xiao_ports(lister()):
+        if p.in_bootloader:
+            out(f"  {p.device:16s} serial {p.serial_number}: in bootloader (no firmware running)")
+            problems += 1
+            continue
+        try:
+            q = query(p.device)
+        except (IdentityError, OSError) as exc:
+            out(f"  {p.device:16s} serial {p.serial_number}: ERROR {exc}")
+            problems += 1
+            continue
+        b = by_serial.get(p.serial_number)
+        if q.identity is None:
+            out(f"  {p.device:16s} serial {p.serial_number}: no answer to ID?")
+            problems += 1
+            continue
+        note = ""
+        if b is not None and (b.role, b.cell, b.addr) != (q.identity.role, q.identity.cell,
+                                                          q.identity.addr):
+            note = f"  MISMATCH: inventory says {b.name}"
+            problems += 1
+        if q.errors:
+            note += f"  start-up error: {', '.join(q.errors)}"
+            problems += 1
+        out(f"  {p.device:16s} serial {p.serial_number}: {q.identity.describe()}{note}")
+        if q.identity.addr is not None:
+            claims.setdefault(q.identity.addr, []).append(f"{p.device} (serial {p.serial_number})")
+    for addr, who in sorted(claims.items()):
+        if len(who) > 1:
+            out(f"error: two boards claim address 0x{addr:02x}: {', '.join(who)}", err=True)
+            problems += 1
+    return EXIT_OK if problems == 0 else EXIT_FAILED
+
+
+def main(argv=None, out=None) -> int:
+    def _out(msg, err=False):
+        print(msg, file=sys.stderr if err else sys.stdout)
+
+    out = out or _out
+    args = _parser().parse_args(argv)
+    try:
+        lister = port_lister(args.ports_json)
+        if args.cmd == "inventory":
+            return cmd_inventory(args, lister, out)
+        if args.cmd in ("plan", "flash"):
+            return cmd_plan_or_flash(args, lister, out)
+        return cmd_identify(args, lister, out)
+    except (inv.InventoryError, PlanError, PortListError) as exc:
+        out(f"error: {exc}", err=True)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

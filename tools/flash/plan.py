@@ -1,0 +1,144 @@
+"""Turn the inventory and the connected ports into an explicit list of PlatformIO upload steps."""
+
+from __future__ import annotations
+
+import shlex
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .addresses import CELL_COUNT
+from .boards import Port, xiao_ports
+from .inventory import Board
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+class PlanError(ValueError):
+    """The plan cannot be made (missing boards, duplicate serials, bad selection)."""
+
+
+@dataclass(frozen=True)
+class Step:
+    board: Board
+    port: Port
+    env_name: str                       # PlatformIO environment: "cell" or "primary"
+    env_vars: tuple[tuple[str, str], ...]   # set for this pio run (override the caller's)
+    argv: tuple[str, ...]
+
+    def shell(self) -> str:
+        """The exact command, copy-pasteable into a POSIX shell."""
+        assigns = " ".join(f"{k}={shlex.quote(v)}" for k, v in self.env_vars)
+        return f"{assigns} {shlex.join(self.argv)}" if assigns else shlex.join(self.argv)
+
+
+@dataclass
+class Plan:
+    steps: list[Step]
+    missing: list[Board] = field(default_factory=list)     # skipped: not connected
+    unselected: list[Board] = field(default_factory=list)  # skipped: not in --only
+    unknown: list[Port] = field(default_factory=list)      # XIAO boards not in the inventory
+
+
+def parse_only(text: str | None) -> set | None:
+    """'1-4,7,primary' -> {1, 2, 3, 4, 7, 'primary'}; None means every board."""
+    if text is None:
+        return None
+    sel: set = set()
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        if part == "primary":
+            sel.add("primary")
+            continue
+        lo, sep, hi = part.partition("-")
+        try:
+            a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
+        except ValueError:
+            raise PlanError(f"--only: {part!r} is not a cell number, range or 'primary'") from None
+        if not (1 <= a <= b <= CELL_COUNT):
+            raise PlanError(f"--only: {part!r} is outside cells 1..{CELL_COUNT}")
+        sel.update(range(a, b + 1))
+    if not sel:
+        raise PlanError("--only selects nothing")
+    return sel
+
+
+def upload_step(board: Board, port: Port, pio: str = "pio", project: Path = ROOT) -> Step:
+    """One build+upload. Cells: one image per address (see docs/hardware.md), passed as
+    src-only build flags, each cell in its own build directory so rebuilds stay incremental."""
+    project = Path(project)
+    if board.role == "cell":
+        env_name = "cell"
+        env_vars = (
+            ("PLATFORMIO_BUILD_DIR", str(project / ".pio" / f"build-cell{board.cell:02d}")),
+            ("PLATFORMIO_BUILD_SRC_FLAGS",
+             f"-DMC_CELL_INDEX={board.cell} -DMC_CELL_ADDR=0x{board.addr:02x}"),
+        )
+    else:
+        env_name = "primary"
+        env_vars = (
+            ("PLATFORMIO_BUILD_DIR", str(project / ".pio" / "build-primary")),
+            ("PLATFORMIO_BUILD_SRC_FLAGS", ""),   # cancel any inherited cell flags
+        )
+    argv = (pio, "run", "-d", str(project), "-e", env_name, "-t", "upload",
+            "--upload-port", port.device)
+    return Step(board, port, env_name, env_vars, argv)
+
+
+def make_plan(boards: list[Board], ports: list[Port], pio: str = "pio", project: Path = ROOT,
+              only: set | None = None, skip_missing: bool = False) -> Plan:
+    xiao = xiao_ports(ports)
+    by_serial: dict[str, Port] = {}
+    clash = []
+    for p in xiao:
+        if p.serial_number:
+            if p.serial_number in by_serial:
+                clash.append(f"serial {p.serial_number} on both {by_serial[p.serial_number].device} "
+                             f"and {p.device}")
+            by_serial[p.serial_number] = p
+    if clash:
+        raise PlanError("; ".join(clash))
+    known = {b.serial for b in boards}
+    plan = Plan(steps=[], unknown=[p for p in xiao if p.serial_number not in known])
+    for b in boards:
+        key = "primary" if b.role == "primary" else b.cell
+        if only is not None and key not in only:
+            plan.unselected.append(b)
+            continue
+        port = by_serial.get(b.serial)
+        if port is None:
+            plan.missing.append(b)
+            continue
+        plan.steps.append(upload_step(b, port, pio, project))
+    if only is not None:
+        listed = {"primary" if b.role == "primary" else b.cell for b in boards}
+        absent = sorted(only - listed, key=str)
+        if absent:
+            raise PlanError("--only names boards the inventory does not have: "
+                            + ", ".join(map(str, absent)))
+    if plan.missing and not skip_missing:
+        raise PlanError("missing board(s): " + "; ".join(
+            f"{b.name} serial {b.serial} is not connected" for b in plan.missing)
+            + " (connect them, or pass --skip-missing / --only)")
+    if not plan.steps:
+        raise PlanError("nothing to flash")
+    return plan
+
+
+def describe(plan: Plan) -> str:
+    """Human-readable plan: one line per board, then the exact commands."""
+    lines = [f"{len(plan.steps)} board(s) to flash:"]
+    for s in plan.steps:
+        mode = " [bootloader]" if s.port.in_bootloader else ""
+        addr = f"addr 0x{s.board.addr:02x}" if s.board.addr is not None else "no bus address"
+        label = "primary" if s.board.role == "primary" else f"cell {s.board.cell:2d}"
+        lines.append(f"  {label:8s} {addr:15s} serial {s.board.serial} on {s.port.device}{mode}")
+    for b in plan.missing:
+        lines.append(f"  SKIPPED (not connected): {b.name} serial {b.serial}")
+    for b in plan.unselected:
+        lines.append(f"  not selected: {b.name} serial {b.serial}")
+    for p in plan.unknown:
+        lines.append(f"  left alone (not in inventory): {p.device} serial {p.serial_number}")
+    lines.append("commands:")
+    lines += [f"  {s.shell()}" for s in plan.steps]
+    return "\n".join(lines)
