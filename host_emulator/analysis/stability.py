@@ -226,12 +226,7 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
         hi = None if pos[0] else _lam(k_lo_edge)
         lo = _lam(k_hi_edge)
         band = [lo, hi]
-        if sum(1 for _ in edges) > 2:
-            band_note = "several disjoint unstable bands; reported their envelope"
-        else:
-            band_note = None
-    else:
-        band_note = None
+    band_note = "several disjoint unstable bands; reported their envelope" if pos.any() and len(edges) > 2 else None
 
     regime = classify_regime(float(re[0]), float(re.max()))
     osc = abs(s_best.imag)

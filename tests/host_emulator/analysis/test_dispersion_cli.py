@@ -3,6 +3,8 @@
 import json
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host_emulator.analysis.cli import dispersion_main, parse_set
 from host_emulator.analysis.stability import dispersion
@@ -60,3 +62,16 @@ def test_errors_are_clean(capsys, argv, msg):
 def test_parse_set_types():
     p = parse_set(Params(), ["params.sigma=6/125", "cells=8", "bemf_comp=false"])
     assert p.sigma == pytest.approx(0.048) and p.cells == 8 and p.bemf_comp is False
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(-10**6, 10**6), st.integers(1, 10**6))
+def test_fraction_parser(num, den):
+    p = parse_set(Params(), [f"sigma={num}/{den}"])
+    assert p.sigma == num / den
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_float_parser_round_trips(x):
+    assert parse_set(Params(), [f"sigma={x!r}"]).sigma == x
