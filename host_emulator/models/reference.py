@@ -1,0 +1,126 @@
+"""Reference plant in numpy, written independently from SPEC 1 (vectorised, no shared code with the C plant).
+
+Used by the tests to check the compiled plant (forces and whole trajectories) and as executable
+documentation of the equations. Same conventions: x = [alpha_1..alpha_n, beta_1..beta_n],
+I x'' = F(t, x) - C x'  (or C x' = F when overdamped).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import params as P
+from .options import ModelOptions, Perturbation
+from .plant import spreads
+
+
+class ReferencePlant:
+    def __init__(self, params, options: ModelOptions | None = None, perturbations: list[Perturbation] = (),
+                 *, ideal_reaction=True):
+        self.p = params
+        self.o = options or ModelOptions()
+        self.n = params.cells
+        self.perts = list(perturbations)
+        self.ideal = ideal_reaction
+        band, eta = spreads(params, self.o, self.n)
+        self.band = band[:, : self.n - 1]
+        self.eta = np.concatenate([params.eta_alpha * eta[0], params.eta_beta * eta[1]])
+        self.I = np.concatenate([np.full(self.n, params.I_a), np.full(self.n, params.I_b)])
+
+    # ---- band law -------------------------------------------------------
+    def _g(self, coef, d):
+        """Slack rule: f(d) for d > 0, else f(0) (slack_f0) or 0."""
+        f0 = coef[0] if self.p.slack_f0 else 0.0
+        return np.where(d > 0, P.band_force(coef, d), f0)
+
+    def bond_torque(self, chain: int, xs, xo):
+        """tau(x_self, x_other) of SPEC 1.2 for arrays of bonds (before the per-bond spread)."""
+        if self.o.bands == "linear":
+            return (self.p.k_a, self.p.k_b)[chain] * (xs - xo)
+        coef = (P.BAND_A_COEF, P.BAND_B_COEF)[chain]
+        d0 = (P.DELTA_A0_M, P.DELTA_B0_M)[chain]
+        if chain == 0:
+            L = P.R_ALPHA_M
+            dp, dm = d0 + L * (xs - xo), d0 - L * (xs - xo)
+            return self.p.band_scale * L * (self._g(coef, dp) - self._g(coef, dm))
+        L = P.R_BETA_ARM_M
+        if self.o.beta_geometry == "small":
+            dp, dm = d0 + L * (xs - xo), d0 - L * (xs - xo)
+            return self.p.band_scale * L * (self._g(coef, dp) - self._g(coef, dm))
+        a = P.LATTICE_M
+        ds = np.sin(xs) - np.sin(xo)
+        dc = np.cos(xs) - np.cos(xo)
+        total = 0.0
+        for sgn in (+1.0, -1.0):
+            Delta = np.hypot(a + sgn * L * ds, -sgn * L * dc) - a
+            fT = self._g(coef, d0 + Delta) * (np.cos(xs) * (a + sgn * L * ds) - sgn * L * np.sin(xs) * dc) / (a + Delta)
+            total = total + sgn * fT
+        return self.p.band_scale * L * total
+
+    def band_torques(self, x):
+        """Net band torque on every cylinder: -tau(x_j, x_{j-1}) - tau(x_j, x_{j+1}), free ends."""
+        n = self.n
+        out = np.zeros(2 * n)
+        for ch in range(2):
+            xc = x[ch * n:(ch + 1) * n]
+            right = self.band[ch] * self.bond_torque(ch, xc[:-1], xc[1:])   # on j from j+1
+            left = self.band[ch] * self.bond_torque(ch, xc[1:], xc[:-1])    # on j+1 from j
+            o = out[ch * n:(ch + 1) * n]
+            o[:-1] -= right
+            o[1:] -= left
+        return out
+
+    def forces(self, t, x, volt=None, mgain=None):
+        n = self.n
+        F = self.band_torques(x)
+        C = self.eta.copy()
+        if self.ideal:
+            a, b = x[:n], x[n:]
+            F[:n] += self.p.k_ab * (b - a) - self.p.psi_prime(a) - self.p.sigma * b
+            F[n:] += self.p.k_ab * (a - b)
+        if mgain is not None:
+            F += mgain * volt
+            C += mgain / self.p.speed_const
+        for q in self.perts:
+            if q.start_s <= t < q.start_s + q.duration_s:
+                F[(0 if q.chain == "alpha" else n) + q.cell - 1] += q.torque_Nm
+        return F, C
+
+    # ---- steppers (numpy mirrors of the registered ones) ------------------
+    def step(self, stepper, t, x, v, h):
+        if not self.o.inertia:
+            def f(tt, xx):
+                F, C = self.forces(tt, xx)
+                return F / C
+            if stepper == "rk4":
+                k1 = f(t, x); k2 = f(t + h / 2, x + h / 2 * k1)
+                k3 = f(t + h / 2, x + h / 2 * k2); k4 = f(t + h, x + h * k3)
+                return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), (k1 + 2 * k2 + 2 * k3 + k4) / 6
+            vv = f(t, x)
+            return x + h * vv, vv
+        if stepper == "symplectic_euler":
+            F, C = self.forces(t, x)
+            v1 = (v + h * F / self.I) / (1 + h * C / self.I)
+            return x + h * v1, v1
+        if stepper == "euler":
+            F, C = self.forces(t, x)
+            return x + h * v, v + h * (F - C * v) / self.I
+
+        def f(tt, xx, vv):
+            F, C = self.forces(tt, xx)
+            return vv, (F - C * vv) / self.I
+        a1, b1 = f(t, x, v)
+        a2, b2 = f(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
+        a3, b3 = f(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)
+        a4, b4 = f(t + h, x + h * a3, v + h * b3)
+        return x + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4), v + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
+
+    def run(self, stepper, h, nsteps, x0=None, v0=None, record_every=1):
+        x = np.zeros(2 * self.n) if x0 is None else np.array(x0, float)
+        v = np.zeros(2 * self.n) if v0 is None else np.array(v0, float)
+        xs = [x.copy()]
+        for s in range(nsteps):
+            x, v = self.step(stepper, s * h, x, v, h)
+            if (s + 1) % record_every == 0:
+                xs.append(x.copy())
+        return np.array(xs), v
