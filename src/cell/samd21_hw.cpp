@@ -151,6 +151,7 @@ void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta)
                                    CELL_PIN_ENC_B_B};
     for (unsigned i = 0; i < sizeof(pins); i++)
         pinMode(pins[i], INPUT_PULLUP);
+    delayMicroseconds(20);   /* let the pull-ups settle before the first sample */
     s_quad[MC_ALPHA] = alpha;
     s_quad[MC_BETA] = beta;
     mc_quad_init(alpha, read_alpha());

@@ -582,3 +582,30 @@ def test_identify_flags_two_boards_claiming_one_address(tmp_path, capsys):
     answers["/dev/ttyACM1"] = Identity("cell", "1.0", 4, 0x13)
     assert cli.cmd_identify(args, lambda: ports, lambda m, err=False: None,
                             query=lambda d: QueryResult(answers[d], [], [])) == cli.EXIT_OK
+
+
+# ---- the flags the tool passes satisfy the firmware's own build-time checks -------------
+
+def _cell_config(defines: list[str]) -> subprocess.CompletedProcess:
+    cc = shutil.which("cc") or shutil.which("gcc")
+    return subprocess.run([cc, "-fsyntax-only", "-x", "c", "-", "-I", str(ROOT / "src" / "cell"),
+                           *defines], input='#include "cell_config.h"\n', capture_output=True,
+                          text=True, timeout=60)
+
+
+@pytest.mark.skipif(not (shutil.which("cc") or shutil.which("gcc")), reason="no host C compiler")
+def test_planned_cell_flags_pass_cell_config_and_bad_ones_do_not():
+    plan = make_plan(fake_inventory(), fake_ports(17))
+    for step in plan.steps[:16]:
+        flags = dict(step.env_vars)["PLATFORMIO_BUILD_SRC_FLAGS"].split()
+        res = _cell_config(flags)
+        assert res.returncode == 0, (flags, res.stderr)
+    assert _cell_config([]).returncode == 0                      # unaddressed image
+    for bad, why in ((["-DMC_CELL_INDEX=17", "-DMC_CELL_ADDR=0x20"], "MC_CELL_INDEX must be"),
+                     (["-DMC_CELL_INDEX=3", "-DMC_CELL_ADDR=0x05"], "non-reserved"),
+                     (["-DMC_CELL_INDEX=3", "-DMC_CELL_ADDR=0x78"], "non-reserved"),
+                     (["-DMC_CELL_ADDR=0x12"], "without MC_CELL_INDEX"),
+                     (["-DMC_CTRL_RATE_HZ=60000"], "MC_CTRL_RATE_HZ"),
+                     (["-DMC_PWM_TOP=5000"], "MC_PWM_TOP")):
+        res = _cell_config(bad)
+        assert res.returncode != 0 and why in res.stderr, (bad, res.stderr)
