@@ -1,0 +1,100 @@
+"""The generated C header and DBC agree with protocol/definition.py; CRC-8 matches an independent bitwise reference."""
+
+import struct
+import subprocess
+import sys
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tools.rigtools import proto
+
+D = proto.D
+
+
+def test_generated_files_are_current():
+    r = subprocess.run([sys.executable, str(proto.PROTOCOL_DIR / "generate.py"), "--check"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def test_c_constants_follow_definition(fw):
+    _, lib = fw
+    assert lib.MC_PROTO_VERSION == D.PROTO_VERSION
+    assert lib.MC_ADDR_BASE == D.ADDR_BASE and lib.MC_N_CELLS == D.N_CELLS
+    for name, b in D.BLOCKS.items():
+        off = 0
+        for fname, ftype, _ in b["fields"]:
+            assert getattr(lib, f"MC_{name}_{fname.upper()}") == off
+            off += D.TYPE_SIZES[ftype]
+        assert getattr(lib, f"MC_BLK_{name}_LEN") == off
+        assert getattr(lib, f"MC_BLK_{name}_TAG") == (D.PROTO_VERSION << 4) | b["id"]
+    for name, r in D.REGISTERS.items():
+        assert getattr(lib, f"MC_REG_{name}") == r["id"]
+        assert getattr(lib, f"MC_REG_{name}_LEN") == sum(D.TYPE_SIZES[f[1]] for f in r["payload"])
+    for name, code in D.RESULTS.items():
+        assert getattr(lib, f"MC_RES_{name}") == code
+    for name, f in D.FRAMES.items():
+        assert getattr(lib, f"MC_CAN_{name}") == f["base"]
+
+
+def test_addresses_avoid_reserved_ranges_and_are_one_to_one():
+    addrs = [proto.cell_address(j) for j in range(1, D.N_CELLS + 1)]
+    assert len(set(addrs)) == D.N_CELLS
+    assert all(0x08 <= a <= 0x77 for a in addrs)
+    assert [proto.cell_of_address(a) for a in addrs] == list(range(1, D.N_CELLS + 1))
+    for bad in (0, 17, -1):
+        with pytest.raises(ValueError):
+            proto.cell_address(bad)
+
+
+def test_crc8_check_value(fw):
+    _, lib = fw
+    # published check value of CRC-8/SMBUS (poly 0x07, init 0) over "123456789"
+    assert proto.crc8(b"123456789") == 0xF4
+    assert lib.mc_crc8(b"123456789", 9) == 0xF4
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=64), st.integers(0, 255))
+def test_crc8_matches_bitwise_reference(fw, data, init):
+    _, lib = fw
+    assert lib.mc_crc8_update(init, data, len(data)) == proto.crc8(data, init)
+
+
+def test_dbc_has_every_frame_with_the_defined_layout():
+    db = proto.database()
+    for name, f in D.FRAMES.items():
+        cells = range(1, D.N_CELLS + 1) if f["per_cell"] else [None]
+        for j in cells:
+            m = db.get_message_by_frame_id(f["base"] + (j or 0))
+            assert m.name == (f"{name}_{j:02d}" if j else name)
+            if f.get("multiplexed"):
+                continue
+            off = 0
+            for sname, stype, scale, offset, _, _ in f["signals"]:
+                s = m.get_signal_by_name(sname)
+                assert (s.start, s.length, s.is_signed) == (8 * off, 8 * D.TYPE_SIZES[stype], stype[0] == "i")
+                assert (s.scale, s.offset) == (scale, offset)
+                off += D.TYPE_SIZES[stype]
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 16), st.integers(0, 255), st.integers(-32768, 32767), st.integers(-32768, 32767),
+       st.integers(0, 65535), st.integers(0, 255))
+def test_dbc_decodes_sample_frames(j, seq, a, b, t, flags):
+    data = struct.pack("<BhhHB", seq, a, b, t, flags)
+    d = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)
+    assert (d["seq"], d["alpha"], d["beta"], d["flags"]) == (seq, a, b, flags)
+    assert d["t128"] == pytest.approx(t * 128e-6)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 16), st.integers(0, 255), st.sampled_from([0, 1]), st.integers(-32768, 32767),
+       st.integers(0, 65535))
+def test_dbc_decodes_command_frames(j, seq, chain, torque, ticks):
+    data = proto.cmd_data("PERTURB", seq, chain=chain, torque=torque, ticks=ticks)
+    d = proto.database().decode_message(proto.cmd_frame_id(j), data + bytes(8 - len(data)))
+    assert d["reg"] == D.REGISTERS["PERTURB"]["id"] and d["seq"] == seq
+    assert (d["PERTURB_chain"], d["PERTURB_torque"], d["PERTURB_ticks"]) == (chain, 4 * torque, ticks)

@@ -1,0 +1,274 @@
+"""Cell register handler: writes validated (CRC-8, register, length, range) and applied only at a tick boundary; read blocks consistent."""
+
+import struct
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tools.rigtools import proto
+
+D = proto.D
+J = 5
+ADDR = proto.cell_address(J)
+
+
+class Cell:
+    """One compiled cell with its register handler, decoders at fixed positions."""
+
+    def __init__(self, fw):
+        self.ffi, self.lib = ffi, lib = fw
+        self.c = ffi.new("mc_cell_t *")
+        lib.mc_cell_init(self.c)
+        self.r = ffi.new("mc_regs_t *")
+        assert lib.mc_regs_init(self.r, self.c, ADDR, 0xC0FFEE, ffi.NULL) == lib.MC_OK
+        self.a = ffi.new("mc_quad_snap_t *")
+        self.b = ffi.new("mc_quad_snap_t *")
+        self.buf = ffi.new("uint8_t[64]")
+
+    def write(self, data: bytes):
+        self.lib.mc_regs_on_receive(self.r, data, len(data))
+
+    def cmd(self, reg, seq, **values):
+        self.write(proto.i2c_write_frame(J, reg, seq, proto.pack_payload(reg, **values)))
+
+    def tick(self, pos_a=0, pos_b=0, errs=(0, 0)):
+        self.a.pos, self.b.pos = pos_a, pos_b
+        self.a.errors, self.b.errors = errs
+        return self.lib.mc_regs_tick(self.r, self.c, self.a, self.b)
+
+    def read(self, cap=64):
+        n = self.lib.mc_regs_on_request(self.r, self.buf, cap)
+        return bytes(self.ffi.buffer(self.buf, n))
+
+    def snapshot(self):
+        raw = self.read()
+        assert len(raw) == self.lib.MC_BLK_SNAPSHOT_LEN
+        assert proto.crc8(raw[:-1]) == raw[-1]
+        return proto.decode_block("SNAPSHOT", raw)
+
+    def config(self):
+        """Everything a write may change, as bytes (the tick-evolving state excluded)."""
+        c, ffi = self.c, self.ffi
+        return (bytes(ffi.buffer(ffi.addressof(c, "law"))), bytes(ffi.buffer(ffi.addressof(c, "drive"))),
+                tuple(c.zero), c.enabled, c.bemf_comp, c.pert_torque, c.pert_ticks, c.pert_chain, c.faults,
+                bytes(ffi.buffer(self.r.params[self.r.params_idx])))
+
+
+@pytest.fixture
+def cell(fw):
+    return Cell(fw)
+
+
+def test_write_applies_only_at_the_tick_boundary(cell, fw):
+    ffi, lib = fw
+    before = cell.config()
+    cell.cmd("SIGMA", 7, value=48000)
+    assert cell.config() == before                  # received, not applied
+    assert cell.snapshot()["cmd_seq"] == 0
+    cell.tick()
+    law = ffi.new("mc_reaction_t *")
+    phys = ffi.new("mc_reaction_phys_t *")
+    lib.mc_cell_default_params(phys)
+    phys.sigma_unm = 48000
+    assert lib.mc_reaction_from_phys(law, phys) == lib.MC_OK
+    assert bytes(ffi.buffer(law)) == bytes(ffi.buffer(ffi.addressof(cell.c, "law")))
+    s = cell.snapshot()
+    assert (s["cmd_seq"], s["cmd_result"], s["rejected"]) == (7, D.RESULTS["OK"], 0)
+
+
+def test_params_block_reports_parameters_in_force(cell):
+    cell.cmd("K_AB", 1, value=15000)
+    cell.tick()
+    cell.write(proto.i2c_write_frame(J, "POINTER", 0, bytes([D.BLOCKS["PARAMS"]["id"]])))
+    raw = cell.read()
+    assert proto.crc8(raw[:-1]) == raw[-1]
+    p = proto.decode_block("PARAMS", raw)
+    assert (p["tag"], p["addr"], p["k_ab"], p["sigma"], p["k1"], p["k2"], p["astar"]) == \
+        (0x12, ADDR, 15000, 72000, 60000, -60000, 1178097)
+    assert p["pwm_limit"] == cell.c.drive.duty_limit
+    assert cell.read()[0] == 0x10   # the pointer went back to the snapshot
+
+
+def test_ident_block(cell, fw):
+    _, lib = fw
+    cell.write(proto.i2c_write_frame(J, "POINTER", 0, bytes([D.BLOCKS["IDENT"]["id"]])))
+    raw = cell.read()
+    assert proto.crc8(raw[:-1]) == raw[-1]
+    i = proto.decode_block("IDENT", raw)
+    assert (i["tag"], i["addr"], i["fw_version"], i["build"], i["map_id"]) == \
+        (0x11, ADDR, lib.MC_FW_VERSION, 0xC0FFEE, lib.MC_PROTO_MAP_ID)
+
+
+def test_snapshot_is_one_tick(cell):
+    cell.cmd("ENABLE", 3, on=1)
+    for k in range(5):
+        cell.tick(pos_a=10 * k, pos_b=-3 * k, errs=(k, 2 * k))
+    s = cell.snapshot()
+    assert (s["tick"], s["alpha"], s["beta"], s["dec_err_a"], s["dec_err_b"]) == (5, 40, -12, 4, 8)
+    assert s["flags"] & (1 << D.CELL_FLAGS["ENABLED"])
+    assert s["alpha"] == cell.c.theta[0] and s["beta"] == cell.c.theta[1]
+
+
+def test_zero_uses_the_positions_of_its_tick(cell):
+    cell.tick(pos_a=100, pos_b=-50)
+    cell.cmd("ZERO", 9)
+    cell.tick(pos_a=120, pos_b=-40)
+    assert tuple(cell.c.zero) == (120, -40)
+    assert cell.snapshot()["alpha"] == 0
+    cell.tick(pos_a=125, pos_b=-40)
+    assert cell.snapshot()["alpha"] == 5
+
+
+def test_perturb_enable_bemf_pwm_clear(cell):
+    cell.cmd("PERTURB", 1, chain=1, torque=-1000, ticks=30)
+    cell.tick()
+    assert (cell.c.pert_chain, cell.c.pert_torque, cell.c.pert_ticks) == (1, -4000 * 32, 29)
+    cell.cmd("BEMF", 2, on=0)
+    cell.tick()
+    assert cell.c.bemf_comp == 0
+    cell.cmd("PWM_LIMIT", 3, ticks=100)
+    cell.tick()
+    assert cell.c.drive.duty_limit == 100
+    cell.cmd("PWM_LIMIT", 4, ticks=cell.c.drive.pwm_top)
+    cell.tick()
+    assert cell.c.drive.duty_limit == cell.c.drive.duty_max   # clamped to the 5.86 V cap
+    cell.c.faults = 4
+    cell.cmd("CLEAR_FAULTS", 5)
+    cell.tick()
+    assert cell.c.faults == 0 and cell.snapshot()["rejected"] == 0
+
+
+def _rejected(cell, frame, expect):
+    before = cell.config()
+    n0 = cell.snapshot()["rejected"]
+    cell.write(frame)
+    cell.tick()
+    s = cell.snapshot()
+    assert s["cmd_result"] == D.RESULTS[expect]
+    assert s["rejected"] == (n0 + 1) & 0xFF
+    assert cell.config() == before
+
+
+def test_bad_crc_rejected(cell):
+    f = bytearray(proto.i2c_write_frame(J, "ENABLE", 1, b"\x01"))
+    f[-1] ^= 0x20
+    _rejected(cell, bytes(f), "CRC")
+
+
+def test_write_for_another_cell_fails_crc(cell):
+    f = bytes([D.REGISTERS["ENABLE"]["id"], 1, 1])
+    other = f + bytes([proto.crc8(bytes([proto.cell_address(J + 1) << 1]) + f)])
+    _rejected(cell, other, "CRC")
+
+
+def test_unknown_register_rejected(cell):
+    body = bytes([0x7E, 1, 0, 0])
+    _rejected(cell, body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]), "REG")
+
+
+def test_wrong_length_rejected(cell):
+    body = bytes([D.REGISTERS["K_AB"]["id"], 1, 0, 0])   # 2 payload bytes, needs 4
+    _rejected(cell, body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]), "LENGTH")
+    _rejected(cell, bytes(40), "LENGTH")                 # longer than any write
+
+
+@pytest.mark.parametrize("reg,vals,expect", [
+    ("K_AB", {"value": 250001}, "RANGE"), ("ASTAR", {"value": -1}, "RANGE"),
+    ("K1", {"value": -70000}, "SHAPE"), ("K2", {"value": 60000}, "SHAPE"),
+    ("ENABLE", {"on": 2}, "RANGE"), ("BEMF", {"on": 255}, "RANGE"),
+    ("PERTURB", {"chain": 2, "torque": 1, "ticks": 1}, "RANGE"),
+    ("PERTURB", {"chain": 0, "torque": 32767, "ticks": 1}, "RANGE"),
+    ("PWM_LIMIT", {"ticks": 5000}, "RANGE"),
+])
+def test_out_of_range_rejected(cell, reg, vals, expect):
+    _rejected(cell, proto.i2c_write_frame(J, reg, 0x42, proto.pack_payload(reg, **vals)), expect)
+
+
+def test_empty_receive_ignored_and_mailbox_full_counted(cell):
+    cell.write(b"")                         # SAMD21: onReceive(0) after a read
+    cell.tick()
+    assert cell.snapshot()["bus_err"] == 0 and cell.snapshot()["cmd_seq"] == 0
+    cell.cmd("ENABLE", 1, on=1)
+    cell.cmd("ENABLE", 2, on=0)             # before the tick: dropped
+    cell.tick()
+    s = cell.snapshot()
+    assert (s["cmd_seq"], s["bus_err"], cell.c.enabled) == (1, 1, 1)
+
+
+def test_bad_pointer_counted_and_ignored(cell):
+    f = bytearray(proto.i2c_write_frame(J, "POINTER", 0, b"\x01"))
+    f[-1] ^= 1
+    cell.write(bytes(f))
+    cell.write(proto.i2c_write_frame(J, "POINTER", 0, b"\x09"))   # no such block
+    assert cell.read()[0] == 0x10
+    cell.tick()
+    assert cell.snapshot()["bus_err"] == 2
+
+
+def test_short_read_is_truncated(cell):
+    assert cell.read(cap=5) == cell.read()[:5]
+
+
+def _reference_result(frame: bytes):
+    """Independent model of the validation order: length, CRC, register, length, ranges."""
+    if len(frame) < 3 or len(frame) > 3 + max(
+            sum(D.TYPE_SIZES[f[1]] for f in r["payload"]) for r in D.REGISTERS.values()):
+        return "LENGTH"
+    if proto.crc8(bytes([ADDR << 1]) + frame[:-1]) != frame[-1]:
+        return "CRC"
+    regs = {r["id"]: (k, r) for k, r in D.REGISTERS.items()}
+    if frame[0] not in regs or regs[frame[0]][0] == "POINTER":
+        return "REG"
+    name, r = regs[frame[0]]
+    if len(frame) != 3 + sum(D.TYPE_SIZES[f[1]] for f in r["payload"]):
+        return "LENGTH"
+    p = frame[2:-1]
+    if name in ("K_AB", "SIGMA", "K1", "K2", "ASTAR"):
+        v = struct.unpack("<i", p)[0]
+        ph = {"K_AB": 20000, "SIGMA": 72000, "K1": 60000, "K2": -60000, "ASTAR": 1178097}
+        ph[name] = v
+        if any(abs(ph[k]) > 250000 for k in ("K_AB", "SIGMA", "K1", "K2")) or not 0 <= ph["ASTAR"] <= 6283185:
+            return "RANGE"
+        if ph["K1"] <= ph["K2"] or ph["K1"] <= 0:
+            return "SHAPE"
+        return "OK"
+    if name in ("ENABLE", "BEMF"):
+        return "OK" if p[0] <= 1 else "RANGE"
+    if name == "PERTURB":
+        chain, t, _ = struct.unpack("<BhH", p)
+        return "OK" if chain <= 1 and abs(4 * t) <= 131000 else "RANGE"
+    if name == "PWM_LIMIT":
+        return "OK" if struct.unpack("<H", p)[0] <= 2400 else "RANGE"
+    return "OK"
+
+
+frames = st.one_of(
+    st.binary(max_size=16),
+    st.builds(lambda reg, seq, p: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(
+        bytes([reg, seq]) + p), st.sampled_from([r["id"] for r in D.REGISTERS.values()] + [0x7F]),
+        st.integers(0, 255), st.binary(max_size=8)),
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(frames)
+def test_any_write_matches_reference_and_rejections_change_nothing(fw, frame):
+    cell = Cell(fw)
+    cell.tick()
+    before = cell.config()
+    cell.write(frame)
+    cell.tick()
+    s = cell.snapshot()
+    if not frame:
+        assert s["cmd_result"] == D.RESULTS["NONE"]
+        return
+    if frame[0] == D.REGISTERS["POINTER"]["id"]:
+        assert s["cmd_result"] == D.RESULTS["NONE"]
+        assert cell.config() == before
+        return
+    expect = _reference_result(frame)
+    assert s["cmd_result"] == D.RESULTS[expect], (frame.hex(), expect)
+    if expect != "OK":
+        assert cell.config() == before
+        assert s["rejected"] == 1
