@@ -146,3 +146,23 @@ def test_psi_prime_matches_params_reference(values):
     b = p.k1 * p.alpha_star / (p.k1 - p.k2)
     away = np.abs(np.abs(a) - b) > 2 * h                 # the kinks have no derivative
     assert np.allclose(slope[away], fd[away], atol=1e-6)
+
+
+def test_observed_growth_rate_of_a_single_mode_run():
+    """observables' early-growth fit on a real run that grows from 1e-5 rad into saturation."""
+    from host_emulator.analysis.observables import observables
+
+    p = Params(sigma=9 / 125)
+    m = 5
+    kappa = math.pi * m / N
+    q = kappa ** 2
+    a = np.array([[-p.k_ab - p.k2 - q * p.k_a, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.k_b]])
+    w, v = np.linalg.eig(a / np.array([p.eta_alpha, p.eta_beta])[:, None])
+    vec = v[:, int(np.argmax(w.real))].real
+    vec /= np.abs(vec).max()
+    init = lambda x: (1e-5 * vec[0] * np.cos(kappa * x), 1e-5 * vec[1] * np.cos(kappa * x))
+    t, al, be = simulate_continuum(p, N, 1.5, [], dt_out_s=0.005, points_per_cell=8, initial=init)
+    o = observables(t, al, be)
+    pred = growth_rates(p, [kappa], discrete=False)[0, 0].real
+    assert o["growth_rate_per_s"] == pytest.approx(pred, rel=0.03)
+    assert o["steady"] and o["pattern_period_cells"] == pytest.approx(2 * N / m, rel=0.05)
