@@ -1,0 +1,182 @@
+"""Primary scheduler on the emulated bus: round-robin rate vs the I2C bound, fault isolation, command forwarding, rejection reports."""
+
+import struct
+
+import pytest
+
+from host_emulator.bus.i2c import I2CTiming, lattice_rate_limit
+from host_emulator.bus.rig import BusOptions, make_rig
+from tools.rigtools import proto
+
+D = proto.D
+R = D.RESULTS
+
+
+def run(rig, seconds):
+    rig.advance_to(rig.t_us + int(seconds * 1e6))
+    return rig.frames()
+
+
+def by_kind(frames):
+    out = {}
+    for fid, data in frames:
+        name, j = proto.frame_kind(fid)
+        out.setdefault(name, []).append((j, data))
+    return out
+
+
+def collect(rig, seconds, step=0.02):
+    """Frames over `seconds`, popped often enough that the 64-frame queue never overflows."""
+    frames = []
+    for _ in range(round(seconds / step)):
+        frames += run(rig, step)
+    assert rig.p.tx_drop == 0
+    return frames
+
+
+@pytest.mark.parametrize("hz", [100_000, 400_000])
+def test_rate_reaches_90_percent_of_bus_limit(hz):
+    rig, _ = make_rig("exp5_rest", BusOptions(i2c_hz=hz))
+    collect(rig, 1.0)
+    c0 = rig.p.cycles
+    collect(rig, 2.0)
+    rate = (rig.p.cycles - c0) / 2.0
+    limit = lattice_rate_limit(hz)
+    # independent bound: 16 reads of 23 bytes, (1 + 9 + 9*23 + 1) bit periods plus t_BUF each
+    assert limit == pytest.approx(1 / (16 * (218 / hz + {100_000: 4.7e-6, 400_000: 1.3e-6}[hz])))
+    assert rate >= 0.9 * limit
+    assert rate <= limit * 1.0001
+
+
+def test_samples_from_every_cell_match_the_cells():
+    rig, _ = make_rig("default")
+    frames = collect(rig, 0.5)
+    k = by_kind(frames)
+    db = proto.database()
+    seen = {j for j, _ in k["CELL_SAMPLE"]}
+    assert seen == set(range(1, 17))
+    last = {}
+    for j, data in k["CELL_SAMPLE"]:
+        d = db.decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)
+        if j in last:
+            assert d["seq"] == (last[j] + 1) & 0xFF        # healthy cell: no gaps
+        last[j] = d["seq"]
+    # the newest sample of each cell equals the cell's angle at (or one tick before) the read
+    for j in range(1, 17):
+        a = struct.unpack("<h", [d for jj, d in k["CELL_SAMPLE"] if jj == j][-1][1:3])[0]
+        assert abs(a - rig.solver.cells[j - 1].theta[0]) <= 2
+
+
+def test_bad_cells_never_stall_the_others():
+    rig, _ = make_rig("exp5_rest", BusOptions(absent=(3,), stuck=(7,), babble=(11,)))
+    frames = collect(rig, 3.0)
+    k = by_kind(frames)
+    counts = {j: 0 for j in range(1, 17)}
+    for j, _ in k["CELL_SAMPLE"]:
+        counts[j] += 1
+    assert counts[3] == counts[7] == counts[11] == 0
+    good = [counts[j] for j in counts if j not in (3, 7, 11)]
+    healthy, _ = make_rig("exp5_rest")
+    collect(healthy, 3.0)
+    # a stuck cell costs one timeout per back-off period (<= 64 cycles): the others lose < 10 %
+    assert min(good) >= 0.9 * healthy.p.cycles
+    p = rig.p.cell
+    assert p[2].nack > 0 and p[2].timeout == 0
+    assert p[6].timeout > 0 and p[6].skipped > 0
+    assert p[10].integrity > 0
+    link = {j: d for j, d in k["CELL_LINK"]}
+    assert struct.unpack("<4H", link[7])[2] > 0 and struct.unpack("<4H", link[3])[0] > 0
+
+
+def send(rig, j, data, dlc=None):
+    """One CAN frame from the laptop through the SLCAN text layer."""
+    rig.feed(b"O\r")
+    dlc = len(data) if dlc is None else dlc
+    line = f"t{proto.FRAMES['CMD']['base'] + j:03X}{dlc}{data.hex().upper()}\r".encode()
+    return rig.feed(line)
+
+
+def results(frames):
+    return [(j,) + tuple(d) for j, d in by_kind(frames).get("CMD_RESULT", [])]
+
+
+def test_command_reaches_cell_and_result_comes_back():
+    rig, _ = make_rig("exp5_rest")
+    collect(rig, 0.05)
+    assert send(rig, 4, proto.cmd_data("SIGMA", 77, value=48000)) == b"z\r"
+    frames = collect(rig, 0.05)
+    assert (4, D.REGISTERS["SIGMA"]["id"], 77, R["OK"], 0) in results(frames)
+    c = rig.solver.cells[3]
+    ffi, lib = rig.ffi, rig.lib
+    law = ffi.new("mc_reaction_t *")
+    ph = ffi.new("mc_reaction_phys_t *")
+    lib.mc_cell_default_params(ph)
+    ph.sigma_unm = 48000
+    lib.mc_reaction_from_phys(law, ph)
+    assert c.law.g_sigma == law.g_sigma
+    assert rig.solver.cells[2].law.g_sigma != law.g_sigma      # only the addressed cell
+
+
+def test_out_of_range_reported_by_the_cell_and_nothing_changes():
+    rig, _ = make_rig("exp5_rest")
+    collect(rig, 0.05)
+    before = bytes(rig.ffi.buffer(rig.ffi.addressof(rig.solver.cells[5], "law")))
+    send(rig, 6, proto.cmd_data("K1", 5, value=-5))
+    frames = collect(rig, 0.05)
+    assert (6, D.REGISTERS["K1"]["id"], 5, R["SHAPE"], 0) in results(frames)
+    assert bytes(rig.ffi.buffer(rig.ffi.addressof(rig.solver.cells[5], "law"))) == before
+
+
+def test_malformed_commands_rejected_with_status():
+    rig, _ = make_rig("exp5_rest")
+    collect(rig, 0.05)
+    send(rig, 2, bytes([0x7E, 1]))                                        # unknown register
+    send(rig, 2, proto.cmd_data("K_AB", 2, value=1)[:4])                  # wrong length
+    send(rig, 2, bytes([0x10]))                                           # too short
+    assert rig.feed(b"t7FF0\r") == b"z\r"                                  # unknown id
+    assert rig.feed(b"t3000\r") == b"z\r"                                  # cell 0
+    assert rig.feed(b"T00000301110\r") == b"Z\r"                           # extended id
+    assert rig.feed(b"t10\r") == b"\a"                                     # malformed line
+    frames = collect(rig, 0.05)
+    res = results(frames)
+    assert (2, 0x7E, 1, R["REG"], 0) in res
+    assert (2, 0x10, 2, R["BAD_FRAME"], 0) in res
+    rej = [struct.unpack("<BIBH", d) for _, d in by_kind(frames)["PRIMARY_REJECT"]]
+    assert [(r[0], r[1] & 0x1FFFFFFF) for r in rej] == [(R["BAD_FRAME"], 0x7FF), (R["NO_CELL"], 0x300),
+                                                        (R["BAD_FRAME"], 0x301)]
+    assert rig.link.s.errors == 1
+
+
+def test_busy_and_absent_cell():
+    rig, _ = make_rig("exp5_rest", BusOptions(absent=(9,)))
+    collect(rig, 0.05)
+    send(rig, 1, proto.cmd_data("ENABLE", 1, on=1))
+    send(rig, 1, proto.cmd_data("ENABLE", 2, on=0))
+    send(rig, 9, proto.cmd_data("ENABLE", 3, on=0))
+    frames = collect(rig, 0.2)
+    res = results(frames)
+    assert (1, 0x20, 2, R["BUSY"], 0) in res
+    assert (1, 0x20, 1, R["OK"], 0) in res
+    assert any(r[:4] == (9, 0x20, 3, R["NACK"]) for r in res)
+
+
+def test_period_sets_the_cycle_rate():
+    rig, _ = make_rig("exp5_rest", BusOptions(period_us=20_000))
+    collect(rig, 1.0)
+    assert rig.p.cycles == pytest.approx(50, abs=1)
+
+
+def test_heartbeat_once_per_second():
+    rig, _ = make_rig("exp5_rest")
+    frames = collect(rig, 3.1)
+    hb = [struct.unpack("<IHBB", d) for _, d in by_kind(frames)["PRIMARY_STATUS"]]
+    assert [h[0] for h in hb] == pytest.approx([1000, 2000, 3000], abs=2)
+    limit = lattice_rate_limit()
+    assert all(h[1] >= 0.9 * limit for h in hb[1:])
+
+
+def test_timing_model_bits():
+    t = I2CTiming(400_000)
+    assert t.bits(23) == 1 + 9 + 9 * 23 + 1
+    with pytest.raises(ValueError):
+        I2CTiming(123)
