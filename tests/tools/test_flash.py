@@ -609,3 +609,53 @@ def test_planned_cell_flags_pass_cell_config_and_bad_ones_do_not():
                      (["-DMC_PWM_TOP=5000"], "MC_PWM_TOP")):
         res = _cell_config(bad)
         assert res.returncode != 0 and why in res.stderr, (bad, res.stderr)
+
+
+# ---- the PlatformIO post-build hook -------------------------------------------------------
+
+class _FakeSconsEnv:
+    def __init__(self, project):
+        self.vars = {"$PROJECT_DIR": str(project), "$PYTHONEXE": __import__("sys").executable}
+        self.actions = []
+
+    def subst(self, s):
+        return self.vars[s]
+
+    def AddPostAction(self, target, fn):
+        self.actions.append((target, fn))
+
+
+def _load_hook(project):
+    env = _FakeSconsEnv(project)
+    code = (ROOT / "tools" / "flash" / "pio_fwcheck.py").read_text()
+    exec(compile(code, "pio_fwcheck.py", "exec"), {"Import": lambda name: None, "env": env})
+    (target, fn), = env.actions
+    assert target == "$BUILD_DIR/${PROGNAME}.elf"
+    return env, fn
+
+
+@pytest.mark.parametrize("checker, expect_rc, text", [
+    (None, 0, "NOT run"),                                   # no checker: warn, build goes on
+    ("lint_ok", 0, "lint ok"),
+    ("lint_fails", 3, "FAILED"),                            # checker says no: build fails
+    ("no_lint", 0, "NOT run"),                              # older checker without `lint`
+])
+def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text):
+    monkeypatch.delenv("MC_FWCHECK", raising=False)
+    if checker:
+        pkg = tmp_path / "tools" / "fwcheck"
+        pkg.mkdir(parents=True)
+        (tmp_path / "tools" / "__init__.py").write_text("")
+        (pkg / "__init__.py").write_text("")
+        rc = 3 if checker == "lint_fails" else 0
+        (pkg / "__main__.py").write_text(
+            "import sys\n"
+            "if '--help' in sys.argv:\n"
+            f"    print({'lint report' if checker != 'no_lint' else 'report'!r}); sys.exit(0)\n"
+            "assert sys.argv[1:3] == ['lint', '--elf'], sys.argv\n"
+            f"print('lint ok' if {rc} == 0 else 'lint bad'); sys.exit({rc})\n")
+    env, fn = _load_hook(tmp_path)
+    assert fn(None, [tmp_path / "firmware.elf"], env) == expect_rc
+    assert text in capfd.readouterr().out
+    monkeypatch.setenv("MC_FWCHECK", "skip")
+    assert fn(None, [tmp_path / "firmware.elf"], env) == 0

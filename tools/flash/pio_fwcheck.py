@@ -1,8 +1,8 @@
-"""PlatformIO post-build hook (extra_scripts): run `python -m tools.fwcheck --elf <firmware.elf>`."""
+"""PlatformIO post-build hook (extra_scripts): `python -m tools.fwcheck lint --elf <firmware.elf>`."""
 # Klipper-style build-time guard: the project's own checker looks for soft-float and
 # division helpers in the control path of the linked image. The hook is fatal when the
-# checker runs and fails, and a warning (build continues) when the checker is not
-# installed. MC_FWCHECK=skip in the environment bypasses it.
+# checker runs and fails, and a warning (build continues) when the checker, or its
+# `lint` command, is not installed. MC_FWCHECK=skip in the environment bypasses it.
 import os
 import subprocess
 
@@ -20,16 +20,14 @@ def _fwcheck(source, target, env):
         print("fwcheck: skipped (MC_FWCHECK=skip)")
         return 0
     python = _python(project)
-    probe = subprocess.run(
-        [python, "-c", "import importlib.util as u, sys; "
-         "sys.exit(0 if u.find_spec('tools.fwcheck.__main__') else 1)"],
-        cwd=project, capture_output=True)
-    if probe.returncode != 0:
-        print("fwcheck: WARNING tools.fwcheck is not available; "
-              "soft-float/division check NOT run")
+    probe = subprocess.run([python, "-m", "tools.fwcheck", "--help"], cwd=project,
+                           capture_output=True, text=True)
+    if probe.returncode != 0 or "lint" not in probe.stdout:
+        print("fwcheck: WARNING `python -m tools.fwcheck lint` is not available; "
+              "soft-float/division check of the image NOT run")
         return 0
     elf = str(target[0])
-    rc = subprocess.call([python, "-m", "tools.fwcheck", "--elf", elf], cwd=project)
+    rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--elf", elf], cwd=project)
     if rc != 0:
         print("fwcheck: FAILED on %s (exit %d)" % (elf, rc))
     return rc
