@@ -1,6 +1,7 @@
 """Golden vectors bit-identical between the host build and an emulated Cortex-M0; instructions per tick."""
 
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -106,3 +107,77 @@ def test_instructions_per_tick_within_budget(ticks):
     med = float(np.median(on))
     print(f"\ninstructions per mc_cell_tick (enabled, fault-free): median {med}, max {max(on)}")
     assert med <= qemu.BUDGET
+
+
+# --------------------------------------------------------------------------- linked-image lint
+
+def test_lint_passes_a_linked_image_of_the_library():
+    elf = qemu.build_image("vectors")
+    rep = armbuild.lint_elf(elf)
+    assert rep.ok and rep.roots == list(armbuild.CONTROL_ROOTS)
+
+
+def test_lint_flags_a_linked_image_that_divides_or_floats(tmp_path):
+    src = tmp_path / "bad.c"
+    src.write_text("static int __attribute__((noinline)) helper(int a, int b) { return a / b; }\n"
+                   "float scale(float x) { return x * 0.3f; }\n"
+                   "int ctl(int a, int b) { return helper(a, b) + (int)scale((float)a); }\n")
+    obj = armbuild.compile_objects([src], tmp_path)[0]
+    elf = tmp_path / "bad.elf"
+    armbuild._run([armbuild.CC, *armbuild.CPU_FLAGS, "-nostdlib", "-nostartfiles", "-Wl,-e,ctl",
+                   "-o", str(elf), str(obj), "-lgcc"])
+    rep = armbuild.lint_elf(elf, ("ctl",))
+    # libgcc's __aeabi_idiv and __divsi3 share one address; objdump names either
+    assert [c[:2] for c in rep.division] == [["ctl", "helper"]]
+    assert armbuild.DIVISION_RE.match(rep.division[0][-1])
+    assert any(chain[-1] == "__aeabi_fmul" for chain in rep.softfloat)
+    assert not rep.ok
+    assert not armbuild.lint_elf(elf, ("mc_cell_tick",)).ok        # no root present: fails
+
+
+# --------------------------------------------------------------------------- Unity tests (test/)
+
+UNITY_DIR = armbuild.ROOT / "test" / "test_native_vectors"
+SHIM = armbuild.ROOT / "tools" / "fwcheck" / "unity_shim"
+
+
+def build_and_run_unity(tmp_path, test_main):
+    exe = tmp_path / "unity_native"
+    srcs = [str(test_main), str(SHIM / "unity.c"), *map(str, armbuild.library_sources())]
+    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{SHIM}",
+                    f"-I{armbuild.LIB_SRC}", *srcs, "-o", str(exe)], check=True,
+                   capture_output=True, text=True)
+    return subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+
+
+def test_golden_header_is_current():
+    from tools.fwcheck import golden
+    assert golden.HEADER_PATH.read_text() == golden.header_text(), (
+        "test/test_native_vectors/golden_vectors.h is stale: the library's behaviour changed. "
+        "If intended, run `.venv/bin/python -m tools.fwcheck golden-header` and commit it.")
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no host C compiler")
+def test_unity_tests_pass_natively(tmp_path):
+    p = build_and_run_unity(tmp_path, UNITY_DIR / "test_main.c")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "8 Tests 0 Failures" in p.stdout
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no host C compiler")
+def test_unity_tests_fail_on_a_wrong_golden_value(tmp_path):
+    # same test file, beside a golden header with the drive checksum altered
+    tdir = tmp_path / "test" / "test_native_vectors"
+    tdir.mkdir(parents=True)
+    (tmp_path / "tools" / "fwcheck").mkdir(parents=True)
+    (tmp_path / "tools" / "fwcheck" / "csrc").symlink_to(armbuild.ROOT / "tools" / "fwcheck" / "csrc")
+    (tdir / "test_main.c").write_text((UNITY_DIR / "test_main.c").read_text())
+    text = (UNITY_DIR / "golden_vectors.h").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("static const uint32_t golden_fam_fnv"))
+    vals = line.split("{")[1].split("}")[0].split(", ")
+    vals[3] = f"{int(vals[3].rstrip('u'), 16) ^ 1:#010x}u"
+    bad = line.split("{")[0] + "{" + ", ".join(vals) + "};"
+    (tdir / "golden_vectors.h").write_text(text.replace(line, bad))
+    p = build_and_run_unity(tmp_path, tdir / "test_main.c")
+    assert p.returncode != 0
+    assert "test_drive_vectors:FAIL" in p.stdout and "1 Failures" in p.stdout

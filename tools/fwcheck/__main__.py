@@ -1,4 +1,12 @@
-"""Command line: `python -m tools.fwcheck report|size|vectors|ticks|golden-header`."""
+"""Command line: `python -m tools.fwcheck report|size|vectors|ticks|golden-header|lint --elf X`.
+
+report         soft-float check, division check, code size, QEMU bit-exact count, instructions/tick
+size           code size of the cross-compiled library
+vectors        QEMU golden vectors against the host build
+ticks          instructions per mc_cell_tick under QEMU (median/max per class)
+golden-header  regenerate test/test_native_vectors/golden_vectors.h from the host build
+lint --elf F   soft-float/division helpers reachable from the control path of a linked image
+"""
 
 from __future__ import annotations
 
@@ -58,10 +66,32 @@ def _ticks() -> bool:
     return calib_ok and med <= qemu.BUDGET
 
 
+def _lint(elf: str | None, extra_roots: list[str]) -> int:
+    from pathlib import Path
+    if not elf or not Path(elf).is_file():
+        print(f"fwcheck lint: --elf must name a linked image (got {elf!r})", file=sys.stderr)
+        return 2
+    rep = armbuild.lint_elf(Path(elf), tuple(armbuild.CONTROL_ROOTS) + tuple(extra_roots))
+    if not rep.roots:
+        print(f"fwcheck lint: none of the control-path entry points is in {elf}")
+        return 1
+    print(f"fwcheck lint {elf}: roots {', '.join(rep.roots)}")
+    for kind, chains in (("soft-float", rep.softfloat), ("division", rep.division)):
+        print(f"  {kind} helpers on the control path: " + ("none" if not chains else ""))
+        for c in chains:
+            print("    " + " -> ".join(c))
+    if rep.indirect:
+        print("  unresolved indirect calls in: " + ", ".join(rep.indirect))
+    return 0 if rep.ok else 1
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.fwcheck", description=__doc__)
+    ap = argparse.ArgumentParser(prog="python -m tools.fwcheck", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("command", nargs="?", default="report",
-                    choices=["report", "size", "vectors", "ticks", "golden-header"])
+                    choices=["report", "size", "vectors", "ticks", "golden-header", "lint"])
+    ap.add_argument("--elf", help="lint: linked image to check")
+    ap.add_argument("--root", action="append", help="lint: extra control-path entry point")
     ap.add_argument("--seed", type=lambda s: int(s, 0), default=None)
     ap.add_argument("--out", help="golden-header: output path")
     a = ap.parse_args(argv)
@@ -71,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
             path = golden.write_header(a.out)
             print(f"wrote {path}")
             return 0
+        if a.command == "lint":
+            return _lint(a.elf, a.root or [])
         objs = armbuild.library_objects()
         ok = True
         if a.command in ("report", "size"):

@@ -105,18 +105,20 @@ def _publish(build, key: str, name: str) -> Path:
     return final
 
 
-def library_objects() -> list[Path]:
-    """The cross-compiled library objects (cached by a hash of the sources and flags)."""
-    srcs = library_sources()
-    headers = sorted(LIB_SRC.rglob("*.h"))
-    key = _digest(srcs + headers, CFLAGS)
+def library_objects(src_dir: Path = LIB_SRC, cflags: list[str] | None = None) -> list[Path]:
+    """The cross-compiled library objects (cached by a hash of the sources and flags).
+    src_dir/cflags exist for experiments (e.g. measuring a variant of the library)."""
+    cflags = CFLAGS if cflags is None else cflags
+    srcs = sorted(src_dir.rglob("*.c"))
+    headers = sorted(src_dir.rglob("*.h"))
+    key = _digest(srcs + headers, cflags)
 
     def build(tmp: Path) -> None:
         # flatten names: sources in different folders never share a stem here
         stems = [s.stem for s in srcs]
         if len(set(stems)) != len(stems):
             raise ToolError("two library sources share a file name; objects would collide")
-        compile_objects(srcs, tmp)
+        compile_objects(srcs, tmp, cflags, [src_dir])
 
     d = _publish(build, key, "lib")
     return [d / (s.stem + ".o") for s in srcs]
@@ -293,3 +295,63 @@ def format_size(rows: list[SizeRow]) -> str:
     lines = [f"{'object':<16}{'text':>8}{'data':>8}{'bss':>8}"]
     lines += [f"{r.name:<16}{r.text:>8}{r.data:>8}{r.bss:>8}" for r in rows]
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- linked images
+
+_INSN = re.compile(r"^\s+([0-9a-f]+):\s+([a-z][\w.]*)\s*(.*)$")
+_DIRECT = re.compile(r"^(?:0x)?[0-9a-f]+ <([^>+]+)>")
+
+
+def elf_call_graph(elf: Path) -> CallGraph:
+    """Call graph of a linked image from its disassembly: `bl`/`b` to the first
+    instruction of another function are edges; `blx`/`bx` through a register
+    (other than lr) are indirect calls."""
+    dis = _run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", str(elf)])
+    g = CallGraph()
+    func = None
+    for ln in dis.splitlines():
+        m = _LABEL.match(ln)
+        if m:
+            func = m.group(2)
+            g.edges.setdefault(func, set())
+            g.defined[func] = elf.name
+            continue
+        if func is None:
+            continue
+        m = _INSN.match(ln)
+        if not m:
+            continue
+        mnem, ops = m.group(2), m.group(3)
+        if mnem in ("blx", "bx") and re.match(r"(r\d+|ip|sl|fp)\b", ops) and not ops.startswith("lr"):
+            g.indirect[func] = g.indirect.get(func, 0) + 1
+        elif mnem.startswith("b"):
+            t = _DIRECT.match(ops)
+            if t and t.group(1) != func:
+                g.edges[func].add(t.group(1))
+    return g
+
+
+@dataclass
+class LintReport:
+    roots: list[str]
+    softfloat: list[list[str]]
+    division: list[list[str]]
+    indirect: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return bool(self.roots) and not (self.softfloat or self.division or self.indirect)
+
+
+def lint_elf(elf: Path, roots=CONTROL_ROOTS) -> LintReport:
+    """Soft-float or division helpers reachable from the control-path roots of a
+    linked image (the Arduino core may use both elsewhere; only reachability counts).
+    Roots absent from the image (e.g. inlined) are skipped; none present fails."""
+    g = elf_call_graph(elf)
+    present = [r for r in roots if r in g.edges]
+    paths = g.reachable(present) if present else {}
+    sf = [p for n, p in sorted(paths.items()) if SOFTFLOAT_RE.match(n)]
+    dv = [p for n, p in sorted(paths.items()) if DIVISION_RE.match(n)]
+    ind = sorted(n for n in paths if g.indirect.get(n))
+    return LintReport(present, sf, dv, ind)

@@ -59,6 +59,7 @@ typedef struct {{ mcv_fn fn[{n_fn}]; }} mcv_api_t;
 typedef struct mcv_sink {{
     uint32_t *data; uint32_t cap_words; uint32_t n_words; uint32_t n_records;
     uint32_t fnv; uint32_t overflow; void (*flush)(struct mcv_sink *s);
+    uint32_t fam_fnv[8]; uint32_t fam_count[8];
 }} mcv_sink_t;
 void mcv_sink_init(mcv_sink_t *s, uint32_t *data, uint32_t cap_words);
 uint32_t mcv_run(const mcv_api_t *api, uint32_t seed, mcv_sink_t *sink);
@@ -109,6 +110,8 @@ def xorshift32(state: int) -> int:
 class HostVectors:
     records: np.ndarray   # (N, WORDS) uint32
     fnv: int
+    fam_fnv: dict[int, int]     # family -> FNV-1a of its records
+    fam_count: dict[int, int]
 
 
 def host_vectors(seed: int) -> HostVectors:
@@ -127,7 +130,9 @@ def host_vectors(seed: int) -> HostVectors:
     n = lib.mcv_run(api, seed & 0xFFFFFFFF, sink)
     if sink.overflow or n != N_TOTAL:
         raise RuntimeError(f"host vector run produced {n} records (overflow={sink.overflow})")
-    return HostVectors(buf.reshape(-1, WORDS), int(sink.fnv))
+    return HostVectors(buf.reshape(-1, WORDS), int(sink.fnv),
+                       {f: int(sink.fam_fnv[f]) for f in FAMILIES},
+                       {f: int(sink.fam_count[f]) for f in FAMILIES})
 
 
 def _signed(w: int) -> int:

@@ -49,9 +49,10 @@ def qemu_cmd(elf: Path, extra: list[str] | None = None) -> list[str]:
             "-semihosting-config", "enable=on,target=native", "-kernel", str(elf), *(extra or [])]
 
 
-def build_image(kind: str, seed: int = DEFAULT_SEED) -> Path:
-    """Link target/main_<kind>.c with the library; returns the ELF path (cached)."""
-    lib_objs = armbuild.library_objects()
+def build_image(kind: str, seed: int = DEFAULT_SEED, lib_objs: list[Path] | None = None,
+                lib_src: Path = LIB_SRC) -> Path:
+    """Link target/main_<kind>.c with the library objects; returns the ELF path (cached)."""
+    lib_objs = armbuild.library_objects() if lib_objs is None else lib_objs
     extra = {"vectors": [CSRC / "mc_vectors.c"], "bench": [TARGET / "known.S"]}[kind]
     srcs = [TARGET / "startup.c", TARGET / "semihost.c", TARGET / f"main_{kind}.c", *extra]
     deps = srcs + [TARGET / "link.ld", TARGET / "semihost.h", CSRC / "mc_vectors.h"] + lib_objs
@@ -59,7 +60,7 @@ def build_image(kind: str, seed: int = DEFAULT_SEED) -> Path:
     key = _digest(deps, flags + LDFLAGS)
 
     def build(tmp: Path) -> None:
-        objs = armbuild.compile_objects(srcs, tmp, flags, [LIB_SRC, CSRC, TARGET])
+        objs = armbuild.compile_objects(srcs, tmp, flags, [lib_src, CSRC, TARGET])
         _run([CC, *LDFLAGS, "-T", str(TARGET / "link.ld"), "-o", str(tmp / f"{kind}.elf"),
               *map(str, objs), *map(str, lib_objs), "-lgcc"])
 
@@ -230,8 +231,8 @@ class TickStats:
 BUDGET = 200
 
 
-def tick_stats() -> TickStats:
-    elf = build_image("bench")
+def tick_stats(elf: Path | None = None) -> TickStats:
+    elf = build_image("bench") if elf is None else elf
     syms = symbols(elf)
     pcs, tmp = trace_pcs(elf)
     try:

@@ -155,17 +155,24 @@ void mcv_sink_init(mcv_sink_t *s, uint32_t *data, uint32_t cap_words)
     s->fnv = 2166136261u;
     s->overflow = 0;
     s->flush = 0;
+    for (int i = 0; i < 8; i++) {
+        s->fam_fnv[i] = 2166136261u;
+        s->fam_count[i] = 0;
+    }
 }
 
 static void emit(mcv_sink_t *s, const uint32_t rec[MCV_WORDS])
 {
+    uint32_t fam = (rec[0] >> 24) & 7u;
     for (int i = 0; i < MCV_WORDS; i++) {
         uint32_t w = rec[i];
         for (int b = 0; b < 4; b++) { /* FNV-1a over the little-endian bytes */
-            s->fnv ^= (w >> (8 * b)) & 0xffu;
-            s->fnv *= 16777619u;
+            uint32_t byte = (w >> (8 * b)) & 0xffu;
+            s->fnv = (s->fnv ^ byte) * 16777619u;
+            s->fam_fnv[fam] = (s->fam_fnv[fam] ^ byte) * 16777619u;
         }
     }
+    s->fam_count[fam]++;
     if (s->n_words + MCV_WORDS > s->cap_words && s->flush)
         s->flush(s);
     if (s->n_words + MCV_WORDS > s->cap_words) {

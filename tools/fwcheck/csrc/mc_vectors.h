@@ -56,6 +56,10 @@ enum {
 enum { MCV_API(MCV_ENUM_ENTRY) MCV_N_FN };
 
 typedef void (*mcv_fn)(void);
+/* Direct table for a build linked with the library (target, Unity):
+ *   static const mcv_api_t api = MCV_API_DIRECT;   (needs mc_cell.h) */
+#define MCV_ADDR(name) (mcv_fn) name,
+#define MCV_API_DIRECT {{MCV_API(MCV_ADDR)}}
 typedef struct {
     mcv_fn fn[MCV_N_FN];
 } mcv_api_t;
@@ -70,6 +74,8 @@ typedef struct mcv_sink {
     uint32_t fnv;
     uint32_t overflow;   /* set when the buffer filled and there was no flush */
     void (*flush)(struct mcv_sink *s);
+    uint32_t fam_fnv[8];   /* FNV-1a per family (index = family) */
+    uint32_t fam_count[8]; /* records per family */
 } mcv_sink_t;
 
 void mcv_sink_init(mcv_sink_t *s, uint32_t *data, uint32_t cap_words);

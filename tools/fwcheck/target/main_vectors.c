@@ -7,8 +7,7 @@
 #define FW_SEED 0x2545F491u
 #endif
 
-#define MCV_ADDR(name) (mcv_fn) name,
-static const mcv_api_t api = {{MCV_API(MCV_ADDR)}};
+static const mcv_api_t api = MCV_API_DIRECT;
 
 static uint32_t buf[64 * MCV_WORDS];
 static int out_fd = -1;
