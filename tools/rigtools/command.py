@@ -1,0 +1,161 @@
+"""Command tool: set parameters, enable drives, perturb cells and zero encoders through the primary (python-can, any interface).
+
+    python -m tools.rigtools.command -c /dev/ttyACM0@115200 set 8 sigma 0.072
+    python -m tools.rigtools.command -c /dev/pts/3@115200 perturb 8 --torque 0.02 --duration 0.1
+    python -m tools.rigtools.command -c ... enable all on | zero all | bemf 3 off | pwm-limit 5 1200 | clear-faults all
+
+A serial port has one reader: while the logger runs, schedule commands with its --do option.
+Every command waits for the primary's CMD_RESULT (the cell's verdict, or NACK/TIMEOUT/
+BUSY/...); the exit status is 0 only if every addressed cell answered OK.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+from . import proto
+
+PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_star": "ASTAR", "astar": "ASTAR"}
+CTRL_RATE_HZ = 2000   # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
+
+
+def physical_to_wire(name: str, value: float) -> int:
+    """SI value (N*m/rad, rad for alpha_star) -> integer register value (uN*m/rad, urad)."""
+    if not math.isfinite(value):
+        raise ValueError(f"{name}: not a finite number: {value}")
+    return round(value * 1e6)
+
+
+class RigClient:
+    """Send CMD frames and wait for the matching CMD_RESULT on an open python-can bus."""
+
+    def __init__(self, bus, timeout: float = 1.0, on_message=None):
+        self.bus = bus
+        self.timeout = timeout
+        self.on_message = on_message   # gets every frame received while waiting
+        self.seq = int(time.time()) & 0xFF
+
+    def command(self, cells, reg: str, **values) -> dict:
+        """Send reg to every cell in `cells`; returns {cell: result name}."""
+        import can
+
+        pending = {}
+        for j in cells:
+            self.seq = (self.seq + 1) & 0xFF
+            data = proto.cmd_data(reg, self.seq, **values)
+            self.bus.send(can.Message(arbitration_id=proto.cmd_frame_id(j), data=data, is_extended_id=False))
+            pending[(j, self.seq)] = reg
+        out = {}
+        deadline = time.monotonic() + self.timeout + 0.1 * len(pending)
+        rid = proto.REGISTERS[reg]["id"]
+        while pending and time.monotonic() < deadline:
+            msg = self.bus.recv(timeout=0.05)
+            if msg is None:
+                continue
+            if self.on_message:
+                self.on_message(msg)
+            kind, j = proto.frame_kind(msg.arbitration_id)
+            if kind == "CMD_RESULT" and len(msg.data) >= 3 and msg.data[0] == rid and (j, msg.data[1]) in pending:
+                del pending[(j, msg.data[1])]
+                out[j] = proto.RESULT_NAMES.get(msg.data[2], f"0x{msg.data[2]:02X}")
+            elif kind == "PRIMARY_REJECT":
+                print(f"primary rejected a frame: {proto.database().decode_message(msg.arbitration_id, msg.data)}",
+                      file=sys.stderr)
+        for (j, _) in pending:
+            out[j] = "NO_ANSWER"
+        return out
+
+
+def _cells(text: str) -> list[int]:
+    if text == "all":
+        return list(range(1, proto.N_CELLS + 1))
+    try:
+        cells = [int(x) for x in text.split(",")]
+        for j in cells:
+            proto.cell_address(j)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"cells: {e}") from None
+    return cells
+
+
+def _onoff(text: str) -> int:
+    t = text.lower()
+    if t in ("on", "1", "true"):
+        return 1
+    if t in ("off", "0", "false"):
+        return 0
+    raise argparse.ArgumentTypeError(f"expected on/off, got {text!r}")
+
+
+def parser():
+    ap = argparse.ArgumentParser(prog="python -m tools.rigtools.command", description=__doc__.split("\n\n")[0])
+    ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
+    ap.add_argument("-c", "--channel", required=True, help="e.g. /dev/ttyACM0@115200 or the emulator's pty@115200")
+    ap.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for each result")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    s = sub.add_parser("set", help="set a reaction parameter (SI units: N*m/rad; alpha_star in rad)")
+    s.add_argument("cells", type=_cells)
+    s.add_argument("name", choices=sorted(PARAM_REGS))
+    s.add_argument("value", type=float)
+    p = sub.add_parser("perturb", help="perturbing torque on one chain for a while")
+    p.add_argument("cells", type=_cells)
+    p.add_argument("--chain", choices=("alpha", "beta"), default="alpha")
+    p.add_argument("--torque", type=float, required=True, help="N*m, |torque| <= 0.131")
+    p.add_argument("--duration", type=float, required=True, help="seconds (at the 2 kHz control tick)")
+    for name in ("enable", "bemf"):
+        e = sub.add_parser(name, help=f"{name} on/off")
+        e.add_argument("cells", type=_cells)
+        e.add_argument("state", type=_onoff)
+    z = sub.add_parser("zero", help="make the current positions the encoders' zero")
+    z.add_argument("cells", type=_cells)
+    c = sub.add_parser("clear-faults", help="clear latched faults")
+    c.add_argument("cells", type=_cells)
+    w = sub.add_parser("pwm-limit", help="PWM duty limit in timer ticks (<= 2400; capped at 5.86 V)")
+    w.add_argument("cells", type=_cells)
+    w.add_argument("ticks", type=int)
+    return ap
+
+
+def build(args) -> tuple[str, dict]:
+    """(register, payload values) for parsed arguments; ValueError on out-of-range input."""
+    if args.cmd == "set":
+        return PARAM_REGS[args.name], {"value": physical_to_wire(args.name, args.value)}
+    if args.cmd == "perturb":
+        t4 = round(args.torque * 1e6 / 4)
+        ticks = round(args.duration * CTRL_RATE_HZ)
+        if not -32768 <= t4 <= 32767 or not 0 < ticks <= 65535:
+            raise ValueError(f"perturb: torque {args.torque} N*m or duration {args.duration} s out of range")
+        return "PERTURB", {"chain": 0 if args.chain == "alpha" else 1, "torque": t4, "ticks": ticks}
+    if args.cmd in ("enable", "bemf"):
+        return args.cmd.upper(), {"on": args.state}
+    if args.cmd == "zero":
+        return "ZERO", {}
+    if args.cmd == "clear-faults":
+        return "CLEAR_FAULTS", {}
+    if not 0 <= args.ticks <= 65535:
+        raise ValueError(f"pwm-limit: {args.ticks} ticks out of range")
+    return "PWM_LIMIT", {"ticks": args.ticks}
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        reg, values = build(args)
+        proto.pack_payload(reg, **values)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    import can
+
+    with can.Bus(interface=args.interface, channel=args.channel) as bus:
+        res = RigClient(bus, args.timeout).command(args.cells, reg, **values)
+    for j in sorted(res):
+        print(f"cell {j:2d}: {reg} -> {res[j]}")
+    return 0 if all(r == "OK" for r in res.values()) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
