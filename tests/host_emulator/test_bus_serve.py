@@ -1,0 +1,98 @@
+"""Acceptance: python-can's slcan interface on the pty of `python -m host_emulator serve` gets all 16 cells (DBC-decodable), and a write changes a cell's behaviour."""
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import can
+import pytest
+
+from tools.rigtools import proto
+
+ROOT = proto.ROOT
+
+
+@pytest.fixture(scope="module")
+def server():
+    p = subprocess.Popen([sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "60"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = p.stdout.readline()
+    m = re.match(r"slcan pty: (\S+)", first)
+    assert m, (first, p.stderr.read() if p.poll() is not None else "")
+    yield m.group(1)
+    p.send_signal(signal.SIGTERM)
+    try:
+        p.wait(10)
+    except subprocess.TimeoutExpired:
+        p.kill()
+
+
+def collect(bus, seconds):
+    out = []
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        m = bus.recv(timeout=0.1)
+        if m is not None:
+            out.append(m)
+    return out
+
+
+def command(bus, j, reg, seq, **values):
+    bus.send(can.Message(arbitration_id=proto.cmd_frame_id(j), data=proto.cmd_data(reg, seq, **values),
+                         is_extended_id=False))
+    end = time.monotonic() + 2
+    while time.monotonic() < end:
+        m = bus.recv(timeout=0.1)
+        if m is not None and proto.frame_kind(m.arbitration_id) == ("CMD_RESULT", j) and m.data[1] == seq:
+            return proto.RESULT_NAMES[m.data[2]]
+    return None
+
+
+def alphas(msgs, j):
+    db = proto.database()
+    return [db.decode_message(m.arbitration_id, bytes(m.data))["alpha"] for m in msgs
+            if proto.frame_kind(m.arbitration_id) == ("CELL_SAMPLE", j)]
+
+
+def test_python_can_slcan_gets_all_cells_and_commands_act(server):
+    db = proto.database()
+    with can.Bus(interface="slcan", channel=f"{server}@115200", bitrate=500000) as bus:
+        msgs = collect(bus, 1.0)
+        cells = set()
+        for m in msgs:
+            d = db.decode_message(m.arbitration_id, bytes(m.data))   # every frame decodes with the DBC
+            kind, j = proto.frame_kind(m.arbitration_id)
+            if kind == "CELL_SAMPLE":
+                cells.add(j)
+                assert set(d) == {"seq", "alpha", "beta", "t128", "flags"}
+        assert cells == set(range(1, 17))
+        assert len([m for m in msgs if proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE"]) > 16 * 50
+
+        # a parameter write changes behaviour: with PWM limit 0 a perturbation cannot move the motor
+        assert command(bus, 12, "PWM_LIMIT", 1, ticks=0) == "OK"
+        assert command(bus, 12, "PERTURB", 2, chain=0, torque=7500, ticks=400) == "OK"   # 30 mN*m, 0.2 s
+        held = alphas(collect(bus, 0.5), 12)
+        assert held and max(abs(a) for a in held) <= 2
+        assert command(bus, 4, "PERTURB", 3, chain=0, torque=7500, ticks=400) == "OK"
+        moved = alphas(collect(bus, 0.5), 4)
+        assert max(abs(a) for a in moved) >= 20
+        # bad input is answered, not acted on
+        assert command(bus, 4, "SIGMA", 4, value=10**7) == "RANGE"
+
+
+def test_python_can_logger_records_the_emulator(server, tmp_path):
+    out = tmp_path / "emu.asc"
+    p = subprocess.Popen([sys.executable, "-m", "can.logger", "-i", "slcan", "-c", f"{server}@115200", "-f", str(out)],
+                         cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(4.0)
+    p.send_signal(signal.SIGINT)
+    try:
+        p.wait(10)
+    except subprocess.TimeoutExpired:
+        p.kill()
+    text = out.read_text()
+    ids = set(int(x, 16) for x in re.findall(r"^\s*\d+\.\d+\s+1\s+([0-9A-F]{3})\s+Rx", text, re.M))
+    assert {proto.FRAMES["CELL_SAMPLE"]["base"] + j for j in range(1, 17)} <= ids
