@@ -22,7 +22,8 @@ static volatile uint32_t g_ticks;
 static int g_setup_err = SETUP_OK;
 static mc_ident_rx_t g_rx;
 
-static void control_tick(void)
+/* TC3 interrupt, MC_CTRL_RATE_HZ times a second. */
+extern "C" void hw_tick_handler(void)
 {
     mc_quad_snap_t a, b;
     mc_quad_snapshot(&g_quad[MC_ALPHA], &a);
@@ -100,7 +101,7 @@ void setup()
     cell_app_positions(&pa, &pb);
     mc_cell_zero(&g_cell, pa, pb);
     mc_cell_enable(&g_cell, MC_ENABLE_AT_BOOT);
-    if (hw_tick_start(MC_CTRL_RATE_HZ, control_tick) == 0) {
+    if (hw_tick_start(MC_CTRL_RATE_HZ) == 0) {
         g_setup_err = SETUP_ERR_TICK;
         return;
     }

@@ -133,8 +133,8 @@ static inline uint8_t read_beta(void)
 }
 
 /* Either channel of an encoder changed: sample both, let the table decide. */
-static void isr_alpha(void) { mc_quad_update(s_quad[MC_ALPHA], read_alpha()); }
-static void isr_beta(void) { mc_quad_update(s_quad[MC_BETA], read_beta()); }
+extern "C" void hw_isr_encoder_alpha(void) { mc_quad_update(s_quad[MC_ALPHA], read_alpha()); }
+extern "C" void hw_isr_encoder_beta(void) { mc_quad_update(s_quad[MC_BETA], read_beta()); }
 
 static void attach_encoder_pin(uint8_t pin, void (*isr)(void))
 {
@@ -156,20 +156,18 @@ void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta)
     s_quad[MC_BETA] = beta;
     mc_quad_init(alpha, read_alpha());
     mc_quad_init(beta, read_beta());
-    attach_encoder_pin(CELL_PIN_ENC_A_A, isr_alpha);
-    attach_encoder_pin(CELL_PIN_ENC_A_B, isr_alpha);
-    attach_encoder_pin(CELL_PIN_ENC_B_A, isr_beta);
-    attach_encoder_pin(CELL_PIN_ENC_B_B, isr_beta);
+    attach_encoder_pin(CELL_PIN_ENC_A_A, hw_isr_encoder_alpha);
+    attach_encoder_pin(CELL_PIN_ENC_A_B, hw_isr_encoder_alpha);
+    attach_encoder_pin(CELL_PIN_ENC_B_A, hw_isr_encoder_beta);
+    attach_encoder_pin(CELL_PIN_ENC_B_B, hw_isr_encoder_beta);
 }
 
 /* ---- control tick (TC3) ------------------------------------------------------ */
 
-static void (*volatile s_tick_fn)(void);
-
 extern "C" void TC3_Handler(void)
 {
     TC3->COUNT16.INTFLAG.reg = TC_INTFLAG_OVF;
-    s_tick_fn();
+    hw_tick_handler();
 }
 
 static void tc3_sync(void)
@@ -178,7 +176,7 @@ static void tc3_sync(void)
     }
 }
 
-uint32_t hw_tick_start(uint32_t rate_hz, void (*fn)(void))
+uint32_t hw_tick_start(uint32_t rate_hz)
 {
     /* Smallest prescaler whose period fits the 16-bit counter. Configuration
      * only: the divisions here run once, never in the tick. */
@@ -187,7 +185,7 @@ uint32_t hw_tick_start(uint32_t rate_hz, void (*fn)(void))
         TC_CTRLA_PRESCALER_DIV1,  TC_CTRLA_PRESCALER_DIV2,   TC_CTRLA_PRESCALER_DIV4,
         TC_CTRLA_PRESCALER_DIV8,  TC_CTRLA_PRESCALER_DIV16,  TC_CTRLA_PRESCALER_DIV64,
         TC_CTRLA_PRESCALER_DIV256, TC_CTRLA_PRESCALER_DIV1024};
-    if (rate_hz == 0 || fn == 0)
+    if (rate_hz == 0)
         return 0;
     unsigned i = 0;
     uint32_t period = 0;
@@ -199,7 +197,6 @@ uint32_t hw_tick_start(uint32_t rate_hz, void (*fn)(void))
     }
     if (i == sizeof(presc) / sizeof(presc[0]) || period < 2u)
         return 0;
-    s_tick_fn = fn;
 
     GCLK->CLKCTRL.reg = GCLK_CLKCTRL_CLKEN | GCLK_CLKCTRL_GEN_GCLK0 | GCLK_CLKCTRL_ID_TCC2_TC3;
     while (GCLK->STATUS.bit.SYNCBUSY) {

@@ -24,13 +24,30 @@ void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b);
 /* Sample both encoders, initialise the decoders from the levels, then attach the
  * pin-change interrupts (EIC, both edges) that call mc_quad_update. */
 void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta);
-/* Start TC3 calling fn() at rate_hz (MFRQ mode, NVIC priority 1: below the pin
- * interrupts and USB, above the I2C SERCOM). Returns the timer period in timer
- * clocks (rate error < 1 / period), or 0 if rate_hz cannot be reached. */
-uint32_t hw_tick_start(uint32_t rate_hz, void (*fn)(void));
+/* Start TC3 calling hw_tick_handler() at rate_hz (MFRQ mode, NVIC priority 1:
+ * below the pin interrupts and USB, above the I2C SERCOM). Returns the timer
+ * period in timer clocks (rate error < 1 / period), or 0 if rate_hz cannot be
+ * reached. */
+uint32_t hw_tick_start(uint32_t rate_hz);
 /* Hold off / release the control tick (for commands that touch the cell state). */
 void hw_tick_mask(void);
 void hw_tick_unmask(void);
+/*
+ * Interrupt entry points, all direct calls (no function pointers) so that
+ * `python -m tools.fwcheck lint` can follow the whole control path from them:
+ *   TC3_Handler -> hw_tick_handler (provided by the program: main.cpp)
+ *   EIC (Arduino core) -> hw_isr_encoder_alpha / _beta -> mc_quad_update
+ */
+#ifdef __cplusplus
+extern "C" {
+#endif
+void hw_tick_handler(void);
+void hw_isr_encoder_alpha(void);
+void hw_isr_encoder_beta(void);
+#ifdef __cplusplus
+}
+#endif
+
 /* 1 when the drivers' nFAULT line is low (0 when MC_PIN_NFAULT is not wired). */
 int hw_nfault_active(void);
 

@@ -615,7 +615,11 @@ def test_planned_cell_flags_pass_cell_config_and_bad_ones_do_not():
 
 class _FakeSconsEnv:
     def __init__(self, project):
-        self.vars = {"$PROJECT_DIR": str(project), "$PYTHONEXE": __import__("sys").executable}
+        # PlatformIO's python, without site-packages: only the fake project's `tools` is seen
+        wrapper = Path(project) / "python-nosite"
+        wrapper.write_text(f'#!/bin/sh\nexec {__import__("sys").executable} -S "$@"\n')
+        wrapper.chmod(0o755)
+        self.vars = {"$PROJECT_DIR": str(project), "$PYTHONEXE": str(wrapper)}
         self.actions = []
 
     def subst(self, s):
@@ -642,17 +646,19 @@ def _load_hook(project):
 ])
 def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text):
     monkeypatch.delenv("MC_FWCHECK", raising=False)
+    # a project whose own `tools` package (first on sys.path for `python -m`) shadows ours
+    (tmp_path / "tools").mkdir()
+    (tmp_path / "tools" / "__init__.py").write_text("")
     if checker:
         pkg = tmp_path / "tools" / "fwcheck"
-        pkg.mkdir(parents=True)
-        (tmp_path / "tools" / "__init__.py").write_text("")
+        pkg.mkdir()
         (pkg / "__init__.py").write_text("")
         rc = 3 if checker == "lint_fails" else 0
         (pkg / "__main__.py").write_text(
             "import sys\n"
             "if '--help' in sys.argv:\n"
             f"    print({'lint report' if checker != 'no_lint' else 'report'!r}); sys.exit(0)\n"
-            "assert sys.argv[1:3] == ['lint', '--elf'], sys.argv\n"
+            "assert sys.argv[1:3] == ['lint', '--elf'] and sys.argv[4:] == ['--root', 'TC3_Handler', '--root', 'hw_isr_encoder_alpha', '--root', 'hw_isr_encoder_beta'], sys.argv\n"
             f"print('lint ok' if {rc} == 0 else 'lint bad'); sys.exit({rc})\n")
     env, fn = _load_hook(tmp_path)
     assert fn(None, [tmp_path / "firmware.elf"], env) == expect_rc
