@@ -455,17 +455,28 @@ def test_failed_upload_names_the_board_and_leaves_the_others(tmp_path, stop):
         assert len(rig.runs) == 17 and len(bad) == 1 and "SN04" not in rig.flashed
 
 
-def test_flash_cli_exit_code_on_failure(tmp_path, monkeypatch, capsys):
-    rig = FakeRig(fake_inventory(), fake_ports(17), fail_upload={"SN10"})
-    monkeypatch.setattr(rn.subprocess, "run", rig.run)
+@pytest.mark.parametrize("case", ["failed upload", "skipped missing", "all ok"])
+def test_flash_cli_exit_code(tmp_path, monkeypatch, capsys, case):
+    n_ports = 16 if case == "skipped missing" else 17        # port 16 is the primary's
+    rig = FakeRig(fake_inventory(), fake_ports(n_ports),
+                  fail_upload={"SN10"} if case == "failed upload" else ())
     monkeypatch.setattr(cli, "Flasher", lambda lister, **kw: rn.Flasher(
         rig.list_ports, run=rig.run, query=rig.query, sleep=lambda s: None,
         **{**kw, "reappear_timeout": 0.0, "expected_fw": "1.0"}))
     inv.save(tmp_path / "b.json", fake_inventory())
-    rc = cli.main(["flash", "--inventory", str(tmp_path / "b.json"), "--log-dir", str(tmp_path),
-                   "--ports-json", str(write_ports_json(tmp_path / "p.json", rig.ports))])
-    assert rc == cli.EXIT_FAILED
-    assert "16 of 17 board(s) flashed and verified; FAILED: cell 11 (0x1a)" in capsys.readouterr().out
+    args = ["flash", "--inventory", str(tmp_path / "b.json"), "--log-dir", str(tmp_path),
+            "--ports-json", str(write_ports_json(tmp_path / "p.json", rig.ports))]
+    rc = cli.main(args + (["--skip-missing"] if case == "skipped missing" else []))
+    out = capsys.readouterr().out
+    if case == "failed upload":
+        assert rc == cli.EXIT_FAILED
+        assert "16 of 17 board(s) flashed and verified; FAILED: cell 11 (0x1a)" in out
+    elif case == "skipped missing":
+        assert rc == cli.EXIT_FAILED
+        assert "16 of 16 board(s) flashed and verified" in out
+        assert "NOT FLASHED (not connected): primary serial SN16" in out
+    else:
+        assert rc == cli.EXIT_OK and "17 of 17 board(s) flashed and verified" in out
 
 
 def test_identity_mismatch_after_upload(tmp_path):

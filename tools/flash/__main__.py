@@ -105,6 +105,9 @@ def cmd_plan_or_flash(args, lister, out) -> int:
                       out=out)
     outcomes = flasher.flash(plan, stop_on_error=args.stop_on_error)
     out(summary(outcomes))
+    for b in plan.missing:
+        out(f"NOT FLASHED (not connected): {b.name} serial {b.serial}")
+    out("check the whole bus with: python -m tools.flash identify")
     return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
 
 
