@@ -5,8 +5,8 @@
 #include "../sensors/mc_velocity.h"
 #include "../mc_fixed.h"
 
-/* TU/count per uN*m/rad = (2*pi/400) * 32 = 0.50265482457..., as Q24. */
-#define MC_GAIN_PER_UNM_Q24 8433149LL
+/* TU/count per uN*m/rad = (2*pi/400) * 32 = 0.50265482457..., as Q32. */
+#define MC_GAIN_PER_UNM_Q32 2158886033LL
 /* Q4 counts per urad = 400*16/(2*pi*1e6) = 1.01859163578813e-3, as Q32. */
 #define MC_ASTAR_PER_URAD_Q32 4374818LL
 
@@ -44,7 +44,7 @@ static int gain_from_unm(int32_t k_unm, int32_t *g)
 {
     if (k_unm < -MC_K_MAX_UNM || k_unm > MC_K_MAX_UNM)
         return MC_ERR_RANGE;
-    *g = round_shift_i64((int64_t)k_unm * MC_GAIN_PER_UNM_Q24, 24);
+    *g = round_shift_i64((int64_t)k_unm * MC_GAIN_PER_UNM_Q32, 32);
     return MC_OK;
 }
 
