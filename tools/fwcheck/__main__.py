@@ -4,6 +4,7 @@ report         soft-float check, division check, code size, QEMU bit-exact count
 size           code size of the cross-compiled library
 vectors        QEMU golden vectors against the host build
 ticks          instructions per mc_cell_tick under QEMU (median/max per class)
+profile [-v]   where the instructions of one enabled tick go (per function; -v: trace)
 golden-header  regenerate test/test_native_vectors/golden_vectors.h from the host build
 lint --elf F   soft-float/division helpers reachable from the control path of a linked image
 """
@@ -50,9 +51,31 @@ def _vectors(seed: int) -> bool:
     return c.ok
 
 
-def _ticks() -> bool:
+def _variant(lib_src, cflags):
+    """(objects, bench ELF or None) for a variant library / flags, or the real one."""
+    from pathlib import Path
     from . import qemu
-    s = qemu.tick_stats()
+    if not lib_src and not cflags:
+        return armbuild.library_objects(), None
+    src = Path(lib_src).resolve() if lib_src else armbuild.LIB_SRC
+    flags = [f for f in armbuild.CFLAGS if f != "-Os"] + (cflags.split() if cflags else ["-Os"])
+    objs = armbuild.library_objects(src, flags)
+    return objs, qemu.build_image("bench", lib_objs=objs, lib_src=src)
+
+
+def _profile(elf, verbose: bool) -> None:
+    from . import qemu
+    total, per, lines = qemu.tick_profile(elf)
+    print(f"one enabled, fault-free tick with a perturbation: {total} instructions")
+    for name, n in per:
+        print(f"  {name:<24}{n:>5}")
+    if verbose:
+        print("\n".join(lines))
+
+
+def _ticks(elf=None) -> bool:
+    from . import qemu
+    s = qemu.tick_stats(elf)
     calib_ok = s.calibration == s.expected
     print(f"instruction counter calibration: {s.calibration} expected {s.expected} "
           + ("ok" if calib_ok else "MISMATCH"))
@@ -89,7 +112,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.fwcheck", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("command", nargs="?", default="report",
-                    choices=["report", "size", "vectors", "ticks", "golden-header", "lint"])
+                    choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile"])
+    ap.add_argument("--lib-src", help="ticks/profile/size: measure a variant copy of lib/metacell/src")
+    ap.add_argument("--cflags", help="ticks/profile/size: optimisation flags instead of -Os")
+    ap.add_argument("-v", "--verbose", action="store_true", help="profile: print the trace")
     ap.add_argument("--elf", help="lint: linked image to check")
     ap.add_argument("--root", action="append", help="lint: extra control-path entry point")
     ap.add_argument("--seed", type=lambda s: int(s, 0), default=None)
@@ -103,7 +129,10 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if a.command == "lint":
             return _lint(a.elf, a.root or [])
-        objs = armbuild.library_objects()
+        objs, bench_elf = _variant(a.lib_src, a.cflags)
+        if a.command == "profile":
+            _profile(bench_elf, a.verbose)
+            return 0
         ok = True
         if a.command in ("report", "size"):
             if a.command == "report":
@@ -114,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             from .qemu import DEFAULT_SEED
             ok &= _vectors(a.seed if a.seed is not None else DEFAULT_SEED)
         if a.command in ("report", "ticks"):
-            ok &= _ticks()
+            ok &= _ticks(bench_elf)
     except armbuild.ToolError as e:
         print(f"fwcheck: {e}", file=sys.stderr)
         return 2

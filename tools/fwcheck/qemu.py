@@ -251,3 +251,49 @@ def tick_stats(elf: Path | None = None) -> TickStats:
     return TickStats(calib, expected, ticks, tags,
                      count_calls(pcs, syms["mc_quad_update"], qcaller),
                      count_calls(pcs, syms["mc_quad_snapshot"], main))
+
+
+def tick_profile(elf: Path | None = None) -> tuple[int, list[tuple[str, int]], list[str]]:
+    """Where the instructions of one enabled, fault-free tick with a perturbation go:
+    (total, [(function, instructions)], executed disassembly lines)."""
+    elf = build_image("bench") if elf is None else elf
+    syms = symbols(elf)
+    pcs, tmp = trace_pcs(elf)
+    try:
+        tags = np.fromfile(tmp / "bench.bin", dtype="<u4").tolist()
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    main = syms["main"]
+    want = next(i for i, t in enumerate(tags) if (t & 0xF) == 0xF and not t >> 16)
+    entry = syms["mc_cell_tick"][0]
+    starts = [s for s in np.nonzero(pcs == entry)[0] if s and main[0] <= pcs[s - 1] < sum(main)]
+    s = starts[want]
+    k = s
+    while not (main[0] <= pcs[k] < sum(main)):
+        k += 1
+    seg = [int(p) for p in pcs[s:k]]
+    spans = sorted((a, a + n, name) for name, (a, n) in syms.items() if n)
+    dis = _run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", str(elf)])
+    text = {}
+    for ln in dis.splitlines():
+        m = re.match(r"^\s+([0-9a-f]+):\s+(.*)$", ln)
+        if m:
+            text[int(m.group(1), 16)] = m.group(2).strip()
+
+    def owner(pc):
+        for lo, hi, name in spans:
+            if lo <= pc < hi:
+                return name
+        return "?"
+
+    per: dict[str, int] = {}
+    lines = []
+    last = None
+    for pc in seg:
+        f = owner(pc)
+        per[f] = per.get(f, 0) + 1
+        if f != last:
+            lines.append(f"--- {f}")
+            last = f
+        lines.append(f"  {pc:6x}: {text.get(pc, '?')}")
+    return len(seg), sorted(per.items(), key=lambda kv: -kv[1]), lines
