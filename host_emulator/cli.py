@@ -82,7 +82,10 @@ def cmd_run(args) -> int:
         return 2
     out = Path(args.out or Path("out") / scene.name)
     try:
-        res = run_scene(scene, progress=not args.quiet)
+        from .trackers import LiveTracker
+
+        live = [LiveTracker(args.live)] if args.live else []
+        res = run_scene(scene, progress=not args.quiet, trackers=live)
     except NumericalInstability as e:
         print(f"error: run stopped: {e}", file=sys.stderr)
         return 3
@@ -152,6 +155,8 @@ def main(argv=None) -> int:
                    help="override a scene key, e.g. params.sigma=0.048, model_options.inertia=false, t_end_s=5")
     r.add_argument("--out", default=None, help="output directory (default out/<scene>)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--live", type=float, default=None, metavar="SECONDS",
+                   help="print max |alpha|, |beta| every SECONDS of simulated time")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
     sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
