@@ -73,3 +73,33 @@ def test_scene_from_path(tmp_path):
     f.write_text("name = \n")
     with pytest.raises(ConfigError, match="invalid TOML"):
         load_scene(str(f))
+
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+_ident = st.text(alphabet="abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(_ident, st.sampled_from(["", "params", "model_options", "model_options.noise"]))
+def test_any_unknown_key_is_named(key, table):
+    from host_emulator.models.options import ModelOptions, NoiseOptions
+    from host_emulator.params import Params
+    import dataclasses
+
+    known = {"": {"name", "description", "model", "cells", "t_end_s", "params", "model_options", "perturbation"},
+             "params": {f.name for f in dataclasses.fields(Params)},
+             "model_options": {f.name for f in dataclasses.fields(ModelOptions)},
+             "model_options.noise": {f.name for f in dataclasses.fields(NoiseOptions)}}[table]
+    if key in known:
+        return
+    d = dict(BASE)
+    node = d
+    for part in filter(None, table.split(".")):
+        node[part] = dict(node.get(part, {}))
+        node = node[part]
+    node[key] = 1
+    with pytest.raises(ConfigError) as e:
+        scene_from_dict(d)
+    assert (f"{table}.{key}" if table else repr(key)) in str(e.value)

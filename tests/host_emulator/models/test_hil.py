@@ -103,3 +103,19 @@ def test_bad_firmware_parameters_are_rejected_clearly():
         make_model("hil", Params(control_rate_hz=60000), [], ModelOptions())
     with pytest.raises(ValueError, match="reaction parameters"):
         make_model("hil", Params(sigma=0.3), [], ModelOptions())
+
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-40.0, 40.0, allow_nan=False), min_size=1, max_size=30))
+def test_encoder_tracks_any_angle_sequence(thetas):
+    """Any sequence of sampled angles (any jump size): the decoder ends on floor(theta * 400/2pi), no errors."""
+    m = make_model("hil", Params(cells=1), [], ModelOptions())
+    s = m.solver()
+    for th in thetas:
+        m.lib.he_encoder_feed(s.h, 1, th)
+        assert s.quad[1].pos == math.floor(th * 400 / (2 * math.pi))
+    assert s.quad[1].errors == 0
