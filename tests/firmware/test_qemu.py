@@ -141,43 +141,50 @@ UNITY_DIR = armbuild.ROOT / "test" / "test_native_vectors"
 SHIM = armbuild.ROOT / "tools" / "fwcheck" / "unity_shim"
 
 
-def build_and_run_unity(tmp_path, test_main):
+def build_and_run_unity(tmp_path, header_text):
+    """Compile test/test_native_vectors/test_main.c (unchanged) beside the given golden
+    header, against the Unity shim and the library; run it."""
+    tdir = tmp_path / "test" / "test_native_vectors"
+    tdir.mkdir(parents=True)
+    (tmp_path / "tools" / "fwcheck").mkdir(parents=True)
+    (tmp_path / "tools" / "fwcheck" / "csrc").symlink_to(armbuild.ROOT / "tools" / "fwcheck" / "csrc")
+    (tdir / "test_main.c").write_text((UNITY_DIR / "test_main.c").read_text())
+    (tdir / "golden_vectors.h").write_text(header_text)
     exe = tmp_path / "unity_native"
-    srcs = [str(test_main), str(SHIM / "unity.c"), *map(str, armbuild.library_sources())]
+    srcs = [str(tdir / "test_main.c"), str(SHIM / "unity.c"), *map(str, armbuild.library_sources())]
     subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{SHIM}",
                     f"-I{armbuild.LIB_SRC}", *srcs, "-o", str(exe)], check=True,
                    capture_output=True, text=True)
     return subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
 
 
-def test_golden_header_is_current():
+@pytest.fixture(scope="module")
+def fresh_header():
     from tools.fwcheck import golden
-    assert golden.HEADER_PATH.read_text() == golden.header_text(), (
+    return golden.header_text()
+
+
+def test_golden_header_is_current(fresh_header):
+    from tools.fwcheck import golden
+    assert golden.HEADER_PATH.read_text() == fresh_header, (
         "test/test_native_vectors/golden_vectors.h is stale: the library's behaviour changed. "
         "If intended, run `.venv/bin/python -m tools.fwcheck golden-header` and commit it.")
 
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no host C compiler")
-def test_unity_tests_pass_natively(tmp_path):
-    p = build_and_run_unity(tmp_path, UNITY_DIR / "test_main.c")
+def test_unity_tests_pass_natively(tmp_path, fresh_header):
+    p = build_and_run_unity(tmp_path, fresh_header)
     assert p.returncode == 0, p.stdout + p.stderr
     assert "8 Tests 0 Failures" in p.stdout
 
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no host C compiler")
-def test_unity_tests_fail_on_a_wrong_golden_value(tmp_path):
-    # same test file, beside a golden header with the drive checksum altered
-    tdir = tmp_path / "test" / "test_native_vectors"
-    tdir.mkdir(parents=True)
-    (tmp_path / "tools" / "fwcheck").mkdir(parents=True)
-    (tmp_path / "tools" / "fwcheck" / "csrc").symlink_to(armbuild.ROOT / "tools" / "fwcheck" / "csrc")
-    (tdir / "test_main.c").write_text((UNITY_DIR / "test_main.c").read_text())
-    text = (UNITY_DIR / "golden_vectors.h").read_text()
-    line = next(ln for ln in text.splitlines() if ln.startswith("static const uint32_t golden_fam_fnv"))
+def test_unity_tests_fail_on_a_wrong_golden_value(tmp_path, fresh_header):
+    line = next(ln for ln in fresh_header.splitlines()
+                if ln.startswith("static const uint32_t golden_fam_fnv"))
     vals = line.split("{")[1].split("}")[0].split(", ")
-    vals[3] = f"{int(vals[3].rstrip('u'), 16) ^ 1:#010x}u"
+    vals[3] = f"{int(vals[3].rstrip('u'), 16) ^ 1:#010x}u"      # the drive family
     bad = line.split("{")[0] + "{" + ", ".join(vals) + "};"
-    (tdir / "golden_vectors.h").write_text(text.replace(line, bad))
-    p = build_and_run_unity(tmp_path, tdir / "test_main.c")
+    p = build_and_run_unity(tmp_path, fresh_header.replace(line, bad))
     assert p.returncode != 0
     assert "test_drive_vectors:FAIL" in p.stdout and "1 Failures" in p.stdout
