@@ -40,6 +40,8 @@ def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResul
         for k in range(len(t)):
             for tr in trackers:
                 tr.sample(t[k], a[k], b[k])
+        for tr in trackers[1:]:
+            tr.finish()
     else:
         n_out = max(1, round(t_end_s / solver.dt_out))
         for tr in trackers:
