@@ -153,12 +153,22 @@ def symbols(elf: Path) -> dict[str, tuple[int, int]]:
     return syms
 
 
+def _one_insn_per_tb() -> list[str]:
+    """QEMU option for one guest instruction per translation block: `-singlestep`
+    up to 8.0 (Debian 12 ships 7.2), `-accel tcg,one-insn-per-tb=on` from 8.1."""
+    out = subprocess.run([QEMU, "--version"], capture_output=True, text=True).stdout
+    m = re.search(r"version (\d+)\.(\d+)", out)
+    if m and (int(m.group(1)), int(m.group(2))) >= (8, 1):
+        return ["-accel", "tcg,one-insn-per-tb=on"]
+    return ["-singlestep"]
+
+
 def trace_pcs(elf: Path, timeout: float = QEMU_TIMEOUT_S) -> tuple[np.ndarray, Path]:
     """Run elf one instruction per block and return the executed PCs in order."""
     tmp = Path(tempfile.mkdtemp(prefix="fwcheck-t-"))
     log = tmp / "exec.log"
     try:
-        run_qemu(elf, tmp, ["-singlestep", "-d", "exec,nochain", "-D", str(log)], timeout)
+        run_qemu(elf, tmp, [*_one_insn_per_tb(), "-d", "exec,nochain", "-D", str(log)], timeout)
         pcs = []
         with open(log) as f:
             for ln in f:
