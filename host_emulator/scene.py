@@ -99,8 +99,8 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     if d["model"] not in MODELS:
         raise ConfigError(f"model = {d['model']!r}: expected one of {', '.join(MODELS)}")
     cells = d["cells"]
-    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 1024:
-        raise ConfigError(f"cells = {cells!r}: expected an integer in 1..1024")
+    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 4096:
+        raise ConfigError(f"cells = {cells!r}: expected an integer in 1..4096")
     t_end = d["t_end_s"]
     if isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"t_end_s = {t_end!r}: expected a positive number")

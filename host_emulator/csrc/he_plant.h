@@ -21,7 +21,7 @@
  * Steppers only ever call he_plant_forces(); this split keeps damping (linear in
  * v) separate so semi-implicit steppers can treat it implicitly.
  */
-#define HE_MAX_CELLS 1024
+#define HE_MAX_CELLS 4096
 #define HE_MAX_PERT 64
 
 enum { HE_BANDS_LINEAR = 0, HE_BANDS_CUBIC = 1 };

@@ -2,6 +2,7 @@
 #include <math.h>
 #include <stddef.h>
 #include "he_step.h"
+#include "he_step_more.h"
 
 int he_state_check(int n2, const double *x, const double *v)
 {
@@ -20,6 +21,8 @@ double he_step_limit(const he_plant_t *p, int stepper, int *limiting_chain)
     int arg = -1;
     if (stepper < 0 || stepper >= HE_STEP_COUNT)
         return -1.0;
+    if (stepper == HE_STEP_NOH_BATHE || stepper == HE_STEP_IMEX)
+        return he_step_more_limit(p, stepper, limiting_chain);
     he_plant_bounds(p, w2, cmin, cmax, rate);
     for (int ch = 0; ch < 2; ch++) {
         double h = INFINITY;
@@ -76,6 +79,8 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
         return HE_ERR_ARG;
     if (stepper < 0 || stepper >= HE_STEP_COUNT)
         return HE_ERR_STEPPER;
+    if (stepper == HE_STEP_NOH_BATHE || stepper == HE_STEP_IMEX)
+        return he_advance_more(p, stepper, h, nsteps, t, x, v);
     double F[n2], C[n2];
     double t0 = *t;
     for (int64_t s = 0; s < nsteps; s++) {

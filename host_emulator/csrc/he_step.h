@@ -15,7 +15,9 @@
  * To add one: an id here, a function in he_step.c, its limit in he_step_limit,
  * and a line in the Python registry (host_emulator/models/steppers.py).
  */
-enum { HE_STEP_EULER = 0, HE_STEP_SYMPLECTIC = 1, HE_STEP_RK4 = 2, HE_STEP_COUNT = 3 };
+/* HE_STEP_NOH_BATHE and HE_STEP_IMEX: equations and limits in he_step_more.h */
+enum { HE_STEP_EULER = 0, HE_STEP_SYMPLECTIC = 1, HE_STEP_RK4 = 2, HE_STEP_NOH_BATHE = 3, HE_STEP_IMEX = 4,
+       HE_STEP_COUNT = 5 };
 
 /* Largest stable step (s) for this plant and stepper, from he_plant_bounds:
  *   euler, inertia:      min over chains of  c_min / w2  and  2 / c_max
