@@ -88,7 +88,7 @@ static int run_txn(const mc_txn_t *t, uint8_t *rx, uint32_t *len)
         uint8_t e = Wire.endTransmission(true);   /* always STOP: no repeated start */
         return e == 0 ? MC_I2C_OK : e == 2 ? MC_I2C_NACK_ADDR : e == 3 ? MC_I2C_NACK_DATA : MC_I2C_BUS_ERROR;
     }
-    uint8_t n = Wire.requestFrom(t->addr, t->len, (uint8_t)1);
+    uint8_t n = Wire.requestFrom(t->addr, (size_t)t->len, true);
     if (n == 0)
         return SERCOM2->I2CM.STATUS.bit.LOWTOUT ? MC_I2C_TIMEOUT : MC_I2C_NACK_ADDR;
     while (Wire.available() > 0 && *len < MC_BLK_MAX_LEN)
