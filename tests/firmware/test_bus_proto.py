@@ -39,6 +39,14 @@ def test_c_constants_follow_definition(fw):
         assert getattr(lib, f"MC_CAN_{name}") == f["base"]
 
 
+def test_definition_uses_the_flash_tool_address_mapping(fw):
+    from tools.flash import addresses
+
+    _, lib = fw
+    assert (D.ADDR_BASE, D.N_CELLS) == (addresses.ADDR_BASE, addresses.CELL_COUNT)
+    assert [lib.MC_ADDR_BASE + j - 1 for j in range(1, 17)] == [addresses.cell_address(j) for j in range(1, 17)]
+
+
 def test_addresses_avoid_reserved_ranges_and_are_one_to_one():
     addrs = [proto.cell_address(j) for j in range(1, D.N_CELLS + 1)]
     assert len(set(addrs)) == D.N_CELLS

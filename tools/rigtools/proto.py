@@ -29,18 +29,11 @@ CELL_FLAGS = D.CELL_FLAGS
 _FMT = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I", "i32": "i"}
 
 
-def cell_address(j: int) -> int:
-    """7-bit I2C address of cell j (1..N_CELLS): the one mapping used everywhere."""
-    if not isinstance(j, int) or not 1 <= j <= N_CELLS:
-        raise ValueError(f"cell number must be 1..{N_CELLS}, got {j!r}")
-    return D.ADDR_BASE + j - 1
-
-
-def cell_of_address(addr: int) -> int:
-    j = addr - D.ADDR_BASE + 1
-    if not 1 <= j <= N_CELLS:
-        raise ValueError(f"address 0x{addr:02X} is not a cell address")
-    return j
+# The rig's one cell -> address mapping lives in tools/flash/addresses.py (the
+# flashing tool bakes it into each cell image); the wire definition's ADDR_BASE and
+# N_CELLS are checked against it by tests/firmware/test_bus_proto.py.
+from tools.flash.addresses import address_cell as cell_of_address  # noqa: E402
+from tools.flash.addresses import cell_address  # noqa: E402,F401
 
 
 def crc8(data: bytes, crc: int = D.CRC8_INIT) -> int:
