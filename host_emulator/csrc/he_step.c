@@ -88,13 +88,13 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
         if (stepper == HE_STEP_RK4) {
             double k1x[n2], k1v[n2], k2x[n2], k2v[n2], k3x[n2], k3v[n2], k4x[n2], k4v[n2];
             double xs[n2], vs[n2];
-            deriv(p, tt, x, v, k1x, k1v, F, C);
+            deriv(p, tt + HE_STAGE_EDGE * h, x, v, k1x, k1v, F, C);
             for (int i = 0; i < n2; i++) { xs[i] = x[i] + 0.5 * h * k1x[i]; vs[i] = v[i] + 0.5 * h * k1v[i]; }
             deriv(p, tt + 0.5 * h, xs, vs, k2x, k2v, F, C);
             for (int i = 0; i < n2; i++) { xs[i] = x[i] + 0.5 * h * k2x[i]; vs[i] = v[i] + 0.5 * h * k2v[i]; }
             deriv(p, tt + 0.5 * h, xs, vs, k3x, k3v, F, C);
             for (int i = 0; i < n2; i++) { xs[i] = x[i] + h * k3x[i]; vs[i] = v[i] + h * k3v[i]; }
-            deriv(p, tt + h, xs, vs, k4x, k4v, F, C);
+            deriv(p, tt + (1.0 - HE_STAGE_EDGE) * h, xs, vs, k4x, k4v, F, C);
             /* y1 = y0 + h/6 (k1 + 2 k2 + 2 k3 + k4) */
             for (int i = 0; i < n2; i++) {
                 x[i] += h / 6.0 * (k1x[i] + 2.0 * k2x[i] + 2.0 * k3x[i] + k4x[i]);
@@ -104,7 +104,7 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
                 for (int i = 0; i < n2; i++)
                     v[i] = (k1x[i] + 2.0 * k2x[i] + 2.0 * k3x[i] + k4x[i]) / 6.0;
         } else {
-            he_plant_forces(p, tt, x, F, C);
+            he_plant_forces(p, tt + HE_STAGE_EDGE * h, x, F, C);
             if (!p->inertia) {
                 for (int i = 0; i < n2; i++) {
                     v[i] = F[i] / C[i];           /* x' = F/C */

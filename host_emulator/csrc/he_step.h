@@ -16,6 +16,11 @@
  * and a line in the Python registry (host_emulator/models/steppers.py).
  */
 /* HE_STEP_NOH_BATHE and HE_STEP_IMEX: equations and limits in he_step_more.h */
+/* Stages at the ends of a step are evaluated just inside it, at t + e h and t + (1 - e) h with
+ * e = HE_STAGE_EDGE: the perturbations are piecewise constant, and with their edges on step
+ * boundaries this keeps every step on one side of an edge (otherwise the end stage sees the next
+ * piece and a high-order stepper drops to first order at each edge; rounding of t decides which). */
+#define HE_STAGE_EDGE 1e-9
 enum { HE_STEP_EULER = 0, HE_STEP_SYMPLECTIC = 1, HE_STEP_RK4 = 2, HE_STEP_NOH_BATHE = 3, HE_STEP_IMEX = 4,
        HE_STEP_COUNT = 5 };
 

@@ -8,6 +8,17 @@
 
 /* ---------------------------------------------------------------- Noh-Bathe */
 
+/* 1 if some perturbation switches on or off in (ta, tb] */
+static int he_forcing_changes(const he_plant_t *p, double ta, double tb)
+{
+    for (int i = 0; i < p->npert; i++) {
+        const he_pert_t *q = &p->pert[i];
+        if ((q->t0 > ta && q->t0 <= tb) || (q->t1 > ta && q->t1 <= tb))
+            return 1;
+    }
+    return 0;
+}
+
 static void nb_coef(double *q0, double *q1, double *q2)
 {
     double p = NB_P;
@@ -111,7 +122,7 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
         double b2 = 0.5 / pp, b1 = 1.0 - b2;
         for (int64_t k = 0; k < nsteps; k++) {
             double tt = t0 + (double)k * h;
-            he_plant_forces(p, tt, x, F, C);
+            he_plant_forces(p, tt + HE_STAGE_EDGE * h, x, F, C);
             for (int i = 0; i < n2; i++) {
                 a0[i] = F[i] / C[i];
                 xp[i] = x[i] + ph * a0[i];
@@ -125,7 +136,7 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
         }
         return;
     }
-    nb_accel(p, t0, x, v, a0, F, C);
+    nb_accel(p, t0 + HE_STAGE_EDGE * h, x, v, a0, F, C);
     for (int64_t k = 0; k < nsteps; k++) {
         double tt = t0 + (double)k * h;
         /* sub-step 1: xp = x0 + p h v0 + (p h)^2/2 a0;  ap = a(xp, v0 + p h a0);  vp = v0 + p h/2 (a0 + ap) */
@@ -140,12 +151,16 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
             x[i] = xp[i] + s * vp[i] + 0.5 * s * s * ap[i];
             w[i] = vp[i] + s * ap[i];
         }
-        nb_accel(p, tt + h, x, w, a1, F, C);
+        /* a1 at the left limit of t + h (HE_STAGE_EDGE); when a perturbation edge sits at t + h the
+         * carried a0 of the next step would belong to the old piece: recompute it there */
+        nb_accel(p, tt + (1.0 - HE_STAGE_EDGE) * h, x, w, a1, F, C);
         for (int i = 0; i < n2; i++) {
             /* v1 = vp + s (q0 a0 + (1/2 + q1) ap + q2 a1);  the next step starts from a0 = a1 */
             v[i] = vp[i] + s * (q0 * a0[i] + (0.5 + q1) * ap[i] + q2 * a1[i]);
             a0[i] = a1[i];
         }
+        if (k + 1 < nsteps && he_forcing_changes(p, tt + (1.0 - HE_STAGE_EDGE) * h, tt + (1.0 + HE_STAGE_EDGE) * h))
+            nb_accel(p, tt + (1.0 + HE_STAGE_EDGE) * h, x, w, a0, F, C);
     }
 }
 
@@ -201,7 +216,7 @@ static int imex_advance(const he_plant_t *p, double h, int64_t nsteps, double t0
     double F[n2], C[n2], d[n], e[n], r[n];
     for (int64_t k = 0; k < nsteps; k++) {
         double tt = t0 + (double)k * h;
-        he_plant_forces(p, tt, x, F, C);
+        he_plant_forces(p, tt + HE_STAGE_EDGE * h, x, F, C);
         for (int ch = 0; ch < 2; ch++) {
             const double *xc = x + ch * n;
             double *vc = v + ch * n;

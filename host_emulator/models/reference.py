@@ -13,6 +13,8 @@ from .. import params as P
 from .options import ModelOptions, Perturbation
 from .plant import spreads
 
+STAGE_EDGE = 1e-9   # = HE_STAGE_EDGE: stages at a step's ends are evaluated at t + e h, t + (1 - e) h
+
 
 class ReferencePlant:
     def __init__(self, params, options: ModelOptions | None = None, perturbations: list[Perturbation] = (),
@@ -88,31 +90,32 @@ class ReferencePlant:
 
     # ---- steppers (numpy mirrors of the registered ones) ------------------
     def step(self, stepper, t, x, v, h):
+        E = STAGE_EDGE   # end stages just inside the step (he_step.h HE_STAGE_EDGE)
         if not self.o.inertia:
             def f(tt, xx):
                 F, C = self.forces(tt, xx)
                 return F / C
             if stepper == "rk4":
-                k1 = f(t, x); k2 = f(t + h / 2, x + h / 2 * k1)
-                k3 = f(t + h / 2, x + h / 2 * k2); k4 = f(t + h, x + h * k3)
+                k1 = f(t + E * h, x); k2 = f(t + h / 2, x + h / 2 * k1)
+                k3 = f(t + h / 2, x + h / 2 * k2); k4 = f(t + h - E * h, x + h * k3)
                 return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), (k1 + 2 * k2 + 2 * k3 + k4) / 6
-            vv = f(t, x)
+            vv = f(t + E * h, x)
             return x + h * vv, vv
         if stepper == "symplectic_euler":
-            F, C = self.forces(t, x)
+            F, C = self.forces(t + E * h, x)
             v1 = (v + h * F / self.I) / (1 + h * C / self.I)
             return x + h * v1, v1
         if stepper == "euler":
-            F, C = self.forces(t, x)
+            F, C = self.forces(t + E * h, x)
             return x + h * v, v + h * (F - C * v) / self.I
 
         def f(tt, xx, vv):
             F, C = self.forces(tt, xx)
             return vv, (F - C * vv) / self.I
-        a1, b1 = f(t, x, v)
+        a1, b1 = f(t + E * h, x, v)
         a2, b2 = f(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
         a3, b3 = f(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)
-        a4, b4 = f(t + h, x + h * a3, v + h * b3)
+        a4, b4 = f(t + h - E * h, x + h * a3, v + h * b3)
         return x + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4), v + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
 
     def run(self, stepper, h, nsteps, x0=None, v0=None, record_every=1):
