@@ -98,6 +98,10 @@ class EmulatedRig:
             if self.regs[j].rx_full:
                 self._snap(j)
                 lib.mc_regs_apply(self.regs + j, self.solver.cells + j, self.qa, self.qb)
+        ev = self.solver.events   # scene perturbations with perturb_via = "firmware"
+        while ev and ev[0][0] <= self.solver.tick:
+            _, j, ch, unm, nt = ev.pop(0)
+            lib.mc_cell_perturb(self.solver.cells + j, ch, unm, nt)
         self.solver._run(1)   # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
         self.ticks += 1
         self.next_tick_us += self.tick_us

@@ -180,3 +180,12 @@ def test_timing_model_bits():
     assert t.bits(23) == 1 + 9 + 9 * 23 + 1
     with pytest.raises(ValueError):
         I2CTiming(123)
+
+
+def test_scene_perturbations_reach_the_served_cells():
+    """Both perturbation routes of a scene act on the bus-served lattice (plant torque, or the cell firmware)."""
+    for via in ("plant", "firmware"):
+        rig, sc = make_rig("default", overrides=[f"model_options.perturb_via={via}"])
+        assert sc.options.perturb_via == via
+        collect(rig, 0.5)
+        assert abs(rig.solver.cells[7].theta[0]) >= 10, via
