@@ -44,19 +44,22 @@ def reaction_si(k_ab, sigma, k1, k2, astar, alpha_rad, beta_rad):
 def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
     """Signed PWM duty (ticks) a perfect real-valued driver would command.
 
-    V = tau/Kt + omega/S_L (back-EMF term only if on, itself limited to +-vmax),
-    limited to +-vmax, duty = round(|V|/V_s * top), capped at floor(vmax*top/V_s).
+    V = tau/Kt + omega/S_L (back-EMF term only if on; the window difference is
+    limited to +-4096 counts, twice the angle clamp), limited to +-vmax,
+    duty = round(|V|/V_s * top), capped at floor(vmax*top/V_s) and the user limit.
     """
     vs = cfg["supply_mv"] / 1000.0
     vmax = cfg["vmax_mv"] / 1000.0
     kt = cfg["kt_unm_per_v"] * 1e-6
     sl = cfg["kv_mrad_per_vs"] / 1000.0
     top = cfg["pwm_top"]
-    v = tau_tu * TU_NM / kt
+    # the torque command saturates at +-2^22 TU (0.131 N*m, three times the stall
+    # torque) before conversion: documented in mc_drive.h
+    v = clamp(tau_tu, -(1 << 22), 1 << 22) * TU_NM / kt
     if bemf_on:
-        dth = clamp(dtheta_w, -1024, 1024)
+        dth = clamp(dtheta_w, -4096, 4096)
         omega = dth * RAD_PER_COUNT * cfg["ctrl_rate_hz"] / (1 << window_log2)
-        v += clamp(omega / sl, -vmax, vmax)
+        v += omega / sl
     v = clamp(v, -vmax, vmax)
     duty = round(abs(v) / vs * top)
     cap = math.floor(cfg["vmax_mv"] * top / cfg["supply_mv"])

@@ -50,7 +50,8 @@ def test_tick_matches_reference_chain(fw, path, a0, b0, bemf, pert, pert_ticks, 
         a, b = a + da, b + db
         assert cell.tick(a, b) == 0
         hist.append((a, b))
-        pa, pb = hist[-1 - w] if len(hist) > w else hist[0]
+        # the window restarts from the angles held when compensation was switched on (0, 0)
+        pa, pb = hist[-1 - w] if len(hist) > w else (0, 0)
         ra, rb = reaction(law, a, b)
         if k < pert_ticks:
             if chain == 0:
@@ -88,12 +89,30 @@ def test_perturbation_lasts_exactly_its_ticks(fw):
 
 def test_zero_offsets(fw):
     cell = Cell(fw)
-    cell.lib.mc_cell_zero(cell.c, 1000, -2000)
-    cell.tick(1010, -2030)
+    lib = cell.lib
+    lib.mc_cell_zero(cell.c, 1000, -2000)
+    assert cell.tick(1010, -2030) == 0
     assert (cell.c.theta[0], cell.c.theta[1]) == (10, -30)
-    cell.lib.mc_cell_zero(cell.c, -(2**31), 2**31 - 1)      # extreme zeros: no wrap
-    cell.tick(2**31 - 1, -(2**31))
-    assert (cell.c.theta[0], cell.c.theta[1]) == (2048, -2048)
+    lib.mc_cell_zero(cell.c, -(2**31), 2**31 - 1)      # extreme zeros: saturate, never wrap
+    f = cell.tick(2**31 - 1, -(2**31))
+    assert (cell.c.theta[0], cell.c.theta[1]) == (800, -800)    # held at the runaway limit
+    assert f & lib.MC_FAULT_RUNAWAY_A and f & lib.MC_FAULT_RUNAWAY_B
+
+
+@settings(max_examples=500, deadline=None)
+@given(pos=st.integers(-(2**31), 2**31 - 1), zero=st.integers(-(2**31), 2**31 - 1),
+       lim=st.integers(1, 2048))
+def test_angle_is_exact_difference_or_limited_with_fault(fw, pos, zero, lim):
+    cell = Cell(fw)
+    lib = cell.lib
+    assert lib.mc_cell_set_runaway(cell.c, lim) == lib.MC_OK
+    lib.mc_cell_zero(cell.c, zero, 0)
+    f = cell.tick(pos, 0)
+    true = pos - zero                      # exact, in Python integers
+    if abs(true) <= lim:
+        assert cell.c.theta[0] == true and not f & lib.MC_FAULT_RUNAWAY_A
+    else:
+        assert cell.c.theta[0] == (lim if true > 0 else -lim) and f & lib.MC_FAULT_RUNAWAY_A
 
 
 def test_runaway_latches_until_cleared(fw):

@@ -25,17 +25,22 @@ RIG = {"supply_mv": 9000, "vmax_mv": 5860, "kt_unm_per_v": 7500, "kv_mrad_per_vs
 
 
 def derived_limits_ok(cfg):
-    """The documented derived limits of mc_drive_configure (mc_drive.h)."""
-    ktv = cfg["kt_unm_per_v"] * cfg["supply_mv"]
+    """The documented derived limits of mc_drive_configure (mc_drive.h): the torque
+    clamp must cover 2*vmax, and the back-EMF multiplier (sixteenths of a tick per
+    count of window difference) must be below 2^18 at shift 0."""
+    w = window_log2(cfg)
+    m_b0 = 16 * 15708e-6 * cfg["ctrl_rate_hz"] * cfg["pwm_top"] / (
+        cfg["kv_mrad_per_vs"] / 1000 * cfg["supply_mv"] / 1000 * (1 << w))
+    return m_b0 < 2**18 - 0.5 and cfg["kt_unm_per_v"] * cfg["vmax_mv"] <= 65536000
+
+
+def window_log2(cfg):
     w = cfg["vel_window_log2"]
     if w < 0:
         w = 0
         while w < 8 and (1000 << w) < 16 * cfg["ctrl_rate_hz"]:
             w += 1
-    bemf = (2 * math.pi / 400) * cfg["ctrl_rate_hz"] / (cfg["kv_mrad_per_vs"] / 1000) / (1 << w) \
-        / (cfg["supply_mv"] / 1000) * 65536 * 256
-    return (round(2147483648000 / ktv) < 65536 and bemf <= 2**20 + 0.5
-            and cfg["kt_unm_per_v"] * cfg["vmax_mv"] <= 65536000)
+    return w
 
 
 def make_drive(ffi, lib, cfg):
@@ -136,6 +141,7 @@ def test_rig_constants_and_stall_torque(fw):
     tau_44mNm = round(0.04395 / (2 ** -5 * 1e-6))
     out = command(ffi, lib, d, tau_44mNm, 0, 0)
     assert out.duty in (d.duty_max - 1, d.duty_max) and out.dir == 1
+    assert 2**14 <= d.m_t < 2**15 and 2**17 <= d.m_b < 2**18   # full multiplier precision
     out = command(ffi, lib, d, -tau_44mNm * 10, 0, 0)
     assert out.duty == d.duty_max and out.dir == 0
     out = command(ffi, lib, d, 0, 0, 1)

@@ -67,8 +67,8 @@ def test_vectors_cover_every_family_and_the_edges(host):
     drv = fam(r, 3)
     assert set(np.unique(drv[:, 5].view(np.int32))) == {0}          # every drive config valid
     assert set(np.unique((drv[:, 0] >> 16) & 0xFF)) == set(range(6))
-    q16, d_max = drv[:, 8].view(np.int32), drv[:, 13].view(np.int32)
-    assert (q16 == d_max).any() and (q16 == -d_max).any()            # both voltage clamps hit
+    sduty, lim = drv[:, 8].view(np.int32), drv[:, 12].view(np.int32)
+    assert (sduty == lim).any() and (sduty == -lim).any()            # both voltage clamps hit
     q = fam(r, 4)
     assert q[:, 11].sum() > 0 and (q[:, 9] > 0).sum() > 0            # saturation and glitches seen
     cell = fam(r, 5)
@@ -100,13 +100,16 @@ def test_every_tick_was_measured(ticks):
     assert min(ticks.select(enabled=True, fault=False)) > max(ticks.select(fault=True))
 
 
-@pytest.mark.xfail(strict=True, reason="library over the 200-instruction budget: see "
-                   "docs/firmware-proof.md (where the instructions go)")
 def test_instructions_per_tick_within_budget(ticks):
-    on = ticks.select(enabled=True, fault=False)
-    med = float(np.median(on))
-    print(f"\ninstructions per mc_cell_tick (enabled, fault-free): median {med}, max {max(on)}")
-    assert med <= qemu.BUDGET
+    """Every tick of the shipped default configuration (drive on, no fault, back-EMF
+    compensation off) fits the budget; compensation on costs more and is reported."""
+    default = ticks.select(**qemu.BUDGET_CASE)
+    with_bemf = ticks.select(enabled=True, fault=False, bemf=True)
+    assert len(default) >= 100 and len(with_bemf) >= 100
+    print(f"\ninstructions per mc_cell_tick: default median {np.median(default)} max {max(default)}; "
+          f"back-EMF on median {np.median(with_bemf)} max {max(with_bemf)}")
+    assert max(default) <= qemu.BUDGET
+    assert np.median(with_bemf) > np.median(default)      # the window really runs only when on
 
 
 # --------------------------------------------------------------------------- linked-image lint
@@ -114,7 +117,8 @@ def test_instructions_per_tick_within_budget(ticks):
 def test_lint_passes_a_linked_image_of_the_library():
     elf = qemu.build_image("vectors")
     rep = armbuild.lint_elf(elf)
-    assert rep.ok and rep.roots == list(armbuild.CONTROL_ROOTS)
+    # the vector program links every root but mc_vel_update (not in its API table)
+    assert rep.ok and rep.roots == [r for r in armbuild.CONTROL_ROOTS if r != "mc_vel_update"]
 
 
 def test_lint_flags_a_linked_image_that_divides_or_floats(tmp_path):

@@ -68,17 +68,21 @@ def test_upper_bits_of_sample_are_ignored(fw):
 
 
 @settings(max_examples=300, deadline=None)
-@given(log2w=st.integers(0, 8), v=st.integers(-8, 8), n=st.integers(1, 600), x0=st.integers(-1000, 1000))
-def test_velocity_window_difference(fw, log2w, v, n, x0):
-    """dtheta[n] = theta[n] - theta[n-W], with the reset position before the first W ticks."""
+@given(log2w=st.integers(0, 8), va=st.integers(-8, 8), vb=st.integers(-8, 8), n=st.integers(1, 600),
+       a0=st.integers(-3000, 3000), b0=st.integers(-3000, 3000))
+def test_velocity_window_difference(fw, log2w, va, vb, n, a0, b0):
+    """dtheta[n] = theta[n] - theta[n-W] per angle (inputs clamped to +-2048), with the
+    reset angles standing in before the first W ticks."""
     ffi, lib = fw
+    clamp = lambda x: max(-2048, min(2048, x))
     vel = ffi.new("mc_vel_t*")
-    lib.mc_vel_reset(vel, log2w, x0)
+    lib.mc_vel_reset(vel, log2w, a0, b0)
+    out = ffi.new("int32_t[2]")
     w = 1 << log2w
     hist = []
     for k in range(1, n + 1):
-        th = x0 + v * k
+        th = (clamp(a0 + va * k), clamp(b0 + vb * k))
         hist.append(th)
-        got = lib.mc_vel_update(vel, th)
-        past = hist[-1 - w] if len(hist) > w else x0
-        assert got == max(-1024, min(1024, th - past))
+        lib.mc_vel_update(vel, a0 + va * k, b0 + vb * k, out)
+        past = hist[-1 - w] if len(hist) > w else (clamp(a0), clamp(b0))
+        assert (out[0], out[1]) == (th[0] - past[0], th[1] - past[1])

@@ -81,12 +81,13 @@ def _ticks(elf=None) -> bool:
           + ("ok" if calib_ok else "MISMATCH"))
     print("instructions per mc_cell_tick (both motors), Cortex-M0 under QEMU:")
     for name, (med, mx, n) in s.summary().items():
-        print(f"  {name:<42} median {med:>6g}  max {mx:>5}  ({n} ticks)")
+        print(f"  {name:<50} median {med:>6g}  max {mx:>5}  ({n} ticks)")
     print(f"  mc_quad_update (per edge, ISR): median {sorted(s.quad_update)[len(s.quad_update) // 2]}"
           f", max {max(s.quad_update)}; mc_quad_snapshot: {max(s.snapshot)}")
-    med = s.summary()["enabled, fault-free (budget case)"][0]
-    print(f"  budget {qemu.BUDGET}: " + ("within" if med <= qemu.BUDGET else "OVER"))
-    return calib_ok and med <= qemu.BUDGET
+    worst = max(s.select(**qemu.BUDGET_CASE))
+    print(f"  budget {qemu.BUDGET} (every tick of the default configuration, worst {worst}): "
+          + ("within" if worst <= qemu.BUDGET else "OVER"))
+    return calib_ok and worst <= qemu.BUDGET
 
 
 def _lint(elf: str | None, extra_roots: list[str]) -> int:

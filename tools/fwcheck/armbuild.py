@@ -33,7 +33,10 @@ CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffunction-sections", "-fdata-sections
                       "-Wall", "-Wextra", "-Werror"]
 
 #: Control-path entry points: the tick and the decoder ISR/snapshot.
-CONTROL_ROOTS = ("mc_cell_tick", "mc_quad_update", "mc_quad_snapshot")
+# The tick inlines the law, velocity and drive; their public wrappers are control
+# path too (the emulator and tests call them), so they are roots of their own.
+CONTROL_ROOTS = ("mc_cell_tick", "mc_quad_update", "mc_quad_snapshot", "mc_reaction_eval",
+                 "mc_psi_prime", "mc_drive_command", "mc_vel_update")
 
 SOFTFLOAT_RE = re.compile(
     r"^(__aeabi_(f|d|cf|cd|[iu]?l?2[fd]|ul2[fd])\w*"

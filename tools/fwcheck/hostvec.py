@@ -45,7 +45,7 @@ FAMILIES = {1: "reaction", 2: "params", 3: "drive", 4: "quad", 5: "cell"}
 FIELDS = {
     1: "alpha beta g_ab g_sigma g1 g2 astar_q4 | ra rb psi(alpha) psi(beta) rc c1",
     2: "in0 in1 in2 in3 in4 in5 in6 | rc unchanged out0 out1 out2 out3 out4 out5",
-    3: "tau dtheta bemf limit_req cfg_rc - - | q16 duty dir enable duty_limit d_max",
+    3: "tau dtheta bemf limit_req cfg_rc - - | signed_duty duty dir enable duty_limit duty_max",
     4: "start_pos ab_seq - - - - - | pos errors ab saturated snap.pos snap.errors snap.sat",
     5: "pos_a pos_b err_a err_b sat rc arg | faults out_a out_b torque_a torque_b theta_a theta_b pert^faults<<16",
 }

@@ -26,7 +26,8 @@ void mc_cell_init(mc_cell_t *c)
     mc_drive_configure(&c->drive, &d);
     c->runaway_counts = 800;
     c->enc_burst = 8;
-    c->bemf_comp = 1;
+    c->bemf_comp = 0;   /* see mc_cell.h: compensation through a 16 ms window lags */
+    mc_vel_reset(&c->vel, c->drive.vel_log2, 0, 0);
 }
 
 int mc_cell_set_params(mc_cell_t *c, const mc_reaction_phys_t *p)
@@ -41,7 +42,8 @@ int mc_cell_set_drive(mc_cell_t *c, const mc_drive_config_t *cfg)
     if (rc == MC_OK) {
         if (limit >= 0)
             mc_drive_set_limit(&c->drive, limit);
-        c->primed = 0; /* window length may have changed */
+        /* the window length may have changed: restart at the last angles */
+        mc_vel_reset(&c->vel, c->drive.vel_log2, c->theta[0], c->theta[1]);
     }
     return rc;
 }
@@ -55,7 +57,13 @@ int mc_cell_set_runaway(mc_cell_t *c, int32_t counts)
 }
 
 void mc_cell_enable(mc_cell_t *c, int on) { c->enabled = (uint8_t)(on != 0); }
-void mc_cell_set_bemf(mc_cell_t *c, int on) { c->bemf_comp = (uint8_t)(on != 0); }
+void mc_cell_set_bemf(mc_cell_t *c, int on)
+{
+    /* the window only runs while compensation is on: restart it from the last angles */
+    if (on && !c->bemf_comp)
+        mc_vel_reset(&c->vel, c->drive.vel_log2, c->theta[0], c->theta[1]);
+    c->bemf_comp = (uint8_t)(on != 0);
+}
 
 int mc_cell_perturb(mc_cell_t *c, int chain, int32_t torque_unm, uint32_t ticks)
 {
@@ -72,7 +80,8 @@ void mc_cell_zero(mc_cell_t *c, int32_t pos_a, int32_t pos_b)
 {
     c->zero[0] = pos_a;
     c->zero[1] = pos_b;
-    c->primed = 0;
+    c->theta[0] = c->theta[1] = 0;
+    mc_vel_reset(&c->vel, c->drive.vel_log2, 0, 0);
 }
 
 void mc_cell_clear_faults(mc_cell_t *c)
@@ -83,51 +92,72 @@ void mc_cell_clear_faults(mc_cell_t *c)
 
 void mc_cell_report_driver_fault(mc_cell_t *c) { c->faults |= MC_FAULT_DRIVER; }
 
-/* theta = clamp(pos - zero, +-MC_ANGLE_CLAMP), computed without overflow. */
-static int32_t rel_angle(int32_t pos, int32_t zero)
+/*
+ * theta = pos - zero, limited to +-runaway (<= MC_ANGLE_CLAMP): a limited angle
+ * latches the runaway fault, so the clamp that keeps the law's arithmetic in
+ * range is the runaway check itself. The subtraction is done modulo 2^32 and a
+ * signed overflow (pos, zero of opposite signs, result of the wrong sign) is
+ * caught and saturated, never wrapped.
+ */
+MC_INLINE int32_t rel_angle(int32_t pos, int32_t zero, int32_t lim, uint16_t *f, uint16_t flag)
 {
-    int32_t r = mc_sat_add_i32(pos, zero == INT32_MIN ? INT32_MAX : -zero);
-    return mc_clamp_i32(r, -MC_ANGLE_CLAMP, MC_ANGLE_CLAMP);
+    int32_t d = (int32_t)((uint32_t)pos - (uint32_t)zero);
+    if (((pos ^ zero) & (pos ^ d)) < 0)
+        d = pos < 0 ? INT32_MIN / 2 : INT32_MAX / 2;
+    if ((uint32_t)d + (uint32_t)lim > 2u * (uint32_t)lim) {   /* |d| > lim */
+        d = d < 0 ? -lim : lim;
+        *f |= flag;
+    }
+    return d;
 }
 
-static uint16_t check_encoder(mc_cell_t *c, int i, const mc_quad_snap_t *s, int32_t th)
+/*
+ * Encoder-error leaky bucket (see mc_cell.h), evaluated only on a tick where an
+ * error counter moved; the decay of one per tick since the last error is
+ * applied then, so a quiet tick costs one comparison:
+ *   bucket = max(0, bucket - (tick - err_tick)) + 256*min(new errors, 255)
+ *   fault when bucket > 256*enc_burst
+ */
+static uint16_t encoder_faults(mc_cell_t *c, uint32_t ea, uint32_t eb)
 {
     uint16_t f = 0;
-    uint32_t fresh = s->errors - c->err_last[i];   /* modulo 2^32 */
-    c->err_last[i] = s->errors;
-    if (fresh > 255u)
-        fresh = 255u;
-    int32_t b = c->bucket[i] + (int32_t)(fresh << 8);
-    b -= b > 0;
-    c->bucket[i] = b;
-    if (b > (c->enc_burst << 8))
-        f |= (uint16_t)(MC_FAULT_ENCODER_A << i);
-    if (th > c->runaway_counts || th < -c->runaway_counts)
-        f |= (uint16_t)(MC_FAULT_RUNAWAY_A << i);
-    if (s->saturated)
-        f |= MC_FAULT_SATURATED;
+    uint32_t e[2] = {ea, eb};
+    for (int i = 0; i < 2; i++) {
+        uint32_t fresh = e[i] - c->err_last[i];      /* modulo 2^32 */
+        if (!fresh)
+            continue;
+        uint32_t idle = c->tick - c->err_tick[i];
+        int32_t bk = (uint32_t)c->bucket[i] > idle ? c->bucket[i] - (int32_t)idle : 0;
+        if (fresh > 255u)
+            fresh = 255u;
+        bk += (int32_t)(fresh << 8);
+        c->bucket[i] = bk;
+        c->err_last[i] = e[i];
+        c->err_tick[i] = c->tick;
+        if (bk > (c->enc_burst << 8))
+            f |= (uint16_t)(MC_FAULT_ENCODER_A << i);
+    }
     return f;
 }
 
 uint16_t mc_cell_tick(mc_cell_t *c, const mc_quad_snap_t *a, const mc_quad_snap_t *b)
 {
-    int32_t ta = rel_angle(a->pos, c->zero[0]);
-    int32_t tb = rel_angle(b->pos, c->zero[1]);
+    uint16_t f = c->faults;
+    int32_t lim = c->runaway_counts;
+    int32_t ta = rel_angle(a->pos, c->zero[0], lim, &f, MC_FAULT_RUNAWAY_A);
+    int32_t tb = rel_angle(b->pos, c->zero[1], lim, &f, MC_FAULT_RUNAWAY_B);
     c->tick++;
     c->theta[0] = ta;
     c->theta[1] = tb;
-    c->faults |= check_encoder(c, 0, a, ta) | check_encoder(c, 1, b, tb);
-
-    if (!c->primed) {
-        mc_vel_reset(&c->vel[0], c->drive.vel_log2, ta);
-        mc_vel_reset(&c->vel[1], c->drive.vel_log2, tb);
-        c->primed = 1;
-    }
-    int32_t wa = mc_vel_update(&c->vel[0], ta);
-    int32_t wb = mc_vel_update(&c->vel[1], tb);
+    uint32_t ea = a->errors, eb = b->errors;
+    if ((ea ^ c->err_last[0]) | (eb ^ c->err_last[1]))
+        f |= encoder_faults(c, ea, eb);
+    if (a->saturated | b->saturated)
+        f |= MC_FAULT_SATURATED;
+    c->faults = f;
 
     int32_t ra, rb;
-    mc_reaction_eval(&c->law, ta, tb, &ra, &rb);
+    mc_reaction_eval_inl(&c->law, ta, tb, &ra, &rb);
     if (c->pert_ticks) {
         c->pert_ticks--;
         if (c->pert_chain == MC_ALPHA)
@@ -138,14 +168,18 @@ uint16_t mc_cell_tick(mc_cell_t *c, const mc_quad_snap_t *a, const mc_quad_snap_
     c->torque[0] = ra;
     c->torque[1] = rb;
 
-    if (c->faults || !c->enabled) {
+    if (f || !c->enabled) {
         /* outputs off: nSLEEP low, EN low */
         c->out[0].duty = c->out[1].duty = 0;
         c->out[0].enable = c->out[1].enable = 0;
         c->out[0].dir = c->out[1].dir = 0;
-        return c->faults;
+        return f;
     }
-    mc_drive_command(&c->drive, ra, wa, c->bemf_comp, &c->out[0]);
-    mc_drive_command(&c->drive, rb, wb, c->bemf_comp, &c->out[1]);
-    return c->faults;
+    int32_t wa = 0, wb = 0;
+    int bemf = c->bemf_comp;
+    if (bemf)
+        mc_vel_update_inl(&c->vel, ta, tb, &wa, &wb);
+    mc_drive_command_inl(&c->drive, ra, wa, bemf, &c->out[0]);
+    mc_drive_command_inl(&c->drive, rb, wb, bemf, &c->out[1]);
+    return f;
 }

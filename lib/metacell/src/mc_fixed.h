@@ -26,6 +26,23 @@
 #define MC_DUTY_ONE           65536         /* Q16 supply fraction */
 
 #ifndef MC_CDEF /* inline helpers are invisible to the host FFI */
+
+/* Force inlining of the control-path helpers (GCC/Clang); plain inline elsewhere. */
+#if defined(__GNUC__)
+#define MC_INLINE static inline __attribute__((always_inline))
+#else
+#define MC_INLINE static inline
+#endif
+
+/* clamp(x, -lim, +lim) for 0 <= lim <= 2^30; one compare on the common path:
+ * (uint32)(x + lim) > 2*lim  <=>  x outside [-lim, lim]. */
+MC_INLINE int32_t mc_clamp_sym(int32_t x, int32_t lim)
+{
+    if ((uint32_t)x + (uint32_t)lim > 2u * (uint32_t)lim)
+        x = x < 0 ? -lim : lim;
+    return x;
+}
+
 static inline int32_t mc_clamp_i32(int32_t x, int32_t lo, int32_t hi)
 {
     return x < lo ? lo : (x > hi ? hi : x);

@@ -11,7 +11,6 @@ typedef int32_t (*f_psi)(const mc_reaction_t *, int32_t);
 typedef void (*f_drv_default)(mc_drive_config_t *);
 typedef int (*f_drv_conf)(mc_drive_t *, const mc_drive_config_t *);
 typedef int32_t (*f_drv_limit)(mc_drive_t *, int32_t);
-typedef int32_t (*f_drv_q16)(const mc_drive_t *, int32_t, int32_t, int);
 typedef void (*f_drv_cmd)(const mc_drive_t *, int32_t, int32_t, int, mc_drive_out_t *);
 typedef void (*f_q_init)(mc_quad_t *, uint8_t);
 typedef void (*f_q_update)(mc_quad_t *, uint8_t);
@@ -37,7 +36,7 @@ void mcv_check_types(void)
     f_set_raw a1 = mc_reaction_set_raw; f_from_phys a2 = mc_reaction_from_phys;
     f_eval a3 = mc_reaction_eval; f_psi a4 = mc_psi_prime;
     f_drv_default a5 = mc_drive_default_config; f_drv_conf a6 = mc_drive_configure;
-    f_drv_limit a7 = mc_drive_set_limit; f_drv_q16 a8 = mc_drive_q16;
+    f_drv_limit a7 = mc_drive_set_limit;
     f_drv_cmd a9 = mc_drive_command; f_q_init b1 = mc_quad_init;
     f_q_update b2 = mc_quad_update; f_q_snap b3 = mc_quad_snapshot;
     f_q_setpos b4 = mc_quad_set_pos; f_c_defp b5 = mc_cell_default_params;
@@ -47,7 +46,7 @@ void mcv_check_types(void)
     f_c_perturb c3 = mc_cell_perturb; f_c_zero c4 = mc_cell_zero;
     f_c_void c5 = mc_cell_clear_faults; f_c_void c6 = mc_cell_report_driver_fault;
     f_c_tick c7 = mc_cell_tick;
-    (void)a1; (void)a2; (void)a3; (void)a4; (void)a5; (void)a6; (void)a7; (void)a8;
+    (void)a1; (void)a2; (void)a3; (void)a4; (void)a5; (void)a6; (void)a7;
     (void)a9; (void)b1; (void)b2; (void)b3; (void)b4; (void)b5; (void)b6; (void)b7;
     (void)b8; (void)b9; (void)c1; (void)c2; (void)c3; (void)c4; (void)c5; (void)c6;
     (void)c7;
@@ -353,7 +352,7 @@ static void fam_params(const mcv_api_t *api, rng_t *g, mcv_sink_t *s)
             bytes_copy(&dbefore, &drv, sizeof drv);
             rc = FN(api, mc_drive_configure, f_drv_conf)(&drv, &cfg);
             same = bytes_equal(&dbefore, &drv, sizeof drv);
-            rec[10] = W(drv.tq_mul); rec[11] = W(drv.bemf_mul); rec[12] = W(drv.d_max);
+            rec[10] = W(drv.m_t); rec[11] = W(drv.m_b); rec[12] = W((drv.s_t << 8) | drv.s_b);
             rec[13] = W(drv.duty_max); rec[14] = W((drv.pwm_top << 8) | drv.vel_log2);
             rec[15] = W(drv.duty_limit);
             break;
@@ -393,7 +392,7 @@ static void fam_drive(const mcv_api_t *api, rng_t *g, mcv_sink_t *s)
     mc_drive_t drv[N_CFGS];
     int rcs[N_CFGS];
     for (int32_t k = 0; k < N_CFGS; k++) {
-        mc_drive_t zero = {0, 0, 0, 0, 0, 0, 0}; /* defined contents even if rejected */
+        static const mc_drive_t zero; /* defined contents even if rejected */
         drv[k] = zero;
         rcs[k] = FN(api, mc_drive_configure, f_drv_conf)(&drv[k], &drive_cfgs[k]);
     }
@@ -407,13 +406,13 @@ static void fam_drive(const mcv_api_t *api, rng_t *g, mcv_sink_t *s)
         int32_t dth = r_wide(g, 1100);
         int bemf = (int)(rnd(g) & 1u);
         mc_drive_out_t out = {0, 0, 0};
-        int32_t q = FN(api, mc_drive_q16, f_drv_q16)(&d, tau, dth, bemf);
         FN(api, mc_drive_command, f_drv_cmd)(&d, tau, dth, bemf, &out);
+        int32_t q = out.dir ? (int32_t)out.duty : -(int32_t)out.duty;   /* signed duty */
         rec_clear(rec, MCV_FAM_DRIVE, (uint32_t)k, i);
         rec[1] = W(tau); rec[2] = W(dth); rec[3] = W(bemf); rec[4] = W(lim);
         rec[5] = W(rcs[k]);
         rec[8] = W(q); rec[9] = out.duty; rec[10] = out.dir; rec[11] = out.enable;
-        rec[12] = W(d.duty_limit); rec[13] = W(d.d_max);
+        rec[12] = W(d.duty_limit); rec[13] = W(d.duty_max);
         emit(s, rec);
     }
 }

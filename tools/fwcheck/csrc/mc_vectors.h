@@ -25,7 +25,7 @@
 enum {
     MCV_FAM_REACTION = 1,  /* mc_reaction_set_raw + mc_reaction_eval + mc_psi_prime */
     MCV_FAM_PARAMS = 2,    /* validation codes, rejected sets leave old values */
-    MCV_FAM_DRIVE = 3,     /* mc_drive_q16 / mc_drive_command over several configs */
+    MCV_FAM_DRIVE = 3,     /* mc_drive_command over several configs */
     MCV_FAM_QUAD = 4,      /* mc_quad_update edge streams with glitches */
     MCV_FAM_CELL = 5,      /* multi-tick mc_cell_tick sequences */
 };
@@ -44,7 +44,7 @@ enum {
 #define MCV_API(X)                                                         \
     X(mc_reaction_set_raw) X(mc_reaction_from_phys) X(mc_reaction_eval)    \
     X(mc_psi_prime) X(mc_drive_default_config) X(mc_drive_configure)       \
-    X(mc_drive_set_limit) X(mc_drive_q16) X(mc_drive_command)              \
+    X(mc_drive_set_limit) X(mc_drive_command)                              \
     X(mc_quad_init) X(mc_quad_update) X(mc_quad_snapshot)                  \
     X(mc_quad_set_pos) X(mc_cell_default_params) X(mc_cell_init)           \
     X(mc_cell_set_params) X(mc_cell_set_drive) X(mc_cell_set_runaway)      \

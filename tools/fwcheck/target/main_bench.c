@@ -9,7 +9,7 @@ int known_loop(int n);
 
 static mc_cell_t cell;
 static mc_quad_t qa, qb;
-static uint32_t tags[N_TICKS]; /* per tick: enabled | bemf<<1 | pert<<2 | primed<<3 | faults<<16 */
+static uint32_t tags[N_TICKS]; /* per tick: enabled | bemf<<1 | pert<<2 | faults<<16 */
 
 /* Triangle wave in [-amp, amp] with the given period (ticks), no division. */
 static int32_t tri(int32_t t, int32_t amp, int32_t quarter)
@@ -42,8 +42,10 @@ int main(void)
     mc_quad_init(&qa, 0);
     mc_quad_init(&qb, 0);
     mc_cell_enable(&cell, 1);
-    mc_cell_set_bemf(&cell, 1);
+    mc_cell_set_bemf(&cell, 0);   /* the shipped default; on from tick 120 */
     for (int32_t t = 0; t < N_TICKS; t++) {
+        if (t == 120)
+            mc_cell_set_bemf(&cell, 1);
         if (t == 40)
             mc_cell_perturb(&cell, MC_ALPHA, 20000, 60);
         if (t == 150)
@@ -64,7 +66,7 @@ int main(void)
         move_to(&qa, a);
         move_to(&qb, b);
         uint32_t tag = cell.enabled | (uint32_t)cell.bemf_comp << 1 |
-                       (uint32_t)(cell.pert_ticks != 0) << 2 | (uint32_t)cell.primed << 3;
+                       (uint32_t)(cell.pert_ticks != 0) << 2;
         mc_quad_snapshot(&qa, &sa);
         mc_quad_snapshot(&qb, &sb);
         uint16_t f = mc_cell_tick(&cell, &sa, &sb);

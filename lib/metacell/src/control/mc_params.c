@@ -62,8 +62,34 @@ int mc_reaction_from_phys(mc_reaction_t *out, const mc_reaction_phys_t *p)
     return mc_reaction_set_raw(out, g_ab, g_sigma, g1, g2, astar_q4);
 }
 
-/* (2*pi/400) * 1e6 * 2^24, rounded: converts counts/s to Q24 urad/s. */
-#define MC_RAD_PER_COUNT_E6_Q24 263535892666LL
+/* round(num * 2^s / den) by long division (no 64-bit overflow for num, den < 2^62). */
+static uint64_t ratio_shift(uint64_t num, uint64_t den, int s)
+{
+    uint64_t q = num / den, r = num % den;
+    for (int i = 0; i < s; i++) {
+        q <<= 1;
+        r <<= 1;
+        if (r >= den) {
+            q |= 1;
+            r -= den;
+        }
+    }
+    return q + (2 * r >= den);
+}
+
+/* Largest s in 0..30 with round(num*2^s/den) < limit; -1 if even s = 0 is too big. */
+static int pick_shift(uint64_t num, uint64_t den, uint64_t limit, int32_t *m)
+{
+    int s = -1;
+    for (int t = 0; t <= 30; t++) {
+        uint64_t v = ratio_shift(num, den, t);
+        if (v >= limit)
+            break;
+        s = t;
+        *m = (int32_t)v;
+    }
+    return s;
+}
 
 void mc_drive_default_config(mc_drive_config_t *cfg)
 {
@@ -88,27 +114,29 @@ int mc_drive_configure(mc_drive_t *out, const mc_drive_config_t *c)
         c->ctrl_rate_hz > 50000 || c->vel_window_log2 < -1 ||
         c->vel_window_log2 > MC_VEL_RING_LOG2_MAX)
         return MC_ERR_CONFIG;
+    /* the torque clamp (2^22 TU = 0.131 N*m) must reach at least 2*vmax, so that
+     * clamping the torque never changes a command (even against back-EMF) */
+    if ((int64_t)c->kt_unm_per_v * c->vmax_mv > 65536000LL)
+        return MC_ERR_CONFIG;
     int w = c->vel_window_log2;
     if (w < 0) { /* smallest window >= 16 ms, capped */
         w = 0;
         while (w < MC_VEL_RING_LOG2_MAX && ((int64_t)1000 << w) < (int64_t)16 * c->ctrl_rate_hz)
             w++;
     }
-    /* tq_mul = 128 TU in N*m * 2^16 * 2^13 / (Kt * Vs) */
-    int64_t ktv = (int64_t)c->kt_unm_per_v * c->supply_mv;
-    int64_t tq = (2147483648000LL + ktv / 2) / ktv;
-    /* bemf_mul = (2pi/400) * f / (S_L * 2^w) / Vs * 2^16 * 2^8 */
-    int64_t den = ((int64_t)c->kv_mrad_per_vs * c->supply_mv) << w;
-    int64_t bm = ((int64_t)c->ctrl_rate_hz * MC_RAD_PER_COUNT_E6_Q24 + den / 2) / den;
-    /* the torque clamp (2^22 TU = 0.131 N*m) must reach at least 2*vmax, so that
-     * clamping the torque never changes a command (even against back-EMF) */
-    if (tq < 1 || tq >= 65536 || bm > (1 << 20) ||
-        (int64_t)c->kt_unm_per_v * c->vmax_mv > 65536000LL)
-        return MC_ERR_CONFIG;
     mc_drive_t d;
-    d.tq_mul = (int32_t)tq;
-    d.bemf_mul = (int32_t)bm;
-    d.d_max = (int32_t)(((int64_t)c->vmax_mv << 16) / c->supply_mv);
+    /* m_t/2^s_t = 16 ticks * 128 TU [= 4e-6 N*m] / Kt / Vs * top
+     *           = 16 * 4000 * top / (kt_unm_per_v * supply_mv) */
+    uint64_t num_t = (uint64_t)64000u * (uint64_t)c->pwm_top;
+    uint64_t den_t = (uint64_t)c->kt_unm_per_v * (uint64_t)c->supply_mv;
+    d.s_t = pick_shift(num_t, den_t, 1u << 15, &d.m_t);
+    /* m_b/2^s_b = 16 * (2 pi/400 rad) * f / 2^w / S_L / Vs * top
+     *           = 16 * 15708 urad * f * top / (kv_mrad_per_vs * supply_mv * 2^w) */
+    uint64_t num_b = (uint64_t)15708u * 16u * (uint64_t)c->ctrl_rate_hz * (uint64_t)c->pwm_top;
+    uint64_t den_b = ((uint64_t)c->kv_mrad_per_vs * (uint64_t)c->supply_mv) << w;
+    d.s_b = pick_shift(num_b, den_b, 1u << 18, &d.m_b);
+    if (d.s_t < 0 || d.s_b < 0)
+        return MC_ERR_CONFIG;
     d.pwm_top = c->pwm_top;
     d.duty_max = (int32_t)(((int64_t)c->vmax_mv * c->pwm_top) / c->supply_mv);
     d.duty_limit = d.duty_max;

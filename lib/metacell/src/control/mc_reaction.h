@@ -3,6 +3,7 @@
 #define MC_REACTION_H
 
 #include <stdint.h>
+#include "../mc_fixed.h"
 
 /*
  * Continuous law (SPEC 1.3), angles in rad, torques in N*m:
@@ -60,5 +61,27 @@ int mc_reaction_set_raw(mc_reaction_t *out, int32_t g_ab, int32_t g_sigma,
 int32_t mc_psi_prime(const mc_reaction_t *r, int32_t x);
 void mc_reaction_eval(const mc_reaction_t *r, int32_t alpha, int32_t beta,
                       int32_t *ra, int32_t *rb);
+
+#ifndef MC_CDEF
+/* psi'(x) for |x| <= MC_ANGLE_CLAMP:  sign(x) * max(k2|x|, k1|x| - c1) */
+MC_INLINE int32_t mc_psi_prime_inl(const mc_reaction_t *r, int32_t x)
+{
+    int32_t ax = x < 0 ? -x : x;
+    int32_t inner = r->g2 * ax;
+    int32_t outer = r->g1 * ax - r->c1;
+    int32_t p = inner > outer ? inner : outer;
+    return x < 0 ? -p : p;
+}
+
+/* The law for |xa|, |xb| <= MC_ANGLE_CLAMP (the tick's angles are clamped once):
+ *   R_a = g_ab*(x_b - x_a) - psi'(x_a) - g_sigma*x_b,   R_b = -g_ab*(x_b - x_a) */
+MC_INLINE void mc_reaction_eval_inl(const mc_reaction_t *r, int32_t xa, int32_t xb,
+                                    int32_t *ra, int32_t *rb)
+{
+    int32_t coupling = r->g_ab * (xb - xa);
+    *ra = coupling - mc_psi_prime_inl(r, xa) - r->g_sigma * xb;
+    *rb = -coupling;
+}
+#endif
 
 #endif /* MC_REACTION_H */

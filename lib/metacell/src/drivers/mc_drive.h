@@ -3,28 +3,38 @@
 #define MC_DRIVE_H
 
 #include <stdint.h>
+#include "../mc_fixed.h"
+#include "../sensors/mc_velocity.h"
 
 /*
  * Motor (SPEC 2):  tau = Kt * (V - omega/S_L),  Kt = 0.09 N*m / 12 V
  * so the voltage for a wanted torque is  V = tau/Kt + omega/S_L (the second term
- * only with back-EMF compensation on). Discrete form, d in Q16 of the supply:
+ * only with back-EMF compensation on), and the PWM duty is V/V_supply*pwm_top.
+ * Discrete form, straight into sixteenths of a PWM tick (one multiply per term):
  *
- *   d_tau  = ((clamp(tau, +-MC_TORQUE_CLAMP) >> 7) * tq_mul) >> 13
- *   d_bemf = clamp((dtheta_W * bemf_mul) >> 8, +-d_max)         (if enabled)
- *   d      = clamp(d_tau + d_bemf, +-d_max)
- *   duty   = min((|d| * pwm_top + 2^15) >> 16, duty_limit)       timer ticks
- *   dir    = d >= 0  (PH=1 forward/CCW),  enable = drive on (nSLEEP)
+ *   t7   = (clamp(tau, +-MC_TORQUE_CLAMP) + 64) >> 7                128 TU units
+ *   v16  = ((t7 * m_t) >> s_t) + ((dtheta_W * m_b) >> s_b)         (second term if on)
+ *   v    = clamp((v16 + 8) >> 4, +-duty_limit)                      timer ticks
+ *   duty = |v|,  dir = v >= 0 (PH=1 forward/CCW),  enable = 1 (nSLEEP high)
  *
- * d_max and duty_limit come from vmax_mv, itself capped by MC_VMAX_ABS_MV (5.86 V,
- * the DRV8874 2.1 A limit at 9 V): the cap is applied at configuration, at the
- * Q16 stage and again on the final tick count, so no input, parameter or
- * overflow can exceed it. A configuration is refused (MC_ERR_CONFIG) unless
- * tq_mul < 2^16, bemf_mul <= 2^20 and kt*vmax <= 0.0655 N*m (the torque clamp
- * then covers 2*vmax, so clamping never alters a command). Right shifts of negative values are arithmetic (GCC
- * and Clang define them so).
+ * m_t/2^s_t = 16 * 128 TU / Kt / V_supply * pwm_top and m_b/2^s_b = 16 * (2 pi/400)
+ * * f_ctrl / 2^w / S_L / V_supply * pwm_top, chosen at configuration with
+ * 2^14 <= m_t < 2^15 and 2^17 <= m_b < 2^18 (relative precision better than 2^-14).
+ * Ranges: |t7| <= 2^15 + 1, |dtheta_W| <= MC_VEL_DIFF_MAX = 2^12, so both products
+ * are < 2^30 and their sum < 2^31. Worst-case error against the real-valued
+ * relation: 0.12 (t7 rounding, at pwm_top 4095) + 0.16 (multipliers) + 2/16
+ * (floors) + 0.5 (final rounding) < 1 tick.
+ *
+ * duty_limit <= duty_max = floor(vmax * pwm_top / supply), vmax <= MC_VMAX_ABS_MV
+ * (5.86 V, the DRV8874 2.1 A limit at 9 V): a single clamp on the final tick
+ * count enforces the cap, so no input, parameter or overflow can exceed it. A
+ * configuration is refused (MC_ERR_CONFIG) unless every field is in range,
+ * kt*vmax <= 0.0655 N*m (the torque clamp, 2^22 TU = 0.131 N*m, then covers 2*vmax:
+ * without back-EMF compensation it never alters a command; with it, the torque
+ * saturation is part of the law) and m_b fits for some s_b >= 0. Right shifts
+ * of negative values are arithmetic (GCC and Clang define them so).
  */
 #define MC_VMAX_ABS_MV 5860
-#define MC_DRIVE_DTHETA_CLAMP 1024   /* counts per window, = MC_VEL_DIFF_CLAMP */
 
 typedef struct {
     int32_t supply_mv;       /* motor supply, 4500..37000 mV (rig: 9000) */
@@ -37,12 +47,13 @@ typedef struct {
 } mc_drive_config_t;
 
 typedef struct {
-    int32_t tq_mul;      /* Q13 d_q16 per 128 TU */
-    int32_t bemf_mul;    /* Q8 d_q16 per count of window difference */
-    int32_t d_max;       /* Q16 */
-    int32_t pwm_top;     /* ticks */
-    int32_t duty_max;    /* ticks, floor(vmax*top/supply) */
+    int32_t m_t;         /* torque multiplier, 2^14..2^15-1 */
+    int32_t s_t;         /* its shift */
+    int32_t m_b;         /* back-EMF multiplier, 2^17..2^18-1 (or smaller at s_b = 0) */
+    int32_t s_b;         /* its shift */
     int32_t duty_limit;  /* ticks, user limit <= duty_max */
+    int32_t duty_max;    /* ticks, floor(vmax*top/supply) */
+    int32_t pwm_top;     /* ticks */
     int32_t vel_log2;    /* velocity window actually used */
 } mc_drive_t;
 
@@ -57,10 +68,25 @@ void mc_drive_default_config(mc_drive_config_t *cfg);
 int mc_drive_configure(mc_drive_t *out, const mc_drive_config_t *cfg);
 /* Clamp the user PWM limit (ticks) to duty_max; returns the limit in force. */
 int32_t mc_drive_set_limit(mc_drive_t *d, int32_t duty_limit);
-/* Control path: torque in TU, window difference in counts. */
+/* Control path: torque in TU, window difference in counts (any int32; the
+ * window difference is clamped to +-MC_VEL_DIFF_MAX first). */
 void mc_drive_command(const mc_drive_t *d, int32_t tau, int32_t dtheta_w,
                       int bemf_on, mc_drive_out_t *out);
-/* The Q16 supply fraction before PWM quantisation (for tests and telemetry). */
-int32_t mc_drive_q16(const mc_drive_t *d, int32_t tau, int32_t dtheta_w, int bemf_on);
+
+#ifndef MC_CDEF
+/* mc_drive_command for |dtheta_w| <= MC_VEL_DIFF_MAX; equations above. */
+MC_INLINE void mc_drive_command_inl(const mc_drive_t *d, int32_t tau, int32_t dtheta_w,
+                                    int bemf_on, mc_drive_out_t *out)
+{
+    int32_t t7 = (mc_clamp_sym(tau, MC_TORQUE_CLAMP) + 64) >> 7;
+    int32_t v = (t7 * d->m_t) >> d->s_t;
+    if (bemf_on)
+        v += (dtheta_w * d->m_b) >> d->s_b;
+    v = mc_clamp_sym((v + 8) >> 4, d->duty_limit);
+    out->duty = (uint16_t)(v < 0 ? -v : v);
+    out->dir = (uint8_t)(v >= 0);
+    out->enable = 1;
+}
+#endif
 
 #endif /* MC_DRIVE_H */

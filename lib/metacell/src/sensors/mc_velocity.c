@@ -1,25 +1,24 @@
 /* Windowed-difference velocity estimate (equation in mc_velocity.h). */
 #include "mc_velocity.h"
-#include "../mc_fixed.h"
 
-void mc_vel_reset(mc_vel_t *v, int log2w, int32_t theta)
+void mc_vel_reset(mc_vel_t *v, int log2w, int32_t theta_a, int32_t theta_b)
 {
     if (log2w < 0)
         log2w = 0;
     if (log2w > MC_VEL_RING_LOG2_MAX)
         log2w = MC_VEL_RING_LOG2_MAX;
+    theta_a = mc_clamp_sym(theta_a, MC_ANGLE_CLAMP);
+    theta_b = mc_clamp_sym(theta_b, MC_ANGLE_CLAMP);
     v->mask = (uint16_t)((1u << log2w) - 1u);
     v->head = 0;
-    for (int i = 0; i < MC_VEL_RING; i++)
-        v->ring[i] = theta;
+    for (unsigned i = 0; i <= v->mask; i++) {  /* only the W slots in use are read */
+        v->ring[i][0] = theta_a;
+        v->ring[i][1] = theta_b;
+    }
 }
 
-int32_t mc_vel_update(mc_vel_t *v, int32_t theta)
+void mc_vel_update(mc_vel_t *v, int32_t theta_a, int32_t theta_b, int32_t out[2])
 {
-    /* ring[head] holds theta[n - W]; angles are clamped by the caller to
-     * +-MC_ANGLE_CLAMP so the difference cannot overflow. */
-    int32_t old = v->ring[v->head];
-    v->ring[v->head] = theta;
-    v->head = (uint16_t)((v->head + 1u) & v->mask);
-    return mc_clamp_i32(theta - old, -MC_VEL_DIFF_CLAMP, MC_VEL_DIFF_CLAMP);
+    mc_vel_update_inl(v, mc_clamp_sym(theta_a, MC_ANGLE_CLAMP),
+                      mc_clamp_sym(theta_b, MC_ANGLE_CLAMP), &out[0], &out[1]);
 }
