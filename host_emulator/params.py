@@ -68,6 +68,10 @@ class Params:
     * ``slack_f0``: a slack band contributes f(0) != 0 in the source's formula.
       True (default) keeps that literal reading; False makes a slack band push 0.
     * ``eta_scale`` multiplies both eta_a and eta_b (scene 4 uses 10).
+    * ``bemf_comp``: firmware back-EMF compensation (omega/S_L). Default False,
+      as in the source build and the firmware's own default: through the ~16 ms
+      velocity window it lags and destabilises the lightly damped beta chain
+      (docs/emulator.md); uncompensated, each motor adds Kt/S_L = 1.5e-4 N m s.
     """
 
     cells: int = 16
@@ -94,7 +98,7 @@ class Params:
     speed_const: float = MOTOR_SPEED_CONST
     control_rate_hz: float = 2000.0
     pwm_top: int = 2400
-    bemf_comp: bool = True
+    bemf_comp: bool = False
 
     @property
     def eta_alpha(self) -> float:
