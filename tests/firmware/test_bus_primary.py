@@ -189,3 +189,74 @@ def test_scene_perturbations_reach_the_served_cells():
         assert sc.options.perturb_via == via
         collect(rig, 0.5)
         assert abs(rig.solver.cells[7].theta[0]) >= 10, via
+
+
+class Primary:
+    """The compiled primary driven by hand: every transaction's outcome chosen by the test."""
+
+    def __init__(self, fw):
+        self.ffi, self.lib = fw
+        self.p = self.ffi.new("mc_primary_t *")
+        self.lib.mc_primary_init(self.p, 0)
+        self.t = self.ffi.new("mc_txn_t *")
+        self.now = 0
+
+    def step(self, outcome):
+        """Start the next transaction and complete it with outcome(txn) -> (status, bytes, duration_us)."""
+        while not self.lib.mc_primary_next(self.p, self.now, self.t):
+            self.now += 10
+        st, data, dur = outcome(self.t)
+        self.now += dur
+        self.lib.mc_primary_complete(self.p, self.now, st, data, len(data))
+        return self.t.cell + 1, self.t.kind
+
+    def frames(self):
+        f = self.ffi.new("mc_can_frame_t *")
+        out = []
+        while self.lib.mc_primary_pop(self.p, f):
+            out.append((f.id, bytes(f.data)[: f.dlc]))
+        return out
+
+
+def snapshot_block(addr, tick=1, alpha=0, beta=0, cmd_seq=0, result=0):
+    body = struct.pack("<BBIhhHBBBBHHH", 0x10, addr, tick, alpha, beta, 0, 0, cmd_seq, result, 0, 0, 0, 0)
+    return body + bytes([proto.crc8(body)])
+
+
+def test_read_integrity_checks(fw):
+    _, lib = fw
+    pr = Primary(fw)
+    bad = {2: lambda a: b"\xff" * 23,                                   # empty transmit buffer
+           3: lambda a: snapshot_block(a + 1),                          # another cell's block
+           4: lambda a: snapshot_block(a)[:22],                         # short read
+           5: lambda a: snapshot_block(a)[:-1] + bytes([snapshot_block(a)[-1] ^ 1]),   # CRC
+           6: lambda a: bytes([0x11]) + snapshot_block(a)[1:]}          # wrong tag (IDENT)
+    for _ in range(16):
+        pr.step(lambda t: (lib.MC_I2C_OK, bad.get(t.cell + 1, lambda a: snapshot_block(a, alpha=t.cell))(t.addr), 500))
+    got = {j for j, _ in by_kind(pr.frames())["CELL_SAMPLE"]}
+    assert got == set(range(1, 17)) - set(bad)
+    assert [pr.p.cell[j - 1].integrity for j in sorted(bad)] == [1] * len(bad)
+    assert pr.p.cell[0].integrity == 0
+
+
+def test_timeouts_back_off_exponentially_and_reset(fw):
+    _, lib = fw
+    pr = Primary(fw)
+    polled = []
+
+    def outcome(t):
+        if t.cell == 4:
+            polled.append(pr.p.cycles)
+            if len(polled) <= 7:   # the first seven polls time out, then the cell recovers
+                return lib.MC_I2C_OK, snapshot_block(t.addr), pr.p.txn_timeout_us + 1   # late = timeout
+        return lib.MC_I2C_OK, snapshot_block(t.addr), 500
+
+    while pr.p.cycles < 300:
+        pr.step(outcome)
+    gaps = [b - a for a, b in zip(polled, polled[1:])]
+    # skipped 1, 2, 4, .. 64 (= BACKOFF_MAX) cycles after successive timeouts (gap = skip + 1), then every cycle
+    assert gaps[:7] == [2, 3, 5, 9, 17, 33, 65]
+    assert set(gaps[7:]) == {1}
+    c = pr.p.cell[4]
+    assert c.timeout == 7 and c.skipped == sum(g - 1 for g in gaps)
+    assert pr.p.cell[3].timeout == 0
