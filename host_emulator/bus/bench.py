@@ -51,6 +51,9 @@ def main(argv=None) -> int:
         print(f"  bus-limited full-lattice rate : {limit:8.2f} Hz")
         print(f"  emulated primary schedule     : {rate:8.2f} Hz  = {100 * rate / limit:.1f} % of the limit "
               f"(sw overhead {rig.opts.sw_overhead_us} us/transaction; {wall / args.seconds:.3f} s wall per s)")
+    rate, _, _, _ = measure(400_000, args.seconds, sw_overhead_us=40, stretch_us=20)
+    print(f"400 kHz, pessimistic glue (40 us software per transaction, 20 us clock stretch per read): "
+          f"{rate:.2f} Hz = {100 * rate / lattice_rate_limit(400_000):.1f} % of the limit")
     bad = (3, 7, 11)
     _, _, rig, per = measure(400_000, args.seconds, absent=(3,), stuck=(7,), babble=(11,))
     worst = min(r for j, r in per.items() if j not in bad)

@@ -29,6 +29,7 @@ class BusOptions:
     i2c_hz: int = 400_000
     period_us: int = 0                 # full-cycle period, 0 = back to back
     sw_overhead_us: int = 10           # primary software time per transaction
+    stretch_us: int = 0                # SCL held by a secondary while its onRequest runs
     txn_timeout_us: int | None = None  # default: 2 x longest block read + 200 us
     ack_timeout_us: int = 50_000
     status_every: int = 64
@@ -132,7 +133,7 @@ class EmulatedRig:
             dur = t.timeout_us * 1e-6
             self.pending = [(now + t.timeout_us, "done", (lib.MC_I2C_TIMEOUT, b""))]
         elif kind == lib.MC_TXN_READ:
-            dur = tm.transaction_s(nbytes)
+            dur = tm.transaction_s(nbytes) + self.opts.stretch_us * 1e-6
             self.pending = [(now + round(tm.request_offset_s() * 1e6), "request", (j, nbytes)),
                             (now + round(dur * 1e6), "done", None)]
         else:
