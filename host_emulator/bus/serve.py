@@ -14,6 +14,7 @@ import sys
 import time
 import tty
 
+from ..models.plant import NumericalInstability
 from .rig import BusOptions, make_rig
 
 CHUNK_S = 0.005          # simulated time advanced per loop pass
@@ -67,7 +68,7 @@ def serve_main(argv=None) -> int:
         rig, scene = make_rig(args.scene, BusOptions(i2c_hz=args.i2c_hz, period_us=args.period_us,
                                                      absent=args.absent, stuck=args.stuck, babble=args.babble),
                               args.set)
-    except (ValueError, OSError) as e:
+    except (ValueError, KeyError, OSError) as e:
         print(f"serve: {e}", file=sys.stderr)
         return 2
     master, slave, path = open_pty()
@@ -79,6 +80,7 @@ def serve_main(argv=None) -> int:
         os.symlink(path, args.link)
     print(f"slcan pty: {path}  (python -m can.logger -i slcan -c {path}@115200)", flush=True)
     print(f"scene {scene.name}: {scene.description}; I2C {args.i2c_hz} Hz, {rig.n} cells", flush=True)
+    status = 0
     stop = []
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
     backlog = bytearray()
@@ -116,6 +118,9 @@ def serve_main(argv=None) -> int:
                 time.sleep(lag)
     except KeyboardInterrupt:
         pass
+    except NumericalInstability as e:
+        print(f"serve: stopped at t = {sim_us / 1e6:.3f} s: {e}", file=sys.stderr, flush=True)
+        status = 1
     finally:
         if args.link:
             try:
@@ -127,7 +132,7 @@ def serve_main(argv=None) -> int:
     p = rig.p
     print(f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
           f"{dropped} bytes dropped (no reader)", flush=True)
-    return 0
+    return status
 
 
 if __name__ == "__main__":

@@ -112,3 +112,12 @@ def test_python_can_logger_records_the_emulator(server, tmp_path):
     text = out.read_text()
     ids = set(int(x, 16) for x in re.findall(r"^\s*\d+\.\d+\s+1\s+([0-9A-F]{3})\s+Rx", text, re.M))
     assert {proto.FRAMES["CELL_SAMPLE"]["base"] + j for j in range(1, 17)} <= ids
+
+
+@pytest.mark.parametrize("args,msg", [(["nosuchscene"], "unknown scene"), (["continuum_single"], "needs model"),
+                                      (["default", "--speed", "0"], "--speed"),
+                                      (["default", "--stuck", "17"], "outside 1..16")])
+def test_serve_refuses_bad_arguments(args, msg):
+    r = subprocess.run([sys.executable, "-m", "host_emulator", "serve", *args, "--slcan"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and msg in r.stderr and "slcan pty" not in r.stdout
