@@ -32,7 +32,7 @@ _FMT = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I", "i32": "i"}
 # The rig's one cell -> address mapping lives in tools/flash/addresses.py (the
 # flashing tool bakes it into each cell image); the wire definition's ADDR_BASE and
 # N_CELLS are checked against it by tests/firmware/test_bus_proto.py.
-from tools.flash.addresses import address_cell as cell_of_address  # noqa: E402
+from tools.flash.addresses import address_cell as cell_of_address  # noqa: E402,F401
 from tools.flash.addresses import cell_address  # noqa: E402,F401
 
 
