@@ -125,6 +125,7 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
                 }
             }
         }
+        he_flush_tiny(n2, x, v);
     }
     *t = t0 + (double)nsteps * h;
     int rc = he_state_check(n2, x, v);

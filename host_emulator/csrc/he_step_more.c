@@ -6,6 +6,14 @@
 
 #define NB_P ((double)HE_NOH_BATHE_P_PERMILLE / 1000.0)
 
+void he_flush_tiny(int n2, double *x, double *v)
+{
+    for (int i = 0; i < n2; i++) {
+        x[i] = fabs(x[i]) < HE_TINY_RAD ? 0.0 : x[i];
+        v[i] = fabs(v[i]) < HE_TINY_RAD ? 0.0 : v[i];
+    }
+}
+
 /* ---------------------------------------------------------------- Noh-Bathe */
 
 /* 1 if some perturbation switches on or off in (ta, tb] */
@@ -85,14 +93,14 @@ static double nb_limit_one(double c, double w2)
     double scale = sqrt(w2) > c ? sqrt(w2) : c;
     if (!(scale > 0.0))
         return INFINITY;
-    double lo = 1e-3 / scale, hi = lo;
+    double lo = 1e-2 / scale, hi = lo;
     while (he_noh_bathe_radius(c, w2, hi) <= 1.0 + 1e-9) {
         lo = hi;
-        hi *= 1.05;
+        hi *= 1.25;
         if (hi > 1e3 / scale)
             return INFINITY;
     }
-    for (int it = 0; it < 60; it++) {
+    for (int it = 0; it < 40; it++) {
         double mid = 0.5 * (lo + hi);
         if (he_noh_bathe_radius(c, w2, mid) <= 1.0 + 1e-9)
             lo = mid;
@@ -133,6 +141,7 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
                 v[i] = b1 * a0[i] + b2 * fp;
                 x[i] += h * v[i];
             }
+            he_flush_tiny(n2, x, v);
         }
         return;
     }
@@ -159,6 +168,7 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
             v[i] = vp[i] + s * (q0 * a0[i] + (0.5 + q1) * ap[i] + q2 * a1[i]);
             a0[i] = a1[i];
         }
+        he_flush_tiny(n2, x, v);
         if (k + 1 < nsteps && he_forcing_changes(p, tt + (1.0 - HE_STAGE_EDGE) * h, tt + (1.0 + HE_STAGE_EDGE) * h))
             nb_accel(p, tt + (1.0 + HE_STAGE_EDGE) * h, x, w, a0, F, C);
     }
@@ -245,6 +255,7 @@ static int imex_advance(const he_plant_t *p, double h, int64_t nsteps, double t0
         }
         for (int i = 0; i < n2; i++)
             x[i] += h * v[i];                            /* x1 = x0 + h v1 */
+        he_flush_tiny(n2, x, v);
     }
     return HE_OK;
 }

@@ -1,0 +1,87 @@
+"""Cost against cells (16..4096) and against simulated time, for the lattice and hil models (one core).
+
+Two figures per size: the compiled kernel alone (one he_advance / he_hil_run call over the whole span, so no
+Python in the loop) and the end-to-end controller run (one Python call per 10 ms output sample, which adds
+a fixed cost per sample that weighs most on small lattices). Linear scaling means a constant cost per
+cell-second; the spread max/min over the sizes is printed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from .common import best_time, fmt, table
+
+CELLS = (16, 64, 256, 1024, 4096)
+
+
+def _scene(model, cells, t_end_s, dt_out=0.01):
+    from ..scene import load_scene
+
+    name = "exp3_single_sigma9" if model == "lattice" else "default"
+    return load_scene(name, [f"t_end_s={t_end_s}", f"cells={cells}", f"model_options.dt_out={dt_out}"])
+
+
+def kernel_time(model_name, cells, t_end_s):
+    """Wall time of the compiled loop alone over t_end_s (one C call), best of 3."""
+    from ..models import make_model
+
+    sc = _scene(model_name, cells, t_end_s)
+
+    def go():
+        m = make_model(sc.model, sc.params, sc.perturbations, sc.options)
+        s = m.solver()
+        import time
+
+        t0 = time.perf_counter()
+        if model_name == "lattice":
+            n = int(round(t_end_s / s.h))
+            rc = m.lib.he_advance(m.plant, s.sid, s.h, n, s._pt, s._px, s._pv)
+        else:
+            n = int(round(t_end_s * m.rate_hz))
+            rc = m.lib.he_hil_run(s.h, n, s._pt, s._px, s._pv)
+        if rc != m.lib.HE_OK:
+            raise RuntimeError(f"{model_name} {cells} cells: rc {rc}")
+        return time.perf_counter() - t0
+    best = min(go() for _ in range(3))
+    return best
+
+
+def e2e_time(model_name, cells, t_end_s, dt_out=0.01):
+    from ..controller import run_solver
+    from ..models import make_model
+
+    sc = _scene(model_name, cells, t_end_s, dt_out)
+
+    def go():
+        m = make_model(sc.model, sc.params, sc.perturbations, sc.options)
+        return run_solver(m.solver(), t_end_s)
+    _, w = best_time(go, repeat=3)
+    return w
+
+
+def scaling(quick=False, log=print):
+    rows = []
+    spreads = {}
+    for model_name in ("lattice", "hil"):
+        per = [[], [], []]
+        for n in (CELLS if not quick else (16, 256, 4096)):
+            cs = 400.0 if model_name == "lattice" else 200.0      # cell-seconds per measurement
+            t_end = round(cs / n, 3)
+            walls = [kernel_time(model_name, n, t_end), e2e_time(model_name, n, t_end, 0.01),
+                     e2e_time(model_name, n, t_end, 0.1)]
+            c = [w / (n * t_end) * 1e6 for w in walls]             # us per cell-second
+            for i in range(3):
+                per[i].append(c[i])
+            rows.append([model_name, n, fmt(t_end), fmt(walls[0] * 1e3)] + [fmt(x) for x in c])
+        spreads[model_name] = tuple(max(p) / min(p) for p in per)
+    out = table(rows, ["model", "cells", "sim s", "kernel wall ms", "kernel us/cell-s",
+                       "run us/cell-s (10 ms samples)", "run us/cell-s (100 ms samples)"])
+    # against simulated time (16 cells)
+    trows = []
+    for model_name in ("lattice", "hil"):
+        for t_end in (1.0, 4.0, 16.0) if not quick else (1.0, 4.0):
+            e = e2e_time(model_name, 16, t_end)
+            trows.append([model_name, 16, fmt(t_end), fmt(e * 1e3), fmt(e / t_end * 1e3)])
+    tout = table(trows, ["model", "cells", "sim s", "wall ms", "wall ms per sim s"])
+    return out, tout, spreads
