@@ -1,0 +1,246 @@
+"""Command line: `python -m tools.experiment run SCENE --channel PORT@BAUD | rehearse SCENE | compare RIG_DIR EMU_DIR`.
+
+Exit status: 0 done (problems such as gaps, missing cells or failed commands under
+--keep-going are in the summary), 2 bad scene/argument (nothing sent to the rig),
+3 aborted (failed command, lost link; the drive was switched off if the link allowed),
+130 interrupted by Ctrl-C (drive switched off first).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+EXIT_OK, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 2, 3, 130
+
+
+def _common(p: argparse.ArgumentParser):
+    p.add_argument("scene", help="shipped scene name or .toml path (as for python -m host_emulator run)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="scene override, e.g. params.sigma=9/125, perturbation.1.torque_Nm=0.03, t_end_s=5")
+    p.add_argument("--t-end", type=float, default=None, metavar="S", help="time limit per repeat (default: the scene's t_end_s)")
+    p.add_argument("--repeats", type=int, default=1, help="repeats, re-zeroed in between (default 1)")
+    p.add_argument("--out", default=None, help="output directory (default out/rig/<scene>)")
+    p.add_argument("--settle", type=float, default=1.0, metavar="S",
+                   help="stop a repeat once every cell moved < 2 counts for S seconds after the last push (default 1)")
+    p.add_argument("--no-early-stop", action="store_true", help="always run to the time limit")
+    p.add_argument("--relax", type=float, default=3.0, metavar="S",
+                   help="drive off this long between repeats before waiting for rest and zeroing (default 3)")
+    p.add_argument("--rest-timeout", type=float, default=10.0, metavar="S",
+                   help="longest wait for the lattice to be still before zeroing (default 10)")
+    p.add_argument("--keep-going", action="store_true",
+                   help="run on when a setup command fails on some cells (they stay disabled; all reported)")
+    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for a command result (default 1)")
+    p.add_argument("--silence", type=float, default=2.0, help="no frame for this long = link lost (default 2 s)")
+    p.add_argument("--pwm-limit", type=int, default=None, metavar="TICKS",
+                   help="PWM duty limit sent to the cells (default: from params.vmax_v; cells cap it at 5.86 V)")
+    p.add_argument("--formats", default="asc", help="python-can log formats, comma separated (default asc)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m tools.experiment", description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run", help="run a scene on the rig through the primary")
+    _common(r)
+    r.add_argument("--channel", "-c", required=True, help="e.g. /dev/ttyACM0@115200")
+    r.add_argument("--interface", "-i", default="slcan", help="python-can interface (default slcan)")
+    r.add_argument("--open-wait", type=float, default=None, metavar="S",
+                   help="slcan: seconds python-can waits after opening the port (its default: 2)")
+    h = sub.add_parser("rehearse", help="the same run against `python -m host_emulator serve` on a pty")
+    _common(h)
+    for name in ("absent", "stuck", "babble"):
+        h.add_argument(f"--{name}", default=None, metavar="CELLS", help=f"serve: {name} cells, e.g. 3,7")
+    h.add_argument("--serve-duration", type=float, default=None, metavar="S",
+                   help="serve stops after S simulated seconds (default: long enough for the run)")
+    c = sub.add_parser("compare", help="overlay a rig (or rehearsal) run and an emulator run of the same scene")
+    c.add_argument("rig_dir")
+    c.add_argument("emu_dir")
+    c.add_argument("--out", default=None, help="PNG file (default RIG_DIR/compare.png)")
+    return ap
+
+
+def _prepare(args):
+    """Scene and plan, or a message (exit 2) — before anything touches the rig."""
+    from host_emulator.models import ConfigError
+    from host_emulator.scene import load_scene
+
+    from .plan import PlanError, make_plan
+
+    if args.repeats < 1:
+        raise PlanError(f"--repeats {args.repeats}: expected >= 1")
+    for name in ("settle", "relax", "rest_timeout", "timeout", "silence"):
+        v = getattr(args, name)
+        if not v > 0:
+            raise PlanError(f"--{name.replace('_', '-')} {v}: expected > 0")
+    try:
+        scene = load_scene(args.scene, args.set)
+    except (ConfigError, KeyError) as e:
+        raise PlanError(str(e).strip("'\"")) from None
+    return scene, make_plan(scene, t_end_s=args.t_end, pwm_limit=args.pwm_limit)
+
+
+def _options(args):
+    from .runner import Options
+
+    return Options(repeats=args.repeats, settle_s=args.settle, early_stop=not args.no_early_stop,
+                   relax_s=args.relax, rest_timeout_s=args.rest_timeout, keep_going=args.keep_going,
+                   silence_s=args.silence, cmd_timeout_s=args.timeout,
+                   formats=tuple(f.strip().lstrip(".") for f in args.formats.split(",") if f.strip()))
+
+
+def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_wait=None, plots=True,
+            hook=None, report=None) -> tuple[int, dict]:
+    """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary)."""
+    import can
+
+    from . import summary as S
+    from .runner import CommandFailed, Experiment, LinkError
+
+    report = report or (lambda text: print(text, file=sys.stderr, flush=True))
+    kw = {"interface": interface, "channel": channel}
+    if open_wait is not None and interface == "slcan":
+        kw["sleep_after_open"] = open_wait
+    t_start = time.time()
+    try:
+        bus = can.Bus(**kw)
+    except Exception as e:
+        report(f"error: cannot open {interface} channel {channel}: {e}")
+        return EXIT_ABORTED, {}
+    rc, error = EXIT_OK, None
+    exp = None
+    try:
+        exp = Experiment(bus, plan, out, opts, report=report, hook=hook)
+        exp.run()
+    except KeyboardInterrupt:
+        rc, error = EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
+    except (LinkError, CommandFailed) as e:
+        rc, error = EXIT_ABORTED, str(e)
+    except Exception as e:   # any bug or library error: still switch the drive off below, then say what it was
+        rc, error = EXIT_ABORTED, f"{type(e).__name__}: {e}"
+    finally:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
+        try:
+            if exp is not None:
+                exp.finish()
+        finally:
+            try:
+                bus.shutdown()
+            except Exception:
+                pass
+            if old is not None:
+                signal.signal(signal.SIGINT, old)
+    if error:
+        report(f"error: run aborted: {error}")
+    if exp is None:
+        return rc, {}
+    wall = time.time() - t_start
+    summary, plot_src = S.build(exp, scene, wall, error)
+    files = []
+    if plot_src is not None:
+        sc, res = plot_src
+        np.savez_compressed(out / "trajectories.npz", t=res.t, alpha=res.alpha, beta=res.beta)
+        files.append("trajectories.npz")
+        if plots:
+            from host_emulator.plots import plot_run
+
+            miss = summary["missing_cells"]
+            name = f"{sc.name} (rig, repeat {res.info['repeat']})" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")
+            inertia = bool(summary["dispersion"] and summary["dispersion"].get("inertia"))
+            files += [f.name for f in plot_run(res, dataclasses.replace(sc, name=name), out, inertia=inertia)]
+    summary["files"] = ["summary.json"] + files + summary["log_files"] + \
+        [f"repeat_{r['repeat']:02d}.npz" for r in summary["per_repeat"]]
+    S.write(out, summary)
+    return rc, summary
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def print_summary(s: dict, out: Path):
+    print(f"scene {s['scene']} (rig): {s['repeats_completed']}/{s['repeats']} repeat(s) completed, "
+          f"{s['wall_s']:.1f} s wall" + (f"; ABORTED: {s['aborted']}" if s["aborted"] else ""))
+
+    def f(v, unit=""):
+        return "none" if v is None else (f"{v:.4g}{unit}" if isinstance(v, float) else f"{v}{unit}")
+
+    print(f"  steady: {s['steady']}   pattern period: {f(s['pattern_period_cells'], ' cells')} "
+          f"(repeats: {', '.join(f(v) for v in s['pattern_period_cells_repeats'])})   "
+          f"oscillation period: {f(s['oscillation_period_s'], ' s')}")
+    print("  final alpha (rad, mean): " + " ".join("  n/a" if v is None else f"{v:+.2f}" for v in s["final_alpha_rad"]))
+    if s["repeats"] > 1:
+        print("  spread (std, rad):       " + " ".join("  n/a" if v is None else f"{v:5.2f}"
+                                                        for v in s["final_alpha_std_rad"]))
+    print(f"  missing cells: {s['missing_cells'] or 'none'}; failed commands: {len(s['failed_commands'])}; "
+          f"gaps: {s['gaps']} ({s['samples_lost']} samples lost); drive off confirmed: {s['drive_off_confirmed']}")
+    print(f"  wrote {out}/summary.json, " + ", ".join(s["files"][1:]))
+
+
+def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
+    from .plan import PlanError
+
+    try:
+        scene, plan = _prepare(args)
+        opts = _options(args)
+    except PlanError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    out = Path(args.out or Path("out") / "rig" / scene.name)
+    rc, summary = execute(scene, plan, channel or args.channel, interface or args.interface, out, opts,
+                          open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
+                          plots=not args.no_plots)
+    if summary:
+        print_summary(summary, out)
+    return rc
+
+
+def cmd_rehearse(args) -> int:
+    from .plan import PlanError
+    from .rehearse import Serve, ServeError, serve_overrides
+
+    try:
+        scene, plan = _prepare(args)
+        _options(args)
+    except PlanError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    extra = []
+    for name in ("absent", "stuck", "babble"):
+        if getattr(args, name):
+            extra += [f"--{name}", getattr(args, name)]
+    per = plan.t_end_s + args.relax + args.rest_timeout + 30
+    duration = args.serve_duration if args.serve_duration is not None else per * args.repeats + 60
+    try:
+        with Serve(args.scene, serve_overrides(scene, args.set), extra, duration_s=duration) as srv:
+            print(f"rehearsal: emulated primary on {srv.pty}", file=sys.stderr, flush=True)
+            return cmd_run(args, channel=srv.channel, interface="slcan", open_wait=0.1)
+    except ServeError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_ABORTED
+
+
+def cmd_compare(args) -> int:
+    from .compare import CompareError, compare
+
+    try:
+        table, png = compare(Path(args.rig_dir), Path(args.emu_dir), Path(args.out) if args.out else None)
+    except CompareError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    print(table)
+    print(f"wrote {png}")
+    return EXIT_OK
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)

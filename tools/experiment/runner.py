@@ -1,0 +1,341 @@
+"""Run a scene on the rig through the primary (python-can): configure, zero, enable, perturb, log until steady, always disable.
+
+One `Experiment` owns the bus for the whole session. Every frame received (also while a
+command waits for its result) goes to the python-can writers and to the current repeat's
+`SampleDecoder` (tools/rigtools/logger.py), which finds the gaps in the sequence counters.
+Every command goes through `RigClient` (tools/rigtools/command.py) and its per-cell result
+is checked and kept. Every wait has a timeout: a silent or lost primary raises LinkError.
+Whatever happens (end, error, Ctrl-C), `finish` sends ENABLE off to every cell and
+checks the answers; cells it could not confirm are named in the summary and on stderr.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
+from tools.rigtools.command import RigClient
+from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
+
+from .plan import ExperimentPlan
+
+
+class LinkError(RuntimeError):
+    """The primary stopped answering (port lost, no frames for `silence_s`)."""
+
+
+class CommandFailed(RuntimeError):
+    """A setup command was not answered OK by every cell (and --keep-going was not given)."""
+
+
+@dataclass
+class Options:
+    repeats: int = 1
+    settle_s: float = 1.0          # steady window: stop once every cell moved < 2 counts over this long
+    early_stop: bool = True        # stop a repeat when steady (after the last perturbation ended)
+    relax_s: float = 3.0           # drive off between repeats: the bands bring the chains to a uniform rest
+    rest_timeout_s: float = 10.0   # longest wait for the lattice to be still before zeroing
+    keep_going: bool = False       # continue past failed setup commands (those cells stay disabled)
+    silence_s: float = 2.0         # no frame for this long = link lost
+    cmd_timeout_s: float = 1.0     # per command, plus 0.1 s per addressed cell (RigClient)
+    formats: tuple = ("asc",)      # python-can log formats
+
+
+@dataclass
+class Repeat:
+    index: int
+    decoder: SampleDecoder
+    t0_host: float | None = None            # host time when every cell acknowledged ENABLE on
+    t_stop_host: float | None = None
+    stopped: str = "not started"            # steady | t_end | aborted: <why>
+    perturbations: list = field(default_factory=list)
+    rest_counts: dict | None = None         # angles before ZERO: what the previous run left (counts)
+    enabled_cells: list = field(default_factory=list)
+
+
+class Experiment:
+    """A session on one open python-can bus."""
+
+    def __init__(self, bus, plan: ExperimentPlan, out: Path, opts: Options | None = None, report=None,
+                 hook=None):
+        import can
+
+        self.bus, self.plan, self.out = bus, plan, Path(out)
+        self.opts = opts or Options()
+        self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
+        self.hook = hook or (lambda event, **kw: None)   # test and instrumentation point: hook(event, ...)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.log_files = [self.out / f"rig.{f}" for f in self.opts.formats]
+        self.writers = [can.Logger(str(p)) for p in self.log_files]
+        self.client = RigClient(bus, self.opts.cmd_timeout_s, on_message=self._take)
+        self.idle = SampleDecoder(report=lambda text: None)   # frames outside a repeat (rest checks)
+        self.decoder = self.idle
+        self.frames = 0
+        self.last_frame = time.monotonic()
+        self.commands = []       # every command: {phase, reg, label, results}
+        self.failures = []       # (phase, reg, cell, result) of every non-OK answer
+        self.repeats: list[Repeat] = []
+        self.safe = None         # result of the final ENABLE off
+        self.t_session = time.time()
+
+    # ---- frames --------------------------------------------------------------
+    def _take(self, msg):
+        self.frames += 1
+        self.last_frame = time.monotonic()
+        for w in self.writers:
+            w.on_message_received(msg)
+        self.decoder.feed(msg)
+
+    def _check_silence(self):
+        quiet = time.monotonic() - self.last_frame
+        if quiet > self.opts.silence_s:
+            raise LinkError(f"no frames from the primary for {quiet:.1f} s (limit {self.opts.silence_s} s): "
+                            "port closed, primary reset or USB lost")
+
+    def pump(self, until_host: float):
+        """Receive and log frames until host time `until_host` (never longer: recv has a timeout)."""
+        while True:
+            left = until_host - time.time()
+            if left <= 0:
+                return
+            try:
+                msg = self.bus.recv(timeout=min(0.05, left))
+            except ValueError as e:      # python-can could not parse a line: counted by the logger, keep going
+                self.report(f"corrupt SLCAN line skipped: {e}")
+                continue
+            except Exception as e:
+                raise LinkError(f"connection to the primary lost: {type(e).__name__}: {e}") from e
+            if msg is None:
+                self._check_silence()
+            else:
+                self._take(msg)
+
+    # ---- commands ------------------------------------------------------------
+    def command(self, cells, reg: str, values: dict, label: str, phase: str) -> dict:
+        """Send reg to `cells`, wait for every CMD_RESULT (bounded); returns {cell: result name}."""
+        try:
+            res = self.client.command(list(cells), reg, **values)
+        except Exception as e:
+            raise LinkError(f"connection to the primary lost during {reg}: {type(e).__name__}: {e}") from e
+        self.commands.append({"phase": phase, "t_host": time.time(), "reg": reg, "values": dict(values),
+                              "label": label, "results": {int(j): r for j, r in sorted(res.items())}})
+        bad = {j: r for j, r in res.items() if r != "OK"}
+        for j, r in sorted(bad.items()):
+            self.failures.append({"phase": phase, "reg": reg, "label": label, "cell": int(j), "result": r})
+        if bad:
+            self.report(f"{phase}: {reg} ({label}) failed on " + ", ".join(f"cell {j}: {r}" for j, r in sorted(bad.items())))
+        self._check_silence()
+        self.hook("command", reg=reg, phase=phase, results=res)
+        return res
+
+    def _setup(self, phase: str) -> list[int]:
+        """Send the plan's setup commands; returns the cells that answered OK to all of them."""
+        cells = self.plan.cells
+        ok = set(cells)
+        k1_shape = []
+        for c in self.plan.setup:
+            res = self.command(cells, c.reg, c.values, c.label, phase)
+            if c.reg == "K1":
+                k1_shape = [j for j, r in res.items() if r == "SHAPE"]
+                res = {j: r for j, r in res.items() if r != "SHAPE"}
+            if c.reg == "K2" and k1_shape:
+                # k1 > k2 must hold after every single write: a new k1 below the old k2 is accepted once k2 is set
+                k1 = next(x for x in self.plan.setup if x.reg == "K1")
+                res = {**res, **self.command(k1_shape, "K1", k1.values, k1.label + " (after k2)", phase)}
+            ok -= {j for j, r in res.items() if r != "OK"}
+        return sorted(ok)
+
+    def disable_all(self, phase: str, tries: int = 3) -> list[int]:
+        """ENABLE off to every cell, retried for cells that do not answer OK; returns the unconfirmed cells."""
+        left = list(self.plan.cells)
+        for _ in range(tries):
+            res = self.command(left, "ENABLE", {"on": 0}, "drive off", phase)
+            left = [j for j in left if res.get(j) != "OK"]
+            if not left:
+                break
+        return left
+
+    # ---- rest, zero ------------------------------------------------------------
+    def _wait_still(self, repeat: Repeat, window_s: float = 0.5):
+        """Log until every cell moved < 2 counts over `window_s` (bounded by rest_timeout_s); keep the angles."""
+        dec = SampleDecoder(report=lambda text: None)
+        self.decoder = dec
+        t_start = time.time()
+        still = False
+        while True:
+            self.pump(time.time() + 0.1)
+            if time.time() - t_start < window_s:
+                continue
+            s = series(dec.arrays(), 0.0)
+            if s is not None and s.t.size >= 3:
+                w = s.t >= s.t[-1] - window_s
+                if w.sum() >= 3 and is_steady(s.t[w], s.alpha[w][:, s.present], s.beta[w][:, s.present],
+                                                    settle_window_s=window_s):
+                    still = True
+                    break
+            if time.time() - t_start > self.opts.rest_timeout_s:
+                break
+        self.decoder = self.idle
+        s = series(dec.arrays(), 0.0)
+        if s is not None:
+            last = np.round(s.alpha[-1] / RAD_PER_COUNT), np.round(s.beta[-1] / RAD_PER_COUNT)
+            repeat.rest_counts = {"still": still,
+                                  "alpha": [int(v) if p else None for v, p in zip(last[0], s.present)],
+                                  "beta": [int(v) if p else None for v, p in zip(last[1], s.present)]}
+        else:
+            repeat.rest_counts = {"still": False, "alpha": None, "beta": None}
+        if not still:
+            self.report(f"repeat {repeat.index}: lattice not still after {self.opts.rest_timeout_s} s; zeroing anyway "
+                        "(angles before zero kept in the summary)")
+
+    # ---- one repeat ------------------------------------------------------------
+    def run_repeat(self, index: int) -> Repeat:
+        rep = Repeat(index, SampleDecoder(report=self.report))
+        self.repeats.append(rep)
+        phase = f"repeat {index}"
+        if index > 1:
+            self.report(f"{phase}: drive off, relaxing {self.opts.relax_s:g} s")
+            self.pump(time.time() + self.opts.relax_s)
+        self._wait_still(rep)
+        self.decoder = rep.decoder
+        ok = self._setup(phase)
+        if len(ok) < len(self.plan.cells) and not self.opts.keep_going:
+            missing = sorted(set(self.plan.cells) - set(ok))
+            rep.stopped = f"aborted: setup failed on cells {missing}"
+            raise CommandFailed(f"{phase}: setup failed on cell(s) {', '.join(map(str, missing))} "
+                                "(see the failures in the summary; --keep-going runs without them)")
+        zero = self.command(ok, "ZERO", {}, "zero encoders", phase)
+        ok = [j for j in ok if zero.get(j) == "OK"]
+        en = self.command(ok, "ENABLE", {"on": 1}, "drive on", phase)
+        rep.enabled_cells = [j for j in ok if en.get(j) == "OK"]
+        rep.t0_host = time.time()
+        self.report(f"{phase}: drive enabled on {len(rep.enabled_cells)} cell(s); running up to {self.plan.t_end_s:g} s")
+        self.hook("enabled", repeat=index)
+        pending = list(self.plan.perturbations)
+        next_check = self.plan.last_perturbation_end_s + self.opts.settle_s
+        rep.stopped = "t_end"
+        while True:
+            now = time.time() - rep.t0_host
+            if now >= self.plan.t_end_s:
+                break
+            due = [p for p in pending if p.start_s <= now]
+            if due:
+                pending = [p for p in pending if p.start_s > now]
+                # one round of frames per identical payload: simultaneous pushes leave together
+                groups = {}
+                for p in due:
+                    groups.setdefault(tuple(sorted(p.values.items())), []).append(p)
+                for _, ps in groups.items():
+                    sent = time.time() - rep.t0_host
+                    res = self.command([p.cell for p in ps], "PERTURB", ps[0].values,
+                                       "; ".join(p.label for p in ps), phase)
+                    for p in ps:
+                        rep.perturbations.append({"label": p.label, "cell": p.cell, "planned_s": p.start_s,
+                                                  "sent_s": sent, "result": res.get(p.cell)})
+                continue
+            if self.opts.early_stop and now >= next_check:
+                next_check = now + 0.5
+                s = series(rep.decoder.arrays(), rep.t0_host)
+                if s is not None and s.present.any():
+                    w = s.t >= s.t[-1] - self.opts.settle_s
+                    if s.t[-1] - s.t[0] >= self.opts.settle_s and w.sum() >= 3 and \
+                            is_steady(s.t[w], s.alpha[w][:, s.present], s.beta[w][:, s.present],
+                                      settle_window_s=self.opts.settle_s):
+                        rep.stopped = "steady"
+                        break
+            nxt = min([self.plan.t_end_s] + [p.start_s for p in pending] +
+                      ([next_check] if self.opts.early_stop else []))
+            self.pump(rep.t0_host + max(nxt, now + 0.01))
+        rep.t_stop_host = time.time()
+        self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop_host - rep.t0_host:.2f} s")
+        left = self.disable_all(phase)
+        if left:
+            raise CommandFailed(f"{phase}: drive off not confirmed by cell(s) {left}")
+        self.decoder = self.idle
+        rep.decoder.save(self.out / f"repeat_{index:02d}")
+        return rep
+
+    def run(self) -> None:
+        for k in range(1, self.opts.repeats + 1):
+            self.run_repeat(k)
+
+    def finish(self) -> list[int] | None:
+        """Always: drive off on every cell (checked); stop the writers. Returns unconfirmed cells (None: link dead)."""
+        self.decoder = self.idle
+        try:
+            left = self.disable_all("final drive off")
+        except LinkError as e:
+            self.report(f"SAFETY: could not send drive-off ({e}); the cells keep running their control loops: "
+                        "switch the 9 V motor supply off")
+            left = None
+        else:
+            if left:
+                self.report(f"SAFETY: drive-off not confirmed by cell(s) {left}: switch the 9 V motor supply off")
+        self.safe = left
+        for rep in self.repeats:
+            if rep.t0_host is not None and rep.t_stop_host is None:
+                rep.t_stop_host = time.time()
+                rep.decoder.save(self.out / f"repeat_{rep.index:02d}")
+        for w in self.writers:
+            w.stop()
+        return left
+
+
+# ---- decoded arrays -> time series ---------------------------------------------
+@dataclass
+class Series:
+    t: np.ndarray            # (T,) s after the drive was enabled
+    alpha: np.ndarray        # (T, N) rad, held over missing samples
+    beta: np.ndarray
+    present: np.ndarray      # (N,) bool: cell has at least one sample
+    held: np.ndarray         # (N,) samples filled by holding the previous value
+
+
+def series(arr: dict, t0_host: float, t_min: float | None = 0.0, t_max: float | None = None) -> Series | None:
+    """SampleDecoder.arrays() -> uniform-in-row time series for t_min <= t <= t_max (None if no rows).
+
+    Row time: mean primary clock of the row's samples, placed on the host clock by the least
+    delayed frame: t = t_s + min(host - t_s) - t0_host. Missing samples of a present cell hold
+    the previous value (the first one: the next value); absent cells are zeros, flagged in
+    `present`. Rows that do not advance in time are dropped."""
+    ts, host = arr["t_s"], arr["host_time"]
+    if ts.shape[0] == 0 or np.all(np.isnan(ts)):
+        return None
+    off = np.nanmin(host - ts)
+    with np.errstate(all="ignore"):
+        t = np.nanmean(ts, axis=1) + off - t0_host
+    keep = np.isfinite(t) & (t >= (-math.inf if t_min is None else t_min)) & (t <= (math.inf if t_max is None else t_max))
+    t = t[keep]
+    a, b = arr["alpha_counts"][keep], arr["beta_counts"][keep]
+    if t.size == 0:
+        return None
+    mono = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
+    t, a, b = t[mono], a[mono], b[mono]
+    present = ~np.all(np.isnan(a), axis=0)
+    held = np.isnan(a).sum(axis=0) * present
+
+    def fill(x):
+        x = x.copy()
+        for j in range(x.shape[1]):
+            col = x[:, j]
+            ok = ~np.isnan(col)
+            if not ok.any():
+                col[:] = 0.0
+                continue
+            idx = np.where(ok, np.arange(col.size), 0)
+            np.maximum.accumulate(idx, out=idx)
+            first = int(np.argmax(ok))
+            idx[:first] = first
+            x[:, j] = col[idx]
+        return x
+
+    return Series(t, fill(a) * RAD_PER_COUNT, fill(b) * RAD_PER_COUNT, present, held.astype(int))
+
+
+STEADY_TOL_RAD = DEFAULT_TOL_RAD

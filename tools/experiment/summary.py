@@ -1,0 +1,174 @@
+"""summary.json of a rig run: the keys of `python -m host_emulator run` (model = "rig") plus repeats, spread and every problem seen.
+
+Top-level observables over N repeats: final_alpha_rad / final_beta_rad are the per-cell mean
+of the repeats' final angles (spread: *_std_rad, *_min_rad, *_max_rad); steady is true only if
+every repeat was; pattern_period_cells and oscillation_period_s are the median of the
+repeats' values (None if no repeat had one). Cells without a single sample are null.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from host_emulator.analysis.observables import observables, spatial_period
+from host_emulator.cli import summarize
+from host_emulator.controller import RunResult
+
+from .runner import Experiment, series
+
+
+def json_ready(v):
+    """numpy -> Python, non-finite floats -> None (a summary never holds NaN)."""
+    if isinstance(v, dict):
+        return {str(k): json_ready(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [json_ready(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return json_ready(v.tolist())
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(v) else None
+    return v
+
+
+def _longest_run(mask) -> slice:
+    best, start, cur = slice(0, 0), None, 0
+    for i, m in enumerate(list(mask) + [False]):
+        if m and start is None:
+            start = i
+        if not m and start is not None:
+            if i - start > best.stop - best.start:
+                best = slice(start, i)
+            start = None
+    return best
+
+
+def repeat_result(rep, n_cells: int):
+    """(per-repeat record, Series or None) of one repeat."""
+    arr = rep.decoder.arrays()
+    rec = {"repeat": rep.index, "stopped": rep.stopped, "perturbations": rep.perturbations,
+           "rest_before_zero_counts": rep.rest_counts, "enabled_cells": rep.enabled_cells}
+    per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0) if arr["alpha_counts"].size else np.zeros(n_cells, int)
+    gaps = arr["gaps"]
+    rec["samples_per_cell"] = per_cell[:n_cells]
+    rec["gaps"] = [{"cell": int(g[1]), "after_cycle": int(g[2] - 1), "lost": int(g[3])} for g in gaps]
+    rec["samples_lost"] = int(gaps[:, 3].sum()) if len(gaps) else 0
+    # the run is [enable acknowledged, stop decided]; frames after it (drive switching off) are logged, not analysed
+    s = series(arr, rep.t0_host, 0.0, rep.t_stop_host - rep.t0_host) if rep.t0_host is not None else None
+    if s is None or s.t.size < 2:
+        rec.update(t_end_s=0.0, steady=False, pattern_period_cells=None, oscillation_period_s=None,
+                   final_alpha_rad=[None] * n_cells, final_beta_rad=[None] * n_cells,
+                   missing_cells=list(range(1, n_cells + 1)))
+        return rec, None
+    s = dataclasses.replace(s, alpha=s.alpha[:, :n_cells], beta=s.beta[:, :n_cells], present=s.present[:n_cells],
+                            held=s.held[:n_cells])
+    pres = s.present
+    obs = observables(s.t, s.alpha[:, pres], s.beta[:, pres]) if pres.any() else {}
+    run = _longest_run(pres)
+    rec.update(t_end_s=float(s.t[-1]), steady=obs.get("steady", False),
+               oscillation_period_s=obs.get("oscillation_period_s"),
+               pattern_period_cells=spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 else None,
+               final_alpha_rad=[float(v) if p else None for v, p in zip(s.alpha[-1], pres)],
+               final_beta_rad=[float(v) if p else None for v, p in zip(s.beta[-1], pres)],
+               missing_cells=[j + 1 for j in range(n_cells) if not pres[j]],
+               samples_held=s.held)
+    if not pres.all():
+        rec["pattern_period_note"] = f"from the longest run of cells with data: {run.start + 1}..{run.stop}"
+    return rec, s
+
+
+def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dict, object]:
+    """(summary dict, (scene, RunResult) of the first repeat with data, for the plots, or None)."""
+    n = len(exp.plan.cells)
+    recs, first = [], None
+    for rep in exp.repeats:
+        rec, s = repeat_result(rep, n)
+        recs.append(rec)
+        if s is not None and first is None:
+            first = (rep, s)
+    if first is not None:
+        rep, s = first
+        res = RunResult(s.t, s.alpha, s.beta, wall_s, {"source": "rig", "repeat": rep.index})
+        base = summarize(scene, res)
+    else:
+        res = None
+        base = {"scene": scene.name, "t_end_s": 0.0, "wall_s": wall_s, "realtime_factor": 0.0,
+                "steady": False, "pattern_period_cells": None, "oscillation_period_s": None, "amplitude_rad": None,
+                "final_alpha_rad": [None] * n, "final_beta_rad": [None] * n, "growth_rate_per_s": None,
+                "dispersion": None, "params": dataclasses.asdict(scene.params),
+                "perturbation": [p.as_dict() for p in scene.perturbations]}
+    done = [r for r in recs if r["t_end_s"] > 0]
+    fa = np.array([[np.nan if v is None else v for v in r["final_alpha_rad"]] for r in done]).reshape(-1, n)
+    fb = np.array([[np.nan if v is None else v for v in r["final_beta_rad"]] for r in done]).reshape(-1, n)
+    with np.errstate(all="ignore"), _quiet():
+        stats = {}
+        for key, x in (("alpha", fa), ("beta", fb)):
+            stats[f"final_{key}_rad"] = np.nanmean(x, axis=0) if len(x) else [None] * n
+            stats[f"final_{key}_std_rad"] = np.nanstd(x, axis=0) if len(x) else [None] * n
+            stats[f"final_{key}_min_rad"] = np.nanmin(x, axis=0) if len(x) else [None] * n
+            stats[f"final_{key}_max_rad"] = np.nanmax(x, axis=0) if len(x) else [None] * n
+
+    def median(key):
+        v = [r[key] for r in done if r[key] is not None]
+        return float(np.median(v)) if v else None
+
+    missing = sorted({j for r in recs for j in r.get("missing_cells", [])})
+    total_t = sum(r["t_end_s"] for r in done)
+    out = dict(base)
+    out.update({
+        "model": "rig",
+        "t_end_s": max((r["t_end_s"] for r in done), default=0.0),
+        "wall_s": wall_s,
+        "realtime_factor": total_t / wall_s if wall_s > 0 else 0.0,
+        "steady": bool(done) and all(r["steady"] for r in done),
+        "pattern_period_cells": median("pattern_period_cells"),
+        "oscillation_period_s": median("oscillation_period_s"),
+        **stats,
+        "amplitude_rad": float(np.nanmax(np.abs(stats["final_alpha_rad"]))) if len(fa) and
+        np.isfinite(np.asarray(stats["final_alpha_rad"], float)).any() else None,
+        "repeats": len(exp.repeats),
+        "repeats_completed": len([r for r in recs if r["stopped"] in ("steady", "t_end")]),
+        "per_repeat": recs,
+        "pattern_period_cells_repeats": [r["pattern_period_cells"] for r in done],
+        "missing_cells": missing,
+        "failed_commands": exp.failures,
+        "gaps": sum(len(r["gaps"]) for r in recs),
+        "samples_lost": sum(r["samples_lost"] for r in recs),
+        "drive_off_confirmed": exp.safe == [],
+        "drive_off_unconfirmed_cells": exp.safe if exp.safe is not None else "link lost: none confirmed",
+        "aborted": error,
+        "plan": exp.plan.as_dict(),
+        "commands": exp.commands,
+        "frames": exp.frames,
+        "log_files": [p.name for p in exp.log_files],
+    })
+    out.pop("solver", None)
+    return json_ready(out), (None if res is None else (scene, res))
+
+
+class _quiet:
+    """Silence numpy's all-NaN warnings (missing cells are reported, not warned about)."""
+
+    def __enter__(self):
+        import warnings
+
+        self._w = warnings.catch_warnings()
+        self._w.__enter__()
+        warnings.simplefilter("ignore", RuntimeWarning)
+
+    def __exit__(self, *a):
+        return self._w.__exit__(*a)
+
+
+def write(out: Path, summary: dict) -> Path:
+    f = Path(out) / "summary.json"
+    f.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    return f
