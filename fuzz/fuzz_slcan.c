@@ -30,13 +30,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             abort();   /* must always make progress with a large reply buffer */
         k += used;
         now += 997;
-        /* drive the scheduler a little: every read NACKs, every write fails */
+        /* drive the scheduler a little: outcomes and read bytes come from the input too */
         mc_txn_t t;
         for (int i = 0; i < 4; i++) {
             if (mc_primary_next(&l.p, now, &t)) {
                 if (t.cell >= MC_N_CELLS || t.len > (t.kind == MC_TXN_WRITE ? sizeof(t.buf) : MC_BLK_MAX_LEN))
                     abort();
-                mc_primary_complete(&l.p, now + 50, MC_I2C_NACK_ADDR, NULL, 0);
+                uint8_t sel = data[(k + (size_t)i) % size];
+                size_t avail = size - k < t.len ? size - k : t.len;
+                mc_primary_complete(&l.p, now + (sel & 0x80u ? 5000u : 50u), sel & 7u, data + k,
+                                    t.kind == MC_TXN_READ ? (uint32_t)avail : 0u);
             }
             now += 300;
         }

@@ -99,7 +99,8 @@ CELL_FLAGS = {
 # rejects anything it does not accept (RESULT RANGE/SHAPE/CONFIG).
 REGISTERS = {
     "POINTER":      {"id": 0x01, "payload": [("block", "u8", None)],
-                     "doc": "select the block returned by the next read (SNAPSHOT after it); applied at once"},
+                     "doc": "select the block returned by the next read (SNAPSHOT after it); applied at once. "
+                            "As a CAN CMD: the primary reads that block and sends it as BLOCK_DATA frames"},
     "K_AB":         {"id": 0x10, "payload": [("value", "i32", "uN*m/rad")], "doc": "k_ab, -250000..250000"},
     "SIGMA":        {"id": 0x11, "payload": [("value", "i32", "uN*m/rad")], "doc": "sigma, -250000..250000"},
     "K1":           {"id": 0x12, "payload": [("value", "i32", "uN*m/rad")], "doc": "k1 (> 0, > k2)"},
@@ -186,6 +187,14 @@ FRAMES = {
             ("retries", "u8", 1, 0, "", "I2C write retries used"),
         ],
     },
+    "BLOCK_DATA": {
+        "base": 0x400, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "doc": "a read block of cell j (CMD reg POINTER), in 7-byte chunks, CRC-checked by the primary",
+        "signals": [
+            ("part", "u8", 1, 0, "", "(block id << 4) | chunk index; chunk k holds block bytes 7k..7k+6"),
+            ("chunk", "b7", 1, 0, "", "block bytes (zero-padded after the block's end)"),
+        ],
+    },
     "PRIMARY_STATUS": {
         "base": 0x0F0, "per_cell": False, "sender": "PRIMARY", "dlc": 8,
         "doc": "primary heartbeat, once per second",
@@ -220,4 +229,4 @@ SCHEDULE = {
     "BACKOFF_MAX": 64,         # cycles a repeatedly timing-out cell is skipped (max)
 }
 
-TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4}
+TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}   # b7: 7 raw bytes

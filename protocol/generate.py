@@ -132,6 +132,15 @@ def render_header(d) -> str:
     w("    default: return -1;")
     w("    }")
     w("}")
+    w("/* Length of a read block, -1 if the block id is unknown. */")
+    w("static inline int mc_proto_block_len(uint8_t block)")
+    w("{")
+    w("    switch (block) {")
+    for name in sorted(d.BLOCKS, key=lambda k: d.BLOCKS[k]["id"]):
+        w(f"    case MC_BLK_{name}: return MC_BLK_{name}_LEN;")
+    w("    default: return -1;")
+    w("    }")
+    w("}")
     w("#endif /* MC_CDEF */")
     w("")
     w("#endif /* MC_PROTO_H */")
@@ -162,8 +171,6 @@ def build_database(d):
                 sigs = [sig("reg", "u8", 0, comment="register (multiplexer)", is_multiplexer=True),
                         sig("seq", "u8", 1, comment="laptop's command sequence byte")]
                 for rname, r in sorted(d.REGISTERS.items(), key=lambda kv: kv[1]["id"]):
-                    if rname == "POINTER":
-                        continue
                     offs, _ = offsets(r["payload"], sz)
                     for (pname, ptype, off), p in zip(offs, r["payload"]):
                         scale = 4 if p[2] == "4 uN*m" else 1

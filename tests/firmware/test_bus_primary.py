@@ -260,3 +260,57 @@ def test_timeouts_back_off_exponentially_and_reset(fw):
     c = pr.p.cell[4]
     assert c.timeout == 7 and c.skipped == sum(g - 1 for g in gaps)
     assert pr.p.cell[3].timeout == 0
+
+
+def blocks(frames, j):
+    """Reassemble BLOCK_DATA chunks of cell j: {block id: bytes}."""
+    out = {}
+    for jj, d in by_kind(frames).get("BLOCK_DATA", []):
+        if jj == j:
+            blk, k = d[0] >> 4, d[0] & 15
+            out.setdefault(blk, {})[k] = d[1:]
+    return {b: b"".join(parts[k] for k in sorted(parts)) for b, parts in out.items()}
+
+
+def test_pointer_command_reads_blocks_back():
+    rig, _ = make_rig("exp5_rest")
+    collect(rig, 0.05)
+    send(rig, 3, proto.cmd_data("POINTER", 9, block=D.BLOCKS["IDENT"]["id"]))
+    send(rig, 5, proto.cmd_data("SIGMA", 10, value=-12345))
+    frames = collect(rig, 0.05)
+    send(rig, 5, proto.cmd_data("POINTER", 11, block=D.BLOCKS["PARAMS"]["id"]))
+    send(rig, 5 + 1, proto.cmd_data("POINTER", 12, block=7))                       # no such block
+    frames += collect(rig, 0.05)
+    res = results(frames)
+    assert (3, 0x01, 9, R["OK"], 0) in res and (5, 0x01, 11, R["OK"], 0) in res and (6, 0x01, 12, R["RANGE"], 0) in res
+    ident = proto.decode_block("IDENT", blocks(frames, 3)[1][:11])
+    assert (ident["addr"], ident["fw_version"], ident["map_id"]) == \
+        (proto.cell_address(3), rig.lib.MC_FW_VERSION, rig.lib.MC_PROTO_MAP_ID)
+    params = proto.decode_block("PARAMS", blocks(frames, 5)[2][:25])
+    assert (params["addr"], params["sigma"], params["k_ab"]) == (proto.cell_address(5), -12345, 20000)
+    # the polls go on undisturbed: every cell keeps sampling, no integrity errors from the pointer moves
+    assert all(rig.p.cell[i].integrity == 0 for i in range(16))
+    assert {j for j, _ in by_kind(frames)["CELL_SAMPLE"]} == set(range(1, 17))
+
+
+def test_pointer_command_retries_a_corrupt_block(fw):
+    _, lib = fw
+    pr = Primary(fw)
+    for _ in range(16):
+        pr.step(lambda t: (lib.MC_I2C_OK, snapshot_block(t.addr), 500))
+    f = pr.ffi.new("mc_can_frame_t *")
+    f.id, f.dlc = proto.cmd_frame_id(2), 3
+    for i, b in enumerate(proto.cmd_data("POINTER", 4, block=1)):
+        f.data[i] = b
+    lib.mc_primary_can_rx(pr.p, pr.now, f)
+    seen = []
+
+    def outcome(t):
+        seen.append((t.cell + 1, t.kind, t.len))
+        return lib.MC_I2C_OK, b"\xff" * t.len if t.kind == lib.MC_TXN_READ else b"", 100
+
+    for _ in range(6):
+        pr.step(outcome)
+    # write pointer, read 11 bytes (bad), three times; then CRC is reported
+    assert seen == [(2, lib.MC_TXN_WRITE, 4), (2, lib.MC_TXN_READ, 11)] * 3
+    assert (2, 0x01, 4, R["CRC"], 3) in results(pr.frames())

@@ -151,3 +151,38 @@ def test_command_tool_rejects_bad_input():
     reg, vals = command.build(command.parser().parse_args(["-c", "x", "perturb", "2", "--torque", "0.02",
                                                            "--duration", "0.1", "--chain", "beta"]))
     assert (reg, vals) == ("PERTURB", {"chain": 1, "torque": 5000, "ticks": 200})
+
+
+def test_command_tool_info_reads_identity_and_parameters(fw):
+    """RigClient.info over a virtual bus served by the emulated primary: identity, map id, parameters in force."""
+    rig, _ = make_rig("exp5_rest")
+    chan = f"riginfo-{time.time_ns()}"
+    stop = threading.Event()
+
+    def primary():
+        with can.Bus(interface="virtual", channel=chan) as bus:
+            while not stop.is_set():
+                while (m := bus.recv(timeout=0)) is not None:
+                    rig.feed(b"O\r" + f"t{m.arbitration_id:03X}{m.dlc}{bytes(m.data).hex()}\r".encode())
+                rig.advance_to(rig.t_us + 5000)
+                for fid, data in rig.frames():
+                    bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+                time.sleep(0.002)
+
+    th = threading.Thread(target=primary, daemon=True)
+    th.start()
+    try:
+        with can.Bus(interface="virtual", channel=chan) as bus:
+            assert bus.recv(timeout=5) is not None   # the primary side is up
+            client = command.RigClient(bus, timeout=2.0)
+            assert client.command([7], "K_AB", value=31000) == {7: "OK"}
+            info = client.info([7, 8])
+    finally:
+        stop.set()
+        th.join(2)
+    _, lib = fw
+    for j in (7, 8):
+        assert info[j]["results"] == ["OK", "OK"]
+        assert info[j]["IDENT"]["addr"] == proto.cell_address(j)
+        assert info[j]["IDENT"]["map_id"] == proto.map_id() == lib.MC_PROTO_MAP_ID
+    assert (info[7]["PARAMS"]["k_ab"], info[8]["PARAMS"]["k_ab"]) == (31000, 20000)

@@ -3,6 +3,7 @@
     python -m tools.rigtools.command -c /dev/ttyACM0@115200 set 8 sigma 0.072
     python -m tools.rigtools.command -c /dev/pts/3@115200 perturb 8 --torque 0.02 --duration 0.1
     python -m tools.rigtools.command -c ... enable all on | zero all | bemf 3 off | pwm-limit 5 1200 | clear-faults all
+    python -m tools.rigtools.command -c ... info all      # identity, protocol map id and parameters in force
 
 A serial port has one reader: while the logger runs, schedule commands with its --do option.
 Every command waits for the primary's CMD_RESULT (the cell's verdict, or NACK/TIMEOUT/
@@ -36,6 +37,7 @@ class RigClient:
         self.bus = bus
         self.timeout = timeout
         self.on_message = on_message   # gets every frame received while waiting
+        self.chunks = {}               # cell -> BLOCK_DATA payloads received
         self.seq = int(time.time()) & 0xFF
 
     def command(self, cells, reg: str, **values) -> dict:
@@ -58,7 +60,9 @@ class RigClient:
             if self.on_message:
                 self.on_message(msg)
             kind, j = proto.frame_kind(msg.arbitration_id)
-            if kind == "CMD_RESULT" and len(msg.data) >= 3 and msg.data[0] == rid and (j, msg.data[1]) in pending:
+            if kind == "BLOCK_DATA":
+                self.chunks.setdefault(j, []).append(bytes(msg.data))
+            elif kind == "CMD_RESULT" and len(msg.data) >= 3 and msg.data[0] == rid and (j, msg.data[1]) in pending:
                 del pending[(j, msg.data[1])]
                 out[j] = proto.RESULT_NAMES.get(msg.data[2], f"0x{msg.data[2]:02X}")
             elif kind == "PRIMARY_REJECT":
@@ -66,6 +70,19 @@ class RigClient:
                       file=sys.stderr)
         for (j, _) in pending:
             out[j] = "NO_ANSWER"
+        return out
+
+    def info(self, cells) -> dict:
+        """{cell: {"IDENT": {...}, "PARAMS": {...}}} read back through the primary (POINTER commands)."""
+        self.chunks = {}
+        res = {}
+        for name in ("IDENT", "PARAMS"):
+            for j, r in self.command(cells, "POINTER", block=proto.D.BLOCKS[name]["id"]).items():
+                res.setdefault(j, []).append(r)
+        out = {}
+        for j in cells:
+            out[j] = proto.reassemble_blocks(self.chunks.get(j, []))
+            out[j]["results"] = res.get(j, [])
         return out
 
 
@@ -111,6 +128,8 @@ def parser():
         e.add_argument("state", type=_onoff)
     z = sub.add_parser("zero", help="make the current positions the encoders' zero")
     z.add_argument("cells", type=_cells)
+    i = sub.add_parser("info", help="read identity and parameters in force back from the cells")
+    i.add_argument("cells", type=_cells)
     c = sub.add_parser("clear-faults", help="clear latched faults")
     c.add_argument("cells", type=_cells)
     w = sub.add_parser("pwm-limit", help="PWM duty limit in timer ticks (<= 2400; capped at 5.86 V)")
@@ -135,6 +154,8 @@ def build(args) -> tuple[str, dict]:
         return "ZERO", {}
     if args.cmd == "clear-faults":
         return "CLEAR_FAULTS", {}
+    if args.cmd == "info":
+        return "POINTER", {"block": proto.D.BLOCKS["IDENT"]["id"]}
     if not 0 <= args.ticks <= 65535:
         raise ValueError(f"pwm-limit: {args.ticks} ticks out of range")
     return "PWM_LIMIT", {"ticks": args.ticks}
@@ -150,6 +171,23 @@ def main(argv=None) -> int:
         return 2
     import can
 
+    if args.cmd == "info":
+        with can.Bus(interface=args.interface, channel=args.channel) as bus:
+            info = RigClient(bus, args.timeout).info(args.cells)
+        ok = True
+        for j in sorted(info):
+            d = info[j]
+            if "IDENT" not in d or "PARAMS" not in d:
+                print(f"cell {j:2d}: no answer ({', '.join(d['results'])})")
+                ok = False
+                continue
+            i, p = d["IDENT"], d["PARAMS"]
+            print(f"cell {j:2d}: addr 0x{i['addr']:02X} fw {i['fw_version'] >> 8}.{i['fw_version'] & 255} "
+                  f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
+                  f" | k_ab {p['k_ab'] * 1e-6:g} sigma {p['sigma'] * 1e-6:g} k1 {p['k1'] * 1e-6:g} k2 {p['k2'] * 1e-6:g} "
+                  f"N*m/rad, alpha* {p['astar'] * 1e-6:g} rad, pwm limit {p['pwm_limit']}")
+            ok = ok and i["map_id"] == proto.map_id()
+        return 0 if ok else 1
     with can.Bus(interface=args.interface, channel=args.channel) as bus:
         res = RigClient(bus, args.timeout).command(args.cells, reg, **values)
     for j in sorted(res):

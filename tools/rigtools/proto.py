@@ -26,7 +26,7 @@ RESULTS = D.RESULTS
 RESULT_NAMES = {v: k for k, v in D.RESULTS.items()}
 FRAMES = D.FRAMES
 CELL_FLAGS = D.CELL_FLAGS
-_FMT = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I", "i32": "i"}
+_FMT = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I", "i32": "i", "b7": "7s"}
 
 
 # The rig's one cell -> address mapping lives in tools/flash/addresses.py (the
@@ -81,8 +81,8 @@ def cmd_frame_id(j: int) -> int:
 
 def cmd_data(reg: str, seq: int, **values) -> bytes:
     """CAN CMD payload: reg, seq, register payload (DLC = 2 + payload length)."""
-    if reg not in REGISTERS or reg == "POINTER":
-        raise ValueError(f"unknown command register {reg!r}; one of {sorted(k for k in REGISTERS if k != 'POINTER')}")
+    if reg not in REGISTERS:
+        raise ValueError(f"unknown command register {reg!r}; one of {sorted(REGISTERS)}")
     return bytes([REGISTERS[reg]["id"], seq & 0xFF]) + pack_payload(reg, **values)
 
 
@@ -92,6 +92,32 @@ def database():
     import cantools
 
     return cantools.database.load_file(str(DBC_PATH))
+
+
+def reassemble_blocks(chunks) -> dict:
+    """{block name: decoded dict} from BLOCK_DATA payloads of one cell (CRC checked here too)."""
+    parts = {}
+    for d in chunks:
+        parts.setdefault(d[0] >> 4, {})[d[0] & 15] = bytes(d[1:8])
+    names = {b["id"]: k for k, b in D.BLOCKS.items()}
+    out = {}
+    for blk, p in parts.items():
+        if blk not in names:
+            continue
+        name = names[blk]
+        n = sum(D.TYPE_SIZES[f[1]] for f in D.BLOCKS[name]["fields"])
+        raw = b"".join(p[k] for k in sorted(p))[:n]
+        if len(raw) == n and crc8(raw[:-1]) == raw[-1]:
+            out[name] = decode_block(name, raw)
+    return out
+
+
+def map_id() -> int:
+    """MC_PROTO_MAP_ID of this definition (what the cells' IDENT block must report)."""
+    spec = importlib.util.spec_from_file_location("metacell_protocol_generate", PROTOCOL_DIR / "generate.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    return gen.map_id(D)
 
 
 def frame_kind(arbitration_id: int) -> tuple[str, int | None]:

@@ -142,10 +142,12 @@ void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f
     uint8_t res = 0;
     if (f->dlc < 2)
         res = MC_RES_BAD_FRAME;
-    else if (plen < 0 || reg == MC_REG_POINTER)
+    else if (plen < 0)
         res = MC_RES_REG;
     else if (f->dlc != (uint32_t)plen + 2 && f->dlc != 8)   /* exact, or DBC-padded to 8 */
         res = MC_RES_BAD_FRAME;
+    else if (reg == MC_REG_POINTER && mc_proto_block_len(f->data[2 + MC_REG_POINTER_BLOCK]) < 0)
+        res = MC_RES_RANGE;
     else if (c->cmd_state != MC_CMD_IDLE)
         res = MC_RES_BUSY;
     if (res) {
@@ -169,6 +171,51 @@ static void start(mc_primary_t *p, uint32_t now, mc_txn_t *t)
     p->txn = *t;
     p->txn_start = now;
     p->busy = 1;
+    p->txn_block = 0;
+}
+
+/* A failed step of a command: retry from the write, or report `res` after the retries. */
+static void cmd_failed(mc_primary_t *p, mc_pcell_t *c, uint32_t j, uint8_t res)
+{
+    if (++c->cmd_tries > MC_SCHED_WRITE_RETRIES) {
+        report(p, j, c->cmd_reg, c->cmd_lseq, res, c->cmd_tries);
+        c->cmd_state = MC_CMD_IDLE;
+    } else {
+        c->cmd_state = MC_CMD_PENDING;
+    }
+}
+
+/* Validate a block read for a POINTER command and send it as BLOCK_DATA chunks. */
+static void block_done(mc_primary_t *p, mc_pcell_t *c, uint32_t j, int status, const uint8_t *rx,
+                       uint32_t len)
+{
+    uint8_t blk = c->cmd_payload[MC_REG_POINTER_BLOCK];
+    int n = mc_proto_block_len(blk);
+    if (status == MC_I2C_NACK_ADDR || status == MC_I2C_NACK_DATA) {
+        cmd_failed(p, c, j, MC_RES_NACK);
+        return;
+    }
+    if (status != MC_I2C_OK) {
+        cmd_failed(p, c, j, MC_RES_TIMEOUT);
+        return;
+    }
+    if (n < 2 || len != (uint32_t)n || rx[0] != (uint8_t)((MC_PROTO_VERSION << 4) | blk) ||
+        rx[1] != p->txn.addr || mc_crc8(rx, (uint32_t)n - 1) != rx[n - 1]) {
+        c->integrity++;
+        cmd_failed(p, c, j, MC_RES_CRC);
+        return;
+    }
+    /* chunk k carries bytes 7k .. 7k+6: k = 0, 1, ... while 7k < n (no division) */
+    uint32_t k = 0;
+    for (uint32_t off = 0; off < (uint32_t)n; off += 7, k++) {
+        uint8_t d[MC_CAN_BLOCK_DATA_DLC];
+        d[MC_CAN_BLOCK_DATA_PART] = (uint8_t)((blk << 4) | k);
+        for (uint32_t b = 0; b < 7; b++)
+            d[MC_CAN_BLOCK_DATA_CHUNK + b] = off + b < (uint32_t)n ? rx[off + b] : 0;
+        push(p, MC_CAN_BLOCK_DATA + j, MC_CAN_BLOCK_DATA_DLC, d);
+    }
+    report(p, j, c->cmd_reg, c->cmd_lseq, MC_RES_OK, c->cmd_tries);
+    c->cmd_state = MC_CMD_IDLE;
 }
 
 static void heartbeat(mc_primary_t *p)
@@ -201,7 +248,20 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
             c->cmd_state = MC_CMD_IDLE;
         }
     }
-    /* pending writes first: S addr+W reg seq payload crc P */
+    /* a block read right after its POINTER write (nothing may move the pointer between) */
+    for (uint32_t i = 0; i < MC_N_CELLS; i++) {
+        mc_pcell_t *c = &p->cell[i];
+        if (c->cmd_state != MC_CMD_READBLK)
+            continue;
+        t->kind = MC_TXN_READ;
+        t->cell = (uint8_t)i;
+        t->addr = (uint8_t)(MC_ADDR_BASE + i);
+        t->len = (uint8_t)mc_proto_block_len(c->cmd_payload[MC_REG_POINTER_BLOCK]);
+        start(p, now, t);
+        p->txn_block = 1;
+        return 1;
+    }
+    /* pending writes next: S addr+W reg seq payload crc P */
     for (uint32_t i = 0; i < MC_N_CELLS; i++) {
         mc_pcell_t *c = &p->cell[i];
         if (c->cmd_state != MC_CMD_PENDING || !c->seen)
@@ -296,15 +356,17 @@ void mc_primary_complete(mc_primary_t *p, uint32_t now, int status, const uint8_
         if (c->cmd_state != MC_CMD_PENDING)
             return;
         if (status == MC_I2C_OK) {
-            c->cmd_state = MC_CMD_AWAIT;
+            c->cmd_state = c->cmd_reg == MC_REG_POINTER ? MC_CMD_READBLK : MC_CMD_AWAIT;
             c->nack_streak = 0;
-        } else if (++c->cmd_tries > MC_SCHED_WRITE_RETRIES) {
-            report(p, j, c->cmd_reg, c->cmd_lseq,
-                   status == MC_I2C_NACK_ADDR || status == MC_I2C_NACK_DATA ? MC_RES_NACK
-                                                                             : MC_RES_TIMEOUT,
-                   c->cmd_tries);
-            c->cmd_state = MC_CMD_IDLE;
+        } else {
+            cmd_failed(p, c, j, status == MC_I2C_NACK_ADDR || status == MC_I2C_NACK_DATA
+                                    ? MC_RES_NACK : MC_RES_TIMEOUT);
         }
+        return;
+    }
+    if (p->txn_block) {
+        if (c->cmd_state == MC_CMD_READBLK)
+            block_done(p, c, j, status, rx, len);
         return;
     }
     if (status != MC_I2C_OK)

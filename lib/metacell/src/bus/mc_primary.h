@@ -23,6 +23,11 @@
  *
  * Per cell, every cycle slot advances a sequence counter; a good read emits
  * CELL_SAMPLE with it, so the laptop sees failed polls and lost frames as gaps.
+ *
+ * Commands: one per cell in flight. A register write is acknowledged through the
+ * cell's snapshot (cmd_seq, cmd_result). A POINTER command reads a block back: the
+ * pointer write is followed at once by the block read (before any other transaction),
+ * the block is checked (length, tag, address, CRC) and sent as BLOCK_DATA frames.
  */
 #define MC_PRIMARY_QLEN 64        /* outgoing CAN frames */
 
@@ -34,7 +39,7 @@ enum {
     MC_I2C_TIMEOUT = 3,     /* transport gave up at the deadline (stuck bus) */
     MC_I2C_BUS_ERROR = 4,   /* arbitration lost / bus error */
 };
-enum { MC_CMD_IDLE = 0, MC_CMD_PENDING = 1, MC_CMD_AWAIT = 2 };
+enum { MC_CMD_IDLE = 0, MC_CMD_PENDING = 1, MC_CMD_AWAIT = 2, MC_CMD_READBLK = 3 };
 
 typedef struct {
     uint8_t kind;          /* MC_TXN_READ / MC_TXN_WRITE */
@@ -72,6 +77,7 @@ typedef struct {
     uint32_t status_every, status_ctr;
     /* schedule */
     uint8_t in_cycle, next, busy, started;
+    uint8_t txn_block;        /* the transaction in flight reads a block for a POINTER command */
     uint32_t cycle_start;
     mc_txn_t txn;
     uint32_t txn_start;

@@ -6,7 +6,7 @@
 
 /* All multi-byte fields little-endian. See docs/datapath.md. */
 #define MC_PROTO_VERSION 1
-#define MC_PROTO_MAP_ID 0x8F07
+#define MC_PROTO_MAP_ID 0xAF87
 #define MC_N_CELLS 16
 #define MC_ADDR_BASE 0x10   /* cell j at MC_ADDR_BASE + j - 1 */
 #define MC_CRC8_POLY 0x07
@@ -66,7 +66,7 @@
 
 /* ---- writable registers: S addr+W reg seq payload crc8 P ---- */
 #define MC_WRITE_OVERHEAD 3   /* reg, seq, crc */
-/* POINTER: select the block returned by the next read (SNAPSHOT after it); applied at once */
+/* POINTER: select the block returned by the next read (SNAPSHOT after it); applied at once. As a CAN CMD: the primary reads that block and sends it as BLOCK_DATA frames */
 #define MC_REG_POINTER 0x01
 #define MC_REG_POINTER_LEN 1
 #define MC_REG_POINTER_BLOCK 0   /* u8 */
@@ -166,6 +166,11 @@
 #define MC_CAN_CMD_RESULT_SEQ 1   /* u8 */
 #define MC_CAN_CMD_RESULT_RESULT 2   /* u8 */
 #define MC_CAN_CMD_RESULT_RETRIES 3   /* u8 */
+/* BLOCK_DATA: a read block of cell j (CMD reg POINTER), in 7-byte chunks, CRC-checked by the primary */
+#define MC_CAN_BLOCK_DATA 0x400
+#define MC_CAN_BLOCK_DATA_DLC 8
+#define MC_CAN_BLOCK_DATA_PART 0   /* u8 */
+#define MC_CAN_BLOCK_DATA_CHUNK 1   /* b7 */
 /* PRIMARY_STATUS: primary heartbeat, once per second */
 #define MC_CAN_PRIMARY_STATUS 0x0F0
 #define MC_CAN_PRIMARY_STATUS_DLC 8
@@ -206,6 +211,16 @@ static inline int mc_proto_reg_len(uint8_t reg)
     case MC_REG_ZERO: return MC_REG_ZERO_LEN;
     case MC_REG_PWM_LIMIT: return MC_REG_PWM_LIMIT_LEN;
     case MC_REG_CLEAR_FAULTS: return MC_REG_CLEAR_FAULTS_LEN;
+    default: return -1;
+    }
+}
+/* Length of a read block, -1 if the block id is unknown. */
+static inline int mc_proto_block_len(uint8_t block)
+{
+    switch (block) {
+    case MC_BLK_SNAPSHOT: return MC_BLK_SNAPSHOT_LEN;
+    case MC_BLK_IDENT: return MC_BLK_IDENT_LEN;
+    case MC_BLK_PARAMS: return MC_BLK_PARAMS_LEN;
     default: return -1;
     }
 }
