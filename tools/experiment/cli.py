@@ -1,7 +1,8 @@
 """Command line: `python -m tools.experiment run SCENE --channel PORT@BAUD | rehearse SCENE | compare RIG_DIR EMU_DIR`.
 
-Exit status: 0 done (problems such as gaps, missing cells or failed commands under
---keep-going are in the summary), 2 bad scene/argument (nothing sent to the rig),
+Exit status: 0 done cleanly, 1 done with problems (failed commands under --keep-going,
+missing cells, lost samples, a cell whose drive-off was not confirmed: all in the
+summary), 2 bad scene/argument (nothing sent to the rig),
 3 aborted (failed command, lost link; the drive was switched off if the link allowed),
 130 interrupted by Ctrl-C (drive switched off first).
 """
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-EXIT_OK, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 2, 3, 130
+EXIT_OK, EXIT_PROBLEMS, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 def _common(p: argparse.ArgumentParser):
@@ -154,9 +155,12 @@ def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_
             name = f"{sc.name} (rig, repeat {res.info['repeat']})" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")
             inertia = bool(summary["dispersion"] and summary["dispersion"].get("inertia"))
             files += [f.name for f in plot_run(res, dataclasses.replace(sc, name=name), out, inertia=inertia)]
-    summary["files"] = ["summary.json"] + files + summary["log_files"] + \
-        [f"repeat_{r['repeat']:02d}.npz" for r in summary["per_repeat"]]
+    summary["files"] = ["summary.json"] + files + [f for f in summary["log_files"] if (out / f).exists()] + \
+        [f"repeat_{r['repeat']:02d}.npz" for r in summary["per_repeat"] if (out / f"repeat_{r['repeat']:02d}.npz").exists()]
     S.write(out, summary)
+    if rc == EXIT_OK and (summary["failed_commands"] or summary["missing_cells"] or summary["samples_lost"]
+                          or not summary["drive_off_confirmed"]):
+        rc = EXIT_PROBLEMS
     return rc, summary
 
 

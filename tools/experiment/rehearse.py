@@ -17,7 +17,10 @@ import sys
 import tempfile
 import time
 
+from host_emulator.params import Params
 from tools.rigtools import proto
+
+from .plan import CONTROL_PARAMS, FIRMWARE_PARAMS
 
 
 class ServeError(RuntimeError):
@@ -25,8 +28,12 @@ class ServeError(RuntimeError):
 
 
 def serve_overrides(scene, sets) -> list[str]:
-    """--set items for serve: the experiment's own, model = hil, perturbation torques 0."""
-    return list(sets) + ["model=hil"] + [f"perturbation.{i + 1}.torque_Nm=0" for i in range(len(scene.perturbations))]
+    """--set items for serve: the experiment's own, then model = hil, perturbation torques 0, and the
+    firmware parameters at their defaults (the cells boot with them; the runner must set the scene's)."""
+    base = Params()
+    fw = [f"params.{name}={getattr(base, name)!r}" for name, _ in FIRMWARE_PARAMS] + \
+         [f"params.{name}={str(getattr(base, name)).lower()}" for name in CONTROL_PARAMS]
+    return list(sets) + ["model=hil"] + [f"perturbation.{i + 1}.torque_Nm=0" for i in range(len(scene.perturbations))] + fw
 
 
 class Serve:

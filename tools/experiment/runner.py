@@ -26,6 +26,21 @@ from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 from .plan import ExperimentPlan
 
 
+def cells_text(cells) -> str:
+    """[1, 2, 3, 5] -> '1-3, 5'."""
+    out, run = [], []
+    for j in sorted(cells):
+        if run and j == run[-1] + 1:
+            run.append(j)
+            continue
+        if run:
+            out.append(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)))
+        run = [j]
+    if run:
+        out.append(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)))
+    return ", ".join(out)
+
+
 class LinkError(RuntimeError):
     """The primary stopped answering (port lost, no frames for `silence_s`)."""
 
@@ -129,7 +144,11 @@ class Experiment:
         for j, r in sorted(bad.items()):
             self.failures.append({"phase": phase, "reg": reg, "label": label, "cell": int(j), "result": r})
         if bad:
-            self.report(f"{phase}: {reg} ({label}) failed on " + ", ".join(f"cell {j}: {r}" for j, r in sorted(bad.items())))
+            by = {}
+            for j, r in sorted(bad.items()):
+                by.setdefault(r, []).append(j)
+            self.report(f"{phase}: {reg} ({label}) failed: " +
+                        "; ".join(f"{r} from cell(s) {cells_text(js)}" for r, js in by.items()))
         self._check_silence()
         self.hook("command", reg=reg, phase=phase, results=res)
         return res
@@ -208,7 +227,7 @@ class Experiment:
         if len(ok) < len(self.plan.cells) and not self.opts.keep_going:
             missing = sorted(set(self.plan.cells) - set(ok))
             rep.stopped = f"aborted: setup failed on cells {missing}"
-            raise CommandFailed(f"{phase}: setup failed on cell(s) {', '.join(map(str, missing))} "
+            raise CommandFailed(f"{phase}: setup failed on cell(s) {cells_text(missing)} "
                                 "(see the failures in the summary; --keep-going runs without them)")
         zero = self.command(ok, "ZERO", {}, "zero encoders", phase)
         ok = [j for j in ok if zero.get(j) == "OK"]
@@ -255,8 +274,9 @@ class Experiment:
         rep.t_stop_host = time.time()
         self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop_host - rep.t0_host:.2f} s")
         left = self.disable_all(phase)
-        if left:
-            raise CommandFailed(f"{phase}: drive off not confirmed by cell(s) {left}")
+        driving = [j for j in left if j in rep.enabled_cells]
+        if driving:   # we switched these on and cannot switch them off: stop everything
+            raise CommandFailed(f"{phase}: drive off not confirmed by cell(s) {cells_text(driving)} that were enabled")
         self.decoder = self.idle
         rep.decoder.save(self.out / f"repeat_{index:02d}")
         return rep
@@ -281,6 +301,7 @@ class Experiment:
         for rep in self.repeats:
             if rep.t0_host is not None and rep.t_stop_host is None:
                 rep.t_stop_host = time.time()
+                rep.stopped = f"aborted at t = {rep.t_stop_host - rep.t0_host:.2f} s"
                 rep.decoder.save(self.out / f"repeat_{rep.index:02d}")
         for w in self.writers:
             w.stop()

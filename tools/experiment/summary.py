@@ -59,14 +59,15 @@ def repeat_result(rep, n_cells: int):
     per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0) if arr["alpha_counts"].size else np.zeros(n_cells, int)
     gaps = arr["gaps"]
     rec["samples_per_cell"] = per_cell[:n_cells]
+    # no frame at all from a cell during the whole repeat (setup included): the cell is missing
+    rec["missing_cells"] = [j + 1 for j in range(n_cells) if j >= len(per_cell) or per_cell[j] == 0]
     rec["gaps"] = [{"cell": int(g[1]), "after_cycle": int(g[2] - 1), "lost": int(g[3])} for g in gaps]
     rec["samples_lost"] = int(gaps[:, 3].sum()) if len(gaps) else 0
     # the run is [enable acknowledged, stop decided]; frames after it (drive switching off) are logged, not analysed
     s = series(arr, rep.t0_host, 0.0, rep.t_stop_host - rep.t0_host) if rep.t0_host is not None else None
     if s is None or s.t.size < 2:
         rec.update(t_end_s=0.0, steady=False, pattern_period_cells=None, oscillation_period_s=None,
-                   final_alpha_rad=[None] * n_cells, final_beta_rad=[None] * n_cells,
-                   missing_cells=list(range(1, n_cells + 1)))
+                   final_alpha_rad=[None] * n_cells, final_beta_rad=[None] * n_cells)
         return rec, None
     s = dataclasses.replace(s, alpha=s.alpha[:, :n_cells], beta=s.beta[:, :n_cells], present=s.present[:n_cells],
                             held=s.held[:n_cells])
@@ -78,7 +79,7 @@ def repeat_result(rep, n_cells: int):
                pattern_period_cells=spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 else None,
                final_alpha_rad=[float(v) if p else None for v, p in zip(s.alpha[-1], pres)],
                final_beta_rad=[float(v) if p else None for v, p in zip(s.beta[-1], pres)],
-               missing_cells=[j + 1 for j in range(n_cells) if not pres[j]],
+               cells_without_data=[j + 1 for j in range(n_cells) if not pres[j]],
                samples_held=s.held)
     if not pres.all():
         rec["pattern_period_note"] = f"from the longest run of cells with data: {run.start + 1}..{run.stop}"

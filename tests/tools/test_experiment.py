@@ -1,0 +1,308 @@
+"""tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty (acceptance and every failure path)."""
+
+import json
+import math
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import can
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from host_emulator.scene import load_scene, list_scenes
+from tools.experiment import cli
+from tools.experiment.compare import CompareError, compare
+from tools.experiment.plan import PlanError, make_plan, perturb_payload, pwm_limit_ticks, wire_param
+from tools.experiment.rehearse import Serve, serve_overrides
+from tools.experiment.runner import Options, cells_text, series
+from tools.rigtools import proto
+from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
+
+ROOT = proto.ROOT
+ENABLED = 1 << proto.CELL_FLAGS["ENABLED"]
+SHORT = ["--open-wait", "0.1"]
+
+
+def strict_json(path):
+    """summary.json parsed with NaN/Infinity refused."""
+    def bad(c):
+        raise ValueError(f"non-finite constant {c} in {path}")
+    return json.loads(path.read_text(), parse_constant=bad)
+
+
+# ---- plan: scene -> wire values (independent arithmetic) ------------------------------------
+@given(st.floats(-0.131, 0.131), st.floats(0.0005, 30.0), st.sampled_from(["alpha", "beta"]))
+def test_perturb_payload_round_trips_within_half_lsb(torque, duration, chain):
+    p = perturb_payload(chain, torque, duration, 2000, "perturbation[1]")
+    assert abs(p["torque"] * 4e-6 - torque) <= 2e-6 + 1e-12          # 4 uN*m LSB
+    assert abs(p["ticks"] / 2000 - duration) <= 0.25e-3 + 1e-12 or p["ticks"] == 1
+    assert p["chain"] == (0 if chain == "alpha" else 1)
+    proto.pack_payload("PERTURB", **p)                                 # fits the wire layout
+
+
+@given(st.one_of(st.floats(0.1311, 10), st.floats(-10, -0.1311)))
+def test_perturb_torque_beyond_firmware_limit_is_refused(torque):
+    with pytest.raises(PlanError, match="torque_Nm"):
+        perturb_payload("alpha", torque, 0.1, 2000, "perturbation[1]")
+
+
+def test_perturb_duration_beyond_u16_ticks_is_refused():
+    with pytest.raises(PlanError, match="duration_s"):
+        perturb_payload("alpha", 0.01, 65536 / 2000, 2000, "perturbation[2]")
+
+
+@given(st.floats(-1e3, 1e3, allow_nan=False))
+def test_wire_param_is_micro_units(v):
+    assert wire_param("sigma", v) == round(v * 1e6)
+
+
+def test_wire_param_refuses_non_finite():
+    with pytest.raises(PlanError, match="params.sigma"):
+        wire_param("sigma", math.inf)
+
+
+@pytest.mark.parametrize("name", [n for n, _, _ in list_scenes()])
+def test_every_shipped_scene_has_a_rig_plan(name):
+    sc = load_scene(name)
+    plan = make_plan(sc)
+    regs = [c.reg for c in plan.setup]
+    assert regs[0] == "ENABLE" and plan.setup[0].values == {"on": 0}      # drive off before anything else
+    assert {"K_AB", "SIGMA", "K1", "K2", "ASTAR", "PWM_LIMIT", "BEMF"} <= set(regs)
+    assert next(c for c in plan.setup if c.reg == "SIGMA").values["value"] == round(sc.params.sigma * 1e6)
+    assert len(plan.perturbations) == len(sc.perturbations)
+    for c, q in zip(plan.perturbations, sorted(sc.perturbations, key=lambda q: (q.start_s, q.cell))):
+        assert c.values["ticks"] == max(1, round(q.duration_s * 2000)) and c.cell == q.cell
+    assert plan.last_perturbation_end_s == max([q.start_s + q.duration_s for q in sc.perturbations], default=0.0)
+
+
+def test_plan_names_what_the_rig_cannot_set():
+    plan = make_plan(load_scene("exp4_stable_eta10"))
+    assert plan.not_settable.get("eta_scale") == 10.0
+    assert "sigma" not in plan.not_settable
+    assert pwm_limit_ticks(load_scene("default").params) == round(5.86 / 9 * 2400)
+
+
+def test_plan_refuses_too_many_cells():
+    with pytest.raises(PlanError, match="cells"):
+        make_plan(load_scene("default", ["cells=20"]))
+
+
+def test_serve_overrides_strip_pushes_and_reset_firmware_params():
+    sc = load_scene("exp1_ccw_ccw", ["params.sigma=0.3"])
+    o = serve_overrides(sc, ["params.sigma=0.3"])
+    assert "perturbation.1.torque_Nm=0" in o and "perturbation.2.torque_Nm=0" in o and "model=hil" in o
+    served = load_scene("exp1_ccw_ccw", o)
+    assert all(q.torque_Nm == 0 for q in served.perturbations)
+    assert served.params.sigma == pytest.approx(9 / 125)       # the runner must set sigma itself
+
+
+def test_cells_text():
+    assert cells_text([1, 2, 3, 5, 7, 8]) == "1-3, 5, 7, 8"
+    assert cells_text([]) == ""
+
+
+# ---- time series from decoded frames -------------------------------------------------------
+def test_series_aligns_holds_and_flags_missing_cells():
+    dec = SampleDecoder(n_cells=4, report=lambda t: None)
+    host0 = 1000.0
+    truth = {}
+    for k in range(20):
+        t128 = k * 78                      # 9.984 ms per cycle on the primary clock
+        for j in (1, 2, 4):                # cell 3 never answers
+            if j == 2 and k == 7:          # one lost sample
+                continue
+            a = k * j
+            truth[(k, j)] = a
+            dec.sample(j, k % 256, a, -a, t128, 1, host0 + k * 78 * 128e-6 + 0.003 + 0.001 * (k % 3))
+    s = series(dec.arrays(), host0 + 0.05, 0.0)
+    # least-delayed frame sets the offset: t = t_primary + 0.003 - 0.05
+    assert s.t[0] == pytest.approx(5 * 78 * 128e-6 + 0.003 - 0.05, abs=1e-9)
+    assert np.all(np.diff(s.t) > 0)
+    assert list(s.present) == [True, True, False, True]
+    assert s.held[1] == 1 and s.held[0] == 0
+    k7 = int(np.argmin(abs(s.t - (7 * 78 * 128e-6 + 0.003 - 0.05))))
+    assert s.alpha[k7, 1] == pytest.approx(truth[(6, 2)] * RAD_PER_COUNT)       # held from cycle 6
+    assert s.alpha[-1, 3] == pytest.approx(19 * 4 * RAD_PER_COUNT)
+    assert np.all(np.isfinite(s.alpha)) and np.all(s.alpha[:, 2] == 0)
+    assert series(dec.arrays(), host0, 0.0, 0.02).t[-1] <= 0.02
+
+
+# ---- compare ---------------------------------------------------------------------------------
+def _summary(d, scene, alpha, beta, **kw):
+    d.mkdir(parents=True, exist_ok=True)
+    s = {"scene": scene, "model": kw.pop("model", "hil"), "final_alpha_rad": alpha, "final_beta_rad": beta,
+         "pattern_period_cells": 5.0, "oscillation_period_s": None, **kw}
+    (d / "summary.json").write_text(json.dumps(s))
+    return d
+
+
+def test_compare_table_and_plot(tmp_path):
+    emu = _summary(tmp_path / "emu", "x", [0.5, -0.5, 0.1], [0.1, 0.0, -0.1])
+    rig = _summary(tmp_path / "rig", "x", [0.4, None, 0.1], [0.1, None, -0.2], model="rig", repeats=3,
+                   final_alpha_min_rad=[0.3, None, 0.0], final_alpha_max_rad=[0.6, None, 0.2])
+    text, png = compare(rig, emu, tmp_path / "c.png")
+    assert png.stat().st_size > 1000
+    rows = [ln for ln in text.splitlines() if re.match(r"\s+\d+\s", ln)]
+    assert "-0.100" in rows[0] and "n/a" in rows[1]
+    assert "rms difference: alpha 0.071 rad" in text          # sqrt((0.1^2 + 0^2) / 2)
+    with pytest.raises(CompareError, match="different scenes"):
+        compare(_summary(tmp_path / "other", "y", [0, 0, 0], [0, 0, 0]), emu)
+    with pytest.raises(CompareError, match="not found"):
+        compare(tmp_path / "nowhere", emu)
+
+
+# ---- rehearsals through the emulator's pty ----------------------------------------------------
+def cells_enabled(channel, seconds=0.6):
+    """{cell: ENABLED flag} from CELL_SAMPLE frames: the emulator's own view of the drive state."""
+    db = proto.database()
+    state = {}
+    with can.Bus(interface="slcan", channel=channel, sleep_after_open=0.1) as bus:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            m = bus.recv(timeout=0.1)
+            if m is not None and proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE":
+                state[proto.frame_kind(m.arbitration_id)[1]] = bool(
+                    db.decode_message(m.arbitration_id, bytes(m.data))["flags"] & ENABLED)
+    return state
+
+
+@pytest.fixture(scope="module")
+def served():
+    sc = load_scene("exp1_ccw_ccw")
+    with Serve("exp1_ccw_ccw", serve_overrides(sc, []), duration_s=300) as srv:
+        yield srv
+
+
+def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_path, capsys):
+    out = tmp_path / "rig"
+    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--set", "t_end_s=4", "--repeats", "2", "--relax", "1",
+                   "--out", str(out)])
+    assert rc == 0, capsys.readouterr().err
+    s = strict_json(out / "summary.json")
+    for k in ("scene", "model", "t_end_s", "wall_s", "realtime_factor", "steady", "pattern_period_cells",
+              "oscillation_period_s", "final_alpha_rad", "final_beta_rad", "repeats", "per_repeat"):
+        assert k in s, k
+    assert s["model"] == "rig" and s["scene"] == "exp1_ccw_ccw" and s["repeats"] == 2
+    assert len(s["per_repeat"]) == 2 and all(len(r["final_alpha_rad"]) == 16 for r in s["per_repeat"])
+    assert all(isinstance(v, float) for r in s["per_repeat"] for v in r["final_alpha_rad"] + r["final_beta_rad"])
+    assert s["failed_commands"] == [] and s["missing_cells"] == [] and s["drive_off_confirmed"]
+    assert all(p["result"] == "OK" for r in s["per_repeat"] for p in r["perturbations"])
+    for f in ("spacetime.png", "final_pattern.png", "rig.asc", "repeat_01.npz", "repeat_02.npz"):
+        assert (out / f).stat().st_size > 0
+    # the emulator run of the same scene (pushes through the firmware too) against the rehearsal
+    emu = tmp_path / "emu"
+    r = subprocess.run([sys.executable, "-m", "host_emulator", "run", "exp1_ccw_ccw", "--set", "t_end_s=4",
+                        "--set", "model_options.perturb_via=firmware", "--out", str(emu), "--quiet", "--no-plots"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    e = strict_json(emu / "summary.json")
+    rc = cli.main(["compare", str(out), str(emu), "--out", str(tmp_path / "overlay.png")])
+    assert rc == 0 and (tmp_path / "overlay.png").stat().st_size > 5000
+    assert "pattern period: rig" in capsys.readouterr().out
+    # same physics through the data path: the same pattern within a few encoder counts
+    da = np.array(s["final_alpha_rad"]) - np.array(e["final_alpha_rad"])
+    assert np.max(np.abs(da)) < 6 * RAD_PER_COUNT, da
+    assert s["pattern_period_cells"] == pytest.approx(e["pattern_period_cells"], rel=0.05)
+
+
+def test_rejected_parameter_aborts_before_enabling_and_leaves_drive_off(served, tmp_path):
+    out = tmp_path / "rej"
+    rc = cli.main(["run", "exp1_ccw_ccw", "--channel", served.channel, *SHORT, "--set", "params.sigma=0.3",
+                   "--set", "t_end_s=2", "--out", str(out)])
+    assert rc == cli.EXIT_ABORTED
+    s = strict_json(out / "summary.json")
+    assert "setup failed" in s["aborted"]
+    fails = {(f["reg"], f["result"]) for f in s["failed_commands"]}
+    assert fails == {("SIGMA", "RANGE")} and len(s["failed_commands"]) == 16
+    assert not any(c["reg"] == "ENABLE" and c["values"] == {"on": 1} for c in s["commands"])
+    assert s["drive_off_confirmed"]
+    st = cells_enabled(served.channel)
+    assert set(st) == set(range(1, 17)) and not any(st.values())
+
+
+def test_exception_mid_run_leaves_drive_off(served, tmp_path):
+    def hook(event, **kw):
+        if event == "enabled":
+            raise RuntimeError("injected failure")
+    sc = load_scene("exp1_ccw_ccw", ["t_end_s=3"])
+    rc, s = cli.execute(sc, make_plan(sc), served.channel, "slcan", tmp_path / "x", Options(), open_wait=0.1,
+                        plots=False, hook=hook, report=lambda t: None)
+    assert rc == cli.EXIT_ABORTED and "RuntimeError: injected failure" in s["aborted"]
+    assert s["drive_off_confirmed"] and s["per_repeat"][0]["stopped"].startswith("aborted")
+    st = cells_enabled(served.channel)
+    assert set(st) == set(range(1, 17)) and not any(st.values())
+
+
+def test_ctrl_c_switches_the_drive_off(served, tmp_path):
+    p = subprocess.Popen([sys.executable, "-m", "tools.experiment", "run", "exp1_ccw_ccw", "--channel",
+                          served.channel, *SHORT, "--set", "t_end_s=20", "--no-early-stop", "--out",
+                          str(tmp_path / "c")], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 30
+        line = ""
+        while "drive enabled" not in line and time.monotonic() < end:
+            line = p.stderr.readline()
+            assert line or p.poll() is None, "runner exited early"
+        assert "drive enabled" in line
+        time.sleep(0.5)
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == cli.EXIT_INTERRUPTED, err
+    s = strict_json(tmp_path / "c" / "summary.json")
+    assert s["aborted"] == "interrupted (Ctrl-C)" and s["drive_off_confirmed"]
+    st = cells_enabled(served.channel)
+    assert set(st) == set(range(1, 17)) and not any(st.values())
+
+
+def test_missing_cell_is_reported(tmp_path, capsys):
+    out = tmp_path / "m"
+    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--absent", "3", "--keep-going", "--set", "t_end_s=2",
+                   "--out", str(out)])
+    assert rc == cli.EXIT_PROBLEMS
+    s = strict_json(out / "summary.json")
+    assert s["missing_cells"] == [3] and s["final_alpha_rad"][2] is None
+    assert {f["cell"] for f in s["failed_commands"]} == {3}
+    assert {f["result"] for f in s["failed_commands"]} <= {"NACK", "TIMEOUT"}
+    assert s["per_repeat"][0]["enabled_cells"] == [j for j in range(1, 17) if j != 3]
+    assert s["drive_off_unconfirmed_cells"] == [3] and not s["drive_off_confirmed"]
+    assert "missing cells: [3]" in capsys.readouterr().out
+    # without --keep-going the run stops before enabling anything
+    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--absent", "3", "--set", "t_end_s=2", "--out", str(tmp_path / "m2")])
+    assert rc == cli.EXIT_ABORTED
+    s = strict_json(tmp_path / "m2" / "summary.json")
+    assert "cell(s) 3 " in s["aborted"] and s["per_repeat"][0]["enabled_cells"] == []
+
+
+def test_server_dying_mid_run_is_a_clear_error_not_a_hang(tmp_path, capsys):
+    t0 = time.monotonic()
+    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--set", "t_end_s=30", "--no-early-stop", "--serve-duration", "2",
+                   "--out", str(tmp_path / "d")])
+    assert time.monotonic() - t0 < 20
+    assert rc == cli.EXIT_ABORTED
+    err = capsys.readouterr().err
+    assert "connection to the primary lost" in err or "no frames from the primary" in err
+    assert "SAFETY" in err
+    s = strict_json(tmp_path / "d" / "summary.json")
+    assert s["aborted"] and s["per_repeat"][0]["stopped"].startswith("aborted")
+    assert s["drive_off_unconfirmed_cells"] == "link lost: none confirmed"
+
+
+def test_bad_scene_key_fails_before_touching_the_rig(tmp_path, capsys):
+    out = tmp_path / "b"
+    rc = cli.main(["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--set", "params.bogus=1",
+                   "--out", str(out)])
+    assert rc == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "params.bogus" in err and "cannot open" not in err
+    assert not out.exists()
+    rc = cli.main(["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--set",
+                   "perturbation.1.torque_Nm=0.5", "--out", str(out)])
+    assert rc == cli.EXIT_USAGE and "torque_Nm" in capsys.readouterr().err and not out.exists()
