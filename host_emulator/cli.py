@@ -1,4 +1,4 @@
-"""Command line: `python -m host_emulator scenes | run SCENE | dispersion ... | bench-speed`."""
+"""Command line: `python -m host_emulator scenes | run SCENE | dispersion ... | bench-speed | bench`."""
 
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def cmd_run(args) -> int:
     from .scene import load_scene
 
     try:
-        scene = load_scene(args.scene, args.set)
+        scene = load_scene(args.scene, list(args.set) + ([f"accuracy={args.accuracy}"] if args.accuracy else []))
     except (ConfigError, KeyError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -141,10 +141,14 @@ def main(argv=None) -> int:
         from .bus.serve import serve_main
 
         return serve_main(argv[1:])
-    if argv and argv[0] in ("bench-speed", "bench"):
+    if argv and argv[0] == "bench-speed":
         from .bench import bench_main
 
         return bench_main(argv[1:])
+    if argv and argv[0] == "bench":
+        from .benchmarks.cli import main as bench_accuracy_main
+
+        return bench_accuracy_main(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m host_emulator",
                                  description="Host emulator of the robotic metamaterial (SPEC 1-2).")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -158,8 +162,11 @@ def main(argv=None) -> int:
     r.add_argument("--live", type=float, default=None, metavar="SECONDS",
                    help="print max |alpha|, |beta| every SECONDS of simulated time")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.add_argument("--accuracy", choices=("fast", "balanced", "exact"), default=None,
+                   help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)")
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
     sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
     sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
+    sub.add_parser("bench", help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)")
     args = ap.parse_args(argv)
     return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

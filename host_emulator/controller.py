@@ -65,7 +65,11 @@ def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResul
 
 def run_scene(scene, *, progress: bool = True, trackers: list[Tracker] = ()) -> RunResult:
     """Build the scene's model, run it and return the recorded trajectories."""
-    model = make_model(scene.model, scene.params, scene.perturbations, scene.options)
+    from .accuracy import resolve_options
+
+    options = resolve_options(scene.model, scene.params, scene.perturbations, scene.options,
+                              getattr(scene, "accuracy", "balanced"), getattr(scene, "explicit_options", ()))
+    model = make_model(scene.model, scene.params, scene.perturbations, options)
     solver = model.solver()
     extra = list(trackers)
     if progress:

@@ -13,7 +13,7 @@ from .params import Params
 
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 MODELS = ("continuum", "lattice", "hil")
-TOP_KEYS = ("name", "description", "model", "cells", "t_end_s", "params", "model_options", "perturbation")
+TOP_KEYS = ("name", "description", "model", "cells", "t_end_s", "accuracy", "params", "model_options", "perturbation")
 REQUIRED = ("name", "model", "cells", "t_end_s")
 
 
@@ -28,13 +28,16 @@ class Scene:
     options: ModelOptions = field(default_factory=ModelOptions)
     perturbations: tuple[Perturbation, ...] = ()
     source: str = ""
+    accuracy: str = "balanced"             # fast | balanced | exact (host_emulator/accuracy.py)
+    explicit_options: tuple[str, ...] = ()  # model_options keys the scene set itself (they beat the preset)
 
     def as_dict(self) -> dict:
         """JSON-ready record of everything the run used."""
         opts = dataclasses.asdict(self.options)
         return {"name": self.name, "description": self.description, "model": self.model, "cells": self.cells,
                 "t_end_s": self.t_end_s, "params": dataclasses.asdict(self.params), "model_options": opts,
-                "perturbation": [p.as_dict() for p in self.perturbations], "source": self.source}
+                "perturbation": [p.as_dict() for p in self.perturbations], "source": self.source,
+                "accuracy": self.accuracy}
 
 
 def list_scenes() -> list[tuple[str, str, str]]:
@@ -116,7 +119,12 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         for i, p in enumerate(perturbations):
             if abs(p.torque_Nm) > 0.131:
                 raise ConfigError(f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most 0.131 N*m")
-    return Scene(d["name"], desc, d["model"], cells, float(t_end), params, options, perturbations, source)
+    from .accuracy import DEFAULT, check_level
+
+    accuracy = check_level(d.get("accuracy", DEFAULT))
+    explicit = tuple(d.get("model_options", {}).keys())
+    return Scene(d["name"], desc, d["model"], cells, float(t_end), params, options, perturbations, source,
+                 accuracy, explicit)
 
 
 def _value(text: str):

@@ -1,0 +1,71 @@
+"""The accuracy knob (`accuracy = "fast" | "balanced" | "exact"` in a scene, `run --accuracy`): stepper, step and model fidelity.
+
+Presets (chosen from the measured work-precision and fidelity tables, docs/accuracy.md). A model option the
+scene sets explicitly (model_options.stepper, .dt, .substeps, .beta_geometry) always wins over the preset.
+
+lattice (ideal reaction; step as a fraction of the computed stable limit of the preset's stepper):
+    fast      rk4, dt = 0.8 x limit      ~1e-3 rad max angle error over 3 s of exp. 3 (16 cells)
+    balanced  rk4, dt = limit / 4        ~1e-4 rad   (the default: on the measured Pareto front)
+    exact     rk4, dt = limit / 32, beta_geometry = "geometric" (the full SPEC 1.2 band geometry)
+hil (the firmware's control rate is the model's clock; plant steps per control tick):
+    fast      symplectic_euler, 1 step per tick   ~1-2 encoder counts from the converged loop
+    balanced  rk4, 1 step per tick                ~0.2 counts
+    exact     rk4, 4 steps per tick, geometric beta   converged plant (< 1e-7 rad from 64 steps per tick)
+continuum: the knob sets nothing (models/continuum.py runs scipy BDF at its own tolerance).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+LEVELS = ("fast", "balanced", "exact")
+DEFAULT = "balanced"
+
+# (stepper, fraction of the stable limit, beta_geometry or None)
+LATTICE = {"fast": ("rk4", 0.8, None), "balanced": ("rk4", 0.25, None), "exact": ("rk4", 1 / 32, "geometric")}
+# (stepper, plant steps per control tick, beta_geometry or None)
+HIL = {"fast": ("symplectic_euler", 1, None), "balanced": ("rk4", 1, None), "exact": ("rk4", 4, "geometric")}
+
+KNOB_KEYS = ("stepper", "dt", "substeps", "beta_geometry")
+
+
+def check_level(level) -> str:
+    if level not in LEVELS:
+        from .models.options import ConfigError
+
+        raise ConfigError(f"accuracy = {level!r}: expected one of {', '.join(LEVELS)}")
+    return level
+
+
+def resolve_options(model: str, params, perturbations, options, level: str, explicit=()):
+    """ModelOptions with the preset of `level` applied to every knob key not in `explicit`."""
+    check_level(level)
+    explicit = set(explicit)
+    if model == "lattice":
+        stepper, frac, geom = LATTICE[level]
+    elif model == "hil":
+        stepper, subs, geom = HIL[level]
+    else:
+        return options
+    kw = {}
+    if "stepper" not in explicit:
+        kw["stepper"] = stepper
+    if geom and "beta_geometry" not in explicit and options.bands == "cubic":
+        kw["beta_geometry"] = geom
+    opts = dataclasses.replace(options, **kw)
+    if model == "lattice" and "dt" not in explicit:
+        from .models import make_model
+
+        limit, _ = make_model(model, params, perturbations, opts).step_limit()
+        opts = dataclasses.replace(opts, dt=frac * limit)
+    if model == "hil" and "substeps" not in explicit and "dt" not in explicit:
+        import math
+
+        from .models import make_model
+
+        m = make_model(model, params, perturbations, opts)
+        limit, _ = m.step_limit()
+        tick = 1.0 / m.rate_hz
+        # never above 0.8 x the stable limit (slow control rates need several plant steps per tick)
+        opts = dataclasses.replace(opts, substeps=max(subs, math.ceil(tick / (0.8 * limit) - 1e-9)))
+    return opts

@@ -1,0 +1,133 @@
+"""`python -m host_emulator bench [--fidelity] [--quick]`: work-precision, ratios against scipy/py-pde, scaling, fidelity cost."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from pathlib import Path
+
+from .common import fmt, pin_one_core
+
+LATTICE_TARGET = 1e-4
+LATTICE_RATIO_TARGET = 30.0
+
+
+def _plot(panels, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.6), squeeze=False)
+    for ax, (title, points, target) in zip(axes[0], panels):
+        for meth in sorted({p.method for p in points}):
+            pts = sorted((p.wall_s, p.error) for p in points if p.method == meth and p.error < 1e9)
+            if not pts:
+                continue
+            style = "--" if meth.startswith(("scipy", "py-pde", "continuum.py")) else "-"
+            ax.loglog([w for w, _ in pts], [max(e, 1e-12) for _, e in pts], style, marker="o", ms=3, label=meth)
+        if target:
+            ax.axhline(target, color="k", lw=0.6, ls=":")
+        ax.set_xlabel("wall time per run (s, one core)")
+        ax.set_ylabel("max angle error (rad)")
+        ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run_workprecision(args, out: Path) -> int:
+    from . import continuum as cb
+    from . import scaling as sc
+    from . import workprecision as wp
+
+    t_start = time.perf_counter()
+    summary = {}
+    panels = []
+    status = 0
+
+    print("== lattice: exp3_single_sigma9, 16 cells, sigma 9/125, push on alpha_8, 3 s simulated ==")
+    scene, pts, ref_check = wp.lattice_workprecision(3.0, quick=args.quick)
+    print(wp.points_table(pts))
+    at, best, peer = wp.summarize(pts, LATTICE_TARGET)
+    print(f"\n  wall time at max error {LATTICE_TARGET:g} rad (log-log interpolation on each method's Pareto front):")
+    for m, w in at.items():
+        print(f"    {m:18s} {fmt(None if w is None else w * 1e3)} ms")
+    ratio = peer[1] / best[1] if best and peer else None
+    if ratio is not None:
+        print(f"  RATIO lattice: best scipy ({peer[0]}, {peer[1] * 1e3:.0f} ms) / best ours ({best[0]}, "
+              f"{best[1] * 1e3:.2f} ms) = {ratio:.0f}x  (target >= {LATTICE_RATIO_TARGET:.0f}x: "
+              f"{'met' if ratio >= LATTICE_RATIO_TARGET else 'NOT met'})")
+        status |= 0 if ratio >= LATTICE_RATIO_TARGET else 1
+    summary["lattice"] = {"ratio": ratio, "best_ours": best, "best_scipy": peer, "reference_check_rad": ref_check,
+                          "points": [p.__dict__ for p in pts]}
+    panels.append((f"lattice 16 cells, 3 s (ratio at {LATTICE_TARGET:g} rad: {fmt(ratio)}x)", pts, LATTICE_TARGET))
+
+    if not args.no_hil:
+        print("\n== hil: default scene (16 cells, firmware at 2 kHz), 3 s simulated ==")
+        _, hpts = wp.hil_workprecision(3.0, quick=args.quick)
+        print(wp.points_table(hpts))
+        summary["hil"] = {"points": [p.__dict__ for p in hpts]}
+        panels.append(("hil 16 cells, 3 s, vs rk4 x64 plant steps per tick", hpts, None))
+
+    if not args.no_continuum:
+        print("\n== continuum: continuum_single (SPEC 1.4 PDE), 16 cells x 4 points, 3 s simulated ==")
+        _, cpts, have_pde = cb.continuum_workprecision(3.0, m=4, quick=args.quick)
+        print(wp.points_table(cpts))
+        if have_pde:
+            peers = [p for p in cpts if p.method.startswith("py-pde")]
+            tgt = max(LATTICE_TARGET, 1.01 * min(p.error for p in peers))
+            at, best, peer = wp.summarize(cpts, tgt, ours_prefix=("py-pde",))
+            cr = peer[1] / best[1] if best and peer else None
+            print(f"  RATIO continuum at max error {tgt:.2g} rad: best py-pde ({peer[0]}, {peer[1]:.2f} s warm) / "
+                  f"best ours ({best[0]}, {best[1] * 1e3:.1f} ms) = {fmt(cr)}x "
+                  f"(target > 1x: {'met' if cr and cr > 1 else 'NOT met'})")
+            summary["continuum"] = {"ratio": cr, "target_error": tgt, "best_ours": best, "best_pypde": peer}
+        summary.setdefault("continuum", {})["points"] = [p.__dict__ for p in cpts]
+        panels.append(("continuum 16x4 grid, 3 s", cpts, LATTICE_TARGET))
+
+    if not args.no_scaling:
+        print("\n== scaling: cost per cell-second, 16..4096 cells ==")
+        cells_t, time_t, spreads = sc.scaling(quick=args.quick)
+        print(cells_t)
+        for m, (k, e10, e100) in spreads.items():
+            print(f"  {m}: max/min cost per cell-second over 16..4096 cells: kernel {k:.2f}x, "
+                  f"run with 10 ms samples {e10:.2f}x, with 100 ms samples {e100:.2f}x (target <= 1.3x)")
+        print("\n== scaling: cost against simulated time (16 cells) ==")
+        print(time_t)
+        summary["scaling"] = {"spreads": spreads}
+
+    out.mkdir(parents=True, exist_ok=True)
+    png = out / "work_precision.png"
+    _plot(panels, png)
+    (out / "bench.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
+    print(f"\nwrote {png} and {out / 'bench.json'}; bench took {time.perf_counter() - t_start:.0f} s")
+    return status
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator bench",
+                                 description="Work-precision against scipy/py-pde, scaling, and (--fidelity) "
+                                             "the cost and effect of each model component. Pinned to one core.")
+    ap.add_argument("--fidelity", action="store_true", help="only the fidelity-cost table")
+    ap.add_argument("--quick", action="store_true", help="fewer step sizes/tolerances (a smoke run)")
+    ap.add_argument("--no-hil", action="store_true")
+    ap.add_argument("--no-continuum", action="store_true")
+    ap.add_argument("--no-scaling", action="store_true")
+    ap.add_argument("--out", default="out/bench", help="directory for the PNG and JSON (default out/bench)")
+    args = ap.parse_args(argv)
+    where = pin_one_core()
+    print(f"# host_emulator bench on {where} [{platform.machine()}, python {platform.python_version()}]")
+    from ..firmware import load
+
+    load()                 # compile outside every timing
+    out = Path(args.out)
+    if args.fidelity:
+        from .fidelity import run_fidelity
+
+        return run_fidelity(args, out)
+    return run_workprecision(args, out)
