@@ -383,3 +383,12 @@ def test_summary_counts_sequence_gaps(tmp_path):
     assert rec["gaps"] == [{"cell": 9, "after_cycle": 9, "lost": 3}] and rec["samples_lost"] == 3
     assert rec["missing_cells"] == [] and rec["samples_per_cell"][8] == 37
     assert rec["samples_held"][8] == 3 and rec["steady"] is True
+
+
+def test_compare_error_bars_tolerate_rounding_of_the_mean(tmp_path):
+    v = float(np.mean([0.1, 0.1, 0.1]))                # 0.10000000000000002 > min = 0.1
+    emu = _summary(tmp_path / "emu", "x", [0.1, 0.2], [0.0, 0.0])
+    rig = _summary(tmp_path / "rig", "x", [v, v], [0.0, 0.0], model="rig", repeats=3,
+                   final_alpha_min_rad=[0.1, 0.1], final_alpha_max_rad=[0.1, 0.1])
+    text, png = compare(rig, emu)
+    assert png.exists() and "+0.100" in text

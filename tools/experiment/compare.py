@@ -84,7 +84,8 @@ def plot(rig: dict, emu: dict, path: Path) -> Path:
         m, lo, hi = finals(rig, chain)
         j = np.arange(1, len(m) + 1)
         ax.plot(np.arange(1, len(em) + 1), em, "-", color=colour, lw=1.5, label=f"emulator ({emu.get('model')})")
-        yerr = np.vstack([np.where(np.isfinite(lo), m - lo, 0), np.where(np.isfinite(hi), hi - m, 0)])
+        # min <= mean <= max up to rounding of the mean: clip the last-bit negatives matplotlib refuses
+        yerr = np.clip(np.vstack([np.where(np.isfinite(lo), m - lo, 0), np.where(np.isfinite(hi), hi - m, 0)]), 0, None)
         ax.errorbar(j, m, yerr=yerr, fmt="o", color="k", mfc="white", ms=6, capsize=3,
                     label=f"{'rig' if rig.get('model') == 'rig' else rig.get('model')}: mean, min..max over "
                           f"{rig.get('repeats', 1)} repeat(s)")
