@@ -392,3 +392,22 @@ def test_compare_error_bars_tolerate_rounding_of_the_mean(tmp_path):
                    final_alpha_min_rad=[0.1, 0.1], final_alpha_max_rad=[0.1, 0.1])
     text, png = compare(rig, emu)
     assert png.exists() and "+0.100" in text
+
+
+def test_frozen_server_is_detected_by_silence_not_a_hang(tmp_path, capsys):
+    sc = load_scene("exp1_ccw_ccw")
+    with Serve("exp1_ccw_ccw", serve_overrides(sc, []), duration_s=120) as srv:
+        def hook(event, **kw):
+            if event == "enabled":
+                srv.proc.send_signal(signal.SIGSTOP)          # the primary stops talking, port stays open
+        sc3 = load_scene("exp1_ccw_ccw", ["t_end_s=20"])
+        t0 = time.monotonic()
+        try:
+            rc, s = cli.execute(sc3, make_plan(sc3), srv.channel, "slcan", tmp_path / "f",
+                                Options(silence_s=1.0, cmd_timeout_s=0.3, early_stop=False), open_wait=0.1,
+                                plots=False, hook=hook, report=lambda t: print(t, file=sys.stderr))
+        finally:
+            srv.proc.send_signal(signal.SIGCONT)
+        assert time.monotonic() - t0 < 15
+    assert rc == cli.EXIT_ABORTED and "no frames from the primary" in s["aborted"]
+    assert "SAFETY" in capsys.readouterr().err and not s["drive_off_confirmed"]

@@ -111,9 +111,15 @@ def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_
     t_start = time.time()
     try:
         bus = can.Bus(**kw)
+    except KeyboardInterrupt:
+        report("interrupted while opening the port (nothing was sent)")
+        return EXIT_INTERRUPTED, {}
     except Exception as e:
         report(f"error: cannot open {interface} channel {channel}: {e}")
         return EXIT_ABORTED, {}
+    port = getattr(bus, "serialPortOrig", None)   # slcan: a device that stops reading must not block a write forever
+    if port is not None and getattr(port, "write_timeout", 0) is None:
+        port.write_timeout = 2.0
     rc, error = EXIT_OK, None
     exp = None
     try:
