@@ -3,7 +3,8 @@ and its effect on the observables (pattern period, amplitude, oscillation period
 
 Two questions, two scenes, 16 cells, 10 s simulated:
   * pattern   - SPEC 1.5 exp. 3 at sigma 9/125 (push on alpha_8): which pattern, which period, which amplitude;
-  * stability - sigma 14/125, eta x1, a 1 mrad uniform tilt: does the long-wave mode oscillate/grow or decay
+  * stability - sigma 14/125, eta x1, a 50 mrad (3 encoder counts) uniform tilt of the alpha chain: does the
+                long-wave mode oscillate/grow or decay
                 (the inertial oscillation of docs/emulator.md), and at which period.
 Reference row of each scene: the most faithful rig model (hil, rk4 x4 plant steps per tick, geometric beta,
 cubic bands, inertia, 2 kHz, pwm_top 2400, back-EMF uncompensated as in the source build, no noise).
@@ -18,6 +19,8 @@ from dataclasses import replace
 import numpy as np
 
 from .common import best_time, fmt, table
+
+TILT_RAD = 0.05
 
 
 def _base(question):
@@ -48,7 +51,8 @@ def variants(question):
         ("plant step", "hil rk4 x1 (accuracy balanced)", sc(substeps=1)),
         ("geometric beta", "small-angle beta bands", sc(beta_geometry="small")),
         ("non-linear bands", "linear bands (table k)", sc(bands="linear", beta_geometry="small")),
-        ("inertia", "overdamped plant (no inertia)", sc(inertia=False)),
+        ("inertia", "overdamped plant (no inertia; imex_euler x1, the explicit steppers need ~1 us steps)",
+         sc(inertia=False, stepper="imex_euler", substeps=1)),
         ("motor model", "lattice: ideal reaction torque, no motor/driver/encoder",
          sc("lattice", params=P.with_overrides(eta_a=P.eta_a), **lat)),
         ("motor model", "lattice + motor back-EMF damping as extra eta",
@@ -56,8 +60,10 @@ def variants(question):
                                                / (P.eta_a + P.eta_bemf)), **lat)),
         ("PWM quantisation", "pwm_top 255 (analogWrite 8 bit)", sc(params=P.with_overrides(pwm_top=255))),
         ("PWM quantisation", "pwm_top 4095", sc(params=P.with_overrides(pwm_top=4095))),
-        ("control rate", "500 Hz", sc(params=P.with_overrides(control_rate_hz=500.0))),
-        ("control rate", "20 kHz", sc(params=P.with_overrides(control_rate_hz=20000.0))),
+        ("control rate", "500 Hz (plant step kept: 16 per tick)", sc(params=P.with_overrides(control_rate_hz=500.0),
+                                                                     substeps=16)),
+        ("control rate", "20 kHz (plant step kept: 1 per tick)", sc(params=P.with_overrides(control_rate_hz=20000.0),
+                                                                    substeps=1)),
         ("back-EMF compensation", "firmware compensates back-EMF", sc(params=P.with_overrides(bemf_comp=True))),
         ("noise", "encoder jitter 0.3 counts + glitches 1e-4",
          sc(noise=NoiseOptions(seed=1, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-4))),
@@ -67,7 +73,7 @@ def variants(question):
 
 
 def _x0(question, n):
-    return None if question == "pattern" else np.r_[np.full(n, 1e-3), np.zeros(n)]
+    return None if question == "pattern" else np.r_[np.full(n, TILT_RAD), np.zeros(n)]
 
 
 def run_one(scene, question):
@@ -82,13 +88,14 @@ def run_one(scene, question):
         else:
             s = m.solver(x0=_x0(question, scene.cells))
         if question != "pattern" and scene.model == "hil":
-            # the same 1 mrad tilt, through the encoders' zero (the firmware sees it as a real deflection)
-            s.x[: scene.cells] = 1e-3
+            # the same tilt after the encoders' zero (the firmware sees it as a real deflection)
+            s.x[: scene.cells] = TILT_RAD
         return run_solver(s, scene.t_end_s)
     try:
         res, w = best_time(go, repeat=2, budget_s=3.0)
     except Exception as e:           # an unstable variant is a result too
-        return None, math.nan, f"{type(e).__name__}: {str(e)[:60]}"
+        return None, math.nan, "unstable: " + ("diverged" if "diverg" in str(e) else "band range" if "band" in str(e)
+                                               else type(e).__name__)
     return observables(res.t, res.alpha, res.beta), w, ""
 
 
@@ -107,7 +114,7 @@ def run_fidelity(args, out) -> int:
             d = float(np.max(np.abs(fa - ref[1])))
             rows.append([comp, label, fmt(w * 1e3), fmt(obs["pattern_period_cells"]), fmt(obs["amplitude_rad"]),
                          fmt(obs["oscillation_period_s"]), str(obs["steady"]), fmt(d, 2)])
-        print(f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 1 mrad uniform tilt'}), "
+        print(f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 50 mrad uniform tilt'}), "
               "16 cells, 10 s ==")
         print(table(rows, ["component", "variant", "wall ms", "pattern period cells", "amplitude rad",
                            "oscillation period s", "steady", "max |final alpha - ref| rad"]))
