@@ -305,3 +305,33 @@ def test_control_rates_pushed_rig_is_sound(rate):
 def test_control_rate_outside_firmware_range_is_refused(rate):
     with pytest.raises(ValueError, match="control_rate_hz 100..50000"):
         HilModel(Params(cells=4, control_rate_hz=float(rate)), [], ModelOptions())
+
+
+@pytest.mark.parametrize("inertia,eta_scale", [(False, 1.0), (True, 10.0)])
+def test_sigma_at_unconditional_boundary_uniform_mode(inertia, eta_scale):
+    """sigma = -k2 (= 0.06) separates the unconditionally unstable regime (the uniform mode grows) from the
+    conditional one: 3 % either side, a uniform tilt grows or decays at the rate of the kappa = 0 block."""
+    from host_emulator.analysis.stability import dispersion
+
+    for s, sign in ((0.06 * 0.97, 1), (0.06 * 1.03, -1)):
+        p = Params(cells=8, sigma=s, eta_scale=eta_scale)
+        A2 = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab, -p.k_ab]])
+        eta, I = np.array([p.eta_alpha, p.eta_beta]), np.array([p.I_a, p.I_b])
+        B = A2 / eta[:, None] if not inertia else np.block([[np.zeros((2, 2)), np.eye(2)],
+                                                           [A2 / I[:, None], -np.diag(eta / I)]])
+        w, V = np.linalg.eig(B)
+        k = int(np.argmax(w.real))
+        y = np.real(V[:, k]) / np.abs(np.real(V[:2, k])).max()
+        x0 = 1e-6 * np.repeat(y[:2], p.cells)
+        v0 = 1e-6 * np.repeat(y[2:], p.cells) if inertia else None
+        sol = LatticeModel(p, [], ModelOptions(bands="linear", inertia=inertia, stepper="rk4",
+                                               dt_out=0.05)).solver(x0=x0, v0=v0)
+        t, yy = [], []
+        for _ in range(20):
+            sol.advance()
+            t.append(sol.t)
+            yy.append(np.log(np.abs(sol.x).max()))
+        got = np.polyfit(t, yy, 1)[0]
+        assert np.sign(got) == sign and got == pytest.approx(w[k].real, rel=0.05)
+        d = dispersion(p, inertia=inertia, n_cells=8)
+        assert np.sign(d["uniform_mode_growth_per_s"]) == sign
