@@ -245,6 +245,8 @@ def _reference_result(frame: bytes):
 
 frames = st.one_of(
     st.binary(max_size=16),
+    st.builds(lambda seq, blk: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(
+        bytes([D.REGISTERS["POINTER"]["id"], seq, blk])), st.integers(0, 255), st.integers(0, 4)),
     st.builds(lambda reg, seq, p: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(
         bytes([reg, seq]) + p), st.sampled_from([r["id"] for r in D.REGISTERS.values()] + [0x7F]),
         st.integers(0, 255), st.binary(max_size=8)),
@@ -259,13 +261,18 @@ def test_any_write_matches_reference_and_rejections_change_nothing(fw, frame):
     before = cell.config()
     cell.write(frame)
     cell.tick()
+    if frame and frame[0] == D.REGISTERS["POINTER"]["id"]:
+        # applied at once, not a command: a valid one selects the block of the next read only
+        valid = (len(frame) == 4 and proto.crc8(bytes([ADDR << 1]) + frame[:-1]) == frame[-1]
+                 and frame[2] < len(D.BLOCKS))
+        assert cell.read()[0] == 0x10 | (frame[2] if valid else 0)
+        s = cell.snapshot()
+        assert s["cmd_result"] == D.RESULTS["NONE"] and s["bus_err"] == (0 if valid else 1)
+        assert cell.config() == before
+        return
     s = cell.snapshot()
     if not frame:
         assert s["cmd_result"] == D.RESULTS["NONE"]
-        return
-    if frame[0] == D.REGISTERS["POINTER"]["id"]:
-        assert s["cmd_result"] == D.RESULTS["NONE"]
-        assert cell.config() == before
         return
     expect = _reference_result(frame)
     assert s["cmd_result"] == D.RESULTS[expect], (frame.hex(), expect)
