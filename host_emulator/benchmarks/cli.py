@@ -30,7 +30,7 @@ def _plot(panels, path):
             ax.loglog([w for w, _ in pts], [max(e, 1e-12) for _, e in pts], style, marker="o", ms=3, label=meth)
         if target:
             ax.axhline(target, color="k", lw=0.6, ls=":")
-        ax.set_xlabel("wall time per run (s, one core)")
+        ax.set_xlabel("CPU time per run (s, one pinned core)")
         ax.set_ylabel("max angle error (rad)")
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7)
@@ -54,7 +54,7 @@ def run_workprecision(args, out: Path) -> int:
     scene, pts, ref_check = wp.lattice_workprecision(3.0, quick=args.quick)
     print(wp.points_table(pts))
     at, best, peer = wp.summarize(pts, LATTICE_TARGET)
-    print(f"\n  wall time at max error {LATTICE_TARGET:g} rad (log-log interpolation on each method's Pareto front):")
+    print(f"\n  time at max error {LATTICE_TARGET:g} rad (log-log interpolation on each method's Pareto front):")
     for m, w in at.items():
         print(f"    {m:18s} {fmt(None if w is None else w * 1e3)} ms")
     ratio = peer[1] / best[1] if best and peer else None

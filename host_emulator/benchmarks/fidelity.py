@@ -116,6 +116,6 @@ def run_fidelity(args, out) -> int:
                          fmt(obs["oscillation_period_s"]), str(obs["steady"]), fmt(d, 2)])
         print(f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 50 mrad uniform tilt'}), "
               "16 cells, 10 s ==")
-        print(table(rows, ["component", "variant", "wall ms", "pattern period cells", "amplitude rad",
+        print(table(rows, ["component", "variant", "cpu ms", "pattern period cells", "amplitude rad",
                            "oscillation period s", "steady", "max |final alpha - ref| rad"]))
     return 0

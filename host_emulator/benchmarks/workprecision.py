@@ -164,7 +164,7 @@ def summarize(points, target=TARGET, ours_prefix=("scipy", "py-pde")):
 
 def points_table(points):
     rows = [[p.method, p.setting, fmt(p.wall_s * 1e3), fmt(p.error, 2)] for p in points]
-    return table(rows, ["method", "setting", "wall ms", "max error rad"])
+    return table(rows, ["method", "setting", "cpu ms", "max error rad"])
 
 
 # ---------------------------------------------------------------- hil
