@@ -43,6 +43,8 @@ def _common(p: argparse.ArgumentParser):
                    help="PWM duty limit sent to the cells (default: from params.vmax_v; cells cap it at 5.86 V)")
     p.add_argument("--formats", default="asc", help="python-can log formats, comma separated (default asc)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--plain-slcan", action="store_true",
+                   help="python-can's own slcan reader (one system call per byte) instead of the buffered one")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -97,20 +99,16 @@ def _options(args):
 
 
 def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_wait=None, plots=True,
-            hook=None, report=None) -> tuple[int, dict]:
+            hook=None, report=None, plain_slcan=False) -> tuple[int, dict]:
     """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary)."""
-    import can
-
     from . import summary as S
+    from .fastslcan import open_bus
     from .runner import CommandFailed, Experiment, LinkError
 
     report = report or (lambda text: print(text, file=sys.stderr, flush=True))
-    kw = {"interface": interface, "channel": channel}
-    if open_wait is not None and interface == "slcan":
-        kw["sleep_after_open"] = open_wait
     t_start = time.time()
     try:
-        bus = can.Bus(**kw)
+        bus = open_bus(interface, channel, open_wait, plain_slcan)
     except KeyboardInterrupt:
         report("interrupted while opening the port (nothing was sent)")
         return EXIT_INTERRUPTED, {}
@@ -207,7 +205,7 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
     out = Path(args.out or Path("out") / "rig" / scene.name)
     rc, summary = execute(scene, plan, channel or args.channel, interface or args.interface, out, opts,
                           open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
-                          plots=not args.no_plots)
+                          plots=not args.no_plots, plain_slcan=args.plain_slcan)
     if summary:
         print_summary(summary, out)
     return rc

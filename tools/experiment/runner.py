@@ -195,7 +195,7 @@ class Experiment:
             self.pump(time.time() + 0.1)
             if time.time() - t_start < window_s:
                 continue
-            s = series(dec.arrays(), 0.0)
+            s = series(tail_arrays(dec, window_s + 0.2), 0.0)
             if s is not None and s.t.size >= 3:
                 w = s.t >= s.t[-1] - window_s
                 if w.sum() >= 3 and is_steady(s.t[w], s.alpha[w][:, s.present], s.beta[w][:, s.present],
@@ -205,7 +205,7 @@ class Experiment:
             if time.time() - t_start > self.opts.rest_timeout_s:
                 break
         self.decoder = self.idle
-        s = series(dec.arrays(), 0.0)
+        s = series(tail_arrays(dec, 1.0), 0.0)
         if s is not None:
             last = np.round(s.alpha[-1] / RAD_PER_COUNT), np.round(s.beta[-1] / RAD_PER_COUNT)
             repeat.rest_counts = {"still": still,
@@ -264,10 +264,10 @@ class Experiment:
                 continue
             if self.opts.early_stop and now >= next_check:
                 next_check = now + 0.5
-                s = series(rep.decoder.arrays(), rep.t0_host)
+                s = series(tail_arrays(rep.decoder, self.opts.settle_s + 0.2), rep.t0_host)
                 if s is not None and s.present.any():
                     w = s.t >= s.t[-1] - self.opts.settle_s
-                    if s.t[-1] - s.t[0] >= self.opts.settle_s and w.sum() >= 3 and \
+                    if s.t[-1] - s.t[0] >= 0.95 * self.opts.settle_s and w.sum() >= 3 and \
                             is_steady(s.t[w], s.alpha[w][:, s.present], s.beta[w][:, s.present],
                                       settle_window_s=self.opts.settle_s):
                         rep.stopped = "steady"
@@ -313,6 +313,22 @@ class Experiment:
 
 
 # ---- decoded arrays -> time series ---------------------------------------------
+def tail_arrays(dec: SampleDecoder, seconds: float) -> dict:
+    """dec.arrays() of the rows received in the last `seconds` (host clock) only.
+
+    The live checks (steady, still) run every 0.1-0.5 s during a run: building the whole
+    run's arrays each time grows without bound (0.3 s per 32k rows) and a reader that
+    stalls lets the primary's queue overflow. The rows are in arrival order."""
+    rows = dec.rows
+    since = time.time() - seconds
+    i = len(rows)
+    while i > 0 and rows[i - 1][4] >= since:
+        i -= 1
+    tmp = SampleDecoder(n_cells=dec.n, report=lambda text: None)
+    tmp.rows = rows[i:]
+    return tmp.arrays()
+
+
 @dataclass
 class Series:
     t: np.ndarray            # (T,) s after the drive was enabled
