@@ -26,7 +26,7 @@ def _plot(panels, path):
             pts = sorted((p.wall_s, p.error) for p in points if p.method == meth and p.error < 1e9)
             if not pts:
                 continue
-            style = "--" if meth.startswith(("scipy", "py-pde", "continuum.py")) else "-"
+            style = "--" if meth.startswith(("scipy", "py-pde")) else "-"
             ax.loglog([w for w, _ in pts], [max(e, 1e-12) for _, e in pts], style, marker="o", ms=3, label=meth)
         if target:
             ax.axhline(target, color="k", lw=0.6, ls=":")
