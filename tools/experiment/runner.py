@@ -4,7 +4,10 @@ One `Experiment` owns the bus for the whole session. Every frame received (also 
 command waits for its result) goes to the python-can writers and to the current repeat's
 `SampleDecoder` (tools/rigtools/logger.py), which finds the gaps in the sequence counters.
 Every command goes through `RigClient` (tools/rigtools/command.py) and its per-cell result
-is checked and kept. Every wait has a timeout: a silent or lost primary raises LinkError.
+is checked and kept. Experiment time (perturbation starts, t_end, settle and relax windows)
+runs on the primary's clock as carried by the samples, so a rehearsal on an emulator that
+runs slower than real time keeps the experiment's timing; every wait is also bounded in
+wall time: a silent or lost primary raises LinkError.
 Whatever happens (end, error, Ctrl-C), `finish` sends ENABLE off to every cell and
 checks the answers; cells it could not confirm are named in the summary and on stderr.
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -66,8 +70,8 @@ class Options:
 class Repeat:
     index: int
     decoder: SampleDecoder
-    t0_host: float | None = None            # host time when every cell acknowledged ENABLE on
-    t_stop_host: float | None = None
+    t0: float | None = None                 # primary clock (decoder t_s) when every cell acknowledged ENABLE on
+    t_stop: float | None = None             # primary clock when the run was stopped
     stopped: str = "not started"            # steady | t_end | aborted: <why>
     perturbations: list = field(default_factory=list)
     rest_counts: dict | None = None         # angles before ZERO: what the previous run left (counts)
@@ -184,6 +188,24 @@ class Experiment:
                 break
         return left
 
+    def clock(self, dec: SampleDecoder | None = None) -> float | None:
+        """Primary time (s) of the newest sample the decoder has seen, None before the first."""
+        dec = dec or self.decoder
+        return dec.t_s if dec.t_raw is not None else None
+
+    def pump_primary(self, seconds: float, dec: SampleDecoder | None = None):
+        """Log until the primary's clock advanced `seconds` (bounded: 3 x seconds + silence_s of wall time)."""
+        dec = dec or self.decoder
+        wall_end = time.time() + 3 * seconds + self.opts.silence_s
+        start = self.clock(dec)
+        while time.time() < wall_end:
+            self.pump(time.time() + min(0.05, seconds))
+            now = self.clock(dec)
+            if start is None:
+                start = now
+            elif now - start >= seconds:
+                return
+
     # ---- rest, zero ------------------------------------------------------------
     def _wait_still(self, repeat: Repeat, window_s: float = 0.5):
         """Log until every cell moved < 2 counts over `window_s` (bounded by rest_timeout_s); keep the angles."""
@@ -191,21 +213,16 @@ class Experiment:
         self.decoder = dec
         t_start = time.time()
         still = False
-        while True:
+        while time.time() - t_start <= self.opts.rest_timeout_s:
             self.pump(time.time() + 0.1)
-            if time.time() - t_start < window_s:
+            s = series(tail_arrays(dec, window_s + 0.05), 0.0, None)
+            if s is None or s.t.size < 3 or s.t[-1] - s.t[0] < 0.95 * window_s or not s.present.any():
                 continue
-            s = series(tail_arrays(dec, window_s + 0.2), 0.0)
-            if s is not None and s.t.size >= 3:
-                w = s.t >= s.t[-1] - window_s
-                if w.sum() >= 3 and is_steady(s.t[w], s.alpha[w][:, s.present], s.beta[w][:, s.present],
-                                                    settle_window_s=window_s):
-                    still = True
-                    break
-            if time.time() - t_start > self.opts.rest_timeout_s:
+            if is_steady(s.t, s.alpha[:, s.present], s.beta[:, s.present], settle_window_s=window_s):
+                still = True
                 break
         self.decoder = self.idle
-        s = series(tail_arrays(dec, 1.0), 0.0)
+        s = series(tail_arrays(dec, 1.0), 0.0, None)
         if s is not None:
             last = np.round(s.alpha[-1] / RAD_PER_COUNT), np.round(s.beta[-1] / RAD_PER_COUNT)
             repeat.rest_counts = {"still": still,
@@ -224,7 +241,7 @@ class Experiment:
         phase = f"repeat {index}"
         if index > 1:
             self.report(f"{phase}: drive off, relaxing {self.opts.relax_s:g} s")
-            self.pump(time.time() + self.opts.relax_s)
+            self.pump_primary(self.opts.relax_s, self.idle)
         self._wait_still(rep)
         self.decoder = rep.decoder
         ok = self._setup(phase)
@@ -237,15 +254,21 @@ class Experiment:
         ok = [j for j in ok if zero.get(j) == "OK"]
         en = self.command(ok, "ENABLE", {"on": 1}, "drive on", phase)
         rep.enabled_cells = [j for j in ok if en.get(j) == "OK"]
-        rep.t0_host = time.time()
+        rep.t0 = self.clock(rep.decoder)
+        if rep.t0 is None:
+            raise LinkError(f"{phase}: no sample from any cell during the setup")
+        wall_limit = time.time() + 3 * self.plan.t_end_s + 30
         self.report(f"{phase}: drive enabled on {len(rep.enabled_cells)} cell(s); running up to {self.plan.t_end_s:g} s")
         self.hook("enabled", repeat=index)
         pending = list(self.plan.perturbations)
         next_check = self.plan.last_perturbation_end_s + self.opts.settle_s
         rep.stopped = "t_end"
         while True:
-            now = time.time() - rep.t0_host
+            now = self.clock(rep.decoder) - rep.t0
             if now >= self.plan.t_end_s:
+                break
+            if time.time() > wall_limit:   # frames arrive but the primary's clock hardly moves
+                rep.stopped = "wall-time limit (primary clock too slow)"
                 break
             due = [p for p in pending if p.start_s <= now]
             if due:
@@ -255,7 +278,7 @@ class Experiment:
                 for p in due:
                     groups.setdefault(tuple(sorted(p.values.items())), []).append(p)
                 for _, ps in groups.items():
-                    sent = time.time() - rep.t0_host
+                    sent = self.clock(rep.decoder) - rep.t0
                     res = self.command([p.cell for p in ps], "PERTURB", ps[0].values,
                                        "; ".join(p.label for p in ps), phase)
                     for p in ps:
@@ -264,7 +287,7 @@ class Experiment:
                 continue
             if self.opts.early_stop and now >= next_check:
                 next_check = now + 0.5
-                s = series(tail_arrays(rep.decoder, self.opts.settle_s + 0.2), rep.t0_host)
+                s = series(tail_arrays(rep.decoder, self.opts.settle_s + 0.05), rep.t0)
                 if s is not None and s.present.any():
                     w = s.t >= s.t[-1] - self.opts.settle_s
                     if s.t[-1] - s.t[0] >= 0.95 * self.opts.settle_s and w.sum() >= 3 and \
@@ -274,9 +297,9 @@ class Experiment:
                         break
             nxt = min([self.plan.t_end_s] + [p.start_s for p in pending] +
                       ([next_check] if self.opts.early_stop else []))
-            self.pump(rep.t0_host + max(nxt, now + 0.01))
-        rep.t_stop_host = time.time()
-        self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop_host - rep.t0_host:.2f} s")
+            self.pump(time.time() + min(0.05, max(0.005, nxt - now)))
+        rep.t_stop = self.clock(rep.decoder)
+        self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop - rep.t0:.2f} s")
         left = self.disable_all(phase)
         driving = [j for j in left if j in rep.enabled_cells]
         if driving:   # we switched these on and cannot switch them off: stop everything
@@ -303,9 +326,9 @@ class Experiment:
                 self.report(f"SAFETY: drive-off not confirmed by cell(s) {left}: switch the 9 V motor supply off")
         self.safe = left
         for rep in self.repeats:
-            if rep.t0_host is not None and rep.t_stop_host is None:
-                rep.t_stop_host = time.time()
-                rep.stopped = f"aborted at t = {rep.t_stop_host - rep.t0_host:.2f} s"
+            if rep.t0 is not None and rep.t_stop is None:
+                rep.t_stop = self.clock(rep.decoder)
+                rep.stopped = f"aborted at t = {rep.t_stop - rep.t0:.2f} s"
                 rep.decoder.save(self.out / f"repeat_{rep.index:02d}")
         for w in self.writers:
             w.stop()
@@ -314,16 +337,18 @@ class Experiment:
 
 # ---- decoded arrays -> time series ---------------------------------------------
 def tail_arrays(dec: SampleDecoder, seconds: float) -> dict:
-    """dec.arrays() of the rows received in the last `seconds` (host clock) only.
+    """dec.arrays() of the rows of the last `seconds` of primary clock only.
 
     The live checks (steady, still) run every 0.1-0.5 s during a run: building the whole
     run's arrays each time grows without bound (0.3 s per 32k rows) and a reader that
     stalls lets the primary's queue overflow. The rows are in arrival order."""
     rows = dec.rows
-    since = time.time() - seconds
     i = len(rows)
-    while i > 0 and rows[i - 1][4] >= since:
-        i -= 1
+    if i:
+        since = rows[-1][3] - seconds
+        seg = rows[-1][0]
+        while i > 0 and rows[i - 1][3] >= since and rows[i - 1][0] == seg:
+            i -= 1
     tmp = SampleDecoder(n_cells=dec.n, report=lambda text: None)
     tmp.rows = rows[i:]
     return tmp.arrays()
@@ -338,19 +363,19 @@ class Series:
     held: np.ndarray         # (N,) samples filled by holding the previous value
 
 
-def series(arr: dict, t0_host: float, t_min: float | None = 0.0, t_max: float | None = None) -> Series | None:
+def series(arr: dict, t0: float, t_min: float | None = 0.0, t_max: float | None = None) -> Series | None:
     """SampleDecoder.arrays() -> uniform-in-row time series for t_min <= t <= t_max (None if no rows).
 
-    Row time: mean primary clock of the row's samples, placed on the host clock by the least
-    delayed frame: t = t_s + min(host - t_s) - t0_host. Missing samples of a present cell hold
+    Row time: mean primary clock of the row's samples (one poll cycle), t = mean(t_s) - t0,
+    t0 on the same clock (the decoder's t_s at the enable). Missing samples of a present cell hold
     the previous value (the first one: the next value); absent cells are zeros, flagged in
     `present`. Rows that do not advance in time are dropped."""
-    ts, host = arr["t_s"], arr["host_time"]
+    ts = arr["t_s"]
     if ts.shape[0] == 0 or np.all(np.isnan(ts)):
         return None
-    off = np.nanmin(host - ts)
-    with np.errstate(all="ignore"):
-        t = np.nanmean(ts, axis=1) + off - t0_host
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        t = np.nanmean(ts, axis=1) - t0
     keep = np.isfinite(t) & (t >= (-math.inf if t_min is None else t_min)) & (t <= (math.inf if t_max is None else t_max))
     t = t[keep]
     a, b = arr["alpha_counts"][keep], arr["beta_counts"][keep]

@@ -64,7 +64,7 @@ def repeat_result(rep, n_cells: int):
     rec["gaps"] = [{"cell": int(g[1]), "after_cycle": int(g[2] - 1), "lost": int(g[3])} for g in gaps]
     rec["samples_lost"] = int(gaps[:, 3].sum()) if len(gaps) else 0
     # the run is [enable acknowledged, stop decided]; frames after it (drive switching off) are logged, not analysed
-    s = series(arr, rep.t0_host, 0.0, rep.t_stop_host - rep.t0_host) if rep.t0_host is not None else None
+    s = series(arr, rep.t0, 0.0, rep.t_stop - rep.t0) if rep.t0 is not None else None
     if s is None or s.t.size < 2:
         rec.update(t_end_s=0.0, steady=False, pattern_period_cells=None, oscillation_period_s=None,
                    final_alpha_rad=[None] * n_cells, final_beta_rad=[None] * n_cells)
