@@ -14,7 +14,10 @@ test: setup
 
 bench: setup
 	.venv/bin/pip install -q -e '.[bench]'
+	$(PY) -m host_emulator bench-speed
 	$(PY) -m host_emulator bench
+	$(PY) -m host_emulator.bus.bench
+	$(PY) -m tools.fwcheck report
 
 clean:
 	rm -rf build out .pio
