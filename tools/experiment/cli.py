@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+LOG_FORMATS = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
 EXIT_OK, EXIT_PROBLEMS, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
@@ -84,8 +85,11 @@ def _prepare(args):
             raise PlanError(f"--{name.replace('_', '-')} {v}: expected > 0")
     try:
         scene = load_scene(args.scene, args.set)
-    except (ConfigError, KeyError) as e:
+    except (ConfigError, KeyError, ValueError, OSError) as e:
         raise PlanError(str(e).strip("'\"")) from None
+    bad = [f for f in args.formats.split(",") if f.strip().lstrip(".") not in LOG_FORMATS]
+    if bad:
+        raise PlanError(f"--formats: unknown {', '.join(bad)}; python-can writes {', '.join(LOG_FORMATS)}")
     return scene, make_plan(scene, t_end_s=args.t_end, pwm_limit=args.pwm_limit)
 
 
@@ -156,9 +160,10 @@ def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_
             from host_emulator.plots import plot_run
 
             miss = summary["missing_cells"]
-            name = f"{sc.name} (rig, repeat {res.info['repeat']})" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")
+            name = f"{sc.name}, repeat {res.info['repeat']}" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")
             inertia = bool(summary["dispersion"] and summary["dispersion"].get("inertia"))
-            files += [f.name for f in plot_run(res, dataclasses.replace(sc, name=name), out, inertia=inertia)]
+            files += [f.name for f in plot_run(res, dataclasses.replace(sc, name=name, model="rig"), out,
+                                               inertia=inertia)]
     summary["files"] = ["summary.json"] + files + [f for f in summary["log_files"] if (out / f).exists()] + \
         [f"repeat_{r['repeat']:02d}.npz" for r in summary["per_repeat"] if (out / f"repeat_{r['repeat']:02d}.npz").exists()]
     S.write(out, summary)
