@@ -471,3 +471,13 @@ def test_buffered_slcan_reads_what_python_can_reads(frames, chunks):
         os.close(master)
         os.close(slave)
     assert got == ref and len([r for r in ref if r[0] != "ValueError"]) == len(frames) + 2
+
+
+def test_bad_options_fail_before_touching_the_rig(tmp_path, capsys):
+    out = tmp_path / "o"
+    for args, word in ((["--formats", "asc,xyz"], "--formats"), (["--repeats", "0"], "--repeats"),
+                       (["--t-end", "-1"], "--t-end"), (["--settle", "0"], "--settle")):
+        rc = cli.main(["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--out", str(out), *args])
+        err = capsys.readouterr().err
+        assert rc == cli.EXIT_USAGE and word in err and "cannot open" not in err, (args, err)
+    assert not out.exists()
