@@ -96,6 +96,7 @@ class Experiment:
         self.idle = SampleDecoder(report=lambda text: None)   # frames outside a repeat (rest checks)
         self.decoder = self.idle
         self.frames = 0
+        self.corrupt = 0         # SLCAN lines python-can could not parse
         self.last_frame = time.monotonic()
         self.commands = []       # every command: {phase, reg, label, results}
         self.failures = []       # (phase, reg, cell, result) of every non-OK answer
@@ -125,7 +126,8 @@ class Experiment:
                 return
             try:
                 msg = self.bus.recv(timeout=min(0.05, left))
-            except ValueError as e:      # python-can could not parse a line: counted by the logger, keep going
+            except ValueError as e:      # python-can could not parse a line: counted (summary), keep going
+                self.corrupt += 1
                 self.report(f"corrupt SLCAN line skipped: {e}")
                 continue
             except Exception as e:

@@ -149,6 +149,7 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
         "plan": exp.plan.as_dict(),
         "commands": exp.commands,
         "frames": exp.frames,
+        "corrupt_lines": exp.corrupt,
         "log_files": [p.name for p in exp.log_files],
     })
     out.pop("solver", None)
