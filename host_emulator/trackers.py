@@ -1,4 +1,4 @@
-"""Trackers called by the controller at every output sample: recording, tqdm progress, live printing."""
+"""Trackers called by the controller at every output sample (or per chunk of samples): recording, tqdm progress, live printing."""
 
 from __future__ import annotations
 
@@ -9,13 +9,20 @@ import numpy as np
 
 
 class Tracker:
-    """Base: start(solver, t_end), sample(t, alpha, beta), finish()."""
+    """Base: start(solver, t_end), sample(t, alpha, beta) or sample_many(t[k], alpha[k, n], beta[k, n]), finish().
+
+    The controller calls sample_many with a chunk of consecutive samples when the solver runs many samples per
+    compiled call; the default passes them one by one to sample(), so a tracker need only define sample()."""
 
     def start(self, solver, t_end_s: float, n_samples: int):
         pass
 
     def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray):
         pass
+
+    def sample_many(self, t: np.ndarray, alpha: np.ndarray, beta: np.ndarray):
+        for k in range(len(t)):
+            self.sample(t[k], alpha[k], beta[k])
 
     def finish(self):
         pass
@@ -36,6 +43,13 @@ class RecordTracker(Tracker):
         self.alpha[self.i] = alpha
         self.beta[self.i] = beta
         self.i += 1
+
+    def sample_many(self, t, alpha, beta):
+        k = len(t)
+        self.t[self.i:self.i + k] = t
+        self.alpha[self.i:self.i + k] = alpha
+        self.beta[self.i:self.i + k] = beta
+        self.i += k
 
     def result(self):
         return self.t[: self.i], self.alpha[: self.i], self.beta[: self.i]
@@ -61,6 +75,10 @@ class ProgressTracker(Tracker):
         if t > self.last:
             self.bar.update(t - self.last)
             self.last = t
+
+    def sample_many(self, t, alpha, beta):
+        if len(t):
+            self.sample(float(t[-1]), None, None)
 
     def finish(self):
         self.bar.close()

@@ -165,14 +165,19 @@ class HilSolver:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()
 
+    def _error(self, rc, samples=None) -> NumericalInstability:
+        err = NumericalInstability(
+            f"hil: {error_text(self.model.lib, rc)} at t = {self._pt[0]:.6g} s (stepper {self.stepper}, "
+            f"{self.substeps} plant steps per control tick, stable limit {self.limit:.3g} s); numerically unstable")
+        err.samples = samples
+        return err
+
     def _run(self, nt):
         lib = self.model.lib
         self._pt[0] = self.tick / self.model.rate_hz
         rc = lib.he_hil_run(self.h, nt, self._pt, self._px, self._pv)
         if rc != lib.HE_OK:
-            raise NumericalInstability(
-                f"hil: {error_text(lib, rc)} at t = {self._pt[0]:.6g} s (stepper {self.stepper}, "
-                f"{self.substeps} plant steps per control tick, stable limit {self.limit:.3g} s); numerically unstable")
+            raise self._error(rc)
         self.tick += nt
 
     def advance(self):
@@ -185,3 +190,39 @@ class HilSolver:
             nxt = min([end] + [e[0] for e in self.events if e[0] > self.tick])
             self._run(nxt - self.tick)
         self.t = self.tick / self.model.rate_hz
+
+    def advance_many(self, k_max: int):
+        """Up to k_max output intervals, bit-identical to as many advance() calls: whole samples free of
+        firmware perturbation commands run in one C call (he_hil_run_sampled); a sample with a command inside
+        it goes through advance(). Stops early at the first sample that starts or contains a command, so each
+        chunk is at least one sample. Returns (t (k,), alpha (k, n), beta (k, n)); on an unstable run raises
+        NumericalInstability whose ``samples`` holds the samples completed before the failing one.
+        """
+        k_max = int(k_max)
+        if k_max < 1:
+            raise ValueError(f"k_max = {k_max}: must be >= 1")
+        m = self.model
+        ffi, lib, n, tpo = m.ffi, m.lib, m.n, self.ticks_per_out
+        while self.events and self.events[0][0] <= self.tick:      # commands due now, as advance() applies them
+            _, j, ch, unm, nt = self.events.pop(0)
+            lib.mc_cell_perturb(self.cells + j, ch, unm, nt)
+        free = k_max
+        if self.events:                                              # samples ending at or before the next command
+            free = min(free, (self.events[0][0] - self.tick) // tpo)
+        if free < 1:                                                 # a command inside the next sample
+            self.advance()
+            a, b = self.state()
+            return np.array([self.t]), a[None, :], b[None, :]
+        buf = np.empty((free, 2 * n))
+        done = ffi.new("int64_t *", 0)
+        tick0 = self.tick
+        rc = lib.he_hil_run_sampled(self.h, tick0, m.rate_hz, tpo, free, self._pt, self._px, self._pv,
+                                    ffi.from_buffer("double[]", buf), done)
+        k = int(done[0])
+        t = np.arange(tick0 + tpo, tick0 + (k + 1) * tpo, tpo)[:k] / m.rate_hz   # tick / rate_hz, as advance()
+        out = (t, buf[:k, :n], buf[:k, n:])
+        self.tick = tick0 + k * tpo
+        if rc != lib.HE_OK:
+            raise self._error(rc, out)
+        self.t = self.tick / m.rate_hz
+        return out

@@ -79,12 +79,14 @@ class LatticeSolver:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()
 
-    def _raise(self, rc, t):
-        raise NumericalInstability(
+    def _raise(self, rc, t, samples=None):
+        err = NumericalInstability(
             f"{self.model.name}: {error_text(self.model.lib, rc)} at t = {t:.6g} s "
             f"(stepper {self.stepper}, step {self.h:.3g} s, stable limit {self.limit:.3g} s); "
             "the run is unstable (physically, if the linear analysis predicts growth for these parameters, "
             "else numerically: reduce model_options.dt)")
+        err.samples = samples
+        raise err
 
     def advance(self):
         """One output interval."""
@@ -94,3 +96,32 @@ class LatticeSolver:
         if rc != self.model.lib.HE_OK:
             self._raise(rc, self._pt[0])
         self.t = self.k * self.dt_out
+
+    def advance_many(self, k_max: int):
+        """Up to k_max output intervals in one C call (he_advance_sampled), bit-identical to k_max advance() calls.
+
+        Returns (t (k,), alpha (k, n), beta (k, n)) of the samples done. On an unstable run raises
+        NumericalInstability (same message and time as advance()) whose ``samples`` holds the samples completed
+        before the failing one, in the same form.
+        """
+        k_max = int(k_max)
+        if k_max < 1:
+            raise ValueError(f"k_max = {k_max}: must be >= 1")
+        m = self.model
+        n = m.n
+        buf = np.empty((k_max, 2 * n))
+        done = m.ffi.new("int64_t *", 0)
+        k0 = self.k
+        rc = m.lib.he_advance_sampled(m.plant, self.sid, self.h, self.nsub, self.dt_out, k0, k_max, self._pt,
+                                      self._px, self._pv, m.ffi.from_buffer("double[]", buf), done)
+        k = int(done[0])
+        t = np.arange(k0 + 1, k0 + k + 1) * self.dt_out      # k dt_out, as advance() computes it
+        out = (t, buf[:k, :n], buf[:k, n:])
+        if rc != m.lib.HE_OK:
+            self.k = k0 + k + 1
+            if k:
+                self.t = float(t[-1])
+            self._raise(rc, self._pt[0], out)
+        self.k = k0 + k
+        self.t = self.k * self.dt_out
+        return out

@@ -1,0 +1,48 @@
+/* Sampled lattice and hil runs: per-sample he_advance / he_hil_run calls in one C loop (contract in he_sample.h). */
+#include <stddef.h>
+#include <string.h>
+#include "he_sample.h"
+#include "he_step.h"
+
+static void record(double *row, const double *x, int n2)
+{
+    memcpy(row, x, (size_t)n2 * sizeof(double));
+}
+
+int he_advance_sampled(const he_plant_t *p, int stepper, double h, int64_t nsub, double dt_out, int64_t k0,
+                       int64_t nsamp, double *t, double *x, double *v, double *out, int64_t *done)
+{
+    if (!p || !t || !x || !v || !out || !done || nsamp < 0 || !(dt_out > 0.0) || k0 < 0)
+        return HE_ERR_ARG;
+    int n2 = 2 * p->n;
+    *done = 0;
+    for (int64_t s = 0; s < nsamp; s++) {
+        *t = (double)(k0 + s) * dt_out;               /* t_{k-1} = (k - 1) dt_out, k = k0 + s + 1 */
+        int rc = he_advance(p, stepper, h, nsub, t, x, v);
+        if (rc != HE_OK)
+            return rc;                                /* *t: as he_advance left it */
+        record(out + s * n2, x, n2);
+        *done = s + 1;
+    }
+    return HE_OK;
+}
+
+int he_hil_run_sampled(he_hil_t *hl, int64_t tick0, int64_t rate_hz, int64_t ticks_per_out, int64_t nsamp,
+                       double *t, double *x, double *v, double *out, int64_t *done)
+{
+    if (!hl || !hl->plant || !t || !x || !v || !out || !done || nsamp < 0 || rate_hz < 1 || ticks_per_out < 1
+        || tick0 < 0)
+        return HE_ERR_ARG;
+    int n2 = 2 * hl->n;
+    *done = 0;
+    for (int64_t s = 0; s < nsamp; s++) {
+        /* t = tick / rate_hz, both exact in a double: the correctly rounded quotient, as Python's int / int */
+        *t = (double)(tick0 + s * ticks_per_out) / (double)rate_hz;
+        int rc = he_hil_run(hl, ticks_per_out, t, x, v);
+        if (rc != HE_OK)
+            return rc;                                /* *t: as he_hil_run left it */
+        record(out + s * n2, x, n2);
+        *done = s + 1;
+    }
+    return HE_OK;
+}
