@@ -1,9 +1,9 @@
 """Cost against cells (16..4096) and against simulated time, for the lattice and hil models (one core).
 
 Two figures per size: the compiled kernel alone (one he_advance / he_hil_run call over the whole span, so no
-Python in the loop) and the end-to-end controller run (one Python call per 10 ms output sample, which adds
-a fixed cost per sample that weighs most on small lattices). Linear scaling means a constant cost per
-cell-second; the spread max/min over the sizes is printed.
+Python in the loop) and the end-to-end controller run (run_solver: the solver's advance_many records up to 256
+output samples per C call, so the Python cost is per chunk, not per 10 ms sample). Linear scaling means a
+constant cost per cell-second; the spread max/min over the sizes is printed.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def kernel_time(model_name, cells, t_end_s):
 
 
 def e2e_time(model_name, cells, t_end_s, dt_out=0.01, repeat=5):
-    """Wall time of the controller run (run_solver: one Python call per output sample); the model and solver
+    """Wall time of the controller run (run_solver: chunks of output samples per C call); the model and solver
     construction (a per-cell setup cost, not a per-cell-second one) is outside the timing. Best of `repeat`."""
     from ..controller import run_solver
     from ..models import make_model
