@@ -1,13 +1,18 @@
 """Chunked output sampling (advance_many, many samples per C call) is bit-identical to the per-sample path, and
 stops at the same sample with the same message when a run goes unstable."""
 
+import io
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host_emulator import controller
 from host_emulator.controller import run_solver
 from host_emulator.models import STEPPERS, ModelOptions, NoiseOptions, NumericalInstability, Perturbation, make_model
 from host_emulator.params import Params
+from host_emulator.trackers import ProgressTracker
 
 # edges off the 10 ms output grid, so chunks must not straddle them differently from the per-sample path
 PERTS = [Perturbation(5, "alpha", 0.03, 0.0137, 0.0519), Perturbation(11, "beta", -0.02, 0.2031, 0.0402)]
@@ -167,3 +172,44 @@ def test_advance_many_rejects_a_bad_count():
     with pytest.raises(ValueError, match="k_max"):
         s.advance_many(0)
     assert s.k == 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(starts=st.lists(st.integers(0, 120), min_size=1, max_size=4), ticks=st.integers(1, 30),
+       sizes=st.lists(st.integers(1, 12), min_size=1, max_size=4), seed=st.integers(0, 2**32 - 1))
+def test_hil_chunking_property(starts, ticks, sizes, seed):
+    """Any firmware command ticks (on or off the sample grid), any chunk sizes: the same trajectory, bit for bit,
+    as the per-sample path (3 cells, 1 kHz control, 5 ticks per 5 ms sample)."""
+    p = Params(cells=3, control_rate_hz=1000)
+    perts = [Perturbation(1 + i % 3, "alpha" if i % 2 else "beta", 0.02, k / 1000, ticks / 1000)
+             for i, k in enumerate(starts)]
+    opts = ModelOptions(perturb_via="firmware", dt_out=0.005,
+                        noise=NoiseOptions(seed=seed % 1000, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-3))
+    n_out = 30
+    ref_s = make_model("hil", p, perts, opts).solver()
+    ref = per_sample(ref_s, n_out)
+    s = make_model("hil", p, perts, opts).solver()
+    same(ref, chunked(s, n_out, sizes))
+    assert s.info() == ref_s.info() and int(s.h.rng) == int(ref_s.h.rng)
+
+
+def test_progress_bar_reaches_the_end_with_chunks():
+    bar = ProgressTracker(delay_s=0.0, file=io.StringIO())
+    res = run_solver(make_model("hil", Params(cells=4), [Perturbation(2, "alpha", 0.03, 0.0137, 0.05)], ModelOptions()).solver(), 1.0, [bar])
+    assert len(res.t) == 101 and bar.last == pytest.approx(1.0) and bar.bar.n == pytest.approx(1.0)
+
+
+def test_sampled_c_calls_refuse_bad_arguments_and_change_nothing():
+    m = make_model("lattice", Params(cells=3), [Perturbation(2, "alpha", 0.03, 0.0, 0.05)], ModelOptions())
+    s = m.solver()
+    ffi, lib = m.ffi, m.lib
+    out = ffi.new("double[]", 6)
+    done = ffi.new("int64_t *", -7)
+    x0 = s.x.copy()
+    for nsamp, dt_out in ((-1, 0.01), (1, 0.0), (1, float("nan"))):
+        rc = lib.he_advance_sampled(m.plant, s.sid, s.h, s.nsub, dt_out, 0, nsamp, s._pt, s._px, s._pv, out, done)
+        assert rc == lib.HE_ERR_ARG and done[0] == -7 and np.array_equal(s.x, x0)
+    h = make_model("hil", Params(cells=3), [], ModelOptions()).solver()
+    for rate, tpo in ((0, 1), (1000, 0)):
+        rc = lib.he_hil_run_sampled(h.h, 0, rate, tpo, 1, h._pt, h._px, h._pv, out, done)
+        assert rc == h.model.lib.HE_ERR_ARG and int(h.h.ticks) == 0
