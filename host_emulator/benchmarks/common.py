@@ -66,6 +66,8 @@ def wall_at(points: list[WPPoint], target: float) -> float | None:
         return front[0][0]
     for (w0, e0), (w1, e1) in zip(front[:-1], front[1:]):
         if e0 > target >= e1:
+            if math.log(e1) == math.log(e0):     # errors an ulp apart: their logs round to the same value
+                return w1
             f = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
             return math.exp(math.log(w0) + f * (math.log(w1) - math.log(w0)))
     return None  # pragma: no cover - covered by the checks above
