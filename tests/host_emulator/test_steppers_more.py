@@ -13,27 +13,10 @@ from host_emulator.models.hil import HilModel
 from host_emulator.models.lattice import LatticeModel
 from host_emulator.models.reference import STAGE_EDGE, ReferencePlant
 from host_emulator.params import Params
+from tests.host_emulator.linear_lattice import linear_system
 
 N = 5
 P_NB = 0.54
-
-
-def linear_system(p, inertia=True):
-    """State matrix of the linear lattice (linear bands, |alpha| below the psi' breakpoint), from SPEC 1."""
-    n = p.cells
-    lap = np.diag(np.r_[1, 2 * np.ones(n - 2), 1]) - np.eye(n, k=1) - np.eye(n, k=-1)
-    K = np.block([[p.k_a * lap, np.zeros((n, n))], [np.zeros((n, n)), p.k_b * lap]])
-    J = np.block([[(-p.k_ab - p.k2) * np.eye(n), (p.k_ab - p.sigma) * np.eye(n)],
-                  [p.k_ab * np.eye(n), -p.k_ab * np.eye(n)]])
-    I = np.r_[np.full(n, p.I_a), np.full(n, p.I_b)]
-    eta = np.r_[np.full(n, p.eta_alpha), np.full(n, p.eta_beta)]
-    if not inertia:
-        return (J - K) / eta[:, None]
-    A = np.zeros((4 * n, 4 * n))
-    A[: 2 * n, 2 * n:] = np.eye(2 * n)
-    A[2 * n:, : 2 * n] = (J - K) / I[:, None]
-    A[2 * n:, 2 * n:] = -np.diag(eta / I)
-    return A
 
 
 def rel_error(stepper, dt, inertia=True, t_end=0.2, eta_scale=10):
