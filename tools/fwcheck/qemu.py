@@ -244,7 +244,8 @@ BUDGET = 200
 BUDGET_CASE = {"enabled": True, "fault": False, "bemf": False}
 
 
-def tick_stats(elf: Path | None = None) -> TickStats:
+def _bench_trace(elf: Path | None):
+    """Run the bench image traced: (image, symbols, executed pcs, per-tick tags, main's range)."""
     elf = build_image("bench") if elf is None else elf
     syms = symbols(elf)
     pcs, tmp = trace_pcs(elf)
@@ -252,7 +253,11 @@ def tick_stats(elf: Path | None = None) -> TickStats:
         tags = np.fromfile(tmp / "bench.bin", dtype="<u4").tolist()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    main = syms["main"]
+    return elf, syms, pcs, tags, syms["main"]
+
+
+def tick_stats(elf: Path | None = None) -> TickStats:
+    elf, syms, pcs, tags, main = _bench_trace(elf)
     calib = {"known_seq17": count_calls(pcs, syms["known_seq17"], main),
              "known_loop": count_calls(pcs, syms["known_loop"], main)}
     expected = {"known_seq17": [17], "known_loop": [3 * 5 + 2, 3 * 100 + 2]}
@@ -269,15 +274,9 @@ def tick_stats(elf: Path | None = None) -> TickStats:
 def tick_profile(elf: Path | None = None) -> tuple[int, list[tuple[str, int]], list[str]]:
     """Where the instructions of one enabled, fault-free tick with a perturbation go:
     (total, [(function, instructions)], executed disassembly lines)."""
-    elf = build_image("bench") if elf is None else elf
-    syms = symbols(elf)
-    pcs, tmp = trace_pcs(elf)
-    try:
-        tags = np.fromfile(tmp / "bench.bin", dtype="<u4").tolist()
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    main = syms["main"]
-    want = next(i for i, t in enumerate(tags) if (t & 0xF) == 0xF and not t >> 16)
+    elf, syms, pcs, tags, main = _bench_trace(elf)
+    # enabled, perturbation active, back-EMF compensation off (the default), no fault
+    want = next(i for i, t in enumerate(tags) if (t & 0x7) == 0x5 and not t >> 16)
     entry = syms["mc_cell_tick"][0]
     starts = [s for s in np.nonzero(pcs == entry)[0] if s and main[0] <= pcs[s - 1] < sum(main)]
     s = starts[want]
