@@ -9,13 +9,14 @@
  *
  *   angle   int32  encoder counts, 400 per revolution (1 count = 2*pi/400 rad).
  *                  Decoder positions saturate at INT32_MIN/INT32_MAX, never wrap.
- *                  The control law clamps its inputs to +-MC_ANGLE_CLAMP counts.
+ *                  The tick limits its angles to +-runaway_counts <= MC_ANGLE_CLAMP;
+ *                  the public law functions clamp to +-MC_ANGLE_CLAMP.
  *   torque  int32  "TU" = 2^-5 uN*m = 31.25 nN*m (MC_TORQUE_FRAC_BITS = 5).
  *   gain    int32  TU per count (so Q5 uN*m per count); |gain| <= MC_GAIN_MAX.
  *                  1 N*m/rad = 1e6 * (2*pi/400) * 32 TU/count = 502654.8 TU/count.
  *   astar   int32  Q4 counts (1/16 count = 2*pi/6400 rad).
- *   duty    int32  Q16 fraction of the motor supply voltage (65536 = supply),
- *                  then PWM timer ticks 0..pwm_top.
+ *   duty    int32  sixteenths of a PWM timer tick inside the drive, then timer
+ *                  ticks 0..duty_limit (see drivers/mc_drive.h).
  */
 #define MC_COUNTS_PER_REV     400
 #define MC_TORQUE_FRAC_BITS   5
@@ -23,7 +24,6 @@
 #define MC_ANGLE_CLAMP        2048          /* counts: 5.12 rev */
 #define MC_GAIN_MAX           131071        /* 2^17 - 1 TU/count = 0.2608 N*m/rad */
 #define MC_TORQUE_CLAMP       4194304       /* 2^22 TU = 0.131 N*m */
-#define MC_DUTY_ONE           65536         /* Q16 supply fraction */
 
 #ifndef MC_CDEF /* inline helpers are invisible to the host FFI */
 
@@ -46,21 +46,6 @@ MC_INLINE int32_t mc_clamp_sym(int32_t x, int32_t lim)
 static inline int32_t mc_clamp_i32(int32_t x, int32_t lo, int32_t hi)
 {
     return x < lo ? lo : (x > hi ? hi : x);
-}
-
-/* a + b with saturation at the int32 limits (no wrap into the wrong sign). */
-static inline int32_t mc_sat_add_i32(int32_t a, int32_t b)
-{
-    if (b > 0 && a > INT32_MAX - b)
-        return INT32_MAX;
-    if (b < 0 && a < INT32_MIN - b)
-        return INT32_MIN;
-    return a + b;
-}
-
-static inline int32_t mc_abs_i32(int32_t x)
-{
-    return x < 0 ? -x : x;   /* callers pass clamped values, never INT32_MIN */
 }
 
 /* Interrupt mask save/restore: the one per-architecture piece of the library.
