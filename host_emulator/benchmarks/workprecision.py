@@ -36,19 +36,24 @@ def output_times(t_end_s, dt_out):
     return np.arange(n + 1) * dt_out
 
 
+def _sampled_states(solver, t_end_s, n):
+    """States (T, 2n) of a compiled solver at t = 0, dt_out, ..., t_end."""
+    n_out = int(round(t_end_s / solver.dt_out))
+    out = np.empty((n_out + 1, 2 * n))
+    out[0] = solver.x
+    for k in range(n_out):
+        solver.advance()
+        out[k + 1] = solver.x
+    return out
+
+
 def run_ours(scene, stepper, dt):
     """Trajectory (T, 2n) of the compiled lattice at the output times, stepper and largest step dt."""
     from ..models.lattice import LatticeModel
 
     model = LatticeModel(scene.params, scene.perturbations, replace(scene.options, stepper=stepper, dt=dt))
     s = model.solver()
-    n_out = int(round(scene.t_end_s / s.dt_out))
-    out = np.empty((n_out + 1, 2 * model.n))
-    out[0] = s.x
-    for k in range(n_out):
-        s.advance()
-        out[k + 1] = s.x
-    return out, s.h
+    return _sampled_states(s, scene.t_end_s, model.n), s.h
 
 
 def _cuts(scene):
@@ -176,14 +181,7 @@ def run_hil(scene, stepper, substeps):
 
     model = HilModel(scene.params, scene.perturbations, replace(scene.options, stepper=stepper, substeps=substeps,
                                                                 dt=None))
-    s = model.solver()
-    n_out = int(round(scene.t_end_s / s.dt_out))
-    out = np.empty((n_out + 1, 2 * model.n))
-    out[0] = s.x
-    for k in range(n_out):
-        s.advance()
-        out[k + 1] = s.x
-    return out
+    return _sampled_states(model.solver(), scene.t_end_s, model.n)
 
 
 def hil_workprecision(t_end_s=3.0, quick=False, log=print):
