@@ -117,6 +117,9 @@ def _print_summary(s, out, files):
           f"wall ({s['realtime_factor']:.0f}x real time)")
     print(f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
           f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}")
+    print(f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}   "
+          f"wavelength 2(N-1)/Z: {_fmt(s['pattern_wavelength_cells'], ' cells')}   "
+          f"dominant mode: {_fmt(s['dominant_mode'])} ({_fmt(s['dominant_mode_lambda_cells'], ' cells')})")
     print("  final alpha (rad): " + " ".join(f"{v:+.2f}" for v in s["final_alpha_rad"]))
     if d:
         print(f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
@@ -145,6 +148,10 @@ def main(argv=None) -> int:
         from .bench import bench_main
 
         return bench_main(argv[1:])
+    if argv and argv[0] == "paper":
+        from .paper import paper_main
+
+        return paper_main(argv[1:])
     if argv and argv[0] == "bench":
         from .benchmarks.cli import main as bench_accuracy_main
 
@@ -165,6 +172,7 @@ def main(argv=None) -> int:
     r.add_argument("--accuracy", choices=("fast", "balanced", "exact"), default=None,
                    help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)")
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
+    sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
     sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
     sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
     sub.add_parser("bench", help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)")

@@ -59,12 +59,23 @@ class Params:
 
     * ``gamma`` = eta_b / eta_a. Not measured; the source assumes 0.1 "for
       numerical stability". Default 0.1.
-    * ``band_scale``: the piecewise band formulas of SPEC 1.2 have a
-      small-deflection slope of 2 r^2 f'(delta0) (alpha) and 8 r^2 f'(delta0)
-      (beta), twice the table's k. The torque from the non-linear band law is
-      multiplied by ``band_scale``; the default 0.5 makes its slope equal the
-      table k (the values that reproduce the source's stability analysis).
-      1.0 is the literal reading of the formulas.
+    * ``band_scale``: the piecewise band formulas (both bands of a pair pull)
+      have a small-deflection slope of 2 r^2 f'(delta0) (alpha) and
+      8 r^2 f'(delta0) (beta), twice the tabulated k = r^2 f' (k_a, k_b here).
+      The torque of the non-linear band law is multiplied by ``band_scale``,
+      and every linear model (linear bands, the continuum model, the
+      dispersion relation) uses the same effective stiffness
+      ``ka_eff = 2 * band_scale * k_a`` (likewise ``kb_eff``). Default 1.0:
+      the physical pair of bands, the formula as printed, which is what the
+      rig and the source's own simulations and experiments show (patterns of
+      15, 10, 7.5 and 15 cells). 0.5 is the table-k reading, under which the
+      dispersion relation reproduces the source's linear-stability figure
+      (docs/band-stiffness.md).
+    * ``actuator_limit``: the lattice model's ideal reaction torque is
+      clipped to +-kt*vmax_v (the 5.86 V cap: about 44 mN m), as the firmware
+      and the drivers do on the rig. Default True. Without it, sigma = 14/125
+      with inertia grows without bound (the uniform mode is unstable); with it
+      the motion is a bounded limit cycle. The continuum model ignores it.
     * ``slack_f0``: a slack band contributes f(0) != 0 in the source's formula.
       True (default) keeps that literal reading; False makes a slack band push 0.
     * ``eta_scale`` multiplies both eta_a and eta_b (scene 4 uses 10).
@@ -89,7 +100,7 @@ class Params:
     eta_scale: float = 1.0
     k_a: float = K_ALPHA_TABLE
     k_b: float = K_BETA_TABLE
-    band_scale: float = 0.5
+    band_scale: float = 1.0
     slack_f0: bool = True
     # motor / driver / control
     supply_v: float = SUPPLY_V
@@ -99,6 +110,7 @@ class Params:
     control_rate_hz: float = 2000.0
     pwm_top: int = 2400
     bemf_comp: bool = False
+    actuator_limit: bool = True
 
     @property
     def eta_alpha(self) -> float:
@@ -107,6 +119,21 @@ class Params:
     @property
     def eta_beta(self) -> float:
         return self.eta_a * self.gamma * self.eta_scale
+
+    @property
+    def ka_eff(self) -> float:
+        """Linearised alpha band stiffness of the simulated band law, N m/rad: 2 * band_scale * k_a."""
+        return 2.0 * self.band_scale * self.k_a
+
+    @property
+    def kb_eff(self) -> float:
+        """Linearised beta band stiffness of the simulated band law, N m/rad: 2 * band_scale * k_b."""
+        return 2.0 * self.band_scale * self.k_b
+
+    @property
+    def torque_limit_nm(self) -> float:
+        """Largest motor torque the drivers can apply (kt * vmax_v), N m; inf when actuator_limit is off."""
+        return self.kt * self.vmax_v if self.actuator_limit else math.inf
 
     @property
     def d(self) -> float:

@@ -72,6 +72,9 @@ def dispersion_main(argv) -> int:
     ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
     ap.add_argument("--inertia", action="store_true", help="include cylinder inertia (4 roots per mode)")
     ap.add_argument("--eta-scale", type=str, default=None, help="multiply both viscous coefficients")
+    ap.add_argument("--band-scale", type=str, default=None,
+                    help="band-law scale (effective stiffness 2 x band_scale x table k): 1.0 = the rig's pair of "
+                         "bands, the default of every scene; 0.5 = the table k of the source's stability figure")
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--discrete", dest="discrete", action="store_true", default=True,
                    help="lattice dispersion, kappa^2 -> 2(1 - cos kappa) (default)")
@@ -87,6 +90,11 @@ def dispersion_main(argv) -> int:
             p = p.with_overrides(sigma=_number(args.sigma, "--sigma"))
         if args.eta_scale is not None:
             p = p.with_overrides(eta_scale=_number(args.eta_scale, "--eta-scale"))
+        if args.band_scale is not None:
+            bs = _number(args.band_scale, "--band-scale")
+            if not bs > 0:
+                raise ValueError(f"--band-scale={args.band_scale}: must be > 0")
+            p = p.with_overrides(band_scale=bs)
         p = parse_set(p, args.set)
         if args.cells is not None and args.cells < 1:
             raise ValueError("--cells must be >= 1")
@@ -100,6 +108,7 @@ def dispersion_main(argv) -> int:
         print(json.dumps(res, indent=2, allow_nan=False))
         return 0
     print(f"sigma = {p.sigma:.6g} N m/rad, eta_scale = {p.eta_scale:g}, gamma = {p.gamma:g}, "
+          f"band_scale = {p.band_scale:g} (k_a = {p.ka_eff:.4g}, k_b = {p.kb_eff:.4g} N m/rad), "
           f"{res['model']}{', inertia' if res['inertia'] else ', no inertia'}")
     rows = [("regime", res["regime"].replace("_", " ")),
             ("fastest wavelength", _fmt(res["fastest_lambda_cells"], " cells")),

@@ -17,6 +17,22 @@ Definitions (t in s, alpha/beta (T, N) in rad, cells j = 1..N at x_j = j - 1/2):
   regime, before saturation), the contiguous rise of A ending there; log A is fitted by a straight line
   over its upper two decades (at least 5 samples, A rising by at least 3x); the slope is reported when the
   fit is good (R^2 > 0.98), else None.
+
+How the source paper reads a pattern (its convention, reported beside the least-squares period):
+
+* at_rest: over the final window every |alpha_j| and |beta_j| stays within ``rest_tol_rad`` (default 3
+  encoder counts, 3 * 2 pi / 400 = 0.047 rad). A run at rest has no pattern: pattern_period_cells,
+  pattern_wavelength_cells and dominant_mode are None and domain_walls is 0.
+* domain_walls Z: the number of sign changes of the final alpha profile, counted only among the cells
+  with |alpha_j| > ``wall_threshold_rad`` (default 0.1 rad, about 6 encoder counts: far below a
+  pattern's amplitude of 0.5-0.7 rad, far above encoder quantisation), so a cell sitting near zero
+  inside a wall neither adds nor hides a wall.
+* pattern_wavelength_cells = 2 (N - 1) / Z: the wavelength in lattice spacings over the N - 1 spacings
+  of the chain (30 / Z for 16 cells: one full period across the chain is 15, one and a half is 10,
+  two is 7.5); None when Z = 0.
+* dominant_mode m: the free-end chain's linear modes are cos(pi m (j - 1/2) / N), m = 0..N-1 (wavelength
+  2N/m cells); m is the index of the largest coefficient of the orthonormal cosine transform (DCT-II)
+  of the final alpha profile; dominant_mode_lambda_cells = 2N/m (None for m = 0, the uniform mode).
 """
 
 from __future__ import annotations
@@ -26,10 +42,13 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["observables", "spatial_period", "temporal_period", "growth_rate", "is_steady"]
+__all__ = ["observables", "spatial_period", "temporal_period", "growth_rate", "is_steady", "domain_walls",
+           "dominant_mode", "is_at_rest"]
 
 ENCODER_STEP_RAD = 2 * math.pi / 400
 DEFAULT_TOL_RAD = 2 * ENCODER_STEP_RAD     # two encoder counts
+REST_TOL_RAD = 3 * ENCODER_STEP_RAD        # at rest: within three encoder counts of zero
+WALL_THRESHOLD_RAD = 0.1                   # cells with |alpha| above this take part in the wall count
 
 
 def _as_arrays(t, alpha, beta):
@@ -173,15 +192,51 @@ def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
     return float(slope)
 
 
-def observables(t, alpha, beta, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD) -> dict:
+def domain_walls(profile, *, threshold_rad=WALL_THRESHOLD_RAD) -> int:
+    """Sign changes of a profile among the cells with |u_j| > threshold_rad (see module docstring)."""
+    if not (math.isfinite(threshold_rad) and threshold_rad >= 0):
+        raise ValueError(f"threshold_rad={threshold_rad!r} must be finite and >= 0")
+    u = np.asarray(profile, dtype=float)
+    s = np.sign(u[np.abs(u) > threshold_rad])
+    return int(np.count_nonzero(s[1:] != s[:-1]))
+
+
+def dominant_mode(profile) -> int:
+    """Index m of the largest orthonormal DCT-II coefficient: free-end chain mode cos(pi m (j - 1/2) / N)."""
+    from scipy.fft import dct
+
+    c = dct(np.asarray(profile, dtype=float), type=2, norm="ortho")
+    return int(np.argmax(np.abs(c)))
+
+
+def is_at_rest(t, alpha, beta, *, settle_window_s=None, rest_tol_rad=REST_TOL_RAD) -> bool:
+    """Every |alpha_j|, |beta_j| within rest_tol_rad over the final window."""
+    t, alpha, beta = _as_arrays(t, alpha, beta)
+    idx = _window(t, settle_window_s)
+    return bool(max(np.abs(alpha[idx]).max(), np.abs(beta[idx]).max()) <= rest_tol_rad)
+
+
+def observables(t, alpha, beta, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD,
+                wall_threshold_rad=WALL_THRESHOLD_RAD, rest_tol_rad=REST_TOL_RAD) -> dict:
     """All observables of a run as a JSON-ready dict (see module docstring for definitions)."""
     if not (math.isfinite(tol_rad) and tol_rad > 0):
         raise ValueError(f"tol_rad={tol_rad!r} must be finite and > 0")
+    if not (math.isfinite(rest_tol_rad) and rest_tol_rad > 0):
+        raise ValueError(f"rest_tol_rad={rest_tol_rad!r} must be finite and > 0")
     t, alpha, beta = _as_arrays(t, alpha, beta)
     steady = is_steady(t, alpha, beta, settle_window_s=settle_window_s, tol_rad=tol_rad)
+    at_rest = is_at_rest(t, alpha, beta, settle_window_s=settle_window_s, rest_tol_rad=rest_tol_rad)
+    n = alpha.shape[1]
+    walls = 0 if at_rest else domain_walls(alpha[-1], threshold_rad=wall_threshold_rad)
+    mode = None if at_rest else dominant_mode(alpha[-1])
     return {
         "steady": steady,
-        "pattern_period_cells": spatial_period(alpha[-1], tol_rad=tol_rad),
+        "at_rest": at_rest,
+        "domain_walls": walls,
+        "pattern_wavelength_cells": (2.0 * (n - 1) / walls) if walls else None,
+        "dominant_mode": mode,
+        "dominant_mode_lambda_cells": (2.0 * n / mode) if mode else None,
+        "pattern_period_cells": None if at_rest else spatial_period(alpha[-1], tol_rad=tol_rad),
         "oscillation_period_s": temporal_period(t, alpha, settle_window_s=settle_window_s, tol_rad=tol_rad),
         "amplitude_rad": float(np.abs(alpha[-1]).max()),
         "final_alpha_rad": [float(v) for v in alpha[-1]],

@@ -5,12 +5,12 @@ obeys, per unit cell (dimensional: torques in N m, angles in rad, time in s)::
 
     I s^2 x + E s x = A(q) x,     A(q) = Jr - q K,
     Jr = [[-k_ab - psi''(0), k_ab - sigma], [k_ab, -k_ab]]       (reaction Jacobian, dR/dx)
-    K  = diag(k_a, k_b),  E = diag(eta_a, eta_b),  I = diag(I_a, I_b)
+    K  = diag(ka_eff, kb_eff) = 2 band_scale diag(k_a, k_b) (the simulated band law's slope),  E = diag(eta_a, eta_b),  I = diag(I_a, I_b)
     q  = kappa^2                 (continuum, kappa in rad per cell: lambda = 2 pi / kappa cells)
     q  = 2 (1 - cos kappa)       (discrete lattice, nearest-neighbour bands)
 
 Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals SPEC 1.4's
-(J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(k_a, k_b / gamma). With inertia they are
+(J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(ka_eff, kb_eff / gamma). With inertia they are
 the four roots of det(I s^2 + E s - A(q)) = 0, i.e. the eigenvalues of the companion matrix
 [[0, 1], [I^-1 A(q), -I^-1 E]].
 
@@ -39,7 +39,7 @@ def _check(params, inertia=False):
     """Reject parameters for which the linear system is not defined (clear error, nothing computed)."""
     bad = []
     for name, val in (("eta_alpha", params.eta_alpha), ("eta_beta", params.eta_beta),
-                      ("k_a", params.k_a), ("k_b", params.k_b)):
+                      ("ka_eff", params.ka_eff), ("kb_eff", params.kb_eff)):
         if not (math.isfinite(val) and val > 0):
             bad.append(f"{name}={val!r} must be finite and > 0")
     for name in ("k_ab", "k1", "k2", "sigma"):
@@ -72,7 +72,7 @@ def jacobian(params) -> np.ndarray:
     """SPEC 1.4's J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma], [k_ab/gamma, -k_ab/gamma]].
 
     J = diag(1, 1/gamma) @ reaction_jacobian; growth rates without inertia are eig(J - q D) / eta_a with
-    D = diag(k_a, k_b / gamma) (gamma = eta_b / eta_a).
+    D = diag(ka_eff, kb_eff / gamma) (gamma = eta_b / eta_a).
     """
     jr = reaction_jacobian(params)
     jr[1, :] /= params.gamma
@@ -94,7 +94,7 @@ def growth_rates(params, kappa, *, discrete=True, inertia=False) -> np.ndarray:
         raise ValueError("kappa must be a finite scalar or 1-D array")
     q = q_of_kappa(k, discrete)
     jr = reaction_jacobian(params)
-    kd = np.array([params.k_a, params.k_b])
+    kd = np.array([params.ka_eff, params.kb_eff])
     eta = np.array([params.eta_alpha, params.eta_beta])
     # A(q) = Jr - q K, one 2x2 per kappa
     a = np.broadcast_to(jr, (k.size, 2, 2)).copy()

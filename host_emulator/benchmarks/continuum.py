@@ -85,8 +85,8 @@ def pypde_problem(scene, m):
         w = (f"((sign(t - {q.start_s!r}) - sign(t - {q.start_s + q.duration_s!r}))/2"
              f"*Heaviside(x - {q.cell - 1})*Heaviside({q.cell} - x))")
         (fa if q.chain == "alpha" else fb).append(f" + {q.torque_Nm / (ea if q.chain == 'alpha' else eb)!r}*{w}")
-    eqs = {"a": f"{p.k_a / ea!r}*laplace(a) + ({p.k_ab!r}*(b - a) - {psi} - {p.sigma!r}*b)/{ea!r}" + "".join(fa),
-           "b": f"{p.k_b / eb!r}*laplace(b) + {p.k_ab!r}*(a - b)/{eb!r}" + "".join(fb)}
+    eqs = {"a": f"{p.ka_eff / ea!r}*laplace(a) + ({p.k_ab!r}*(b - a) - {psi} - {p.sigma!r}*b)/{ea!r}" + "".join(fa),
+           "b": f"{p.kb_eff / eb!r}*laplace(b) + {p.k_ab!r}*(a - b)/{eb!r}" + "".join(fb)}
     eq = pde.PDE(eqs, bc={"derivative": 0})
     grid = pde.CartesianGrid([[0, scene.cells]], [scene.cells * m])
     state = pde.FieldCollection([pde.ScalarField(grid, 0.0, label="a"), pde.ScalarField(grid, 0.0, label="b")])

@@ -37,7 +37,7 @@ int he_plant_check(const he_plant_t *p)
                 return HE_ERR_ARG;   /* overdamped needs damping on every cylinder */
         }
     }
-    if (!(p->lattice_m > 0.0) || !(p->speed_const > 0.0) || !isfinite(p->band_scale))
+    if (!(p->lattice_m > 0.0) || !(p->speed_const > 0.0) || !isfinite(p->band_scale) || !(p->react_limit > 0.0))
         return HE_ERR_ARG;
     for (int i = 0; i < p->npert; i++)
         if (p->pert[i].cell < 0 || p->pert[i].cell >= p->n || p->pert[i].chain < 0 ||
@@ -131,6 +131,9 @@ void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, 
         for (int j = 0; j < n; j++) {
             double ra, rb;
             he_reaction(p, x[j], x[n + j], &ra, &rb);
+            /* actuator limit: the motor can apply at most kt*vmax in either direction */
+            ra = ra > p->react_limit ? p->react_limit : (ra < -p->react_limit ? -p->react_limit : ra);
+            rb = rb > p->react_limit ? p->react_limit : (rb < -p->react_limit ? -p->react_limit : rb);
             F[j] += ra;
             F[n + j] += rb;
         }

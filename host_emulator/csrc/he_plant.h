@@ -14,7 +14,8 @@
  * F_i = -sum_bonds tau(x_i, x_nb) + R_i(alpha_j, beta_j) + P_i(t) + m_i*V_i
  * C_i = eta_i + m_i / S_L
  * where tau is the band torque (linear, cubic with slack, or geometric beta),
- * R the ideal floating-point reaction (SPEC 1.3) when reaction == HE_REACT_IDEAL,
+ * R the ideal floating-point reaction (SPEC 1.3) when reaction == HE_REACT_IDEAL, each
+ * component clipped to +-react_limit (the actuators' torque limit),
  * P the external perturbations active at time t, and m_i*V_i the motor torque
  * Kt*(V - omega/S_L) with m_i = Kt while the driver is awake, 0 when it coasts
  * (hil: V_i is held by the control loop over a tick).
@@ -71,6 +72,8 @@ typedef struct {
     double volt[2][HE_MAX_CELLS];    /* motor voltage held over the step, V */
     int32_t npert;
     he_pert_t pert[HE_MAX_PERT];
+    double react_limit;      /* |R_a|, |R_b| clipped to this (N*m): the drivers' voltage cap kt*vmax;
+                                INFINITY (or any value <= 0 is rejected) for no actuator limit */
 } he_plant_t;
 
 /* Check sizes and finiteness; HE_OK or HE_ERR_ARG. */

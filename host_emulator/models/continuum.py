@@ -2,8 +2,8 @@
 
 Equations (x in lattice units, i.e. cells, so k a^2 d^2/dx^2 with x = a * xbar becomes k d^2/dxbar^2)::
 
-    eta_a alpha_t = k_a alpha_xx + R_a(alpha, beta) + P_a(x, t)
-    eta_b beta_t  = k_b beta_xx  + R_b(alpha, beta) + P_b(x, t)
+    eta_a alpha_t = ka_eff alpha_xx + R_a(alpha, beta) + P_a(x, t)
+    eta_b beta_t  = kb_eff beta_xx  + R_b(alpha, beta) + P_b(x, t)
     R_a = k_ab (beta - alpha) - psi'(alpha) - sigma beta,     R_b = k_ab (alpha - beta)
 
 on x in [0, N] (cell j occupies [j-1, j], its centre at j - 1/2) with free ends alpha_x = beta_x = 0.
@@ -91,7 +91,7 @@ def _laplacian(n, h):
 
 def _check_params(params):
     bad = []
-    for name in ("eta_alpha", "eta_beta", "k_a", "k_b"):
+    for name in ("eta_alpha", "eta_beta", "ka_eff", "kb_eff"):
         v = getattr(params, name)
         if not (math.isfinite(v) and v > 0):
             bad.append(f"{name}={v!r} must be finite and > 0")
@@ -135,8 +135,8 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
     lap = _laplacian(n, h)
     ea, eb = params.eta_alpha, params.eta_beta
     kab, sig = params.k_ab, params.sigma
-    da = (params.k_a / ea) * lap
-    db = (params.k_b / eb) * lap
+    da = (params.ka_eff / ea) * lap
+    db = (params.kb_eff / eb) * lap
     eye = sp.identity(n, format="csr")
     c_ab = sp.csr_matrix(eye * ((kab - sig) / ea))     # d(alpha_t)/d(beta)
     c_ba = sp.csr_matrix(eye * (kab / eb))             # d(beta_t)/d(alpha)

@@ -44,7 +44,7 @@ def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
     p.reaction = lib.HE_REACT_IDEAL if ideal_reaction else lib.HE_REACT_NONE
     p.slack_f0 = 1 if params.slack_f0 else 0
     p.I = [params.I_a, params.I_b]
-    p.k_lin = [params.k_a, params.k_b]
+    p.k_lin = [params.ka_eff, params.kb_eff]   # linear bands: the cubic law's small-deflection slope
     p.band_scale = params.band_scale
     p.lever = [P.R_ALPHA_M, P.R_BETA_ARM_M]
     p.lattice_m = P.LATTICE_M
@@ -53,6 +53,7 @@ def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
     p.coef = [list(P.BAND_A_COEF), list(P.BAND_B_COEF)]
     p.k_ab, p.sigma, p.k1, p.k2, p.astar = params.k_ab, params.sigma, params.k1, params.k2, params.alpha_star
     p.speed_const = params.speed_const
+    p.react_limit = params.torque_limit_nm      # inf: no actuator limit
     band, eta = spreads(params, options, n)
     for j in range(n):
         p.eta[0][j] = params.eta_alpha * eta[0, j]

@@ -38,7 +38,7 @@ class ReferencePlant:
     def bond_torque(self, chain: int, xs, xo):
         """tau(x_self, x_other) of SPEC 1.2 for arrays of bonds (before the per-bond spread)."""
         if self.o.bands == "linear":
-            return (self.p.k_a, self.p.k_b)[chain] * (xs - xo)
+            return (self.p.ka_eff, self.p.kb_eff)[chain] * (xs - xo)
         coef = (P.BAND_A_COEF, P.BAND_B_COEF)[chain]
         d0 = (P.DELTA_A0_M, P.DELTA_B0_M)[chain]
         if chain == 0:
@@ -78,8 +78,9 @@ class ReferencePlant:
         C = self.eta.copy()
         if self.ideal:
             a, b = x[:n], x[n:]
-            F[:n] += self.p.k_ab * (b - a) - self.p.psi_prime(a) - self.p.sigma * b
-            F[n:] += self.p.k_ab * (a - b)
+            lim = self.p.torque_limit_nm       # actuator limit (inf when off)
+            F[:n] += np.clip(self.p.k_ab * (b - a) - self.p.psi_prime(a) - self.p.sigma * b, -lim, lim)
+            F[n:] += np.clip(self.p.k_ab * (a - b), -lim, lim)
         if mgain is not None:
             F += mgain * volt
             C += mgain / self.p.speed_const

@@ -7,7 +7,7 @@ def linear_system(p, inertia=True):
     """State matrix of the linear lattice (linear bands, |alpha| below the psi' breakpoint), from SPEC 1."""
     n = p.cells
     lap = np.diag(np.r_[1, 2 * np.ones(n - 2), 1]) - np.eye(n, k=1) - np.eye(n, k=-1)
-    K = np.block([[p.k_a * lap, np.zeros((n, n))], [np.zeros((n, n)), p.k_b * lap]])
+    K = np.block([[p.ka_eff * lap, np.zeros((n, n))], [np.zeros((n, n)), p.kb_eff * lap]])
     J = np.block([[(-p.k_ab - p.k2) * np.eye(n), (p.k_ab - p.sigma) * np.eye(n)],
                   [p.k_ab * np.eye(n), -p.k_ab * np.eye(n)]])
     I = np.r_[np.full(n, p.I_a), np.full(n, p.I_b)]

@@ -110,7 +110,7 @@ def test_hil_chunks_split_at_firmware_commands():
 
 def unstable_lattice():
     """A symplectic-Euler lattice stepped at 3x its stable limit (as test_steppers does): it blows up."""
-    m = make_model("lattice", Params(), PERTS, ModelOptions())
+    m = make_model("lattice", Params(actuator_limit=False, band_scale=0.5), PERTS, ModelOptions())
     s = m.solver()
     s.nsub = max(1, int(s.dt_out / (3 * s.limit)))
     s.h = s.dt_out / s.nsub

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host_emulator.analysis.observables import observables, spatial_period, temporal_period, growth_rate
+from host_emulator.analysis.observables import (REST_TOL_RAD, domain_walls, dominant_mode, growth_rate, observables,
+                                               spatial_period, temporal_period)
 
 X16 = np.arange(16) + 0.5
 
@@ -127,3 +128,47 @@ def test_bad_input():
         observables(t[::-1], a, a)
     with pytest.raises(ValueError, match="tol_rad"):
         observables(t, a, a, tol_rad=0)
+
+
+# ---- the source's reading of a pattern ----------------------------------------------------------------------
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(2, 64), st.data())
+def test_dominant_mode_of_a_free_end_mode_is_its_index(n, data):
+    """cos(pi m (j - 1/2) / n) plus a smaller other mode: the transform picks m."""
+    m = data.draw(st.integers(0, n - 1))
+    other = data.draw(st.integers(0, n - 1))
+    amp = data.draw(st.floats(0.05, 2.0))
+    x = np.arange(n) + 0.5
+    u = amp * np.cos(np.pi * m * x / n) + (0.4 * amp if other != m else 0.0) * np.cos(np.pi * other * x / n)
+    assert dominant_mode(u) == m
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.sampled_from([-1, 1]), min_size=1, max_size=40), st.data())
+def test_domain_walls_count_sign_changes_of_the_clear_cells_only(signs, data):
+    """Blocks of clear +-0.6 rad cells separated by near-zero cells (inside a wall): walls = sign changes of
+    the blocks, whatever sits near zero in between."""
+    u = []
+    for s in signs:
+        u += [0.6 * s] * data.draw(st.integers(1, 4))
+        u += [data.draw(st.floats(-0.09, 0.09))] * data.draw(st.integers(0, 2))
+    want = sum(1 for a, b in zip(signs, signs[1:]) if a != b)
+    assert domain_walls(u) == want
+
+
+def test_pattern_wavelength_follows_the_sources_convention_and_rest_reports_none():
+    t = np.linspace(0, 1, 50)
+    n = 16
+    x = np.arange(n) + 0.5
+    for m, walls in ((2, 2), (3, 3), (4, 4)):
+        prof = 0.6 * np.cos(np.pi * m * x / n)
+        a = np.tile(prof, (t.size, 1))
+        o = observables(t, a, 0 * a)
+        assert o["domain_walls"] == walls and o["pattern_wavelength_cells"] == pytest.approx(30 / walls)
+        assert o["dominant_mode"] == m and not o["at_rest"]
+    quiet = np.full((t.size, n), 0.9 * REST_TOL_RAD) * np.sign(np.cos(np.pi * 2 * x / n))
+    o = observables(t, quiet, 0 * quiet)
+    assert o["at_rest"] and o["pattern_period_cells"] is None and o["domain_walls"] == 0
+    assert o["dominant_mode"] is None and o["pattern_wavelength_cells"] is None

@@ -19,8 +19,8 @@ def omega_closed_form(p, kappa, discrete):
     g = p.gamma
     j = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab / g, -p.k_ab / g]])
     q = 2 * (1 - np.cos(kappa)) if discrete else kappa ** 2
-    a = j[0, 0] - q * p.k_a
-    d = j[1, 1] - q * p.k_b / g
+    a = j[0, 0] - q * p.ka_eff
+    d = j[1, 1] - q * p.kb_eff / g
     tr, det = a + d, a * d - j[0, 1] * j[1, 0]
     root = np.sqrt((tr * tr - 4 * det).astype(complex))
     return np.stack([(tr + root) / 2, (tr - root) / 2], axis=1) / p.eta_alpha
@@ -29,10 +29,10 @@ def omega_closed_form(p, kappa, discrete):
 def quartic_roots(p, kappa, discrete):
     """Roots of det(I s^2 + E s - A(q)) = 0 built as a polynomial (independent of the companion matrix)."""
     q = 2 * (1 - math.cos(kappa)) if discrete else kappa ** 2
-    a00 = -p.k_ab - p.k2 - q * p.k_a
+    a00 = -p.k_ab - p.k2 - q * p.ka_eff
     a01 = p.k_ab - p.sigma
     a10 = p.k_ab
-    a11 = -p.k_ab - q * p.k_b
+    a11 = -p.k_ab - q * p.kb_eff
     pa = np.array([p.I_a, p.eta_alpha, -a00])
     pb = np.array([p.I_b, p.eta_beta, -a11])
     poly = np.polymul(pa, pb)
@@ -92,7 +92,7 @@ def assembled_matrix(p, n, periodic, inertia):
                 lap[j, j] -= 1.0          # a missing neighbour contributes no torque (free end)
     jr = stab.reaction_jacobian(p)
     eye = np.eye(n)
-    a = np.block([[p.k_a * lap + jr[0, 0] * eye, jr[0, 1] * eye], [jr[1, 0] * eye, p.k_b * lap + jr[1, 1] * eye]])
+    a = np.block([[p.ka_eff * lap + jr[0, 0] * eye, jr[0, 1] * eye], [jr[1, 0] * eye, p.kb_eff * lap + jr[1, 1] * eye]])
     eta = np.concatenate([np.full(n, p.eta_alpha), np.full(n, p.eta_beta)])
     if not inertia:
         return a / eta[:, None]
@@ -124,7 +124,7 @@ def test_discrete_dispersion_matches_assembled_lattice(sigma, periodic, inertia)
 def band_closed_form(p, discrete):
     """Wavelength band (cells) where det A(q) < 0, from the quadratic k_a k_b q^2 - b q + det Jr = 0."""
     jr = stab.reaction_jacobian(p)
-    c2, c1, c0 = p.k_a * p.k_b, -(jr[0, 0] * p.k_b + jr[1, 1] * p.k_a), np.linalg.det(jr)
+    c2, c1, c0 = p.ka_eff * p.kb_eff, -(jr[0, 0] * p.kb_eff + jr[1, 1] * p.ka_eff), np.linalg.det(jr)
     qs = np.sort(np.roots([c2, c1, c0]).real)
 
     def lam(q):

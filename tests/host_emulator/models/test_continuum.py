@@ -18,7 +18,7 @@ def mode_growth(p, m, t_end, eps=1e-3, ppc=8):
     """Start in the linear eigenvector of free-end mode m; return (measured rate, predicted rate)."""
     kappa = math.pi * m / N
     q = kappa ** 2
-    a = np.array([[-p.k_ab - p.k2 - q * p.k_a, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.k_b]])
+    a = np.array([[-p.k_ab - p.k2 - q * p.ka_eff, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.kb_eff]])
     w, v = np.linalg.eig(a / np.array([p.eta_alpha, p.eta_beta])[:, None])
     i = int(np.argmax(w.real))
     assert abs(w[i].imag) < 1e-12
@@ -153,10 +153,10 @@ def test_observed_growth_rate_of_a_single_mode_run():
     from host_emulator.analysis.observables import observables
 
     p = Params(sigma=9 / 125)
-    m = 5
+    m = 3           # lambda = 10.7 cells, inside the unstable band at the rig's stiffness
     kappa = math.pi * m / N
     q = kappa ** 2
-    a = np.array([[-p.k_ab - p.k2 - q * p.k_a, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.k_b]])
+    a = np.array([[-p.k_ab - p.k2 - q * p.ka_eff, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.kb_eff]])
     w, v = np.linalg.eig(a / np.array([p.eta_alpha, p.eta_beta])[:, None])
     vec = v[:, int(np.argmax(w.real))].real
     vec /= np.abs(vec).max()

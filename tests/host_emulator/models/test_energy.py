@@ -19,8 +19,8 @@ def energy(p, bands, x, v, psi_k):
     n = p.cells
     a, b = x[:n], x[n:]
     E = 0.5 * p.I_a * (v[:n] ** 2).sum() + 0.5 * p.I_b * (v[n:] ** 2).sum() + 0.5 * psi_k * (a ** 2).sum()
-    for u, coef, d0, L, k in ((np.diff(a), P.BAND_A_COEF, P.DELTA_A0_M, P.R_ALPHA_M, p.k_a),
-                              (np.diff(b), P.BAND_B_COEF, P.DELTA_B0_M, P.R_BETA_ARM_M, p.k_b)):
+    for u, coef, d0, L, k in ((np.diff(a), P.BAND_A_COEF, P.DELTA_A0_M, P.R_ALPHA_M, p.ka_eff),
+                              (np.diff(b), P.BAND_B_COEF, P.DELTA_B0_M, P.R_BETA_ARM_M, p.kb_eff)):
         if bands == "linear":
             E += 0.5 * k * (u ** 2).sum()
         else:   # U(u) = s [G(d0 + L u) + G(d0 - L u) - 2 G(d0)]

@@ -14,7 +14,7 @@ J_CENTRES = np.arange(N) + 0.5
 def mode_block(p, m, inertia):
     """Linearised dynamics of free-end mode m (cos(kappa (j - 1/2)), kappa = m pi / N), written from SPEC 1."""
     q = 2 * (1 - np.cos(np.pi * m / N))
-    A2 = np.array([[-p.k_ab - p.k2 - q * p.k_a, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.k_b]])
+    A2 = np.array([[-p.k_ab - p.k2 - q * p.ka_eff, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.kb_eff]])
     eta = np.array([p.eta_alpha, p.eta_beta])
     if not inertia:
         return A2 / eta[:, None]
