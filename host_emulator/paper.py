@@ -70,7 +70,7 @@ def _walls_item(fig, what, z_source, obs_list):
     hits = sum(z == z_source for z in zs)
     frac = hits / len(zs)
     lam = [o["pattern_wavelength_cells"] for o in obs_list]
-    ours = lam[0] if len(lam) == 1 else {"lambda_cells": lam, "fraction_selecting_source": frac}
+    ours = lam[0] if len(lam) == 1 else {"fraction_selecting_source": frac, "lambda_cells": lam}
     return Item(fig, what, 30 / z_source if z_source else None, ours, frac > 0.5,
                 note=f"domain walls {zs}; source Z = {z_source}")
 
