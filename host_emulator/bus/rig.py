@@ -75,6 +75,7 @@ class EmulatedRig:
         self.outbuf = ffi.new("char[]", 8192)
         self.replybuf = ffi.new("char[]", 4096)
         self.used = ffi.new("uint32_t *")
+        self._early = bytearray()     # frames drained while feeding input
         self.qa = ffi.new("mc_quad_snap_t *")
         self.qb = ffi.new("mc_quad_snap_t *")
         self.rng = random.Random(opts.seed)
@@ -183,18 +184,36 @@ class EmulatedRig:
                 return
 
     # ---- laptop side ---------------------------------------------------------
+    USB_CHUNK = 64   # bytes the primary takes from USB between two queue drains (one CDC packet)
+
     def feed(self, data: bytes) -> bytes:
-        """Bytes from the laptop at the current time; returns the SLCAN replies."""
+        """Bytes from the laptop at the current time; returns the SLCAN replies.
+
+        Taken one USB packet at a time with the queue drained in between, as the
+        firmware's loop does; the drained frames come out of the next drain()."""
         out = bytearray()
         while data:
-            n = self.lib.mc_link_rx(self.link, self.t_us & 0xFFFFFFFF, data, len(data), self.used,
+            piece = data[:self.USB_CHUNK]
+            n = self.lib.mc_link_rx(self.link, self.t_us & 0xFFFFFFFF, piece, len(piece), self.used,
                                     self.replybuf, len(self.replybuf))
             out += self.ffi.buffer(self.replybuf, n)
             data = data[self.used[0]:]
+            if len(data):
+                self._early += self._drain()
         return bytes(out)
+
+    def session(self):
+        """The host opened or closed the port: channel closed, stale frames and half line dropped."""
+        self._early.clear()
+        self.lib.mc_link_session(self.link)
 
     def drain(self) -> bytes:
         """SLCAN text of every queued frame (empty while the channel is closed)."""
+        out = bytes(self._early) + self._drain()
+        self._early.clear()
+        return out
+
+    def _drain(self) -> bytes:
         out = bytearray()
         while True:
             n = self.lib.mc_link_tx(self.link, self.t_us & 0xFFFFFFFF, self.outbuf, len(self.outbuf))
