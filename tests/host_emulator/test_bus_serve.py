@@ -115,6 +115,9 @@ def test_python_can_logger_records_the_emulator(server, tmp_path):
 
 @pytest.mark.parametrize("args,msg", [(["nosuchscene"], "unknown scene"), (["continuum_single"], "needs model"),
                                       (["default", "--speed", "0"], "--speed"),
+                                      (["default", "--speed", "nan"], "--speed"),
+                                      (["default", "--duration", "nan"], "--duration"),
+                                      (["default", "--period-us", "-1"], "--period-us"),
                                       (["default", "--stuck", "17"], "outside 1..16")])
 def test_serve_refuses_bad_arguments(args, msg):
     r = subprocess.run([sys.executable, "-m", "host_emulator", "serve", *args, "--slcan"], cwd=ROOT,
