@@ -107,3 +107,37 @@ def test_command_tool_bad_values_and_missing_port():
     r = subprocess.run([sys.executable, "-m", "tools.rigtools.command", "-c", "/dev/nonexistent-port@115200",
                         "enable", "3", "on"], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert r.returncode == 3 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_full_disk_ends_with_one_line_and_readable_files(tmp_path):
+    """A file size limit stands in for a full disk: exit 3, one line, ASC and CSV readable to the last record."""
+    import re
+    import time
+
+    link = tmp_path / "rig"
+    srv = subprocess.Popen([sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "60",
+                            "--link", str(link)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert re.match(r"slcan pty: (\S+)", srv.stdout.readline())
+
+        def limit():
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, 300_000))
+
+        t0 = time.monotonic()
+        r = subprocess.run([sys.executable, "-m", "tools.rigtools.logger", "-c", f"{link}@115200", "-o",
+                            str(tmp_path / "full"), "--formats", "asc", "--duration", "60"], cwd=ROOT,
+                           capture_output=True, text=True, timeout=90, preexec_fn=limit)
+        assert time.monotonic() - t0 < 60
+    finally:
+        srv.terminate()
+        srv.wait(15)
+    assert r.returncode == 3, r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith("logger: write failed") and "Traceback" not in r.stderr, r.stderr
+    asc = tmp_path / "full.asc"
+    assert asc.read_bytes().endswith(b"\n")
+    n = sum(1 for _ in can.ASCReader(str(asc)))
+    assert n > 1000
+    rows = read_rows(tmp_path / "full.csv")
+    assert len(rows) > 1000
