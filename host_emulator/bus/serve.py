@@ -163,7 +163,8 @@ def serve_main(argv=None) -> int:
     p = rig.p
     print(f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
           f"{sessions} client sessions, {dropped} bytes dropped (slow reader), {p.tx_drop} frames dropped "
-          f"(queue full), {p.no_room} commands answered NO_ROOM, {p.ans_drop} answers dropped", flush=True)
+          f"(queue full), {p.no_room} commands answered NO_ROOM, {p.ans_drop} answers dropped, "
+          f"{rig.band_stops} plant range stops reported as runaway faults", flush=True)
     return status
 
 

@@ -87,3 +87,16 @@ def test_open_drops_stale_frames_and_session_drops_the_half_line():
         text += rig.drain()
     assert (2, 8, R["OK"]) in results(text)
     assert rig.link.s.errors == 0
+
+
+def test_a_plant_range_stop_becomes_the_cells_runaway_fault():
+    """Drive a band past its physical range: the emulated rig runs on, the two cells report the runaway fault."""
+    rig, _ = make_rig("exp5_rest")
+    sol, lib = rig.solver, rig.lib
+    rig.advance_to(10_000)
+    sol.x[4] += 6.0                          # cell 5 alpha 6 rad from its neighbours: past the band stop (4.1 rad)
+    rig.advance_to(200_000)                  # would raise NumericalInstability without the stop
+    assert rig.band_stops >= 1
+    faults = [int(sol.cells[j].faults) for j in range(16)]
+    assert any(f & lib.MC_FAULT_RUNAWAY_A for f in faults[3:6])
+    assert all(abs(x) < 10 for x in sol.x)
