@@ -59,12 +59,15 @@ class SampleDecoder:
     the previous one by the host clock's elapsed time.
 
     `sink(rows)` receives finished rows in time order; without a sink they are kept in
-    `self.rows` (tests, small runs)."""
+    `self.rows` (tests, small runs). With hold=False (the default, for live use such as the
+    experiment runner) every row is finished at once and a heartbeat correction applies
+    from the next row on; the logger holds rows (hold=True)."""
 
     HOLD_ROWS = 8192          # rows held at most while waiting for a heartbeat
 
-    def __init__(self, n_cells: int = proto.N_CELLS, report=None, sink=None):
+    def __init__(self, n_cells: int = proto.N_CELLS, report=None, sink=None, hold: bool = False):
         self.n = n_cells
+        self.hold = hold
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.db = proto.database()
         self.rows = []          # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
@@ -83,6 +86,7 @@ class SampleDecoder:
 
     def _reset(self):
         self.u_last = None      # unwrapped time of the newest sample (128 us units)
+        self.t_raw = None       # its raw 16-bit time field
         self.u0 = None
         self.host0 = None       # host time of the segment's first sample
         self.host_hb = None     # host time of the newest heartbeat
@@ -135,9 +139,17 @@ class SampleDecoder:
         else:
             u = self.u_last + ((t128 - self.u_last) % T_WRAP)
         self.u_last = u
+        self.t_raw = t128
         self.held.append([j, int(seq) & 0xFF, u, float(host), alpha, beta, flags])
-        if len(self.held) >= self.HOLD_ROWS:
+        if not self.hold or len(self.held) >= self.HOLD_ROWS:
             self.flush()
+
+    @property
+    def t_s(self) -> float:
+        """t_s of the newest sample (primary clock, s)."""
+        if self.u_last is None:
+            return self.t_end
+        return self.t_base + (self.u_last - self.u0) * T128_S
 
     def heartbeat(self, uptime_ms: int, tx_drop: int = 0):
         """The primary's millisecond clock: confirm (or put right) the held rows' time base."""
@@ -171,22 +183,27 @@ class SampleDecoder:
                 steps.append((i, (seq - last[j][0]) % 256, u - last[j][1]))
             last[j] = (seq, u)
         if not steps:
+            if not evidence:
+                self.u_last += du     # nothing held: the rows from now on carry the correction
+                self.report(f"time base: {du * T128_S:.2f} s more elapsed than the frames' 8.4 s time field "
+                            "shows (from the next sample on)")
             return
         per = self.per
         if per is None:
             est = [dt / c for _, c, dt in steps if 1 <= c <= 3 and dt > 0]
             per = float(np.median(est)) if est else None
-        best, at = -1.0, steps[0][0]
+        scores = []
         for i, c, dt in steps:
             if per:
                 r = dt / per - c
-                score = abs(r - 256 * round(r / 256)) + 1e-9 * dt
+                scores.append((abs(r - 256 * round(r / 256)), i))
             else:
-                score = dt
-            if score > best:
-                best, at = score, i
+                scores.append((dt, i))
+        best = max(sc for sc, _ in scores)
         if evidence and (not per or best < 4):
             return     # the host clock alone is no proof (the rows may be an old backlog)
+        # every cell shows the jump at its first row after it: cut at the earliest of those
+        at = min(i for sc, i in scores if sc >= (max(4.0, best / 2) if per else best))
         for r in self.held[at:]:
             r[2] += du
         self.u_last += du
@@ -379,7 +396,7 @@ class RigLogger:
         self.first_frame_s, self.wait_open_s = first_frame_s, wait_open_s
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.csv = None
-        self.decoder = SampleDecoder(report=self.report)
+        self.decoder = SampleDecoder(report=self.report, hold=True)
         self.open_bus = open_bus or self._open
         self.frames = 0
         self.reconnects = 0
