@@ -51,12 +51,13 @@ def primary_stream(n_cycles, period_us, drop, n_cells=3, slot_us=500, hb_every_u
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.integers(5, 400), st.integers(1, 9000), st.integers(50, 400), st.sampled_from([2000, 9000, 12345]))
-def test_any_stall_length_keeps_time_and_cycles_in_order(k0, length, after, period_us):
+@given(st.integers(5, 400), st.integers(1, 9000), st.integers(50, 400), st.sampled_from([2000, 9000, 12345]),
+       st.integers(0, 300))
+def test_any_stall_length_keeps_time_and_cycles_in_order(k0, length, after, period_us, backlog):
     """Frames lost for 0.002..110 s (far beyond the 8-bit cycle and 16-bit time wraps): every sample keeps
     its true cycle and time, gaps report exactly the lost cycles, nothing is overwritten."""
     drop = set(range(k0, k0 + length))
-    msgs, truth = primary_stream(k0 + length + after, period_us, drop)
+    msgs, truth = primary_stream(k0 + length + after, period_us, drop, backlog=backlog)
     dec = SampleDecoder(n_cells=3, report=lambda t: None, hold=True)
     for m in msgs:
         dec.feed(m)

@@ -89,8 +89,8 @@ class SampleDecoder:
         self.t_raw = None       # its raw 16-bit time field
         self.u0 = None
         self.host0 = None       # host time of the segment's first sample
-        self.host_hb = None     # host time of the newest heartbeat
-        self.host_a = self.u_a = None
+        self.pending_hb = None  # (heartbeat time in 128 us units, host time) awaiting the next sample
+        self.off_min = None     # min(host - primary time) over confirmed samples, s
         self.hb_off = None      # unwrapped time - heartbeat time (128 us units)
         self.held = []          # [cell, seq, u, host, alpha, beta, flags]
         self.prev = [None] * self.n     # (cycle, u) of each cell's last row
@@ -126,8 +126,7 @@ class SampleDecoder:
                 return
             self.status[(kind, j)] = d
             if kind == "PRIMARY_STATUS":
-                self.host_hb = msg.timestamp
-                self.heartbeat(round(d["uptime_ms"] * 1000), d["tx_drop"])
+                self.heartbeat(round(d["uptime_ms"] * 1000), d["tx_drop"], msg.timestamp)
 
     def sample(self, j, seq, alpha, beta, t128, flags, host):
         t128 = int(t128) % T_WRAP
@@ -135,12 +134,14 @@ class SampleDecoder:
             u = t128
             self.u0 = u
             self.host0 = float(host)
-            self.host_a, self.u_a = self.host0, u
+            self.off_min = self.host0 - u * T128_S
         else:
             u = self.u_last + ((t128 - self.u_last) % T_WRAP)
         self.u_last = u
         self.t_raw = t128
         self.held.append([j, int(seq) & 0xFF, u, float(host), alpha, beta, flags])
+        if self.pending_hb is not None:
+            self._apply_hb()
         if not self.hold or len(self.held) >= self.HOLD_ROWS:
             self.flush()
 
@@ -151,20 +152,24 @@ class SampleDecoder:
             return self.t_end
         return self.t_base + (self.u_last - self.u0) * T128_S
 
-    def heartbeat(self, uptime_ms: int, tx_drop: int = 0):
-        """The primary's millisecond clock: confirm (or put right) the held rows' time base."""
+    def heartbeat(self, uptime_ms: int, tx_drop: int = 0, host: float | None = None):
+        """The primary's millisecond clock: confirms (or puts right) the held rows' time base at the
+        next sample (a heartbeat may be the first frame after a gap: its time is compared with the
+        sample that follows it, never with the one before)."""
         if tx_drop != self.tx_drop:
             if tx_drop > self.tx_drop:
                 self.report(f"primary: {tx_drop}{'+' if tx_drop == 255 else ''} frames dropped at its USB queue "
                             "(the reader fell behind)")
             self.tx_drop = tx_drop
-        if self.u_last is None:
-            return
-        hb = uptime_ms * 1000 / 128
+        self.pending_hb = (uptime_ms * 1000 / 128, host)
+
+    def _apply_hb(self):
+        hb, host = self.pending_hb
+        self.pending_hb = None
         if self.hb_off is None:
-            # first heartbeat of the segment: the host clock since the segment's first sample
+            # first heartbeat of the segment: the host clock since the last confirmed sample
             # tells the primary time elapsed (both frames read without a backlog)
-            self._host_check(self.host_hb)
+            self._host_check(host)
             self.hb_off = self.u_last - hb
         else:
             miss = round((hb + self.hb_off - self.u_last) / T_WRAP)
@@ -203,7 +208,7 @@ class SampleDecoder:
         if evidence and (not per or best < 4):
             return     # the host clock alone is no proof (the rows may be an old backlog)
         # every cell shows the jump at its first row after it: cut at the earliest of those
-        at = min(i for sc, i in scores if sc >= (max(4.0, best / 2) if per else best))
+        at = min(i for sc, i in scores if sc >= (min(best, max(4.0, best / 2)) if per else best))
         for r in self.held[at:]:
             r[2] += du
         self.u_last += du
@@ -211,10 +216,10 @@ class SampleDecoder:
                     f"(put right from the {'host' if evidence else 'primary heartbeat'} clock)")
 
     def _host_check(self, host_now):
-        """Whole wrap periods the held rows miss by the host clock since the last confirmed time."""
-        if self.host_a is None or host_now is None or self.u_last is None:
+        """Whole wrap periods the held rows miss by the host clock (anchored on the least-delayed sample)."""
+        if self.off_min is None or not host_now or self.u_last is None:
             return
-        miss = round(((host_now - self.host_a) / T128_S - (self.u_last - self.u_a)) / T_WRAP)
+        miss = round(((host_now - self.off_min) / T128_S - self.u_last) / T_WRAP)
         if miss > 0:
             self._rewrap(miss * T_WRAP, evidence=True)
 
@@ -262,11 +267,13 @@ class SampleDecoder:
                     self.report(f"gap: cell {j} lost {d - 1} sample(s) ({(u - pu) * T128_S:.3f} s) after cycle {pk} "
                                 f"(segment {self.segment})")
             self.prev[j - 1] = (k, u)
+            off = host - u * T128_S           # host clock minus primary clock (+ the read latency)
+            if self.off_min is None or off < self.off_min:
+                self.off_min = off            # the least-delayed confirmed sample anchors the host check
             self.k_ref = k if self.k_ref is None else max(self.k_ref, k)
             t_s = self.t_base + (u - self.u0) * T128_S
             out.append((self.segment, k, j, t_s, host, al, be, fl))
         self.held = []
-        self.host_a, self.u_a = host, u      # the newest confirmed (host, primary) time pair
         if out:
             self.t_end = out[-1][3]
             self.host_end = out[-1][4]
