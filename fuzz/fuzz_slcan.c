@@ -45,6 +45,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         n = mc_link_tx(&l, now, out, sizeof(out));
         check_output(out, n);
+        /* every owed command result keeps its queue slot */
+        if (mc_primary_qfree(&l.p) < l.p.inflight)
+            abort();
+        if (k < size && data[k] == 0x7F)
+            mc_link_session(&l);   /* a host session edge (DEL is never part of a valid line) */
     }
     /* every parsed frame round-trips through the encoder */
     mc_slcan_t s;

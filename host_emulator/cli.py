@@ -80,7 +80,13 @@ def cmd_run(args) -> int:
     except (ConfigError, KeyError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    from .limits import check_out_dir, check_run
+
     out = Path(args.out or Path("out") / scene.name)
+    problem = check_run(scene) or check_out_dir(out)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     try:
         from .trackers import LiveTracker
 
@@ -89,10 +95,12 @@ def cmd_run(args) -> int:
     except NumericalInstability as e:
         print(f"error: run stopped: {e}", file=sys.stderr)
         return 3
-    except (ConfigError, ValueError) as e:
+    except (ConfigError, ValueError, OverflowError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
+    except MemoryError as e:
+        print(f"error: run failed: out of memory ({e})", file=sys.stderr)
+        return 3
     summary = summarize(scene, res)
     np.savez_compressed(out / "trajectories.npz", t=res.t, alpha=res.alpha, beta=res.beta)
     files = [] if args.no_plots else plot_run(res, scene, out, inertia=summary["dispersion"]["inertia"]
@@ -135,6 +143,17 @@ def cmd_bench(args) -> int:
 
 
 def main(argv=None) -> int:
+    """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
+    try:
+        return _main(argv)
+    except BrokenPipeError:          # e.g. `dispersion --json | head`: the reader left, not an error
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+
+
+def _main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "dispersion":
         from .analysis.cli import dispersion_main
@@ -157,7 +176,8 @@ def main(argv=None) -> int:
 
         return bench_accuracy_main(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m host_emulator",
-                                 description="Host emulator of the robotic metamaterial (SPEC 1-2).")
+                                 description="Host emulator of the robotic metamaterial (SPEC 1-2).",
+                                 epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.")
     sub = ap.add_subparsers(dest="cmd", required=True)
     sub.add_parser("scenes", help="list the shipped scenes")
     r = sub.add_parser("run", help="run a scene (shipped name or .toml path)")

@@ -132,6 +132,7 @@ RESULTS = {
     "BUSY": 0x12,        # a command to this cell is still in flight
     "NO_CELL": 0x13,     # cell number outside 1..N_CELLS
     "BAD_FRAME": 0x14,   # CAN command frame malformed (dlc, reg)
+    "NO_ROOM": 0x15,     # the primary's outgoing queue had no room to take the command (resend later)
 }
 
 # ---------------------------------------------------------------------------
@@ -202,7 +203,7 @@ FRAMES = {
             ("uptime_ms", "u32", 1e-3, 0, "s", "primary clock (wraps after 49.7 days)"),
             ("cycles", "u16", 1, 0, "", "full polling cycles in the last second"),
             ("slcan_err", "u8", 1, 0, "", "malformed SLCAN lines (wraps)"),
-            ("tx_drop", "u8", 1, 0, "", "frames dropped because the USB queue was full (wraps)"),
+            ("tx_drop", "u8", 1, 0, "", "data frames dropped because the USB queue was full (saturates at 255)"),
         ],
     },
     "PRIMARY_REJECT": {

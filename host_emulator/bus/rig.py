@@ -21,6 +21,7 @@ import random
 from dataclasses import dataclass
 
 from .. import firmware
+from ..models.plant import NumericalInstability
 from .i2c import I2CTiming
 
 
@@ -75,6 +76,7 @@ class EmulatedRig:
         self.outbuf = ffi.new("char[]", 8192)
         self.replybuf = ffi.new("char[]", 4096)
         self.used = ffi.new("uint32_t *")
+        self._early = bytearray()     # frames drained while feeding input
         self.qa = ffi.new("mc_quad_snap_t *")
         self.qb = ffi.new("mc_quad_snap_t *")
         self.rng = random.Random(opts.seed)
@@ -84,6 +86,7 @@ class EmulatedRig:
         self.bus_free_us = 0          # when the primary may start its next transaction
         self.pending = []             # (time_us, kind, payload) of the transaction in flight
         self.ticks = 0
+        self.band_stops = 0           # plant range stops turned into runaway faults
         self.transactions = 0
         self.bus_busy_us = 0.0
 
@@ -103,9 +106,43 @@ class EmulatedRig:
         while ev and ev[0][0] <= self.solver.tick:
             _, j, ch, unm, nt = ev.pop(0)
             lib.mc_cell_perturb(self.solver.cells + j, ch, unm, nt)
-        self.solver._run(1)   # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
+        try:
+            self.solver._run(1)   # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
+        except NumericalInstability:
+            if not self._band_stop():
+                raise
+            self.solver._run(1)
         self.ticks += 1
         self.next_tick_us += self.tick_us
+
+    def _band_stop(self) -> bool:
+        """The plant left its physical range (a band stretched past the stop of its fit): on the rig
+        the cylinders hit that range and the cells' runaway check trips. Emulated as such: the pair
+        is put back just inside the range at rest, both cells latch MC_FAULT_RUNAWAY of that chain
+        (drives off until CLEAR_FAULTS), and the rig runs on. False if the cause was something else."""
+        lib, sol = self.lib, self.solver
+        plant = sol.h.plant
+        where = self.ffi.new("int *", -1)
+        n = self.n
+        hit = False
+        for _ in range(8 * n):       # each pass puts one pair back; neighbours may follow
+            if lib.he_plant_range_check(plant, sol._px, where) != lib.HE_ERR_BAND or where[0] < 0:
+                break
+            ch, j = divmod(where[0], n)
+            lim = (lib.HE_BAND_STOP_FACTOR * plant.delta_max[ch] - plant.delta0[ch]) / plant.lever[ch]
+            a, b = ch * n + j, ch * n + j + 1
+            mid, half = (sol.x[a] + sol.x[b]) / 2, 0.95 * lim / 2
+            d = 1.0 if sol.x[a] >= sol.x[b] else -1.0
+            sol.x[a], sol.x[b] = mid + d * half, mid - d * half
+            sol.v[a] = sol.v[b] = 0.0
+            bit = lib.MC_FAULT_RUNAWAY_A if ch == 0 else lib.MC_FAULT_RUNAWAY_B
+            for k in (j, j + 1):
+                sol.cells[k].faults |= bit
+            hit = True
+        if not hit or lib.he_plant_range_check(plant, sol._px, where) == lib.HE_ERR_BAND:
+            return False
+        self.band_stops += 1
+        return True
 
     def _on_request(self, j, nbytes):
         if self.published_tick[j] != self.ticks:
@@ -183,18 +220,36 @@ class EmulatedRig:
                 return
 
     # ---- laptop side ---------------------------------------------------------
+    USB_CHUNK = 64   # bytes the primary takes from USB between two queue drains (one CDC packet)
+
     def feed(self, data: bytes) -> bytes:
-        """Bytes from the laptop at the current time; returns the SLCAN replies."""
+        """Bytes from the laptop at the current time; returns the SLCAN replies.
+
+        Taken one USB packet at a time with the queue drained in between, as the
+        firmware's loop does; the drained frames come out of the next drain()."""
         out = bytearray()
         while data:
-            n = self.lib.mc_link_rx(self.link, self.t_us & 0xFFFFFFFF, data, len(data), self.used,
+            piece = data[:self.USB_CHUNK]
+            n = self.lib.mc_link_rx(self.link, self.t_us & 0xFFFFFFFF, piece, len(piece), self.used,
                                     self.replybuf, len(self.replybuf))
             out += self.ffi.buffer(self.replybuf, n)
             data = data[self.used[0]:]
+            if len(data):
+                self._early += self._drain()
         return bytes(out)
+
+    def session(self):
+        """The host opened or closed the port: channel closed, stale frames and half line dropped."""
+        self._early.clear()
+        self.lib.mc_link_session(self.link)
 
     def drain(self) -> bytes:
         """SLCAN text of every queued frame (empty while the channel is closed)."""
+        out = bytes(self._early) + self._drain()
+        self._early.clear()
+        return out
+
+    def _drain(self) -> bytes:
         out = bytearray()
         while True:
             n = self.lib.mc_link_tx(self.link, self.t_us & 0xFFFFFFFF, self.outbuf, len(self.outbuf))

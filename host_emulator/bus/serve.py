@@ -2,12 +2,19 @@
 
 The first output line is ``slcan pty: <path>``; point python-can at it with
 ``-i slcan -c <path>@115200``. Runs until interrupted (or --duration seconds).
+
+Sessions: a client's open and close of the pty are the emulated USB port's open and
+close (DTR): at each, the primary starts a new session (mc_link_session: channel
+closed, queued frames and any half line dropped) and the unread output is discarded,
+so a client that died without ``C`` leaves nothing stale for the next one.
+Exit codes: 0 ok, 2 bad arguments, 3 the run failed.
 """
 
 from __future__ import annotations
 
 import argparse
 import errno
+import math
 import os
 import signal
 import sys
@@ -52,17 +59,30 @@ def parser() -> argparse.ArgumentParser:
 
 
 def open_pty():
-    """(master fd, slave fd, slave path) of a raw pty; the slave stays open so clients may come and go."""
+    """(master fd, slave fd, slave path) of a raw pty. The caller closes the slave: with no
+    client holding it, reads of the master fail with EIO, which is how a client's close is seen."""
     master, slave = os.openpty()
     tty.setraw(slave)
     os.set_blocking(master, False)
     return master, slave, os.ttyname(slave)
 
 
+def check_args(args) -> str | None:
+    """The first problem with the numeric arguments, or None."""
+    if not (math.isfinite(args.speed) and 1e-3 <= args.speed <= 1e3):
+        return f"--speed must be a finite number in 0.001..1000, got {args.speed}"
+    if args.duration is not None and not (math.isfinite(args.duration) and 0 < args.duration <= 1e7):
+        return f"--duration must be a finite number of seconds in (0, 1e7], got {args.duration}"
+    if not 0 <= args.period_us <= 10_000_000:
+        return f"--period-us must be in 0..10000000 (the primary's range), got {args.period_us}"
+    return None
+
+
 def serve_main(argv=None) -> int:
     args = parser().parse_args(argv)
-    if args.speed <= 0:
-        print("serve: --speed must be > 0", file=sys.stderr)
+    problem = check_args(args)
+    if problem:
+        print(f"serve: {problem}", file=sys.stderr)
         return 2
     try:
         rig, scene = make_rig(args.scene, BusOptions(i2c_hz=args.i2c_hz, period_us=args.period_us,
@@ -72,6 +92,10 @@ def serve_main(argv=None) -> int:
         print(f"serve: {e}", file=sys.stderr)
         return 2
     master, slave, path = open_pty()
+    os.close(slave)
+    slave = None
+    client = False     # a client holds the pty open (reads of the master do not fail with EIO)
+    sessions = 0
     if args.link:
         try:
             os.unlink(args.link)
@@ -83,6 +107,7 @@ def serve_main(argv=None) -> int:
     status = 0
     stop = []
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
+    signal.signal(signal.SIGHUP, lambda *a: stop.append(1))
     backlog = bytearray()
     dropped = 0
     t0 = time.monotonic()
@@ -95,10 +120,17 @@ def serve_main(argv=None) -> int:
             rig.advance_to(sim_us)
             try:
                 data = os.read(master, 4096)
+                present = True
             except OSError as e:
                 if e.errno not in (errno.EAGAIN, errno.EIO):
                     raise
                 data = b""
+                present = e.errno == errno.EAGAIN
+            if present != client:      # a client opened or closed the port: new session
+                client = present
+                sessions += present
+                rig.session()
+                backlog.clear()
             if data:
                 backlog += rig.feed(data)
             out = rig.drain()
@@ -106,7 +138,7 @@ def serve_main(argv=None) -> int:
                 dropped += len(out)      # nobody reads: drop new output (gaps show in seq)
             else:
                 backlog += out
-            if backlog:
+            if backlog and client:
                 try:
                     n = os.write(master, backlog)
                     del backlog[:n]
@@ -120,7 +152,7 @@ def serve_main(argv=None) -> int:
         pass
     except NumericalInstability as e:
         print(f"serve: stopped at t = {sim_us / 1e6:.3f} s: {e}", file=sys.stderr, flush=True)
-        status = 1
+        status = 3
     finally:
         if args.link:
             try:
@@ -128,10 +160,11 @@ def serve_main(argv=None) -> int:
             except OSError:
                 pass
         os.close(master)
-        os.close(slave)
     p = rig.p
     print(f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
-          f"{dropped} bytes dropped (no reader)", flush=True)
+          f"{sessions} client sessions, {dropped} bytes dropped (slow reader), {p.tx_drop} frames dropped "
+          f"(queue full), {p.no_room} commands answered NO_ROOM, {p.ans_drop} answers dropped, "
+          f"{rig.band_stops} plant range stops reported as runaway faults", flush=True)
     return status
 
 

@@ -115,8 +115,35 @@ def test_python_can_logger_records_the_emulator(server, tmp_path):
 
 @pytest.mark.parametrize("args,msg", [(["nosuchscene"], "unknown scene"), (["continuum_single"], "needs model"),
                                       (["default", "--speed", "0"], "--speed"),
+                                      (["default", "--speed", "nan"], "--speed"),
+                                      (["default", "--duration", "nan"], "--duration"),
+                                      (["default", "--period-us", "-1"], "--period-us"),
                                       (["default", "--stuck", "17"], "outside 1..16")])
 def test_serve_refuses_bad_arguments(args, msg):
     r = subprocess.run([sys.executable, "-m", "host_emulator", "serve", *args, "--slcan"], cwd=ROOT,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and msg in r.stderr and "slcan pty" not in r.stdout
+
+
+def test_a_dead_client_leaves_nothing_stale(server):
+    """A client opens the channel, stops reading, dies mid-line without C: the next client gets only fresh
+    frames and its first command succeeds."""
+    import serial
+
+    dead = serial.Serial(server, 115200, timeout=0.1)
+    dead.write(b"O\r")
+    time.sleep(2.0)                               # frames pile up unread
+    dead.write(proto.cmd_frame_id(3).to_bytes(2, "big").hex().encode()[:3])   # half a line
+    dead.close()                                  # dies without C
+    time.sleep(0.5)
+    with can.Bus(interface="slcan", channel=f"{server}@115200", sleep_after_open=0.5) as bus:
+        first = collect(bus, 1.0)
+        samples = [m for m in first if proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE"]
+        assert len(samples) > 100
+        db = proto.database()
+        t0, t1 = (db.decode_message(m.arbitration_id, bytes(m.data))["t128"] for m in (samples[0], samples[-1]))
+        primary_span = (t1 - t0) % 8.388608
+        host_span = samples[-1].timestamp - samples[0].timestamp
+        # stale frames would span seconds of primary time read in a moment
+        assert primary_span < host_span + 0.5, (primary_span, host_span)
+        assert command(bus, 5, "ENABLE", 42, on=1) == "OK"

@@ -31,6 +31,7 @@ def test_gaps_match_the_dropped_samples(seq0, keep):
         dec.feed(sample_msg(1, seq0 + k, k, -k, t128=k * 70))
         if kept or k == len(keep) - 1:
             dec.feed(sample_msg(2, seq0 + k, 2 * k, 0, t128=k * 70 + 3))
+    dec.flush()   # rows wait for the next heartbeat (there is none here)
     got = [(g[1], g[2], g[3]) for g in dec.gaps]
     # reference: consecutive missing cycles of cell 2 between two kept samples
     present = [k for k, kept in enumerate(keep) if kept or k == len(keep) - 1]
@@ -105,7 +106,7 @@ def test_logger_survives_a_disconnect(tmp_path):
     log.run(duration=0.5)
     assert log.reconnects == 1 and len(opened) == 2
     assert any("connection lost" in m for m in msgs) and any("cannot open" in m for m in msgs)
-    arr = log.decoder.arrays()
+    arr = log.arrays
     assert set(arr["segment"]) == {0, 1}
     assert np.sum(~np.isnan(arr["alpha_counts"])) == 25 + 20
     assert (tmp_path / "r.asc").exists() and (tmp_path / "r.npz").exists()
@@ -138,7 +139,7 @@ def test_logger_end_to_end_on_virtual_bus_with_scheduled_command(tmp_path):
         th.join(2)
     assert [r for _, _, r in log.command_log] == [{4: "OK"}, {4: "RANGE"}]
     assert rig.solver.cells[3].enabled == 0
-    arr = log.decoder.arrays()
+    arr = log.arrays
     assert np.all(np.sum(~np.isnan(arr["alpha_counts"]), axis=0) > 10)
     assert (tmp_path / "v.csv").exists()
 
@@ -186,3 +187,36 @@ def test_command_tool_info_reads_identity_and_parameters(fw):
         assert info[j]["IDENT"]["addr"] == proto.cell_address(j)
         assert info[j]["IDENT"]["map_id"] == proto.map_id() == lib.MC_PROTO_MAP_ID
     assert (info[7]["PARAMS"]["k_ab"], info[8]["PARAMS"]["k_ab"]) == (31000, 20000)
+
+
+class LateBus(FlakyBus):
+    """Silent for `quiet` seconds after opening, then serves its frames."""
+
+    def __init__(self, frames, quiet):
+        super().__init__(frames, fail_at=-1)
+        self.t0, self.quiet = time.monotonic(), quiet
+
+    def recv(self, timeout=None):
+        if time.monotonic() - self.t0 < self.quiet:
+            time.sleep(0.01)
+            return None
+        return super().recv(timeout)
+
+
+def test_duration_counts_from_the_first_frame_and_sighup_stops_in_order(tmp_path):
+    import os
+    import signal
+
+    frames = [sample_msg(j, k, k, k, t128=k * 70) for k in range(200) for j in (1, 2)]
+    log = RigLogger("virtual", "x", tmp_path / "late", formats=("asc",), open_bus=lambda: LateBus(frames, 0.6),
+                    report=lambda t: None)
+    log.run(duration=0.3)                    # the 0.6 s of silence before the first frame do not count
+    assert np.sum(~np.isnan(log.arrays["alpha_counts"])) == 400
+    log2 = RigLogger("virtual", "x", tmp_path / "hup", formats=("asc",), open_bus=lambda: LateBus(frames, 0.0),
+                     report=lambda t: None)
+    threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGHUP)).start()
+    t0 = time.monotonic()
+    log2.run(duration=30)
+    assert time.monotonic() - t0 < 5 and log2.stop_reason == "SIGHUP"
+    assert np.sum(~np.isnan(log2.arrays["alpha_counts"])) == 400
+    assert (tmp_path / "hup.npz").exists() and (tmp_path / "hup.asc").read_text().endswith("\n")

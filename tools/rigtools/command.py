@@ -7,7 +7,8 @@
 
 A serial port has one reader: while the logger runs, schedule commands with its --do option.
 Every command waits for the primary's CMD_RESULT (the cell's verdict, or NACK/TIMEOUT/
-BUSY/...); the exit status is 0 only if every addressed cell answered OK.
+BUSY/NO_ROOM/...). Exit codes: 0 every addressed cell answered OK, 1 some cell answered
+otherwise (or not at all), 2 bad input, 3 the port could not be opened.
 """
 
 from __future__ import annotations
@@ -24,10 +25,13 @@ CTRL_RATE_HZ = 2000   # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
 
 
 def physical_to_wire(name: str, value: float) -> int:
-    """SI value (N*m/rad, rad for alpha_star) -> integer register value (uN*m/rad, urad)."""
+    """SI value (N*m/rad, rad for alpha_star) -> integer register value (uN*m/rad, urad), checked against int32."""
     if not math.isfinite(value):
         raise ValueError(f"{name}: not a finite number: {value}")
-    return round(value * 1e6)
+    w = round(value * 1e6)
+    if not -(2 ** 31) <= w < 2 ** 31:
+        raise ValueError(f"{name}: {value} does not fit the register (|value| < 2147 in SI units)")
+    return w
 
 
 class RigClient:
@@ -143,6 +147,8 @@ def build(args) -> tuple[str, dict]:
     if args.cmd == "set":
         return PARAM_REGS[args.name], {"value": physical_to_wire(args.name, args.value)}
     if args.cmd == "perturb":
+        if not (math.isfinite(args.torque) and math.isfinite(args.duration)):
+            raise ValueError(f"perturb: torque {args.torque} N*m and duration {args.duration} s must be finite")
         t4 = round(args.torque * 1e6 / 4)
         ticks = round(args.duration * CTRL_RATE_HZ)
         if not -32768 <= t4 <= 32767 or not 0 < ticks <= 65535:
@@ -169,10 +175,19 @@ def main(argv=None) -> int:
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    import can
+    if not (math.isfinite(args.timeout) and 0 < args.timeout <= 3600):
+        print(f"error: --timeout must be in (0, 3600] s, got {args.timeout}", file=sys.stderr)
+        return 2
+    from .slcanbus import open_bus
 
+    try:
+        bus = open_bus(args.interface, args.channel)
+    except Exception as e:   # python-can and pyserial raise several types
+        text = str(e).splitlines()[0] if str(e) else type(e).__name__
+        print(f"error: cannot open {args.channel}: {text}", file=sys.stderr)
+        return 3
     if args.cmd == "info":
-        with can.Bus(interface=args.interface, channel=args.channel) as bus:
+        with bus:
             info = RigClient(bus, args.timeout).info(args.cells)
         ok = True
         for j in sorted(info):
@@ -188,7 +203,7 @@ def main(argv=None) -> int:
                   f"N*m/rad, alpha* {p['astar'] * 1e-6:g} rad, pwm limit {p['pwm_limit']}")
             ok = ok and i["map_id"] == proto.map_id()
         return 0 if ok else 1
-    with can.Bus(interface=args.interface, channel=args.channel) as bus:
+    with bus:
         res = RigClient(bus, args.timeout).command(args.cells, reg, **values)
     for j in sorted(res):
         print(f"cell {j:2d}: {reg} -> {res[j]}")

@@ -4,15 +4,24 @@
     python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
 
 Writes <out>.<fmt> for every python-can format asked for (asc blf csv db log trc txt),
-<out>.npz (arrays, see docs/datapath.md) and <out>.csv (one row per cell sample).
-Every gap in a cell's sequence counter is reported on stderr as it happens and kept in
-the NPZ; a lost connection is reported, retried every second, and logged as a new segment.
+<out>.csv (one row per cell sample, streamed to disk in chunks while logging) and, at the
+end, <out>.npz (cycle x cell arrays, see docs/datapath.md). Every gap in a cell's
+sequence counter is reported on stderr with its length as it happens and kept in the NPZ;
+a link silent for more than a second is reported; a lost connection is reported, retried
+every second, and logged as a new segment. --duration counts from the first frame.
+
+Ctrl-C, SIGTERM and SIGHUP end the run in order (files complete, exit 0); a full disk
+ends it with a one-line error and files readable up to the last complete record.
+Exit codes: 0 ok, 2 bad input (arguments, output path), 3 run failed (port cannot be
+opened, no frame arrives, write error).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -23,37 +32,79 @@ from . import proto
 
 RAD_PER_COUNT = 2 * math.pi / 400
 T128_S = 128e-6
+T_WRAP = 1 << 16            # the frames' time field wraps every 65536 x 128 us = 8.39 s
+CSV_HEADER = "segment,cycle,cell,t_s,host_time,alpha_counts,beta_counts,flags\n"
+TEXT_FORMATS = ("asc", "csv", "log", "txt", "trc")
+
+
+class RunFailed(Exception):
+    """The run could not go on (exit 3); the message is one line."""
 
 
 class SampleDecoder:
     """CELL_SAMPLE frames -> per-cycle rows; gaps from the per-cell sequence counters.
 
-    All cells' counters advance once per poll cycle, so an 8-bit seq names the cycle
-    modulo 256; it is unwrapped against the newest cycle seen (frames arrive in order,
-    within +-128 cycles of each other). A reconnect starts a new segment."""
+    Time: every sample carries the primary's microsecond clock in 128 us units, modulo
+    2^16 (8.39 s). Frames arrive in order, so each sample's time is unwrapped forward
+    from the previous one (never backwards). A gap longer than 8.39 s (a stalled reader
+    whose frames were dropped) would be ambiguous from that field alone: the primary's
+    heartbeat (PRIMARY_STATUS, once a second) carries its 32-bit millisecond clock, and
+    decoded rows are held until the next heartbeat confirms their time base; a mismatch
+    of whole wrap periods is put right at the largest time step among the held rows.
 
-    def __init__(self, n_cells: int = proto.N_CELLS, report=None):
+    Cycles: a cell's 8-bit sequence counter names its poll cycle modulo 256; the number
+    of cycles between two samples of a cell is unwrapped with the elapsed (unwrapped)
+    time over the measured cycle period, so no stall length can make a cycle number
+    repeat or go backwards. A reconnect starts a new segment, whose time continues from
+    the previous one by the host clock's elapsed time.
+
+    `sink(rows)` receives finished rows in time order; without a sink they are kept in
+    `self.rows` (tests, small runs). With hold=False (the default, for live use such as the
+    experiment runner) every row is finished at once and a heartbeat correction applies
+    from the next row on; the logger holds rows (hold=True)."""
+
+    HOLD_ROWS = 8192          # rows held at most while waiting for a heartbeat
+
+    def __init__(self, n_cells: int = proto.N_CELLS, report=None, sink=None, hold: bool = False):
         self.n = n_cells
+        self.hold = hold
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.db = proto.database()
-        self.base = proto.FRAMES["CELL_SAMPLE"]["base"]
-        self.rows = []          # (segment, cycle, cell, t_s, host, alpha, beta, flags)
+        self.rows = []          # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
+        self.sink = sink or self.rows.extend
         self.gaps = []          # (segment, cell, first missing cycle, missing count)
         self.status = {}        # (frame kind, cell) -> last decoded dict
         self.events = []        # (host time, text)
         self.segment = 0
+        self.n_rows = 0
+        self.t_end = 0.0        # t_s of the last row
+        self.host_end = None    # host time of the last row
+        self.t_base = 0.0       # t_s of the segment's time zero
+        self.per = None         # cycle period (128 us units), measured
+        self.tx_drop = 0
         self._reset()
 
     def _reset(self):
-        self.k_last = None
-        self.prev = [None] * self.n
-        self.t_raw = None
-        self.t_s = 0.0
+        self.u_last = None      # unwrapped time of the newest sample (128 us units)
+        self.t_raw = None       # its raw 16-bit time field
+        self.u0 = None
+        self.host0 = None       # host time of the segment's first sample
+        self.pending_hb = None  # (heartbeat time in 128 us units, host time) awaiting the next sample
+        self.off_min = None     # min(host - primary time) over confirmed samples, s
+        self.hb_off = None      # unwrapped time - heartbeat time (128 us units)
+        self.held = []          # [cell, seq, u, host, alpha, beta, flags]
+        self.prev = [None] * self.n     # (cycle, u) of each cell's last row
+        self.k_ref = None
 
     def new_segment(self, host: float, why: str):
+        self.finish()
         self.events.append((host, why))
         self.report(f"segment {self.segment + 1}: {why}")
         self.segment += 1
+        if self.host_end is not None:
+            self.t_base = self.t_end + max(0.0, host - self.host_end)
+        else:
+            self.t_base = self.t_end
         self._reset()
 
     def feed(self, msg) -> None:
@@ -61,54 +112,178 @@ class SampleDecoder:
         if kind == "UNKNOWN" or msg.is_extended_id or msg.is_remote_frame:
             return
         if kind == "CELL_SAMPLE":
-            d = self.db.decode_message(msg.arbitration_id, bytes(msg.data))
+            try:
+                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data))
+            except Exception as e:
+                self.report(f"undecodable CELL_SAMPLE frame 0x{msg.arbitration_id:03X}: {e}")
+                return
             self.sample(j, d["seq"], d["alpha"], d["beta"], round(d["t128"] / T128_S), d["flags"], msg.timestamp)
         elif kind in ("CELL_STATUS", "CELL_LINK", "PRIMARY_STATUS", "PRIMARY_REJECT", "CMD_RESULT"):
             try:
-                self.status[(kind, j)] = self.db.decode_message(msg.arbitration_id, bytes(msg.data))
+                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data))
             except Exception as e:   # wrong length etc.: keep going, say so
                 self.report(f"undecodable {kind} frame 0x{msg.arbitration_id:03X}: {e}")
+                return
+            self.status[(kind, j)] = d
+            if kind == "PRIMARY_STATUS":
+                self.heartbeat(round(d["uptime_ms"] * 1000), d["tx_drop"], msg.timestamp)
 
     def sample(self, j, seq, alpha, beta, t128, flags, host):
-        if self.k_last is None:
-            k = seq
-            self.k_last = k
+        t128 = int(t128) % T_WRAP
+        if self.u_last is None:
+            u = t128
+            self.u0 = u
+            self.host0 = float(host)
+            self.off_min = self.host0 - u * T128_S
         else:
-            k = self.k_last + ((seq - self.k_last + 128) % 256) - 128
-            self.k_last = max(self.k_last, k)
-        if self.t_raw is not None:
-            self.t_s += (((t128 - self.t_raw + 32768) % 65536) - 32768) * T128_S
+            u = self.u_last + ((t128 - self.u_last) % T_WRAP)
+        self.u_last = u
         self.t_raw = t128
-        prev = self.prev[j - 1]
-        if prev is not None and k > prev + 1:
-            self.gaps.append((self.segment, j, prev + 1, k - prev - 1))
-            self.report(f"gap: cell {j} lost {k - prev - 1} sample(s) after cycle {prev} (segment {self.segment})")
-        elif prev is not None and k <= prev:
-            self.report(f"cell {j}: cycle {k} after {prev} (duplicate or reordered frame)")
-        self.prev[j - 1] = k
-        self.rows.append((self.segment, k, j, self.t_s, host, alpha, beta, flags))
+        self.held.append([j, int(seq) & 0xFF, u, float(host), alpha, beta, flags])
+        if self.pending_hb is not None:
+            self._apply_hb()
+        if not self.hold or len(self.held) >= self.HOLD_ROWS:
+            self.flush()
+
+    @property
+    def t_s(self) -> float:
+        """t_s of the newest sample (primary clock, s)."""
+        if self.u_last is None:
+            return self.t_end
+        return self.t_base + (self.u_last - self.u0) * T128_S
+
+    def heartbeat(self, uptime_ms: int, tx_drop: int = 0, host: float | None = None):
+        """The primary's millisecond clock: confirms (or puts right) the held rows' time base at the
+        next sample (a heartbeat may be the first frame after a gap: its time is compared with the
+        sample that follows it, never with the one before)."""
+        if tx_drop != self.tx_drop:
+            if tx_drop > self.tx_drop:
+                self.report(f"primary: {tx_drop}{'+' if tx_drop == 255 else ''} frames dropped at its USB queue "
+                            "(the reader fell behind)")
+            self.tx_drop = tx_drop
+        self.pending_hb = (uptime_ms * 1000 / 128, host)
+
+    def _apply_hb(self):
+        hb, host = self.pending_hb
+        self.pending_hb = None
+        if self.hb_off is None:
+            # first heartbeat of the segment: the host clock since the last confirmed sample
+            # tells the primary time elapsed (both frames read without a backlog)
+            self._host_check(host)
+            self.hb_off = self.u_last - hb
+        else:
+            miss = round((hb + self.hb_off - self.u_last) / T_WRAP)
+            if miss > 0:
+                self._rewrap(miss * T_WRAP)
+        self.flush()
+
+    def _rewrap(self, du: int, evidence: bool = False):
+        """Add du to every held row from the one where the frames were lost: the row whose cell's
+        cycle-counter step fits its time step worst (a lost wrap shows there as a cycle step that
+        the time step does not explain); the largest time step if that is ambiguous."""
+        last = {j + 1: (p[0] & 0xFF, p[1]) for j, p in enumerate(self.prev) if p is not None}
+        steps = []       # (row index, cycle step modulo 256, time step) per held row
+        for i, (j, seq, u, *_rest) in enumerate(self.held):
+            if j in last:
+                steps.append((i, (seq - last[j][0]) % 256, u - last[j][1]))
+            last[j] = (seq, u)
+        if not steps:
+            if not evidence:
+                self.u_last += du     # nothing held: the rows from now on carry the correction
+                self.report(f"time base: {du * T128_S:.2f} s more elapsed than the frames' 8.4 s time field "
+                            "shows (from the next sample on)")
+            return
+        per = self.per
+        if per is None:
+            est = [dt / c for _, c, dt in steps if 1 <= c <= 3 and dt > 0]
+            per = float(np.median(est)) if est else None
+        scores = []
+        for i, c, dt in steps:
+            if per:
+                r = dt / per - c
+                scores.append((abs(r - 256 * round(r / 256)), i))
+            else:
+                scores.append((dt, i))
+        best = max(sc for sc, _ in scores)
+        if evidence and (not per or best < 4):
+            return     # the host clock alone is no proof (the rows may be an old backlog)
+        # every cell shows the jump at its first row after it: cut at the earliest of those
+        at = min(i for sc, i in scores if sc >= (min(best, max(4.0, best / 2)) if per else best))
+        for r in self.held[at:]:
+            r[2] += du
+        self.u_last += du
+        self.report(f"time base: {du * T128_S:.2f} s more elapsed in a gap than the frames' 8.4 s time field shows "
+                    f"(put right from the {'host' if evidence else 'primary heartbeat'} clock)")
+
+    def _host_check(self, host_now):
+        """Whole wrap periods the held rows miss by the host clock (anchored on the least-delayed sample)."""
+        if self.off_min is None or not host_now or self.u_last is None:
+            return
+        miss = round(((host_now - self.off_min) / T128_S - self.u_last) / T_WRAP)
+        if miss > 0:
+            self._rewrap(miss * T_WRAP, evidence=True)
+
+    def finish(self):
+        """End of the stream: rows after the last heartbeat are checked against the host clock, then flushed."""
+        if self.held:
+            self._host_check(self.held[-1][3])
+        self.flush()
+
+    def prev_u_any(self):
+        us = [p[1] for p in self.prev if p is not None]
+        return max(us) if us else None
+
+    def flush(self):
+        """Assign cycles to the held rows, report gaps, hand the rows to the sink."""
+        if not self.held:
+            return
+        out = []
+        for j, seq, u, host, al, be, fl in self.held:
+            prev = self.prev[j - 1]
+            if prev is None:
+                if self.k_ref is None:
+                    k = seq
+                else:
+                    k = self.k_ref + ((seq - self.k_ref + 128) % 256) - 128
+            else:
+                pk, pu = prev
+                base = (seq - pk) % 256
+                if self.per:
+                    m = max(0, round(((u - pu) / self.per - base) / 256))
+                else:
+                    m = 0
+                d = base + 256 * m
+                if d == 0 and u > pu:
+                    d = 256       # time went on: a whole wrap of the counter, not a repeat
+                if d == 0:
+                    self.report(f"cell {j}: cycle {pk} again (duplicate frame), skipped")
+                    continue
+                if d <= 3 and u > pu:
+                    per = (u - pu) / d
+                    self.per = per if self.per is None else 0.9 * self.per + 0.1 * per
+                k = pk + d
+                if d > 1:
+                    self.gaps.append((self.segment, j, pk + 1, d - 1))
+                    self.report(f"gap: cell {j} lost {d - 1} sample(s) ({(u - pu) * T128_S:.3f} s) after cycle {pk} "
+                                f"(segment {self.segment})")
+            self.prev[j - 1] = (k, u)
+            off = host - u * T128_S           # host clock minus primary clock (+ the read latency)
+            if self.off_min is None or off < self.off_min:
+                self.off_min = off            # the least-delayed confirmed sample anchors the host check
+            self.k_ref = k if self.k_ref is None else max(self.k_ref, k)
+            t_s = self.t_base + (u - self.u0) * T128_S
+            out.append((self.segment, k, j, t_s, host, al, be, fl))
+        self.held = []
+        if out:
+            self.t_end = out[-1][3]
+            self.host_end = out[-1][4]
+            self.n_rows += len(out)
+            self.sink(out)
 
     def arrays(self) -> dict:
-        """Cycle x cell arrays (NaN / -1 where a cell has no sample)."""
-        if not self.rows:
-            keys = np.zeros((0, 2), dtype=np.int64)
-        else:
-            keys = np.unique(np.array([(r[0], r[1]) for r in self.rows], dtype=np.int64), axis=0)
-        index = {(int(s), int(k)): i for i, (s, k) in enumerate(keys)}
-        m = len(keys)
-        shape = (m, self.n)
-        a = np.full(shape, np.nan)
-        b = np.full(shape, np.nan)
-        t = np.full(shape, np.nan)
-        h = np.full(shape, np.nan)
-        fl = np.full(shape, -1, dtype=np.int16)
-        for seg, k, j, ts, host, al, be, f in self.rows:
-            i = index[(seg, k)]
-            a[i, j - 1], b[i, j - 1], t[i, j - 1], h[i, j - 1], fl[i, j - 1] = al, be, ts, host, f
-        return {"segment": keys[:, 0], "cycle": keys[:, 1], "cells": np.arange(1, self.n + 1),
-                "t_s": t, "host_time": h, "alpha_counts": a, "beta_counts": b,
-                "alpha_rad": a * RAD_PER_COUNT, "beta_rad": b * RAD_PER_COUNT, "flags": fl,
-                "gaps": np.array(self.gaps, dtype=np.int64).reshape(-1, 4)}
+        """Cycle x cell arrays (NaN / -1 where a cell has no sample) of the rows kept in memory."""
+        self.finish()
+        return rows_to_arrays(np.array(self.rows, dtype=np.float64).reshape(-1, 8), self.n, self.gaps)
 
     def save(self, prefix: Path) -> list[Path]:
         prefix = Path(prefix)
@@ -118,49 +293,147 @@ class SampleDecoder:
         np.savez_compressed(npz, **arr)
         csv = prefix.with_suffix(".csv")
         with open(csv, "w") as f:
-            f.write("segment,cycle,cell,t_s,host_time,alpha_counts,beta_counts,flags\n")
-            for seg, k, j, ts, host, al, be, fl in self.rows:
-                f.write(f"{seg},{k},{j},{ts:.6f},{host:.6f},{al},{be},{fl}\n")
+            f.write(CSV_HEADER)
+            f.write(format_rows(self.rows))
         return [npz, csv]
 
 
+def format_rows(rows) -> str:
+    return "".join(f"{seg},{k},{j},{ts:.6f},{host:.6f},{al},{be},{fl}\n" for seg, k, j, ts, host, al, be, fl in rows)
+
+
+def rows_to_arrays(rows: np.ndarray, n: int, gaps) -> dict:
+    """Cycle x cell arrays from an (m, 8) row table (segment, cycle, cell, t_s, host, alpha, beta, flags)."""
+    seg_cyc = rows[:, :2].astype(np.int64)
+    keys, inv = np.unique(seg_cyc, axis=0, return_inverse=True) if len(rows) else (np.zeros((0, 2), np.int64), None)
+    m = len(keys)
+    a = np.full((m, n), np.nan)
+    b = np.full((m, n), np.nan)
+    t = np.full((m, n), np.nan)
+    h = np.full((m, n), np.nan)
+    fl = np.full((m, n), -1, dtype=np.int16)
+    if len(rows):
+        inv = inv.reshape(-1)
+        col = rows[:, 2].astype(np.int64) - 1
+        a[inv, col], b[inv, col], t[inv, col], h[inv, col] = rows[:, 5], rows[:, 6], rows[:, 3], rows[:, 4]
+        fl[inv, col] = rows[:, 7].astype(np.int16)
+    return {"segment": keys[:, 0], "cycle": keys[:, 1], "cells": np.arange(1, n + 1),
+            "t_s": t, "host_time": h, "alpha_counts": a, "beta_counts": b,
+            "alpha_rad": a * RAD_PER_COUNT, "beta_rad": b * RAD_PER_COUNT, "flags": fl,
+            "gaps": np.array(gaps, dtype=np.int64).reshape(-1, 4)}
+
+
+class CsvChunks:
+    """Rows streamed to <out>.csv in chunks: memory stays bounded, a crash loses at most the last chunk."""
+
+    CHUNK = 2048
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.f = open(path, "w")
+        self.f.write(CSV_HEADER)
+        self.f.flush()
+        self.buf = []
+
+    def __call__(self, rows):
+        self.buf.extend(rows)
+        if len(self.buf) >= self.CHUNK:
+            self.write()
+
+    def write(self):
+        if self.buf:
+            text = format_rows(self.buf)
+            self.buf = []
+            self.f.write(text)
+            self.f.flush()
+
+    def close(self):
+        try:
+            self.write()
+        finally:
+            try:
+                self.f.close()
+            except OSError:
+                pass
+
+
+def read_rows(csv: Path) -> np.ndarray:
+    """The row table of a streamed CSV (complete lines only)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rows = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+    return rows.reshape(-1, 8)
+
+
+def truncate_to_last_line(path: Path) -> None:
+    """Cut a text log after its last complete line (a write error may leave half a line)."""
+    try:
+        size = path.stat().st_size
+        with open(path, "rb+") as f:
+            back = min(size, 4096)
+            while back:
+                f.seek(size - back)
+                tail = f.read(back)
+                i = tail.rfind(b"\n")
+                if i >= 0:
+                    f.truncate(size - back + i + 1)
+                    return
+                if back == size:
+                    break
+                back = min(size, back * 2)
+            f.truncate(0)
+    except OSError:
+        pass
+
+
 class RigLogger:
-    """Receive loop with python-can writers, decoding and reconnect."""
+    """Receive loop with python-can writers, decoding, chunked CSV and reconnect."""
+
+    SILENT_S = 1.0
 
     def __init__(self, interface: str, channel: str, prefix: Path, formats=("asc",), bitrate=None,
-                 reconnect_s: float = 1.0, give_up_s: float | None = None, report=None, open_bus=None):
+                 reconnect_s: float = 1.0, give_up_s: float | None = None, report=None, open_bus=None,
+                 first_frame_s: float = 30.0, wait_open_s: float = 0.0):
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
         self.prefix = Path(prefix)
         self.formats = [f.strip().lstrip(".") for f in formats if f.strip()]
         self.reconnect_s, self.give_up_s = reconnect_s, give_up_s
+        self.first_frame_s, self.wait_open_s = first_frame_s, wait_open_s
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
-        self.decoder = SampleDecoder(report=self.report)
+        self.csv = None
+        self.decoder = SampleDecoder(report=self.report, hold=True)
         self.open_bus = open_bus or self._open
         self.frames = 0
         self.reconnects = 0
         self.corrupt = 0
-        self.commands = []       # (seconds after start, command-tool arguments)
+        self.commands = []       # (seconds after the first frame, command-tool arguments)
         self.command_log = []
+        self.stop_reason = None  # set by a signal handler
+        self.error = None
 
     def _open(self):
-        import can
+        from .slcanbus import open_bus
 
-        kw = {"interface": self.interface, "channel": self.channel}
-        if self.bitrate:
-            kw["bitrate"] = self.bitrate
-        return can.Bus(**kw)
+        if self.interface == "slcan" and self.bitrate:
+            import can
+            return can.Bus(interface="slcan", channel=self.channel, bitrate=self.bitrate)
+        return open_bus(self.interface, self.channel)
 
-    def _connect(self, deadline):
-        first = time.time()
+    def _connect(self, deadline, first: bool):
+        t0 = time.time()
+        limit = self.wait_open_s if first else self.give_up_s
         while True:
             try:
                 return self.open_bus()
             except Exception as e:   # python-can and pyserial raise several types
-                if self.give_up_s is not None and time.time() - first > self.give_up_s:
-                    raise
-                if deadline is not None and time.time() >= deadline:
+                text = str(e).splitlines()[0] if str(e) else type(e).__name__
+                if limit is not None and time.time() - t0 >= limit:
+                    raise RunFailed(f"cannot open {self.channel}: {text}") from None
+                if (deadline is not None and time.time() >= deadline) or self.stop_reason:
                     return None
-                self.report(f"cannot open {self.channel}: {e}; retrying in {self.reconnect_s} s")
+                self.report(f"cannot open {self.channel}: {text}; retrying in {self.reconnect_s} s")
                 time.sleep(self.reconnect_s)
 
     def _take(self, msg, writers):
@@ -182,17 +455,40 @@ class RigLogger:
             self.command_log.append((t, text, res))
             self.report(f"t={t:g} s: {text} -> " + ", ".join(f"{j}:{r}" for j, r in sorted(res.items())))
 
+    def _on_signal(self, signum, frame):
+        self.stop_reason = signal.Signals(signum).name
+
     def run(self, duration: float | None = None) -> int:
         import can
 
         self.prefix.parent.mkdir(parents=True, exist_ok=True)
-        writers = [can.Logger(str(self.prefix.with_suffix("." + f))) for f in self.formats]
-        deadline = None if duration is None else time.time() + duration
-        bus = self._connect(deadline)
-        t_start = time.time()
+        self.csv = CsvChunks(self.prefix.with_suffix(".csv"))
+        self.decoder.sink = self.csv
+        writers = []
+        old = {}
+        for s in (signal.SIGTERM, signal.SIGHUP):
+            try:
+                old[s] = signal.signal(s, self._on_signal)
+            except ValueError:   # not the main thread (tests): no handlers
+                pass
+        bus = None
         try:
-            while bus is not None and (deadline is None or time.time() < deadline):
-                self._due_commands(bus, writers, t_start)
+            writers = [can.Logger(str(self.prefix.with_suffix("." + f))) for f in self.formats if f != "csv"]
+            started = time.time()
+            bus = self._connect(None if duration is None else started + duration + self.first_frame_s, True)
+            t_first = None
+            deadline = None
+            last_rx = time.time()
+            silent = False
+            while bus is not None and not self.stop_reason:
+                now = time.time()
+                if deadline is not None and now >= deadline:
+                    break
+                if t_first is None and self.first_frame_s is not None and now - started > self.first_frame_s:
+                    raise RunFailed(f"no frame from {self.channel} in {self.first_frame_s:g} s "
+                                    "(is the primary connected and the channel right?)")
+                if t_first is not None:
+                    self._due_commands(bus, writers, t_first)
                 try:
                     msg = bus.recv(timeout=0.2)
                 except ValueError as e:
@@ -202,63 +498,160 @@ class RigLogger:
                     continue
                 except Exception as e:
                     lost = time.time()
-                    self.report(f"connection lost: {e}")
+                    self.report(f"connection lost: {str(e).splitlines()[0] if str(e) else type(e).__name__}")
                     try:
                         bus.shutdown()
                     except Exception:
                         pass
-                    bus = self._connect(deadline)
+                    bus = self._connect(deadline, False)
                     if bus is None:
                         break
                     self.reconnects += 1
                     self.decoder.new_segment(time.time(), f"reconnected after {time.time() - lost:.1f} s "
                                                           "(samples in between are lost)")
+                    last_rx = time.time()
                     continue
-                if msg is not None:
-                    self._take(msg, writers)
+                now = time.time()
+                if msg is None:
+                    if not silent and now - last_rx > self.SILENT_S and t_first is not None:
+                        silent = True
+                        self.report(f"link silent for {now - last_rx:.1f} s")
+                    continue
+                if silent:
+                    self.report(f"link back after {now - last_rx:.1f} s of silence")
+                    silent = False
+                last_rx = now
+                if t_first is None:
+                    t_first = now
+                    if duration is not None:
+                        deadline = t_first + duration
+                self._take(msg, writers)
         except KeyboardInterrupt:
-            pass
+            self.stop_reason = "SIGINT"
+        except OSError as e:     # a write failed: full disk, quota, file size limit
+            self.error = f"write failed: {e.strerror or e}"
         finally:
+            for s, h in old.items():
+                signal.signal(s, h)
             if bus is not None:
-                bus.shutdown()
-            for w in writers:
-                w.stop()
-        self.decoder.save(self.prefix)
+                try:
+                    bus.shutdown()
+                except Exception:
+                    pass
+            self._close(writers)
+        if self.error:
+            raise RunFailed(self.error + "; files kept up to the last complete record")
         return self.frames
+
+    def _close(self, writers):
+        try:
+            self.decoder.finish()
+            self.csv.close()
+        except OSError as e:
+            self.error = self.error or f"write failed: {e.strerror or e}"
+            self.csv.buf = []
+            try:
+                self.csv.f.close()
+            except OSError:
+                pass
+        for w in writers:
+            try:
+                w.stop()
+            except Exception as e:
+                self.error = self.error or f"write failed: {e}"
+        for f in self.formats + ["csv"]:
+            if f in TEXT_FORMATS:
+                p = self.prefix.with_suffix("." + f)
+                if p.exists():
+                    truncate_to_last_line(p)
+        try:
+            self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n,
+                                         self.decoder.gaps)
+            np.savez_compressed(self.prefix.with_suffix(".npz"), **self.arrays)
+        except OSError as e:
+            self.error = self.error or f"write failed: {e.strerror or e}"
+
+
+def check_out(prefix: Path, formats) -> str | None:
+    """Why the output prefix cannot be written, or None (creates its directory)."""
+    if prefix.name in ("", ".", ".."):
+        return f"--out {prefix}: needs a file name prefix, e.g. out/run1"
+    try:
+        prefix.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return f"--out {prefix}: cannot create {prefix.parent}: {e.strerror or e}"
+    for f in list(formats) + ["csv", "npz"]:
+        p = prefix.with_suffix("." + f)
+        if p.is_dir():
+            return f"--out {prefix}: {p} is a directory"
+    if not os.access(prefix.parent, os.W_OK):
+        return f"--out {prefix}: {prefix.parent} is not writable"
+    return None
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.rigtools.logger", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.rigtools.logger", description=__doc__.split("\n\n")[0],
+                                 epilog="Exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
+                                        "3 run failed (port, no frames, write error).")
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
     ap.add_argument("-c", "--channel", required=True, help="e.g. /dev/ttyACM0@115200 or <pty>@115200")
     ap.add_argument("-o", "--out", required=True, help="output prefix, e.g. out/run1")
     ap.add_argument("--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)")
     ap.add_argument("--bitrate", type=int, default=None, help="CAN bit rate sent as Sn (ignored by the primary)")
-    ap.add_argument("--duration", type=float, default=None, help="seconds to log (default: until Ctrl-C)")
+    ap.add_argument("--duration", type=float, default=None, help="seconds to log from the first frame (default: until Ctrl-C)")
     ap.add_argument("--give-up", type=float, default=None, help="stop retrying a lost connection after this many s")
+    ap.add_argument("--wait-open", type=float, default=0.0, help="keep trying to open the port this many s at start")
+    ap.add_argument("--first-frame", type=float, default=30.0, help="fail if no frame arrives in this many s")
     ap.add_argument("--do", action="append", default=[], metavar="T:COMMAND",
-                    help='run a command-tool command T s after start through the same port, '
+                    help='run a command-tool command T s after the first frame through the same port, '
                          'e.g. --do "2:perturb 8 --torque 0.02 --duration 0.1"')
     args = ap.parse_args(argv)
-    log = RigLogger(args.interface, args.channel, Path(args.out), args.formats.split(","), args.bitrate,
-                    give_up_s=args.give_up)
+
+    def bad(text):
+        print(f"logger: {text}", file=sys.stderr)
+        return 2
+
+    for name in ("duration", "give_up", "wait_open", "first_frame"):
+        v = getattr(args, name)
+        if v is not None and not (math.isfinite(v) and 0 <= v <= 1e7 and (v > 0 or name == "wait_open")):
+            return bad(f"--{name.replace('_', '-')} must be a finite number of seconds in (0, 1e7], got {v}")
+    if args.bitrate is not None and not 1 <= args.bitrate <= 1_000_000:
+        return bad(f"--bitrate must be in 1..1000000, got {args.bitrate}")
+    formats = [f.strip().lstrip(".") for f in args.formats.split(",") if f.strip()]
+    known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
+    if not formats or any(f not in known for f in formats):
+        return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
+    problem = check_out(Path(args.out), formats)
+    if problem:
+        return bad(problem)
+    log = RigLogger(args.interface, args.channel, Path(args.out), formats, args.bitrate,
+                    give_up_s=args.give_up, first_frame_s=args.first_frame, wait_open_s=args.wait_open)
     from .command import build, parser
     for item in args.do:
         t, sep, text = item.partition(":")
         try:
-            build(parser().parse_args(["-c", "-"] + text.split()))
-            log.commands.append((float(t), text))
-        except (ValueError, SystemExit):
-            print(f"error: --do {item!r}: expected T:COMMAND with a valid command", file=sys.stderr)
-            return 2
+            tt = float(t)
+            if not (sep and math.isfinite(tt) and tt >= 0):
+                raise ValueError(f"time {t!r}")
+            a = parser().parse_args(["-c", "-"] + text.split())
+            build(a)
+            log.commands.append((tt, text))
+        except (ValueError, SystemExit) as e:
+            return bad(f"--do {item!r}: expected T:COMMAND with a valid command ({e})")
     log.commands.sort()
-    n = log.run(args.duration)
-    arr = log.decoder.arrays()
+    try:
+        n = log.run(args.duration)
+    except RunFailed as e:
+        print(f"logger: {e}", file=sys.stderr)
+        return 3
+    arr = log.arrays
     per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0)
     lost = int(arr["gaps"][:, 3].sum()) if len(arr["gaps"]) else 0
+    why = f"; stopped by {log.stop_reason}" if log.stop_reason else ""
     print(f"{n} frames; samples per cell min {per_cell.min() if len(per_cell) else 0} max "
           f"{per_cell.max() if len(per_cell) else 0}; {len(arr['gaps'])} gaps ({lost} samples lost); "
-          f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; wrote {args.out}.npz/.csv and {args.formats}")
+          f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; wrote {args.out}.npz/.csv and "
+          f"{','.join(formats)}{why}")
     return 0
 
 

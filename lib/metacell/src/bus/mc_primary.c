@@ -47,19 +47,37 @@ uint32_t mc_primary_ms(mc_primary_t *p, uint32_t now_us)
     return p->ms;
 }
 
-static void push(mc_primary_t *p, uint32_t id, uint8_t dlc, const uint8_t *d)
+uint32_t mc_primary_qfree(const mc_primary_t *p)
+{
+    return (uint32_t)((p->q_tail - p->q_head - 1u) & QMASK);
+}
+
+static void wide_inc(uint32_t *c)
+{
+    if (*c != 0xFFFFFFFFu)
+        (*c)++;
+}
+
+/* Queue a frame; the caller has checked the room. */
+static void put(mc_primary_t *p, uint32_t id, uint8_t dlc, const uint8_t *d)
 {
     uint8_t nh = (uint8_t)((p->q_head + 1u) & QMASK);
-    if (nh == p->q_tail) {
-        p->tx_drop++;
-        return;
-    }
     mc_can_frame_t *f = &p->q[p->q_head];
     f->id = id;
     f->dlc = dlc;
     for (uint32_t k = 0; k < 8; k++)
         f->data[k] = k < dlc ? d[k] : 0;
     p->q_head = nh;
+}
+
+/* A data frame (sample, status, link, heartbeat, block): only above the reserve. */
+static void push(mc_primary_t *p, uint32_t id, uint8_t dlc, const uint8_t *d)
+{
+    if (mc_primary_qfree(p) <= MC_PRIMARY_QRESERVE) {
+        wide_inc(&p->tx_drop);
+        return;
+    }
+    put(p, id, dlc, d);
 }
 
 int mc_primary_pop(mc_primary_t *p, mc_can_frame_t *f)
@@ -71,15 +89,47 @@ int mc_primary_pop(mc_primary_t *p, mc_can_frame_t *f)
     return 1;
 }
 
-static void report(mc_primary_t *p, uint32_t j, uint8_t reg, uint8_t lseq, uint8_t result,
-                   uint8_t tries)
+static void result_frame(mc_primary_t *p, uint32_t j, uint8_t reg, uint8_t lseq, uint8_t result,
+                         uint8_t tries)
 {
     uint8_t d[MC_CAN_CMD_RESULT_DLC];
     d[MC_CAN_CMD_RESULT_REG] = reg;
     d[MC_CAN_CMD_RESULT_SEQ] = lseq;
     d[MC_CAN_CMD_RESULT_RESULT] = result;
     d[MC_CAN_CMD_RESULT_RETRIES] = tries;
-    push(p, MC_CAN_CMD_RESULT + j, MC_CAN_CMD_RESULT_DLC, d);
+    put(p, MC_CAN_CMD_RESULT + j, MC_CAN_CMD_RESULT_DLC, d);
+}
+
+/* The result of an accepted command: its slot was kept when it was accepted. */
+static void report(mc_primary_t *p, uint32_t j, uint8_t reg, uint8_t lseq, uint8_t result,
+                   uint8_t tries)
+{
+    if (p->inflight)
+        p->inflight--;
+    if (mc_primary_qfree(p) == 0) {   /* cannot happen while the invariant holds */
+        wide_inc(&p->ans_drop);
+        return;
+    }
+    result_frame(p, j, reg, lseq, result, tries);
+}
+
+/* Room for an immediate answer (or an acceptance) that keeps a slot for every owed result? */
+static int answer_room(const mc_primary_t *p, uint32_t extra)
+{
+    return mc_primary_qfree(p) >= (uint32_t)p->inflight + 1u + extra;
+}
+
+/* An immediate answer to a command frame: itself if it fits, else NO_ROOM, else counted. */
+static void answer(mc_primary_t *p, uint32_t j, uint8_t reg, uint8_t lseq, uint8_t result)
+{
+    if (answer_room(p, 1)) {
+        result_frame(p, j, reg, lseq, result, 0);
+    } else if (answer_room(p, 0)) {
+        wide_inc(&p->no_room);
+        result_frame(p, j, reg, lseq, MC_RES_NO_ROOM, 0);
+    } else {
+        wide_inc(&p->ans_drop);
+    }
 }
 
 static void reject(mc_primary_t *p, uint8_t reason, const mc_can_frame_t *f)
@@ -90,7 +140,10 @@ static void reject(mc_primary_t *p, uint8_t reason, const mc_can_frame_t *f)
     mc_put_u32(d + MC_CAN_PRIMARY_REJECT_BAD_ID, f->id);
     d[MC_CAN_PRIMARY_REJECT_BAD_DLC] = f->dlc;
     mc_put_u16(d + MC_CAN_PRIMARY_REJECT_COUNT, p->reject_count);
-    push(p, MC_CAN_PRIMARY_REJECT, MC_CAN_PRIMARY_REJECT_DLC, d);
+    if (answer_room(p, 0))
+        put(p, MC_CAN_PRIMARY_REJECT, MC_CAN_PRIMARY_REJECT_DLC, d);
+    else
+        wide_inc(&p->ans_drop);
 }
 
 static void emit_status(mc_primary_t *p, uint32_t i)
@@ -150,11 +203,14 @@ void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f
         res = MC_RES_RANGE;
     else if (c->cmd_state != MC_CMD_IDLE)
         res = MC_RES_BUSY;
+    else if (!answer_room(p, 1))
+        res = MC_RES_NO_ROOM;   /* accepting would leave no slot for its result */
     if (res) {
         p->reject_count++;
-        report(p, j, reg, lseq, res, 0);
+        answer(p, j, reg, lseq, res);
         return;
     }
+    p->inflight++;
     c->cmd_reg = reg;
     c->cmd_lseq = lseq;
     c->cmd_len = (uint8_t)plen;
@@ -205,6 +261,15 @@ static void block_done(mc_primary_t *p, mc_pcell_t *c, uint32_t j, int status, c
         cmd_failed(p, c, j, MC_RES_CRC);
         return;
     }
+    uint32_t chunks = 0;
+    for (uint32_t off = 0; off < (uint32_t)n; off += 7)
+        chunks++;
+    if (mc_primary_qfree(p) < chunks + p->inflight) {
+        report(p, j, c->cmd_reg, c->cmd_lseq, MC_RES_NO_ROOM, c->cmd_tries);   /* no room for the chunks */
+        wide_inc(&p->no_room);
+        c->cmd_state = MC_CMD_IDLE;
+        return;
+    }
     /* chunk k carries bytes 7k .. 7k+6: k = 0, 1, ... while 7k < n (no division) */
     uint32_t k = 0;
     for (uint32_t off = 0; off < (uint32_t)n; off += 7, k++) {
@@ -212,7 +277,7 @@ static void block_done(mc_primary_t *p, mc_pcell_t *c, uint32_t j, int status, c
         d[MC_CAN_BLOCK_DATA_PART] = (uint8_t)((blk << 4) | k);
         for (uint32_t b = 0; b < 7; b++)
             d[MC_CAN_BLOCK_DATA_CHUNK + b] = off + b < (uint32_t)n ? rx[off + b] : 0;
-        push(p, MC_CAN_BLOCK_DATA + j, MC_CAN_BLOCK_DATA_DLC, d);
+        put(p, MC_CAN_BLOCK_DATA + j, MC_CAN_BLOCK_DATA_DLC, d);
     }
     report(p, j, c->cmd_reg, c->cmd_lseq, MC_RES_OK, c->cmd_tries);
     c->cmd_state = MC_CMD_IDLE;
@@ -227,7 +292,7 @@ static void heartbeat(mc_primary_t *p)
     mc_put_u32(d + MC_CAN_PRIMARY_STATUS_UPTIME_MS, p->ms);
     mc_put_u16(d + MC_CAN_PRIMARY_STATUS_CYCLES, p->cycles_window);
     d[MC_CAN_PRIMARY_STATUS_SLCAN_ERR] = (uint8_t)p->slcan_err;
-    d[MC_CAN_PRIMARY_STATUS_TX_DROP] = p->tx_drop;
+    d[MC_CAN_PRIMARY_STATUS_TX_DROP] = (uint8_t)(p->tx_drop > 255u ? 255u : p->tx_drop);
     push(p, MC_CAN_PRIMARY_STATUS, MC_CAN_PRIMARY_STATUS_DLC, d);
     p->cycles_window = 0;
 }
@@ -415,6 +480,24 @@ void mc_primary_complete(mc_primary_t *p, uint32_t now, int status, const uint8_
     }
 }
 
+/* Drop every queued frame (counted in stale_drop): they were meant for an earlier client. */
+static void drop_queue(mc_primary_t *p)
+{
+    while (p->q_tail != p->q_head) {
+        p->q_tail = (uint8_t)((p->q_tail + 1u) & QMASK);
+        wide_inc(&p->stale_drop);
+    }
+}
+
+void mc_link_session(mc_link_t *l)
+{
+    l->s.open = 0;
+    l->s.listen_only = 0;
+    l->s.len = 0;
+    l->s.bad = 0;
+    drop_queue(&l->p);
+}
+
 void mc_link_init(mc_link_t *l, uint32_t now_us)
 {
     mc_primary_init(&l->p, now_us);
@@ -428,7 +511,10 @@ uint32_t mc_link_rx(mc_link_t *l, uint32_t now_us, const uint8_t *in, uint32_t n
     for (; k < n && cap - o >= MC_SLCAN_REPLY_MAX; k++) {
         mc_can_frame_t f;
         char reply[MC_SLCAN_REPLY_MAX];
+        uint8_t was_open = l->s.open;
         int ev = mc_slcan_rx(&l->s, in[k], &f, reply);
+        if (l->s.open && !was_open)
+            drop_queue(&l->p);   /* frames queued before the open are stale */
         if (ev == MC_SLCAN_EV_FRAME)
             mc_primary_can_rx(&l->p, now_us, &f);
         for (uint32_t r = 0; reply[r]; r++)

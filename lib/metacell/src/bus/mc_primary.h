@@ -29,7 +29,25 @@
  * pointer write is followed at once by the block read (before any other transaction),
  * the block is checked (length, tag, address, CRC) and sent as BLOCK_DATA frames.
  */
-#define MC_PRIMARY_QLEN 64        /* outgoing CAN frames */
+#define MC_PRIMARY_QLEN 128       /* outgoing CAN frames (power of two, <= 128) */
+/*
+ * Queue room: sample, status, link, heartbeat and block frames are queued only
+ * while more than MC_PRIMARY_QRESERVE slots are free; the reserve belongs to
+ * command answers. A command is accepted (or answered BUSY/RANGE/...) only if the
+ * queue keeps a slot for every result still owed plus this answer; otherwise it
+ * is answered NO_ROOM; and only when not even that fits is the answer dropped,
+ * counted in ans_drop. So the result of an accepted command is never dropped.
+ * Dropped data frames count in tx_drop (32-bit; the heartbeat carries it
+ * saturated at 255).
+ *
+ * Sessions: the channel opens with O/L and closes with C. When the parser opens
+ * the channel, frames still queued (stale, from before the open) are dropped.
+ * mc_link_session() starts a new host session: it closes the channel and drops
+ * the queued frames and any half-received line; the glue calls it whenever the
+ * host opens or closes the port (USB DTR edge), the emulator when its pty's
+ * client comes or goes, so a client that died without C leaves nothing behind.
+ */
+#define MC_PRIMARY_QRESERVE (MC_N_CELLS + 2)
 
 enum { MC_TXN_READ = 0, MC_TXN_WRITE = 1 };
 enum {
@@ -89,7 +107,11 @@ typedef struct {
     /* outgoing frames */
     mc_can_frame_t q[MC_PRIMARY_QLEN];
     uint8_t q_head, q_tail;
-    uint8_t tx_drop;
+    uint8_t inflight;         /* accepted commands whose result is still owed */
+    uint32_t tx_drop;         /* data frames dropped for want of queue room */
+    uint32_t no_room;         /* commands answered NO_ROOM */
+    uint32_t ans_drop;        /* command answers dropped (queue full even for NO_ROOM) */
+    uint32_t stale_drop;      /* queued frames dropped at a channel open or a new session */
     uint16_t slcan_err;       /* copied in by the link */
 } mc_primary_t;
 
@@ -124,5 +146,10 @@ uint32_t mc_link_rx(mc_link_t *l, uint32_t now_us, const uint8_t *in, uint32_t n
 /* Encode queued frames into out (whole lines only); with the channel closed the
  * queue is emptied without output. Returns the byte count. */
 uint32_t mc_link_tx(mc_link_t *l, uint32_t now_us, char *out, uint32_t cap);
+/* A new host session (port opened or closed by the host): channel closed, queued
+ * frames and any half-received line dropped. */
+void mc_link_session(mc_link_t *l);
+/* Free slots in the outgoing queue. */
+uint32_t mc_primary_qfree(const mc_primary_t *p);
 
 #endif /* MC_PRIMARY_H */

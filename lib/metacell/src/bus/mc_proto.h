@@ -6,7 +6,7 @@
 
 /* All multi-byte fields little-endian. See docs/datapath.md. */
 #define MC_PROTO_VERSION 1
-#define MC_PROTO_MAP_ID 0xAF87
+#define MC_PROTO_MAP_ID 0x9D2E
 #define MC_N_CELLS 16
 #define MC_ADDR_BASE 0x10   /* cell j at MC_ADDR_BASE + j - 1 */
 #define MC_CRC8_POLY 0x07
@@ -131,6 +131,7 @@
 #define MC_RES_BUSY 0x12
 #define MC_RES_NO_CELL 0x13
 #define MC_RES_BAD_FRAME 0x14
+#define MC_RES_NO_ROOM 0x15
 
 /* ---- CAN frames (11-bit ids; per-cell frames at base + j, j = 1..16) ---- */
 /* CELL_SAMPLE: one snapshot of cell j, sent for every successful poll */
