@@ -24,7 +24,7 @@ LIB_SRC = ROOT / "lib" / "metacell" / "src"
 HOST_CSRC = Path(__file__).resolve().parent / "csrc"
 BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
 
-CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fno-strict-aliasing"]
+CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-fno-strict-aliasing"]
 
 _lock = threading.Lock()
 _cache: dict[str, object] = {}

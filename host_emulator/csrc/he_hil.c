@@ -2,6 +2,7 @@
 #include <math.h>
 #include "he_hil.h"
 #include "he_step.h"
+#include "he_step_more.h"
 
 static const uint8_t gray_ab[4] = {0u, 1u, 3u, 2u};
 
@@ -25,7 +26,7 @@ static double gauss(he_hil_t *h)
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
-int32_t he_encoder_feed(he_hil_t *h, int i, double theta)
+static inline int32_t encoder_feed(he_hil_t *h, int i, double theta)
 {
     double c = theta * h->counts_per_rad;
     if (h->jitter_counts > 0.0)
@@ -34,7 +35,10 @@ int32_t he_encoder_feed(he_hil_t *h, int i, double theta)
         c = 2.0e9;
     if (c < -2.0e9)
         c = -2.0e9;
-    int32_t target = (int32_t)floor(c);
+    /* floor(c) for |c| <= 2e9 (c finite: the plant step checked the state): the truncation, one less
+     * when that rounded a negative fraction up; the same integer as floor(), without the libm call */
+    int32_t target = (int32_t)c;
+    target -= (double)target > c;
     int32_t cur = h->count[i];
     mc_quad_t *q = &h->quad[i];
     while (cur != target) {           /* one Gray step per count */
@@ -51,6 +55,8 @@ int32_t he_encoder_feed(he_hil_t *h, int i, double theta)
     return cur;
 }
 
+int32_t he_encoder_feed(he_hil_t *h, int i, double theta) { return encoder_feed(h, i, theta); }
+
 void he_hil_sync_encoders(he_hil_t *h, const double *x)
 {
     for (int i = 0; i < 2 * h->n; i++) {
@@ -61,6 +67,75 @@ void he_hil_sync_encoders(he_hil_t *h, const double *x)
     }
 }
 
+/* ---- fast path of the plant step (bit-identical to he_advance for the configuration it accepts) ----
+ * The hil default runs one symplectic-Euler step per control tick on the cubic small-angle bands with no
+ * floating-point reaction. he_advance recomputes per step what a tick holds fixed (Kt V, and
+ * 1 + h C / I with C = eta + m/S_L: three divisions per cylinder) and makes five passes over the state
+ * (forces, bonds, update, flush, checks). plant_step_fast does the same arithmetic, in the same order on
+ * the same operands, in one pass per chain with the per-tick terms cached. Any other configuration, and
+ * every step during which a perturbation is on, goes through he_advance. */
+static int fast_ok(const he_plant_t *p, int stepper)
+{
+    return stepper == HE_STEP_SYMPLECTIC && p->inertia && p->bands == HE_BANDS_CUBIC
+        && p->beta_geometry == HE_BETA_SMALL && p->reaction == HE_REACT_NONE && p->n >= 1
+        && p->n <= HE_MAX_CELLS;
+}
+
+static int pert_active(const he_plant_t *p, double t)
+{
+    for (int i = 0; i < p->npert; i++)
+        if (t >= p->pert[i].t0 && t < p->pert[i].t1)
+            return 1;
+    return 0;
+}
+
+static inline double band_g(const double *c, int slack_f0, double d)
+{
+    if (d > 0.0)
+        return c[0] + d * (c[1] + d * (c[2] + d * c[3]));
+    return slack_f0 ? c[0] : 0.0;
+}
+
+/* One step of size dt; mv = Kt V and den = 1 + dt C / I per cylinder (as he_plant_forces / he_advance form
+ * them). HE_OK or the code he_advance would return. */
+static int plant_step_fast(const he_plant_t *p, double dt, const double *mv, const double *den,
+                           double *x, double *v)
+{
+    int n = p->n, ok = 1, band_ok = 1;
+    for (int ch = 0; ch < 2; ch++) {
+        const double *c = p->coef[ch], *ks = p->kscale[ch];
+        const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale, I = p->I[ch];
+        const double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
+        const int sf = p->slack_f0;
+        double *xc = x + ch * n, *vc = v + ch * n;
+        const double *mvc = mv + ch * n, *denc = den + ch * n;
+        double tprev = 0.0;
+        for (int j = 0; j < n; j++) {
+            double F = mvc[j];                     /* Fc[j] = Kt V */
+            if (j > 0)
+                F += tprev;                        /* Fc[j] += T(j-1, j) */
+            if (j + 1 < n) {
+                double u = L * (xc[j] - xc[j + 1]);
+                double T = ks[j] * bs * L * (band_g(c, sf, d0 + u) - band_g(c, sf, d0 - u));
+                F -= T;                            /* Fc[j] -= T(j, j+1) */
+                tprev = T;
+            }
+            double vj = (vc[j] + dt * F / I) / denc[j];
+            double xj = xc[j] + dt * vj;
+            xj = fabs(xj) < HE_TINY_RAD ? 0.0 : xj;
+            vj = fabs(vj) < HE_TINY_RAD ? 0.0 : vj;
+            xc[j] = xj;
+            vc[j] = vj;
+            ok &= (fabs(xj) <= HE_ANGLE_LIMIT_RAD) & (fabs(vj) <= HE_SPEED_LIMIT_RAD_S);
+            if (j > 0)
+                band_ok &= !(d0 + L * fabs(xc[j - 1] - xj) > lim);
+        }
+    }
+    if (!ok)
+        return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
+    return band_ok ? HE_OK : HE_ERR_BAND;
+}
+
 int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
 {
     he_plant_t *p = h->plant;
@@ -69,6 +144,9 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
         return HE_ERR_ARG;
     double dt = h->tick_s / h->substeps;
     double t0 = *t;
+    int fast = fast_ok(p, h->stepper);
+    double mv[fast ? 2 * n : 1], den[fast ? 2 * n : 1];
+    const double mdiv = h->kt / p->speed_const;          /* m / S_L of a driving motor */
     for (int64_t k = 0; k < n_ticks; k++) {
         for (int j = 0; j < n; j++) {
             mc_quad_snap_t sa, sb;
@@ -98,16 +176,34 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
                 }
             }
         }
+        if (fast) {
+            for (int ch = 0; ch < 2; ch++) {
+                const double I = p->I[ch];
+                for (int j = 0; j < n; j++) {
+                    double m = p->mgain[ch][j];
+                    /* as he_plant_forces: F = m V, C = eta + m / S_L; as he_advance: 1 + h C / I */
+                    double C = p->eta[ch][j] + (m == h->kt ? mdiv : m / p->speed_const);
+                    mv[ch * n + j] = m * p->volt[ch][j];
+                    den[ch * n + j] = 1.0 + dt * C / I;
+                }
+            }
+        }
         double tk = t0 + (double)k * h->tick_s;
         for (int s = 0; s < h->substeps; s++) {
             double ts = tk + (double)s * dt;
-            int rc = he_advance(p, h->stepper, dt, 1, &ts, x, v);
+            int rc;
+            if (fast && !pert_active(p, ts + HE_STAGE_EDGE * dt)) {
+                rc = plant_step_fast(p, dt, mv, den, x, v);
+                ts = ts + (double)1 * dt;
+            } else {
+                rc = he_advance(p, h->stepper, dt, 1, &ts, x, v);
+            }
             if (rc != HE_OK) {
                 *t = ts;
                 return rc;
             }
             for (int i = 0; i < 2 * n; i++)
-                he_encoder_feed(h, i, x[i]);
+                encoder_feed(h, i, x[i]);
         }
         h->ticks++;
     }
