@@ -24,7 +24,12 @@ LIB_SRC = ROOT / "lib" / "metacell" / "src"
 HOST_CSRC = Path(__file__).resolve().parent / "csrc"
 BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
 
-CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-fno-strict-aliasing"]
+# Speed flags keep every float bit: no -ffast-math, no -march (FMA would fuse a*b+c), and -ffp-contract=off
+# so no compiler ever contracts; -fvisibility=hidden and -flto let the tick inline the firmware's small calls
+# (cffi reaches the functions from inside the module; only the module's init symbol is exported).
+CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-fvisibility=hidden", "-flto", "-Wall", "-Wextra", "-Werror",
+          "-fno-strict-aliasing"]
+LDFLAGS = ["-O3", "-flto", "-ffp-contract=off"]
 
 _lock = threading.Lock()
 _cache: dict[str, object] = {}
@@ -52,7 +57,7 @@ def _digest(paths: list[Path]) -> str:
     for p in paths:
         h.update(str(p.relative_to(ROOT)).encode())
         h.update(p.read_bytes())
-    h.update(" ".join(CFLAGS).encode())
+    h.update(" ".join(CFLAGS + LDFLAGS).encode())
     h.update(sys.version.encode())
     return h.hexdigest()[:16]
 
@@ -115,6 +120,7 @@ def _build(srcs: list[Path], key: str):
             sources=[str(s) for s in srcs],
             include_dirs=[str(LIB_SRC), str(HOST_CSRC)],
             extra_compile_args=CFLAGS,
+            extra_link_args=LDFLAGS,
         )
         tmp = Path(tempfile.mkdtemp(prefix="mcfw-", dir=BUILD_DIR.parent if BUILD_DIR.parent.exists() else None))
         try:

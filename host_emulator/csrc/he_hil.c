@@ -57,6 +57,12 @@ static inline int32_t encoder_feed(he_hil_t *h, int i, double theta)
 
 int32_t he_encoder_feed(he_hil_t *h, int i, double theta) { return encoder_feed(h, i, theta); }
 
+void he_hil_volt_table(double *tab, int32_t top, double supply_v)
+{
+    for (int32_t d = 0; d <= top; d++)
+        tab[d] = (double)d / (double)top * supply_v;
+}
+
 void he_hil_sync_encoders(he_hil_t *h, const double *x)
 {
     for (int i = 0; i < 2 * h->n; i++) {
@@ -145,8 +151,17 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
     double dt = h->tick_s / h->substeps;
     double t0 = *t;
     int fast = fast_ok(p, h->stepper);
-    double mv[fast ? 2 * n : 1], den[fast ? 2 * n : 1];
-    const double mdiv = h->kt / p->speed_const;          /* m / S_L of a driving motor */
+    int n2f = fast ? 2 * n : 1;
+    double mv[n2f], den[n2f], den_on[n2f], den_off[n2f];
+    if (fast) {
+        /* 1 + h C / I with C = eta + m / S_L (he_plant_forces, he_advance) for m = Kt (driving) and m = 0
+         * (coasting): the only two values a tick can give, so no division per tick is left for them */
+        for (int ch = 0; ch < 2; ch++)
+            for (int j = 0; j < n; j++) {
+                den_on[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + h->kt / p->speed_const) / p->I[ch];
+                den_off[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + 0.0 / p->speed_const) / p->I[ch];
+            }
+    }
     for (int64_t k = 0; k < n_ticks; k++) {
         for (int j = 0; j < n; j++) {
             mc_quad_snap_t sa, sb;
@@ -165,26 +180,27 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
             h->fault_or |= mc_cell_tick(c, &sa, &sb);
             for (int ch = 0; ch < 2; ch++) {
                 const mc_drive_out_t *o = &c->out[ch];
+                int i = ch * n + j;
                 if (o->enable) {
-                    /* V = +-duty/top * Vs, held over the tick */
-                    double vlt = (double)o->duty / (double)c->drive.pwm_top * h->supply_v;
-                    p->volt[ch][j] = o->dir ? vlt : -vlt;
+                    /* V = +-duty/top * Vs, held over the tick (the table holds the same quotients) */
+                    int32_t top = c->drive.pwm_top;
+                    double vlt = (h->volt_tab && top == h->volt_tab_top && o->duty <= top)
+                                     ? h->volt_tab[o->duty]
+                                     : (double)o->duty / (double)top * h->supply_v;
+                    double vs = o->dir ? vlt : -vlt;
+                    p->volt[ch][j] = vs;
                     p->mgain[ch][j] = h->kt;
+                    if (fast) {
+                        mv[i] = h->kt * vs;            /* F = m V (he_plant_forces) */
+                        den[i] = den_on[i];
+                    }
                 } else {
                     p->volt[ch][j] = 0.0;
                     p->mgain[ch][j] = 0.0;
-                }
-            }
-        }
-        if (fast) {
-            for (int ch = 0; ch < 2; ch++) {
-                const double I = p->I[ch];
-                for (int j = 0; j < n; j++) {
-                    double m = p->mgain[ch][j];
-                    /* as he_plant_forces: F = m V, C = eta + m / S_L; as he_advance: 1 + h C / I */
-                    double C = p->eta[ch][j] + (m == h->kt ? mdiv : m / p->speed_const);
-                    mv[ch * n + j] = m * p->volt[ch][j];
-                    den[ch * n + j] = 1.0 + dt * C / I;
+                    if (fast) {
+                        mv[i] = 0.0 * 0.0;
+                        den[i] = den_off[i];
+                    }
                 }
             }
         }
