@@ -27,9 +27,9 @@ BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
 # Speed flags keep every float bit: no -ffast-math, no -march (FMA would fuse a*b+c), and -ffp-contract=off
 # so no compiler ever contracts; -fvisibility=hidden and -flto let the tick inline the firmware's small calls
 # (cffi reaches the functions from inside the module; only the module's init symbol is exported).
-CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-fvisibility=hidden", "-flto", "-Wall", "-Wextra", "-Werror",
+CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-fno-trapping-math", "-fvisibility=hidden", "-flto", "-Wall", "-Wextra", "-Werror",
           "-fno-strict-aliasing"]
-LDFLAGS = ["-O3", "-flto", "-ffp-contract=off"]
+LDFLAGS = ["-O3", "-flto", "-ffp-contract=off", "-fno-trapping-math"]
 
 _lock = threading.Lock()
 _cache: dict[str, object] = {}

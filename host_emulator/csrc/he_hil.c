@@ -103,43 +103,61 @@ static inline double band_g(const double *c, int slack_f0, double d)
 }
 
 /* One step of size dt; mv = Kt V and den = 1 + dt C / I per cylinder (as he_plant_forces / he_advance form
- * them). HE_OK or the code he_advance would return. */
-static int plant_step_fast(const he_plant_t *p, double dt, const double *mv, const double *den,
-                           double *x, double *v)
+ * them); T is scratch of n doubles. HE_OK or the code he_advance would return. Written as simple loops
+ * without cross-iteration dependences so the compiler can run two cylinders per SSE2 instruction: each lane
+ * does the very IEEE operations of the scalar code, so the bits do not change. */
+static int plant_step_fast(const he_plant_t *p, double dt, const double *restrict mv,
+                           const double *restrict den, double *restrict x, double *restrict v,
+                           double *restrict T, double *restrict F)
 {
-    int n = p->n, ok = 1, band_ok = 1;
+    int n = p->n;
+    int bad = 0, bad_band = 0;
     for (int ch = 0; ch < 2; ch++) {
-        const double *c = p->coef[ch], *ks = p->kscale[ch];
+        const double *restrict c = p->coef[ch];
+        const double *restrict ks = p->kscale[ch];
         const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale, I = p->I[ch];
         const double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
-        const int sf = p->slack_f0;
-        double *xc = x + ch * n, *vc = v + ch * n;
-        const double *mvc = mv + ch * n, *denc = den + ch * n;
-        double tprev = 0.0;
+        const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3];
+        const double slack = p->slack_f0 ? c0 : 0.0;
+        double *restrict xc = x + ch * n;
+        double *restrict vc = v + ch * n;
+        const double *restrict mvc = mv + ch * n;
+        const double *restrict denc = den + ch * n;
+        /* bond torques T(j, j+1) = s*L*[g(delta0 + u) - g(delta0 - u)], u = L (x_j - x_j+1) (he_band_torque) */
+        for (int j = 0; j + 1 < n; j++) {
+            double u = L * (xc[j] - xc[j + 1]);
+            double dp = d0 + u, dm = d0 - u;
+            double gp = c0 + dp * (c1 + dp * (c2 + dp * c3));
+            double gm = c0 + dm * (c1 + dm * (c2 + dm * c3));
+            gp = dp > 0.0 ? gp : slack;
+            gm = dm > 0.0 ? gm : slack;
+            T[j] = ks[j] * bs * L * (gp - gm);
+        }
+        /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order; v1 = (v0 + h F/I) / (1 + h C/I),
+         * x1 = x0 + h v1 (he_advance); then he_flush_tiny and the he_state_check bounds */
+        /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1): he_plant_forces' order (F is scratch, n doubles) */
+        F[0] = mvc[0];
+        for (int j = 1; j < n; j++)
+            F[j] = mvc[j] + T[j - 1];
+        for (int j = 0; j + 1 < n; j++)
+            F[j] = F[j] - T[j];
+        /* v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 (he_advance); he_flush_tiny; he_state_check bounds */
         for (int j = 0; j < n; j++) {
-            double F = mvc[j];                     /* Fc[j] = Kt V */
-            if (j > 0)
-                F += tprev;                        /* Fc[j] += T(j-1, j) */
-            if (j + 1 < n) {
-                double u = L * (xc[j] - xc[j + 1]);
-                double T = ks[j] * bs * L * (band_g(c, sf, d0 + u) - band_g(c, sf, d0 - u));
-                F -= T;                            /* Fc[j] -= T(j, j+1) */
-                tprev = T;
-            }
-            double vj = (vc[j] + dt * F / I) / denc[j];
+            double vj = (vc[j] + dt * F[j] / I) / denc[j];
             double xj = xc[j] + dt * vj;
             xj = fabs(xj) < HE_TINY_RAD ? 0.0 : xj;
             vj = fabs(vj) < HE_TINY_RAD ? 0.0 : vj;
             xc[j] = xj;
             vc[j] = vj;
-            ok &= (fabs(xj) <= HE_ANGLE_LIMIT_RAD) & (fabs(vj) <= HE_SPEED_LIMIT_RAD_S);
-            if (j > 0)
-                band_ok &= !(d0 + L * fabs(xc[j - 1] - xj) > lim);
         }
+        for (int j = 0; j < n; j++)       /* he_state_check's bounds; NaN fails them */
+            bad |= !(fabs(xc[j]) <= HE_ANGLE_LIMIT_RAD) | !(fabs(vc[j]) <= HE_SPEED_LIMIT_RAD_S);
+        for (int j = 0; j + 1 < n; j++)
+            bad_band |= d0 + L * fabs(xc[j] - xc[j + 1]) > lim;   /* he_plant_range_check */
     }
-    if (!ok)
+    if (bad)
         return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
-    return band_ok ? HE_OK : HE_ERR_BAND;
+    return bad_band ? HE_ERR_BAND : HE_OK;
 }
 
 int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
@@ -152,7 +170,7 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
     double t0 = *t;
     int fast = fast_ok(p, h->stepper);
     int n2f = fast ? 2 * n : 1;
-    double mv[n2f], den[n2f], den_on[n2f], den_off[n2f];
+    double mv[n2f], den[n2f], den_on[n2f], den_off[n2f], bond[n2f], force[n2f];
     if (fast) {
         /* 1 + h C / I with C = eta + m / S_L (he_plant_forces, he_advance) for m = Kt (driving) and m = 0
          * (coasting): the only two values a tick can give, so no division per tick is left for them */
@@ -209,7 +227,7 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
             double ts = tk + (double)s * dt;
             int rc;
             if (fast && !pert_active(p, ts + HE_STAGE_EDGE * dt)) {
-                rc = plant_step_fast(p, dt, mv, den, x, v);
+                rc = plant_step_fast(p, dt, mv, den, x, v, bond, force);
                 ts = ts + (double)1 * dt;
             } else {
                 rc = he_advance(p, h->stepper, dt, 1, &ts, x, v);
