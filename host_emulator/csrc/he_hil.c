@@ -1,5 +1,8 @@
 /* Closed loop of the compiled cell firmware with the plant (equations in he_hil.h). */
 #include <math.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include "he_hil.h"
 #include "he_step.h"
 #include "he_step_more.h"
@@ -150,10 +153,31 @@ static int plant_step_fast(const he_plant_t *p, double dt, const double *restric
             xc[j] = xj;
             vc[j] = vj;
         }
-        for (int j = 0; j < n; j++)       /* he_state_check's bounds; NaN fails them */
+        /* he_state_check's bounds (NaN fails them) and he_plant_range_check's stretch test; two lanes at a
+         * time where SSE2 is there (the same compares on the same values), the rest one at a time */
+        int j = 0;
+#ifdef __SSE2__
+        {
+            const __m128d sign = _mm_set1_pd(-0.0), xlim = _mm_set1_pd(HE_ANGLE_LIMIT_RAD);
+            const __m128d vlim = _mm_set1_pd(HE_SPEED_LIMIT_RAD_S), blim = _mm_set1_pd(lim);
+            const __m128d d0v = _mm_set1_pd(d0), Lv = _mm_set1_pd(L);
+            __m128d ok = _mm_castsi128_pd(_mm_set1_epi32(-1)), over = _mm_setzero_pd();
+            for (; j + 2 < n; j += 2) {            /* x[j], x[j+1] and the bonds (j, j+1), (j+1, j+2) */
+                __m128d xa = _mm_loadu_pd(xc + j), xb = _mm_loadu_pd(xc + j + 1), va = _mm_loadu_pd(vc + j);
+                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, xa), xlim));
+                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, va), vlim));
+                __m128d st = _mm_add_pd(d0v, _mm_mul_pd(Lv, _mm_andnot_pd(sign, _mm_sub_pd(xa, xb))));
+                over = _mm_or_pd(over, _mm_cmpgt_pd(st, blim));
+            }
+            bad |= _mm_movemask_pd(ok) != 3;
+            bad_band |= _mm_movemask_pd(over) != 0;
+        }
+#endif
+        for (; j < n; j++) {
             bad |= !(fabs(xc[j]) <= HE_ANGLE_LIMIT_RAD) | !(fabs(vc[j]) <= HE_SPEED_LIMIT_RAD_S);
-        for (int j = 0; j + 1 < n; j++)
-            bad_band |= d0 + L * fabs(xc[j] - xc[j + 1]) > lim;   /* he_plant_range_check */
+            if (j + 1 < n)
+                bad_band |= d0 + L * fabs(xc[j] - xc[j + 1]) > lim;
+        }
     }
     if (bad)
         return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
@@ -236,8 +260,29 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
                 *t = ts;
                 return rc;
             }
-            for (int i = 0; i < 2 * n; i++)
-                encoder_feed(h, i, x[i]);
+            if (h->jitter_counts > 0.0 || h->glitch_prob > 0.0) {
+                for (int i = 0; i < 2 * n; i++)
+                    encoder_feed(h, i, x[i]);
+            } else {
+                /* noise off: encoder_feed without its random draws, the same steps in the same order */
+                const double cpr = h->counts_per_rad;
+                for (int i = 0; i < 2 * n; i++) {
+                    double c = x[i] * cpr;
+                    c = c > 2.0e9 ? 2.0e9 : c;
+                    c = c < -2.0e9 ? -2.0e9 : c;
+                    int32_t target = (int32_t)c;
+                    target -= (double)target > c;
+                    int32_t cur = h->count[i];
+                    if (cur == target)
+                        continue;
+                    mc_quad_t *q = &h->quad[i];
+                    while (cur != target) {
+                        cur += cur < target ? 1 : -1;
+                        mc_quad_update(q, (uint8_t)he_gray(cur));
+                    }
+                    h->count[i] = cur;
+                }
+            }
         }
         h->ticks++;
     }

@@ -87,3 +87,31 @@ def test_golden_trajectory(name):
 if __name__ == "__main__":
     for n in sorted(CASES):
         print(f'    "{n}": "{digest(run_case(n))}",')
+
+
+@pytest.mark.parametrize("where", [0, 3, 14, 16 + 7, 31])
+def test_fast_hil_step_reports_what_the_generic_step_reports(where):
+    """The hil loop's one-pass plant step returns the code and time he_advance would, wherever the bad entry."""
+    from host_emulator.models import make_model
+
+    base = CASES["hil_default"]()
+    cases = {"DIVERGED": (2000.0, None), "NONFINITE": (float("nan"), None), "BAND": (3.0, -3.0)}
+    for code, (val, nb) in cases.items():
+        got = []
+        for generic in (False, True):
+            # a perturbation of 0 N*m that is always on sends every step through he_advance
+            m = make_model("hil", base.params, (), base.options)
+            if generic:
+                m.plant.npert = 1
+                m.plant.pert[0].cell, m.plant.pert[0].chain, m.plant.pert[0].torque = 0, 0, 0.0
+                m.plant.pert[0].t0, m.plant.pert[0].t1 = -1.0, 1e9
+            s = m.solver()
+            lib = m.lib
+            s.x[where] = val
+            if nb is not None:
+                s.x[where + 1 if where % 16 != 15 else where - 1] = nb
+            s._pt[0] = 0.0
+            rc = lib.he_hil_run(s.h, 3, s._pt, s._px, s._pv)
+            got.append((rc, s._pt[0]))
+        assert got[0] == got[1], code
+        assert got[0][0] == getattr(lib, f"HE_ERR_{code}")
