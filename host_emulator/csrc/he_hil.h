@@ -41,6 +41,8 @@ typedef struct {
     mc_cell_t *cells;       /* [n] */
     mc_quad_t *quad;        /* [2n]: alpha_j at j, beta_j at n + j */
     int32_t *count;         /* [2n]: count last fed to each decoder */
+    const double *volt_tab; /* optional [volt_tab_top + 1]: duty/top * supply_v by duty (he_hil_volt_table) */
+    int32_t volt_tab_top;   /* the pwm_top the table was made for */
 } he_hil_t;
 
 /* Gray-code (A<<1)|B of an encoder count. */
@@ -49,6 +51,8 @@ int he_gray(int32_t count);
 int32_t he_encoder_feed(he_hil_t *h, int i, double theta);
 /* Set every encoder to the counts of x and its decoder to the matching state. */
 void he_hil_sync_encoders(he_hil_t *h, const double *x);
+/* tab[d] = d/top * supply_v for d = 0..top: the motor voltage of each duty, as the tick computes it. */
+void he_hil_volt_table(double *tab, int32_t top, double supply_v);
 /* Run n_ticks control ticks from *t; HE_OK or an HE_ERR_* of the plant state. */
 int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v);
 

@@ -46,3 +46,33 @@ int he_hil_run_sampled(he_hil_t *hl, int64_t tick0, int64_t rate_hz, int64_t tic
     }
     return HE_OK;
 }
+
+int he_hil_run_batch(int32_t m, he_hil_t *const *hl, const int64_t *rate_hz, const int64_t *tpo,
+                     const int64_t *nsamp, double *const *x, double *const *v, double *const *out,
+                     int64_t *done, int32_t *rc)
+{
+    if (m < 0 || (m > 0 && (!hl || !rate_hz || !tpo || !nsamp || !x || !v || !out || !done || !rc)))
+        return HE_ERR_ARG;
+    int failed = 0;
+    for (int32_t i = 0; i < m; i++) {
+        done[i] = 0;
+        if (!hl[i] || !hl[i]->plant || !x[i] || !v[i] || nsamp[i] < 0 || rate_hz[i] < 1 || tpo[i] < 1) {
+            rc[i] = HE_ERR_ARG;
+            failed++;
+            continue;
+        }
+        int n2 = 2 * hl[i]->n, r = HE_OK;
+        for (int64_t s = 0; s < nsamp[i]; s++) {
+            double t = (double)(s * tpo[i]) / (double)rate_hz[i];    /* as he_hil_run_sampled, tick0 = 0 */
+            r = he_hil_run(hl[i], tpo[i], &t, x[i], v[i]);
+            if (r != HE_OK)
+                break;
+            if (out[i])
+                record(out[i] + s * n2, x[i], n2);
+            done[i] = s + 1;
+        }
+        rc[i] = r;
+        failed += r != HE_OK;
+    }
+    return failed;
+}

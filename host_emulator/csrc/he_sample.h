@@ -32,4 +32,15 @@ int he_advance_sampled(const he_plant_t *p, int stepper, double h, int64_t nsub,
 int he_hil_run_sampled(he_hil_t *hl, int64_t tick0, int64_t rate_hz, int64_t ticks_per_out, int64_t nsamp,
                        double *t, double *x, double *v, double *out, int64_t *done);
 
+/*
+ * he_hil_run_batch: m independent hil lattices (a sweep's points) in one call. Lattice i runs exactly as
+ * he_hil_run_sampled(hl[i], 0, rate_hz[i], tpo[i], nsamp[i], &t, x[i], v[i], out[i], &done[i]) from t = 0
+ * would (so bit-identical per lattice), except that out[i] may be NULL: then only the final state is kept
+ * (x[i], v[i]). rc[i] = HE_OK or that lattice's HE_ERR_*; a failing lattice does not stop the others.
+ * Returns the number of lattices whose rc is not HE_OK (HE_ERR_ARG for m < 0 or a null array).
+ */
+int he_hil_run_batch(int32_t m, he_hil_t *const *hl, const int64_t *rate_hz, const int64_t *tpo,
+                     const int64_t *nsamp, double *const *x, double *const *v, double *const *out,
+                     int64_t *done, int32_t *rc);
+
 #endif /* HE_SAMPLE_H */

@@ -122,6 +122,11 @@ class HilSolver:
         h.cells = self.cells
         h.quad = self.quad
         h.count = self.count
+        top = int(model.drive_cfg.pwm_top)
+        self.volt_tab = ffi.new("double[]", top + 1)
+        lib.he_hil_volt_table(self.volt_tab, top, h.supply_v)
+        h.volt_tab = self.volt_tab
+        h.volt_tab_top = top
         self.h = h
         n2 = 2 * n
         self.x = np.zeros(n2) if x0 is None else np.array(x0, dtype=float).reshape(n2)
