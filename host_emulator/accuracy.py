@@ -6,7 +6,7 @@ scene sets explicitly (model_options.stepper, .dt, .substeps, .beta_geometry) al
 lattice (ideal reaction; step as a fraction of the computed stable limit of the preset's stepper):
     fast      rk4, dt = 0.8 x limit      ~1e-3 rad max angle error over 3 s of exp. 3 (16 cells)
     balanced  rk4, dt = limit / 4        ~1e-4 rad   (the default: on the measured Pareto front)
-    exact     rk4, dt = limit / 32, beta_geometry = "geometric" (the full SPEC 1.2 band geometry)
+    exact     rk4, dt = limit / 32, beta_geometry = "geometric" (the full docs/physics.md#band-torque band geometry)
 hil (the firmware's control rate is the model's clock; plant steps per control tick):
     fast      symplectic_euler, 1 step per tick   ~1-2 encoder counts from the converged loop over 3 s
     balanced  the same (the default): nothing cheaper exists, the loop's own quantisation dominates, and

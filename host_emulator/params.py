@@ -1,4 +1,4 @@
-"""Physical constants of the rig (SPEC section 1 and 2) and the explicit choices where the source is silent.
+"""Physical constants of the rig (docs/physics.md) and the explicit choices where the source is silent.
 
 Everything is SI (N*m, rad, s, V) unless a name says otherwise. A `Params`
 instance is immutable; use ``dataclasses.replace`` or ``Params.with_overrides``.
@@ -10,7 +10,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-# ---- measured constants (SPEC 1.1, 1.2) -------------------------------------
+# ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
 LATTICE_M = 0.060            # a, lattice parameter
 R_ALPHA_M = 0.010            # r, alpha cylinder radius (alpha bands at r)
 R_BETA_ARM_M = 0.020         # 2r, beta band attachment radius
@@ -28,14 +28,14 @@ DELTA_B0_M = LATTICE_M - L_BETA_M                           # 5 mm
 BAND_A_COEF = (0.28, 268.08, -8817.84, 123843.17)
 BAND_B_COEF = (0.19, 164.96, -5965.25, 118186.51)
 
-# ---- motor and driver (SPEC 2) ----------------------------------------------
+# ---- motor and driver (docs/physics.md#actuators) ----------------------------------------------
 MOTOR_KT_NM_PER_V = 0.09 / 12.0      # stall torque / rated voltage
 MOTOR_SPEED_CONST = 49.8             # S_L, rad/(V s), measured (datasheet 47.9)
 SUPPLY_V = 9.0
 VMAX_V = 5.86                        # DRV8874 2.1 A limit at 9 V
 COUNTS_PER_REV = 400
 
-# ---- reaction law (SPEC 1.3) -------------------------------------------------
+# ---- reaction law (docs/physics.md#reaction-torques) -------------------------------------------------
 SIGMA_MAIN = 9 / 125
 SIGMA_REGIMES = {"conditional": 9 / 125, "unconditional": 6 / 125, "stable": 14 / 125}
 
@@ -53,7 +53,7 @@ def band_slope(coef, delta):
 
 @dataclass(frozen=True)
 class Params:
-    """Parameters of one lattice. Defaults are the SPEC's experiment values.
+    """Parameters of one lattice. Defaults are the source's experiment values.
 
     Explicit choices where the source is silent or inconsistent:
 
@@ -153,7 +153,7 @@ class Params:
         return dataclasses.replace(self, **kw)
 
     def psi_prime(self, alpha):
-        """Tri-linear psi'(alpha) of SPEC 1.3 (float or numpy array)."""
+        """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array)."""
         import numpy as np
 
         a = np.asarray(alpha, dtype=float)

@@ -68,7 +68,7 @@ def _fmt(v, unit=""):
 
 def dispersion_main(argv) -> int:
     ap = argparse.ArgumentParser(prog="python -m host_emulator dispersion",
-                                 description="Linear stability of the uniform rest state (SPEC 1.4).")
+                                 description="Linear stability of the uniform rest state (docs/physics.md#linear-stability).")
     ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
     ap.add_argument("--inertia", action="store_true", help="include cylinder inertia (4 roots per mode)")
     ap.add_argument("--eta-scale", type=str, default=None, help="multiply both viscous coefficients")

@@ -1,4 +1,4 @@
-"""Linear stability of the uniform rest state (SPEC 1.4): growth rates, dispersion curve, band, regime, Turing conditions.
+"""Linear stability of the uniform rest state (docs/physics.md#linear-stability): growth rates, dispersion curve, band, regime, Turing conditions.
 
 Linearised about (alpha, beta) = (0, 0), a perturbation x = (alpha, beta) * exp(i kappa j + s t)
 obeys, per unit cell (dimensional: torques in N m, angles in rad, time in s)::
@@ -9,7 +9,7 @@ obeys, per unit cell (dimensional: torques in N m, angles in rad, time in s)::
     q  = kappa^2                 (continuum, kappa in rad per cell: lambda = 2 pi / kappa cells)
     q  = 2 (1 - cos kappa)       (discrete lattice, nearest-neighbour bands)
 
-Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals SPEC 1.4's
+Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals the source's (docs/physics.md#linear-stability)
 (J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(ka_eff, kb_eff / gamma). With inertia they are
 the four roots of det(I s^2 + E s - A(q)) = 0, i.e. the eigenvalues of the companion matrix
 [[0, 1], [I^-1 A(q), -I^-1 E]].
@@ -69,7 +69,7 @@ def reaction_jacobian(params) -> np.ndarray:
 
 
 def jacobian(params) -> np.ndarray:
-    """SPEC 1.4's J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma], [k_ab/gamma, -k_ab/gamma]].
+    """the source's (docs/physics.md#linear-stability) J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma], [k_ab/gamma, -k_ab/gamma]].
 
     J = diag(1, 1/gamma) @ reaction_jacobian; growth rates without inertia are eig(J - q D) / eta_a with
     D = diag(ka_eff, kb_eff / gamma) (gamma = eta_b / eta_a).
@@ -119,7 +119,7 @@ def _lead(params, kappa, discrete, inertia):
 
 # ---- Turing conditions -----------------------------------------------------------
 def turing_conditions(params) -> dict:
-    """The three Turing conditions of SPEC 1.4 in their explicit form for this reaction law.
+    """The three Turing conditions of docs/physics.md#linear-stability in their explicit form for this reaction law.
 
     tr J < 0  <=>  k_ab (1 + 1/gamma) + k2 > 0        (uniform state stable to uniform perturbations, 1)
     det J > 0 <=>  k_ab (k2 + sigma) > 0               (... and to the non-oscillatory one, 2)

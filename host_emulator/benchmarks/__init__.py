@@ -1,1 +1,1 @@
-"""Benchmarks of the emulator (issue 5): work-precision against scipy/py-pde, fidelity cost, scaling (`python -m host_emulator bench`)."""
+"""Benchmarks of the emulator: work-precision against scipy/py-pde, fidelity cost, scaling (`python -m host_emulator bench`)."""

@@ -75,7 +75,7 @@ def run_workprecision(args, out: Path) -> int:
         panels.append(("hil 16 cells, 3 s, vs rk4 x64 plant steps per tick", hpts, None))
 
     if not args.no_continuum:
-        print("\n== continuum: continuum_single (SPEC 1.4 PDE), 16 cells x 4 points, 3 s simulated ==")
+        print("\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), 16 cells x 4 points, 3 s simulated ==")
         _, cpts, have_pde = cb.continuum_workprecision(3.0, m=4, quick=args.quick)
         print(wp.points_table(cpts))
         if have_pde:

@@ -1,4 +1,4 @@
-"""Continuum (SPEC 1.4 PDE) work-precision: our compiled lattice engine and scipy-BDF path against py-pde, same grid.
+"""Continuum (continuum PDE, docs/physics.md#linear-stability) work-precision: our compiled lattice engine and scipy-BDF path against py-pde, same grid.
 
 The method-of-lines continuum with M points per cell (models/continuum.py) is, node by node,
 

@@ -2,7 +2,7 @@
 and its effect on the observables (pattern period, amplitude, oscillation period, steady state).
 
 Two questions, two scenes, 16 cells, 10 s simulated:
-  * pattern   - SPEC 1.5 exp. 3 at sigma 9/125 (push on alpha_8): which pattern, which period, which amplitude;
+  * pattern   - experiment 3 (docs/physics.md#experiments) at sigma 9/125 (push on alpha_8): which pattern, which period, which amplitude;
   * stability - sigma 14/125, eta x1, a 50 mrad (3 encoder counts) uniform tilt of the alpha chain: does the
                 long-wave mode oscillate/grow or decay
                 (the inertial oscillation of docs/emulator.md), and at which period.

@@ -25,7 +25,7 @@ TARGET = 1e-4
 
 # ---------------------------------------------------------------- lattice
 def lattice_scene(t_end_s=3.0, cells=16):
-    """SPEC 1.5 exp. 3 as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8 at 0.1-0.2 s."""
+    """experiment 3 (docs/physics.md#experiments) as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8 at 0.1-0.2 s."""
     from ..scene import load_scene
 
     return load_scene("exp3_single_sigma9", [f"t_end_s={t_end_s}", f"cells={cells}"])

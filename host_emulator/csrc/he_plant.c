@@ -57,7 +57,7 @@ double he_band_torque(const he_plant_t *p, int ch, int bond, double xs, double x
         double u = L * (xs - xo);
         return ks * p->band_scale * L * (band_force(p, ch, d0 + u) - band_force(p, ch, d0 - u));
     }
-    /* full geometric beta (SPEC 1.2), a = lattice, L = 2r:
+    /* full geometric beta (docs/physics.md#band-torque), a = lattice, L = 2r:
      *   ds = sin b_j - sin b_nb, dc = cos b_j - cos b_nb
      *   Delta+- = sqrt((a +- L ds)^2 + (L dc)^2) - a,  delta+- = delta0 + Delta+-
      *   fT+- = g(delta+-) * (cos b_j (a +- L ds) -+ L sin b_j dc) / (a + Delta+-)

@@ -1,4 +1,4 @@
-/* Emulated lattice plant (SPEC 1): band, honey, reaction and motor torques; physics only, no stepping. */
+/* Emulated lattice plant (docs/physics.md#equations-of-motion): band, honey, reaction and motor torques; physics only, no stepping. */
 #ifndef HE_PLANT_H
 #define HE_PLANT_H
 
@@ -14,7 +14,7 @@
  * F_i = -sum_bonds tau(x_i, x_nb) + R_i(alpha_j, beta_j) + P_i(t) + m_i*V_i
  * C_i = eta_i + m_i / S_L
  * where tau is the band torque (linear, cubic with slack, or geometric beta),
- * R the ideal floating-point reaction (SPEC 1.3) when reaction == HE_REACT_IDEAL, each
+ * R the ideal floating-point reaction (docs/physics.md#reaction-torques) when reaction == HE_REACT_IDEAL, each
  * component clipped to +-react_limit (the actuators' torque limit),
  * P the external perturbations active at time t, and m_i*V_i the motor torque
  * Kt*(V - omega/S_L) with m_i = Kt while the driver is awake, 0 when it coasts
@@ -58,7 +58,7 @@ typedef struct {
     int32_t slack_f0;        /* 1: a slack band still pulls f(0); 0: it pulls nothing */
     double I[2];             /* inertia alpha, beta, kg m^2 */
     double k_lin[2];         /* table stiffness, N m/rad (linear bands) */
-    double band_scale;       /* multiplies the cubic-law torque (SPEC 1.2 choice) */
+    double band_scale;       /* multiplies the cubic-law torque (docs/physics.md#band-torque choice) */
     double lever[2];         /* r (alpha) and 2r (beta arm), m */
     double lattice_m;        /* a, m */
     double delta0[2];        /* pre-stretch, m */
@@ -81,9 +81,9 @@ int he_plant_check(const he_plant_t *p);
 /* F and C of the header comment at time t for positions x (2n each). */
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C);
 /* Band torque on cylinder x_self from the bond to x_other (chain 0/1, bond index
- * for the stiffness spread): the tau(x_self, x_other) of SPEC 1.2. */
+ * for the stiffness spread): the tau(x_self, x_other) of docs/physics.md#band-torque. */
 double he_band_torque(const he_plant_t *p, int chain, int bond, double x_self, double x_other);
-/* Ideal reaction torques R_a, R_b of SPEC 1.3. */
+/* Ideal reaction torques R_a, R_b of docs/physics.md#reaction-torques. */
 void he_reaction(const he_plant_t *p, double alpha, double beta, double *ra, double *rb);
 /* Cubic bands: HE_ERR_BAND if some stretch exceeds HE_BAND_STOP_FACTOR * delta_max
  * (the motion left the range where the band law means anything), else HE_OK.

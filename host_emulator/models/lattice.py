@@ -1,4 +1,4 @@
-"""Lattice model (SPEC 1): discrete equations of motion with the ideal floating-point reaction, stepped in C."""
+"""Lattice model (docs/physics.md#equations-of-motion): discrete equations of motion with the ideal floating-point reaction, stepped in C."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from .steppers import stepper_id
 
 
 class LatticeModel:
-    """Physics only: the rate function of SPEC 1 (bands, honey, ideal R, perturbations).
+    """Physics only: the rate function of docs/physics.md#equations-of-motion (bands, honey, ideal R, perturbations).
 
     Switches (ModelOptions): inertia on/off, bands cubic/linear, beta small/geometric.
     ``forces(t, x)`` returns (F, C) with I x'' = F - C x' (or C x' = F when overdamped).

@@ -31,8 +31,8 @@ class ModelOptions:
     """[model_options] of a scene. Defaults: the physics the source's own simulations use."""
 
     inertia: bool = True
-    bands: str = "cubic"              # "cubic" (SPEC 1.2 fit, slack, x band_scale) | "linear" (table k)
-    beta_geometry: str = "small"      # "small" | "geometric" (SPEC 1.2 full form)
+    bands: str = "cubic"              # "cubic" (docs/physics.md#band-torque fit, slack, x band_scale) | "linear" (table k)
+    beta_geometry: str = "small"      # "small" | "geometric" (docs/physics.md#band-torque full form)
     stepper: str = DEFAULT_STEPPER
     dt: float | None = None           # largest plant step, s (None: a quarter of the stable limit)
     dt_out: float = 0.01              # output sample interval, s

@@ -1,4 +1,4 @@
-"""Reference plant in numpy, written independently from SPEC 1 (vectorised, no shared code with the C plant).
+"""Reference plant in numpy, written independently from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
 
 Used by the tests to check the compiled plant (forces and whole trajectories) and as executable
 documentation of the equations. Same conventions: x = [alpha_1..alpha_n, beta_1..beta_n],
@@ -36,7 +36,7 @@ class ReferencePlant:
         return np.where(d > 0, P.band_force(coef, d), f0)
 
     def bond_torque(self, chain: int, xs, xo):
-        """tau(x_self, x_other) of SPEC 1.2 for arrays of bonds (before the per-bond spread)."""
+        """tau(x_self, x_other) of docs/physics.md#band-torque for arrays of bonds (before the per-bond spread)."""
         if self.o.bands == "linear":
             return (self.p.ka_eff, self.p.kb_eff)[chain] * (xs - xo)
         coef = (P.BAND_A_COEF, P.BAND_B_COEF)[chain]

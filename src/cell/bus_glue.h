@@ -1,4 +1,4 @@
-/* Hooks for the I2C secondary (issue 4): called by the cell program, weak no-ops by default. */
+/* Hooks for the I2C secondary (docs/datapath.md): called by the cell program, weak no-ops by default. */
 #ifndef CELL_BUS_GLUE_H
 #define CELL_BUS_GLUE_H
 

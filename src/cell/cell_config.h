@@ -42,12 +42,12 @@
 #endif
 
 /* 1: enable the drive at power-up (stand-alone rig without a primary).
- * 0 (default): the drive stays off until the bus (issue 4) enables it. */
+ * 0 (default): the drive stays off until the bus (docs/datapath.md) enables it. */
 #ifndef MC_ENABLE_AT_BOOT
 #define MC_ENABLE_AT_BOOT 0
 #endif
 
-/* Arduino pin numbers of the XIAO (SPEC 2 / 2.1; see docs/hardware.md). */
+/* Arduino pin numbers of the XIAO (docs/physics.md#actuators, docs/hardware.md; see docs/hardware.md). */
 #define CELL_PIN_NSLEEP 0     /* D0 = PA02: nSLEEP of both DRV8874 (our choice) */
 #define CELL_PIN_DIR_A 1      /* D1 = PA04: PH of the alpha driver */
 #define CELL_PIN_PWM_A 2      /* D2 = PA10: EN of the alpha driver, TCC0/WO[2] */

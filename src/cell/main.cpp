@@ -10,7 +10,7 @@
  * No control arithmetic here: every tick is
  *   snapshot both decoders -> mc_cell_tick() -> hw_apply(out[alpha], out[beta])
  * The USB serial port answers the identity request "ID?" (src/common/mc_ident.h)
- * and nothing else; the bus glue (issue 4) carries every other command.
+ * and nothing else; the bus glue (docs/datapath.md) carries every other command.
  */
 
 enum { SETUP_OK = 0, SETUP_ERR_PINS, SETUP_ERR_DRIVE, SETUP_ERR_TICK };

@@ -4,7 +4,7 @@
 #include "cell_config.h"
 
 /*
- * Port/bit of every pin the fast paths touch (Seeed variant XIAO_m0, SPEC 2.1).
+ * Port/bit of every pin the fast paths touch (Seeed variant XIAO_m0, docs/hardware.md).
  * hw_check_pins() compares them with the variant's g_APinDescription at start-up,
  * so a different variant stops the program instead of driving the wrong pins.
  */

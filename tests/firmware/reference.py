@@ -1,4 +1,4 @@
-"""Independent floating-point reference of the cell library, written from SPEC 1.3 and 2."""
+"""Independent floating-point reference of the cell library, written from docs/physics.md#reaction-torques and #actuators."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ def clamp(x, lo, hi):
 
 
 def psi_prime_piecewise(g1, g2, astar_counts, x):
-    """SPEC 1.3 tri-linear psi' with its breakpoint b = k1 a*/(k1 - k2), in TU for x in counts."""
+    """docs/physics.md#reaction-torques tri-linear psi' with its breakpoint b = k1 a*/(k1 - k2), in TU for x in counts."""
     b = g1 * astar_counts / (g1 - g2)
     if x < -b:
         return g1 * (x + astar_counts)
@@ -34,7 +34,7 @@ def reaction(law, alpha, beta):
 
 
 def reaction_si(k_ab, sigma, k1, k2, astar, alpha_rad, beta_rad):
-    """SPEC 1.3 in SI units (N*m), no quantisation at all."""
+    """docs/physics.md#reaction-torques in SI units (N*m), no quantisation at all."""
     b = k1 * astar / (k1 - k2)
     a = alpha_rad
     psi = k1 * (a + astar) if a < -b else k1 * (a - astar) if a > b else k2 * a

@@ -134,7 +134,7 @@ def test_vmax_above_hard_cap_is_refused(fw):
 
 
 def test_rig_constants_and_stall_torque(fw):
-    """At 5.86 V the rig's motor stalls at about 44 mN*m (SPEC 2): full-scale duty there."""
+    """At 5.86 V the rig's motor stalls at about 44 mN*m (docs/physics.md#actuators): full-scale duty there."""
     ffi, lib = fw
     rc, d = make_drive(ffi, lib, RIG)
     assert d.duty_max == math.floor(5860 * 2400 / 9000)

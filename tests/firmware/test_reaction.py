@@ -1,4 +1,4 @@
-"""Reaction law R_a, R_b and psi' of the cell library against the float reference (SPEC 1.3)."""
+"""Reaction law R_a, R_b and psi' of the cell library against the float reference (docs/physics.md#reaction-torques)."""
 
 import math
 
@@ -86,7 +86,7 @@ def test_default_psi_roots_at_zero_and_alpha_star(fw):
 @settings(max_examples=1000, deadline=None)
 @given(a=st.integers(-600, 600), b=st.integers(-600, 600))
 def test_default_law_matches_si_spec_within_quantisation_bound(fw, a, b):
-    """Against SPEC 1.3 with exact real parameters: the only error is gain quantisation."""
+    """Against docs/physics.md#reaction-torques with exact real parameters: the only error is gain quantisation."""
     ffi, lib = fw
     r = default_law(ffi, lib)
     ra, rb = eval_fixed(ffi, lib, r, a, b)

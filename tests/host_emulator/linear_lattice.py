@@ -1,10 +1,10 @@
-"""Linear lattice state matrix from SPEC 1: the independent reference of the stepper tests."""
+"""Linear lattice state matrix from docs/physics.md#equations-of-motion: the independent reference of the stepper tests."""
 
 import numpy as np
 
 
 def linear_system(p, inertia=True):
-    """State matrix of the linear lattice (linear bands, |alpha| below the psi' breakpoint), from SPEC 1."""
+    """State matrix of the linear lattice (linear bands, |alpha| below the psi' breakpoint), from docs/physics.md#equations-of-motion."""
     n = p.cells
     lap = np.diag(np.r_[1, 2 * np.ones(n - 2), 1]) - np.eye(n, k=1) - np.eye(n, k=-1)
     K = np.block([[p.ka_eff * lap, np.zeros((n, n))], [np.zeros((n, n)), p.kb_eff * lap]])

@@ -1,4 +1,4 @@
-"""Stability at the extremes of the physics (issue 5): every case ends with a sound result, checked against linear
+"""Stability at the extremes of the physics: every case ends with a sound result, checked against linear
 theory where there is one, or with a clear error naming the limit; never a silent NaN or blow-up."""
 
 import math
@@ -17,7 +17,7 @@ PUSH = [Perturbation(8, "alpha", 0.02, 0.1, 0.1)]
 
 
 def lattice_matrix(p, inertia=True):
-    """Linearised free-end lattice (linear bands, inner psi' branch) from SPEC 1, state (x, v) or x."""
+    """Linearised free-end lattice (linear bands, inner psi' branch) from docs/physics.md#equations-of-motion, state (x, v) or x."""
     n = p.cells
     lap = np.zeros((n, n))
     for j in range(n - 1):

@@ -1,4 +1,4 @@
-"""SPEC 1.5 experiments, run from the shipped scenes: each regime yields its qualitative outcome."""
+"""docs/physics.md#experiments experiments, run from the shipped scenes: each regime yields its qualitative outcome."""
 
 import numpy as np
 import pytest

@@ -68,7 +68,7 @@ typedef struct {
     uint32_t err_tick[2];     /* tick of the last error per encoder */
 } mc_cell_t;
 
-/* SPEC 1.3 experiment defaults: k_ab = 1/50, k1 = 3/50, k2 = -3/50,
+/* docs/physics.md#reaction-torques experiment defaults: k_ab = 1/50, k1 = 3/50, k2 = -3/50,
  * a_s = 3*pi/8, sigma = 9/125 (uN*m/rad and urad). */
 void mc_cell_default_params(mc_reaction_phys_t *p);
 void mc_cell_init(mc_cell_t *c);

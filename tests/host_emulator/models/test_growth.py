@@ -12,7 +12,7 @@ J_CENTRES = np.arange(N) + 0.5
 
 
 def mode_block(p, m, inertia):
-    """Linearised dynamics of free-end mode m (cos(kappa (j - 1/2)), kappa = m pi / N), written from SPEC 1."""
+    """Linearised dynamics of free-end mode m (cos(kappa (j - 1/2)), kappa = m pi / N), written from docs/physics.md#equations-of-motion."""
     q = 2 * (1 - np.cos(np.pi * m / N))
     A2 = np.array([[-p.k_ab - p.k2 - q * p.ka_eff, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.kb_eff]])
     eta = np.array([p.eta_alpha, p.eta_beta])

@@ -1,4 +1,4 @@
-/* Non-reciprocal reaction torques R_a, R_b with the tri-linear psi' (SPEC 1.3). */
+/* Non-reciprocal reaction torques R_a, R_b with the tri-linear psi' (docs/physics.md#reaction-torques). */
 #ifndef MC_REACTION_H
 #define MC_REACTION_H
 
@@ -6,7 +6,7 @@
 #include "../mc_fixed.h"
 
 /*
- * Continuous law (SPEC 1.3), angles in rad, torques in N*m:
+ * Continuous law (docs/physics.md#reaction-torques), angles in rad, torques in N*m:
  *   R_a = k_ab*(beta - alpha) - psi'(alpha) - sigma*beta
  *   R_b = k_ab*(alpha - beta)
  *   psi'(alpha) = k1*(alpha + a_s)  alpha < -b;  k2*alpha  |alpha| <= b;

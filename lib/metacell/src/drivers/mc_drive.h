@@ -7,7 +7,7 @@
 #include "../sensors/mc_velocity.h"
 
 /*
- * Motor (SPEC 2):  tau = Kt * (V - omega/S_L),  Kt = 0.09 N*m / 12 V
+ * Motor (docs/physics.md#actuators):  tau = Kt * (V - omega/S_L),  Kt = 0.09 N*m / 12 V
  * so the voltage for a wanted torque is  V = tau/Kt + omega/S_L (the second term
  * only with back-EMF compensation on), and the PWM duty is V/V_supply*pwm_top.
  * Discrete form, straight into sixteenths of a PWM tick (one multiply per term):
