@@ -167,6 +167,10 @@ def _main(argv=None) -> int:
         from .bench import bench_main
 
         return bench_main(argv[1:])
+    if argv and argv[0] == "robustness":
+        from .paper import robustness_main
+
+        return robustness_main(argv[1:])
     if argv and argv[0] == "paper":
         from .paper import paper_main
 
@@ -192,6 +196,7 @@ def _main(argv=None) -> int:
     r.add_argument("--accuracy", choices=("fast", "balanced", "exact"), default=None,
                    help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)")
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
+    sub.add_parser("robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)")
     sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
     sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
     sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")

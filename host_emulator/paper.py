@@ -241,7 +241,7 @@ def build(out: Path, repeats: int = 10) -> dict:
 
 
 def _json_default(v):
-    if isinstance(v, (np.floating, np.integer)):
+    if isinstance(v, (np.floating, np.integer, np.bool_)):
         return v.item()
     raise TypeError(type(v))
 
@@ -288,3 +288,104 @@ def paper_main(argv) -> int:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(paper_main(sys.argv[1:]))
+
+
+# ---- robustness: how many noise seeds and hand pushes select the source's result -------------------------------
+# scene -> (model, the source's result: Z domain walls, "rest", or an oscillation period in s)
+ROBUST_SCENES = {
+    "exp1_ccw_ccw": ("hil", 2), "exp2_ccw_cw": ("hil", 3), "exp3_single_sigma9": ("hil", 4),
+    "exp3_single_sigma6": ("hil", 2), "exp3_single_sigma14": ("lattice", SOURCE_PERIOD_S),
+    "exp4_stable_eta10": ("hil", "rest"), "exp5_rest": ("hil", "rest"),
+}
+ROBUST_TORQUES_NM = (0.005, 0.01, 0.02, 0.04)     # a light to a firm push by hand (the motors' stall torque is 0.044)
+ROBUST_DURATIONS_S = (0.05, 0.1, 0.2)
+ROBUST_JITTER_COUNTS = 0.5
+
+
+def selects(o, want) -> bool:
+    """Does a run's observables show the source's result `want` (Z walls, "rest", or a period in s)?"""
+    if want == "rest":
+        return bool(o["at_rest"])
+    if isinstance(want, float):
+        p = o["oscillation_period_s"]
+        return bool(p is not None and abs(p - want) <= PERIOD_TOL * want)
+    return bool(not o["at_rest"] and o["domain_walls"] == want)
+
+
+def _push_sets(scene, torque, duration):
+    """Overrides giving every perturbation of the scene this magnitude (its sign kept) and duration."""
+    out = []
+    for i, q in enumerate(scene.perturbations):
+        sign = 1.0 if q.torque_Nm >= 0 else -1.0
+        out += [f"perturbation.{i + 1}.torque_Nm={sign * torque}", f"perturbation.{i + 1}.duration_s={duration}"]
+    return out
+
+
+def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURATIONS_S, scenes=None) -> dict:
+    """Per scene: the fraction of noise seeds (5 % band and viscosity spread; and the same with encoder jitter)
+    and of hand pushes (every torque x duration, no noise) that select the source's result."""
+    out = {}
+    for name in scenes or ROBUST_SCENES:
+        model, want = ROBUST_SCENES[name]
+        base = [f"model={model}"]
+        row: dict = {"model": model, "source": want}
+        for label, extra in (("seeds", {}), ("seeds_jitter", {"encoder_jitter_counts": ROBUST_JITTER_COUNTS})):
+            if extra and model != "hil":
+                row[label] = None
+                continue
+            hits = 0
+            for s in range(seeds):
+                sets = base + _noise_sets(2000 + s) + [f"model_options.noise.{k}={v}" for k, v in extra.items()]
+                hits += selects(_run(name, sets)[2], want)
+            row[label] = hits / seeds
+        scene = load_scene(name, base)
+        grid = {}
+        if scene.perturbations:
+            for tq in torques:
+                for du in durations:
+                    grid[f"{tq * 1e3:g} mN*m x {du:g} s"] = selects(_run(name, base + _push_sets(scene, tq, du))[2], want)
+            row["pushes"] = sum(grid.values()) / len(grid)
+            ok = [tq for tq in torques if all(grid[f"{tq * 1e3:g} mN*m x {du:g} s"] for du in durations)]
+            row["min_push_Nm"] = min(ok) if ok else None
+        else:
+            row["pushes"] = None
+        row["push_grid"] = grid
+        out[name] = row
+    return out
+
+
+def print_robustness(res, seeds, file=sys.stdout):
+    print(f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file)
+    for name, r in res.items():
+        def pct(v):
+            return "-" if v is None else f"{100 * v:.0f} %"
+        src = f"Z={r['source']}" if isinstance(r["source"], int) else str(r["source"])
+        mp = r.get("min_push_Nm")
+        print(f"{name:22s} {r['model']:8s} {src:>8s} {pct(r['seeds']):>7s} {pct(r['seeds_jitter']):>8s} "
+              f"{pct(r['pushes']):>7s}  {'-' if mp is None else f'{mp * 1e3:g} mN*m'}", file=file)
+    print(f"({seeds} seeds; pushes: {len(ROBUST_TORQUES_NM)} torques x {len(ROBUST_DURATIONS_S)} durations)", file=file)
+
+
+def robustness_main(argv) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator robustness",
+                                 description="Fraction of noise seeds and of hand pushes that select the source's "
+                                             "result, per paper scene.",
+                                 epilog="example: python -m host_emulator robustness --seeds 20 --out out/robust")
+    ap.add_argument("--seeds", type=int, default=20, help="noise seeds per scene (default 20)")
+    ap.add_argument("--scene", action="append", default=None, choices=sorted(ROBUST_SCENES),
+                    help="only this scene (repeatable; default all paper scenes)")
+    ap.add_argument("--out", default=None, help="directory for robustness.json (default: print only)")
+    args = ap.parse_args(argv)
+    if not 1 <= args.seeds <= 10000:
+        print(f"robustness: error: --seeds {args.seeds}: must be in 1..10000", file=sys.stderr)
+        return 2
+    res = robustness(args.seeds, scenes=args.scene)
+    print_robustness(res, args.seeds)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        doc = {"seeds": args.seeds, "noise": NOISE, "jitter_counts": ROBUST_JITTER_COUNTS,
+               "torques_Nm": list(ROBUST_TORQUES_NM), "durations_s": list(ROBUST_DURATIONS_S), "scenes": res}
+        (out / "robustness.json").write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
+        print(f"wrote {out}/robustness.json")
+    return 0

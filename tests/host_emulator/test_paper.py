@@ -27,3 +27,16 @@ def test_paper_rejects_bad_arguments(tmp_path, capsys):
     f.write_text("x")
     assert main(["paper", "--out", str(f)]) == 2
     assert "not a directory" in capsys.readouterr().err
+
+
+def test_robustness_counts_seeds_and_pushes_that_select_the_source():
+    from host_emulator.paper import robustness, selects
+
+    res = robustness(seeds=2, torques=(0.01, 0.02), durations=(0.1,), scenes=["exp2_ccw_cw", "exp5_rest"])
+    assert res["exp2_ccw_cw"]["seeds"] == 1.0 and res["exp2_ccw_cw"]["pushes"] == 1.0
+    assert res["exp2_ccw_cw"]["min_push_Nm"] == 0.01 and len(res["exp2_ccw_cw"]["push_grid"]) == 2
+    assert res["exp5_rest"]["seeds"] == 1.0 and res["exp5_rest"]["pushes"] is None
+    # a jittering encoder reading is itself a push: rest does not survive it at 9/125
+    assert res["exp5_rest"]["seeds_jitter"] < 1.0
+    assert selects({"at_rest": False, "domain_walls": 3}, 3) and not selects({"at_rest": True, "domain_walls": 0}, 3)
+    assert selects({"oscillation_period_s": 0.0291}, 0.03) and not selects({"oscillation_period_s": 0.055}, 0.03)
