@@ -169,7 +169,7 @@ def _main(argv=None) -> int:
 
         return bench_accuracy_main(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m host_emulator",
-                                 description="Host emulator of the robotic metamaterial (SPEC 1-2).",
+                                 description="Host emulator of the robotic metamaterial.",
                                  epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.")
     sub = ap.add_subparsers(dest="cmd", required=True)
     sub.add_parser("scenes", help="list the shipped scenes")
