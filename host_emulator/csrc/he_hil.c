@@ -83,6 +83,10 @@ void he_hil_sync_encoders(he_hil_t *h, const double *x)
  * (forces, bonds, update, flush, checks). plant_step_fast does the same arithmetic, in the same order on
  * the same operands, in one pass per chain with the per-tick terms cached. Any other configuration, and
  * every step during which a perturbation is on, goes through he_advance. */
+/* MAINTENANCE: plant_step_fast re-does he_plant_forces + he_advance for this configuration only. A new term
+ * in he_plant_forces (a torque or voltage limit, another force) must either be added to plant_step_fast in
+ * the same order or make fast_ok() return 0 when it is active; test_golden.py's fast-vs-generic test and the
+ * hil tests that compare against he_advance catch a mismatch only if they exercise the new term. */
 static int fast_ok(const he_plant_t *p, int stepper)
 {
     return stepper == HE_STEP_SYMPLECTIC && p->inertia && p->bands == HE_BANDS_CUBIC
