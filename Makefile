@@ -16,6 +16,7 @@ bench: setup
 	.venv/bin/pip install -q -e '.[bench]'
 	$(PY) -m host_emulator bench-speed
 	$(PY) -m host_emulator bench
+	$(PY) -m host_emulator.batch --points 1000 --workers 1 2
 	$(PY) -m host_emulator.bus.bench
 	$(PY) -m tools.fwcheck report
 

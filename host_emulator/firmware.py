@@ -30,7 +30,7 @@ BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
 # (cffi reaches the functions from inside the module; only the module's init symbol is exported).
 CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-fno-trapping-math", "-fvisibility=hidden", "-flto", "-Wall", "-Wextra", "-Werror",
           "-fno-strict-aliasing"]
-LDFLAGS = ["-O3", "-flto=1", "-ffp-contract=off", "-fno-trapping-math"]
+LDFLAGS = ["-O3", "-flto", "-flto-partition=one", "-ffp-contract=off", "-fno-trapping-math"]
 
 _lock = threading.Lock()
 _cache: dict[str, object] = {}

@@ -26,7 +26,7 @@ def _plot(panels, path):
             pts = sorted((p.wall_s, p.error) for p in points if p.method == meth and p.error < 1e9)
             if not pts:
                 continue
-            style = "--" if meth.startswith(("scipy", "py-pde")) else "-"
+            style = "--" if meth.startswith(("scipy", "py-pde", "diffrax", "CVODE")) else "-"
             ax.loglog([w for w, _ in pts], [max(e, 1e-12) for _, e in pts], style, marker="o", ms=3, label=meth)
         if target:
             ax.axhline(target, color="k", lw=0.6, ls=":")
@@ -63,6 +63,17 @@ def run_workprecision(args, out: Path) -> int:
               f"{best[1] * 1e3:.2f} ms) = {ratio:.0f}x  (target >= {LATTICE_RATIO_TARGET:.0f}x: "
               f"{'met' if ratio >= LATTICE_RATIO_TARGET else 'NOT met'})")
         status |= 0 if ratio >= LATTICE_RATIO_TARGET else 1
+    peer_ratios = {}
+    for fam in ("diffrax", "CVODE", "scipy"):
+        _, _, fb = wp.summarize(pts, LATTICE_TARGET, ours_prefix=(fam,))
+        if best and fb:
+            peer_ratios[fam] = (fb[0], fb[1], fb[1] / best[1])
+    if best:
+        print(f"  RATIOS lattice at {LATTICE_TARGET:g} rad, best of each peer / best ours ({best[0]}, "
+              f"{best[1] * 1e3:.2f} ms): " + ", ".join(f"{f} {v[2]:.1f}x ({v[0]}, {v[1] * 1e3:.1f} ms)"
+                                                       for f, v in peer_ratios.items())
+              + "".join(f"; {f}: not run" for f in ("diffrax", "CVODE", "scipy") if f not in peer_ratios))
+    summary["lattice_peer_ratios"] = peer_ratios
     summary["lattice"] = {"ratio": ratio, "best_ours": best, "best_scipy": peer, "reference_check_rad": ref_check,
                           "points": [p.__dict__ for p in pts]}
     panels.append((f"lattice 16 cells, 3 s (ratio at {LATTICE_TARGET:g} rad: {fmt(ratio)}x)", pts, LATTICE_TARGET))

@@ -21,6 +21,7 @@ LATTICE_STEPPERS = ("euler", "symplectic_euler", "imex_euler", "noh_bathe", "rk4
 DT_GRID = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5, 3.125e-5)
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA")
 TARGET = 1e-4
+PEERS = ("scipy", "py-pde", "diffrax", "CVODE")   # method-name prefixes that are not ours
 
 
 # ---------------------------------------------------------------- lattice
@@ -114,7 +115,7 @@ def compiled_rhs(scene):
     return rhs
 
 
-def lattice_workprecision(t_end_s=3.0, quick=False, log=print):
+def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
     scene = lattice_scene(t_end_s)
     n2 = 2 * scene.cells
     t_eval = output_times(scene.t_end_s, scene.options.dt_out)
@@ -149,6 +150,10 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print):
                 w, err, nf = math.nan, math.inf, 0
                 log(f"  scipy {meth} rtol {rtol:g}: {e}")
             points.append(WPPoint(f"scipy {meth}", f"rtol={rtol:g}", w, err, extra={"nfev": nf}))
+    if peers:
+        from .peers import peer_points
+
+        points += peer_points(scene, t_eval, y0, ref_x, quick=quick, log=log)
     # cross-check of the reference: the numpy rhs solved as tightly
     (y, _), w = best_time(lambda: solve_segments(rhs, y0, scene, t_eval, "DOP853", 1e-10, 1e-12), repeat=1)
     ref_check = max_err(y[:, :n2], ref_x)
@@ -160,7 +165,7 @@ def summarize(points, target=TARGET, ours_prefix=("scipy", "py-pde")):
     """{method: wall at target} and the best of ours / of the peers."""
     methods = sorted({p.method for p in points})
     at = {m: wall_at([p for p in points if p.method == m], target) for m in methods}
-    ours = {m: w for m, w in at.items() if not m.startswith(ours_prefix) and w is not None}
+    ours = {m: w for m, w in at.items() if not m.startswith(ours_prefix + PEERS) and w is not None}
     peers = {m: w for m, w in at.items() if m.startswith(ours_prefix) and w is not None}
     best_ours = min(ours.items(), key=lambda kv: kv[1]) if ours else None
     best_peer = min(peers.items(), key=lambda kv: kv[1]) if peers else None

@@ -83,6 +83,10 @@ void he_hil_sync_encoders(he_hil_t *h, const double *x)
  * (forces, bonds, update, flush, checks). plant_step_fast does the same arithmetic, in the same order on
  * the same operands, in one pass per chain with the per-tick terms cached. Any other configuration, and
  * every step during which a perturbation is on, goes through he_advance. */
+/* MAINTENANCE: plant_step_fast re-does he_plant_forces + he_advance for this configuration only. A new term
+ * in he_plant_forces (a torque or voltage limit, another force) must either be added to plant_step_fast in
+ * the same order or make fast_ok() return 0 when it is active; test_golden.py's fast-vs-generic test and the
+ * hil tests that compare against he_advance catch a mismatch only if they exercise the new term. */
 static int fast_ok(const he_plant_t *p, int stepper)
 {
     return stepper == HE_STEP_SYMPLECTIC && p->inertia && p->bands == HE_BANDS_CUBIC
@@ -105,13 +109,21 @@ static inline double band_g(const double *c, int slack_f0, double d)
     return slack_f0 ? c[0] : 0.0;
 }
 
+static inline void sympl_update(double F, double dt, double I, double den, double *x, double *v)
+{
+    double vj = (*v + dt * F / I) / den;
+    double xj = *x + dt * vj;
+    *x = fabs(xj) < HE_TINY_RAD ? 0.0 : xj;
+    *v = fabs(vj) < HE_TINY_RAD ? 0.0 : vj;
+}
+
 /* One step of size dt; mv = Kt V and den = 1 + dt C / I per cylinder (as he_plant_forces / he_advance form
- * them); T is scratch of n doubles. HE_OK or the code he_advance would return. Written as simple loops
+ * them); T is scratch of n doubles (the bond torques). HE_OK or the code he_advance would return. Written as simple loops
  * without cross-iteration dependences so the compiler can run two cylinders per SSE2 instruction: each lane
  * does the very IEEE operations of the scalar code, so the bits do not change. */
 static int plant_step_fast(const he_plant_t *p, double dt, const double *restrict mv,
                            const double *restrict den, double *restrict x, double *restrict v,
-                           double *restrict T, double *restrict F)
+                           double *restrict T)
 {
     int n = p->n;
     int bad = 0, bad_band = 0;
@@ -138,20 +150,16 @@ static int plant_step_fast(const he_plant_t *p, double dt, const double *restric
         }
         /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order; v1 = (v0 + h F/I) / (1 + h C/I),
          * x1 = x0 + h v1 (he_advance); then he_flush_tiny and the he_state_check bounds */
-        /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1): he_plant_forces' order (F is scratch, n doubles) */
-        F[0] = mvc[0];
-        for (int j = 1; j < n; j++)
-            F[j] = mvc[j] + T[j - 1];
-        for (int j = 0; j + 1 < n; j++)
-            F[j] = F[j] - T[j];
-        /* v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 (he_advance); he_flush_tiny; he_state_check bounds */
-        for (int j = 0; j < n; j++) {
-            double vj = (vc[j] + dt * F[j] / I) / denc[j];
-            double xj = xc[j] + dt * vj;
-            xj = fabs(xj) < HE_TINY_RAD ? 0.0 : xj;
-            vj = fabs(vj) < HE_TINY_RAD ? 0.0 : vj;
-            xc[j] = xj;
-            vc[j] = vj;
+        /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order (the end cylinders have one bond
+         * and no "+ 0.0", which would turn a -0.0 into +0.0); then v1 = (v0 + h F/I) / (1 + h C/I),
+         * x1 = x0 + h v1 (he_advance) and he_flush_tiny */
+        if (n == 1) {
+            sympl_update(mvc[0], dt, I, denc[0], xc, vc);
+        } else {
+            sympl_update(mvc[0] - T[0], dt, I, denc[0], xc, vc);
+            for (int j = 1; j + 1 < n; j++)
+                sympl_update((mvc[j] + T[j - 1]) - T[j], dt, I, denc[j], xc + j, vc + j);
+            sympl_update(mvc[n - 1] + T[n - 2], dt, I, denc[n - 1], xc + n - 1, vc + n - 1);
         }
         /* he_state_check's bounds (NaN fails them) and he_plant_range_check's stretch test; two lanes at a
          * time where SSE2 is there (the same compares on the same values), the rest one at a time */
@@ -194,7 +202,7 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
     double t0 = *t;
     int fast = fast_ok(p, h->stepper);
     int n2f = fast ? 2 * n : 1;
-    double mv[n2f], den[n2f], den_on[n2f], den_off[n2f], bond[n2f], force[n2f];
+    double mv[n2f], den[n2f], den_on[n2f], den_off[n2f], bond[n2f];
     if (fast) {
         /* 1 + h C / I with C = eta + m / S_L (he_plant_forces, he_advance) for m = Kt (driving) and m = 0
          * (coasting): the only two values a tick can give, so no division per tick is left for them */
@@ -251,7 +259,7 @@ int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
             double ts = tk + (double)s * dt;
             int rc;
             if (fast && !pert_active(p, ts + HE_STAGE_EDGE * dt)) {
-                rc = plant_step_fast(p, dt, mv, den, x, v, bond, force);
+                rc = plant_step_fast(p, dt, mv, den, x, v, bond);
                 ts = ts + (double)1 * dt;
             } else {
                 rc = he_advance(p, h->stepper, dt, 1, &ts, x, v);

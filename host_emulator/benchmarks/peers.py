@@ -1,0 +1,183 @@
+"""Compiled peers in the lattice work-precision table: diffrax (JAX, jit-compiled, warm) and SUNDIALS CVODE.
+
+Both solve the same lattice scene as scipy and our steppers, restarted at every perturbation edge (no step
+across a jump of the forcing), and are compared on the same reference and output samples.
+
+* diffrax (Tsit5 and Dopri8 with a PID step controller): the right-hand side is the reference plant's
+  equations written in jax.numpy, float64, one jit-compiled solve per segment. The wall time is that of a warm
+  call; the compile time (first call minus warm call) is reported separately in the log.
+* CVODE (scikit-sundae; Adams for this non-stiff problem, BDF beside it): its only right-hand side is a Python
+  callable, so it gets the fastest one here: the compiled plant's forces (he_plant_forces through cffi), with
+  the derivative written in place.
+
+A peer whose package is missing is skipped with one line (they live in the `bench` extra only).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .common import WPPoint, best_time, clock, max_err
+
+RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
+RTOLS_QUICK = (1e-3, 1e-5, 1e-7)
+PEER_PREFIXES = ("diffrax", "CVODE")
+
+
+def _segments(scene, t_eval):
+    from .workprecision import _cuts
+
+    cuts = _cuts(scene)
+    segs = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        te = t_eval[(t_eval > a + 1e-12) & (t_eval <= b + 1e-12)]
+        segs.append((a, b, te))
+    return segs
+
+
+def _pert_vector(scene, n, t):
+    P = np.zeros(2 * n)     # external torque on each cylinder over the segment starting at t
+    for q in scene.perturbations:
+        if q.start_s <= t < q.start_s + q.duration_s:
+            P[(0 if q.chain == "alpha" else n) + q.cell - 1] += q.torque_Nm
+    return P
+
+
+# ---------------------------------------------------------------- diffrax
+def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+    try:
+        import jax
+        jax.config.update("jax_enable_x64", True)
+        import diffrax
+        import jax.numpy as jnp
+    except ImportError as e:
+        log(f"  diffrax: skipped ({e.name or e} not installed; pip install -e '.[bench]')")
+        return []
+    from .. import params as P
+    from ..models.reference import ReferencePlant
+
+    if scene.options.bands != "cubic" or scene.options.beta_geometry != "small":
+        log("  diffrax: skipped (the jax right-hand side covers cubic bands with small-angle beta only)")
+        return []
+    ref = ReferencePlant(scene.params, scene.options, scene.perturbations)
+    p, n = scene.params, ref.n
+    band = jnp.asarray(ref.band)
+    eta, inv_i = jnp.asarray(ref.eta), jnp.asarray(1.0 / ref.I)
+    f0 = (P.BAND_A_COEF[0] if p.slack_f0 else 0.0, P.BAND_B_COEF[0] if p.slack_f0 else 0.0)
+    coefs = (P.BAND_A_COEF, P.BAND_B_COEF)
+    d0s = (P.DELTA_A0_M, P.DELTA_B0_M)
+    levers = (P.R_ALPHA_M, P.R_BETA_ARM_M)
+    bstar = p.k1 * p.alpha_star / (p.k1 - p.k2)
+
+    def g(ch, d):
+        c0, c1, c2, c3 = coefs[ch]
+        return jnp.where(d > 0, c0 + d * (c1 + d * (c2 + d * c3)), f0[ch])
+
+    def bond(ch, xs, xo):
+        L, d0 = levers[ch], d0s[ch]
+        return p.band_scale * L * (g(ch, d0 + L * (xs - xo)) - g(ch, d0 - L * (xs - xo)))
+
+    def rhs(t, y, pert):
+        x, v = y[:2 * n], y[2 * n:]
+        parts = []
+        for ch in range(2):
+            xc = x[ch * n:(ch + 1) * n]
+            right = band[ch] * bond(ch, xc[:-1], xc[1:])
+            left = band[ch] * bond(ch, xc[1:], xc[:-1])
+            parts.append(-jnp.concatenate([right, jnp.zeros(1)]) - jnp.concatenate([jnp.zeros(1), left]))
+        F = jnp.concatenate(parts)
+        a, b = x[:n], x[n:]
+        psi = jnp.where(a < -bstar, p.k1 * (a + p.alpha_star), jnp.where(a > bstar, p.k1 * (a - p.alpha_star),
+                                                                         p.k2 * a))
+        F = F + jnp.concatenate([p.k_ab * (b - a) - psi - p.sigma * b, p.k_ab * (a - b)]) + pert
+        return jnp.concatenate([v, (F - eta * v) * inv_i])
+
+    segs = _segments(scene, t_eval)
+    perts = [jnp.asarray(_pert_vector(scene, n, a)) for a, _, _ in segs]
+    points = []
+    solvers = {"Tsit5": diffrax.Tsit5(), "Dopri8": diffrax.Dopri8()}
+    for name, solver in solvers.items():
+        for rtol in (RTOLS_QUICK if quick else RTOLS):
+            ctrl = diffrax.PIDController(rtol=rtol, atol=rtol * 1e-2)
+
+            @jax.jit
+            def seg_solve(y, pert, t0, t1, ts):
+                sol = diffrax.diffeqsolve(diffrax.ODETerm(rhs), solver, t0, t1, None, y, args=pert,
+                                          saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
+                                          max_steps=2_000_000)
+                return sol.ys
+
+            def run():
+                y = jnp.asarray(y0)
+                ys = [np.asarray(y0)]
+                for (a, b, te), pv in zip(segs, perts):
+                    out = seg_solve(y, pv, a, b, jnp.asarray(te))
+                    out.block_until_ready()
+                    ys.extend(np.asarray(out))
+                    y = out[-1]
+                return np.array(ys)
+
+            try:
+                t0 = clock()
+                run()
+                first = clock() - t0
+                y, w = best_time(run, repeat=3, budget_s=2.0)
+                err = max_err(y[:, :2 * n], ref_x)
+            except Exception as e:          # noqa: BLE001 - a failing peer is reported, not fatal
+                log(f"  diffrax {name} rtol {rtol:g}: {type(e).__name__}: {str(e).splitlines()[0][:120]}")
+                continue
+            log(f"  diffrax {name} rtol {rtol:g}: compile {max(first - w, 0.0) * 1e3:.0f} ms, warm {w * 1e3:.1f} ms")
+            points.append(WPPoint(f"diffrax {name}", f"rtol={rtol:g}", w, err,
+                                  extra={"compile_s": max(first - w, 0.0)}))
+    return points
+
+
+# ---------------------------------------------------------------- CVODE
+def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+    try:
+        from sksundae.cvode import CVODE
+    except ImportError as e:
+        log(f"  CVODE: skipped ({e.name or e} not installed; pip install -e '.[bench]')")
+        return []
+    from .workprecision import compiled_rhs
+
+    rhs = compiled_rhs(scene)
+    n2 = 2 * scene.cells
+
+    def f(t, y, yp):
+        yp[:] = rhs(t, y)
+
+    segs = _segments(scene, t_eval)
+    points = []
+    for method in ("Adams", "BDF"):
+        for rtol in (RTOLS_QUICK if quick else RTOLS):
+            def run():
+                y = np.asarray(y0, float)
+                ys = [y]
+                for a, b, te in segs:
+                    sol = CVODE(f, method=method, rtol=rtol, atol=rtol * 1e-2, max_num_steps=10_000_000).solve(
+                        np.concatenate([[a], te]), y)
+                    if not sol.success:
+                        raise RuntimeError(sol.message)
+                    ys.extend(sol.y[1:])
+                    y = sol.y[-1]
+                return np.array(ys)
+
+            try:
+                y, w = best_time(run, repeat=2, budget_s=1.0)
+                err = max_err(y[:, :n2], ref_x)
+            except Exception as e:          # noqa: BLE001
+                log(f"  CVODE {method} rtol {rtol:g}: {type(e).__name__}: {str(e).splitlines()[0][:120]}")
+                w, err = math.nan, math.inf
+            points.append(WPPoint(f"CVODE {method}", f"rtol={rtol:g}", w, err))
+    return points
+
+
+def peer_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+    w0 = time.perf_counter()
+    pts = diffrax_points(scene, t_eval, y0, ref_x, quick, log) + cvode_points(scene, t_eval, y0, ref_x, quick, log)
+    log(f"  compiled peers: {len(pts)} points in {time.perf_counter() - w0:.1f} s")
+    return pts
