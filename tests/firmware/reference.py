@@ -44,8 +44,8 @@ def reaction_si(k_ab, sigma, k1, k2, astar, alpha_rad, beta_rad):
 def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
     """Signed PWM duty (ticks) a perfect real-valued driver would command.
 
-    V = tau/Kt + omega/S_L (back-EMF term only if on; the window difference is
-    limited to +-4096 counts, twice the angle clamp), limited to +-vmax,
+    V = tau/Kt + omega/S_L (back-EMF term only if on; the velocity dtheta_w, in
+    counts/tick with window_log2 fraction bits, is limited to +-4096), limited to +-vmax,
     duty = round(|V|/V_s * top), capped at floor(vmax*top/V_s) and the user limit.
     """
     vs = cfg["supply_mv"] / 1000.0
@@ -67,3 +67,35 @@ def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
         cap = min(cap, duty_limit)
     duty = min(duty, cap)
     return duty if v >= 0 else -duty
+
+
+class ObserverFloat:
+    """Real-valued velocity observer (independent of the C shifts): per tick
+    pr = p + v, e = x - pr, p = pr + e/2, v = v + e/8, out = v + e/2, in counts and
+    counts/tick; starts at rest at the reset angle."""
+
+    def __init__(self, theta0: float):
+        self.p, self.v = float(theta0), 0.0
+
+    def step(self, theta: float) -> float:
+        pr = self.p + self.v
+        e = theta - pr
+        self.p = pr + e / 2
+        self.v += e / 8
+        return self.v + e / 2
+
+
+class ObserverInt:
+    """The same observer in the firmware's integer formats (Q16 states, floor shifts,
+    output counts/tick Q6 clamped to [-4096, 4095]): bit-exact reference for chains."""
+
+    def __init__(self, theta0: int):
+        self.p, self.v = clamp(theta0, -2048, 2048) << 16, 0
+
+    def step(self, theta: int) -> int:
+        theta = clamp(theta, -2048, 2048)
+        pr = self.p + self.v
+        e = (theta << 16) - pr
+        self.p = pr + (e >> 1)
+        self.v += e >> 3
+        return clamp((self.v + (e >> 1)) >> 10, -4096, 4095)
