@@ -41,10 +41,14 @@ def reaction_si(k_ab, sigma, k1, k2, astar, alpha_rad, beta_rad):
     return k_ab * (beta_rad - a) - psi - sigma * beta_rad, k_ab * (a - beta_rad)
 
 
+# share of omega/S_L the firmware's compensation adds (MC_BEMF_FRAC_NUM/DEN in mc_drive.h)
+BEMF_FRACTION = 15 / 16
+
+
 def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
     """Signed PWM duty (ticks) a perfect real-valued driver would command.
 
-    V = tau/Kt + omega/S_L (back-EMF term only if on; the velocity dtheta_w, in
+    V = tau/Kt + (15/16) omega/S_L (back-EMF term only if on; the velocity dtheta_w, in
     counts/tick with window_log2 fraction bits, is limited to +-4096), limited to +-vmax,
     duty = round(|V|/V_s * top), capped at floor(vmax*top/V_s) and the user limit.
     """
@@ -59,7 +63,7 @@ def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
     if bemf_on:
         dth = clamp(dtheta_w, -4096, 4096)
         omega = dth * RAD_PER_COUNT * cfg["ctrl_rate_hz"] / (1 << window_log2)
-        v += omega / sl
+        v += BEMF_FRACTION * omega / sl
     v = clamp(v, -vmax, vmax)
     duty = round(abs(v) / vs * top)
     cap = math.floor(cfg["vmax_mv"] * top / cfg["supply_mv"])

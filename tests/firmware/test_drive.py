@@ -29,7 +29,7 @@ def derived_limits_ok(cfg):
     clamp must cover 2*vmax, and the back-EMF multiplier (sixteenths of a tick per
     observer LSB, 1/64 count/tick) must be below 2^18 at shift 0."""
     w = window_log2(cfg)
-    m_b0 = 16 * 15708e-6 * cfg["ctrl_rate_hz"] * cfg["pwm_top"] / (
+    m_b0 = 16 * 15708e-6 * cfg["ctrl_rate_hz"] * cfg["pwm_top"] * 15 / 16 / (
         cfg["kv_mrad_per_vs"] / 1000 * cfg["supply_mv"] / 1000 * (1 << w))
     return m_b0 < 2**18 - 0.5 and cfg["kt_unm_per_v"] * cfg["vmax_mv"] <= 65536000
 
@@ -146,12 +146,12 @@ def test_rig_constants_and_stall_torque(fw):
 
 
 def test_back_emf_term_matches_motor_relation(fw):
-    """With compensation on and zero torque wanted, the duty is omega/S_L over the supply."""
+    """With compensation on and zero torque wanted, the duty is (15/16) omega/S_L over the supply."""
     ffi, lib = fw
     rc, d = make_drive(ffi, lib, RIG)
     for counts in (1, 5, 32, 100):
         omega = counts * 2 * math.pi / 400 * 2000 / 64      # rad/s: counts/tick Q6 at 2 kHz
-        expect = omega / 49.8 / 9.0 * 2400
+        expect = 15 / 16 * omega / 49.8 / 9.0 * 2400
         out = command(ffi, lib, d, 0, counts, 1)
         assert abs(out.duty - min(expect, d.duty_max)) <= 1
         assert out.dir == 1

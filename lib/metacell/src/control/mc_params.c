@@ -128,8 +128,9 @@ int mc_drive_configure(mc_drive_t *out, const mc_drive_config_t *c)
     d.s_t = pick_shift(num_t, den_t, 1u << 15, &d.m_t);
     /* m_b/2^s_b = 16 * (2 pi/400 rad) * f / 2^w / S_L / Vs * top   (velocity counts/tick Qw)
      *           = 16 * 15708 urad * f * top / (kv_mrad_per_vs * supply_mv * 2^w) */
-    uint64_t num_b = (uint64_t)15708u * 16u * (uint64_t)c->ctrl_rate_hz * (uint64_t)c->pwm_top;
-    uint64_t den_b = ((uint64_t)c->kv_mrad_per_vs * (uint64_t)c->supply_mv) << w;
+    uint64_t num_b = (uint64_t)15708u * 16u * (uint64_t)c->ctrl_rate_hz * (uint64_t)c->pwm_top *
+                     MC_BEMF_FRAC_NUM;
+    uint64_t den_b = (((uint64_t)c->kv_mrad_per_vs * (uint64_t)c->supply_mv) << w) * MC_BEMF_FRAC_DEN;
     d.s_b = pick_shift(num_b, den_b, 1u << 18, &d.m_b);
     if (d.s_t < 0 || d.s_b < 0)
         return MC_ERR_CONFIG;

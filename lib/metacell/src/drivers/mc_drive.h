@@ -37,6 +37,15 @@
  */
 #define MC_VMAX_ABS_MV 5860
 
+/* Fraction of the back-EMF term omega/S_L that compensation adds (7/8), folded into
+ * m_b at configuration. The observer passes the 34 Hz long-wave oscillation with gain
+ * 1.08 and the command is held for a tick after its sample; full compensation would
+ * then leave the lattice at sigma = 9/125 with no damping margin on its long-wave
+ * mode (it oscillates in the emulator), while 7/8 leaves about 1/20 of Kt/S_L there
+ * and keeps the sigma = 14/125 limit cycle at the undamped lattice's period. */
+#define MC_BEMF_FRAC_NUM 15u
+#define MC_BEMF_FRAC_DEN 16u
+
 typedef struct {
     int32_t supply_mv;       /* motor supply, 4500..37000 mV (rig: 9000) */
     int32_t vmax_mv;         /* applied-voltage limit, 1..MC_VMAX_ABS_MV, <= supply */
