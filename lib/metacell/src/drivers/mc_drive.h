@@ -7,9 +7,10 @@
 #include "../sensors/mc_velocity.h"
 
 /*
- * Motor (SPEC 2):  tau = Kt * (V - omega/S_L),  Kt = 0.09 N*m / 12 V
- * so the voltage for a wanted torque is  V = tau/Kt + omega/S_L (the second term
- * only with back-EMF compensation on), and the PWM duty is V/V_supply*pwm_top.
+ * Motor law:  tau = Kt * (V - omega/S_L),  Kt = 0.09 N*m / 12 V
+ * so the voltage for a wanted torque is  V = tau/Kt + c * omega/S_L (the second term
+ * only with back-EMF compensation on; c = MC_BEMF_FRAC_NUM/DEN = 15/16, see below),
+ * and the PWM duty is V/V_supply*pwm_top.
  * Discrete form, straight into sixteenths of a PWM tick (one multiply per term):
  *
  *   t7   = (clamp(tau, +-MC_TORQUE_CLAMP) + 64) >> 7                128 TU units
@@ -19,7 +20,7 @@
  *   duty = |v|,  dir = v >= 0 (PH=1 forward/CCW),  enable = 1 (nSLEEP high)
  *
  * m_t/2^s_t = 16 * 128 TU / Kt / V_supply * pwm_top and m_b/2^s_b = 16 * (2 pi/400)
- * * f_ctrl / 2^w / S_L / V_supply * pwm_top (w = MC_VEL_OUT_LOG2), chosen at configuration with
+ * * f_ctrl / 2^w / S_L / V_supply * pwm_top * c (w = MC_VEL_OUT_LOG2), chosen at configuration with
  * 2^14 <= m_t < 2^15 and 2^17 <= m_b < 2^18 (relative precision better than 2^-14).
  * Ranges: |t7| <= 2^15 + 1, |dtheta_W| <= MC_VEL_DIFF_MAX = 2^12, so both products
  * are < 2^30 and their sum < 2^31. Worst-case error against the real-valued
