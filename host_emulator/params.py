@@ -79,10 +79,11 @@ class Params:
     * ``slack_f0``: a slack band contributes f(0) != 0 in the source's formula.
       True (default) keeps that literal reading; False makes a slack band push 0.
     * ``eta_scale`` multiplies both eta_a and eta_b (scene 4 uses 10).
-    * ``bemf_comp``: firmware back-EMF compensation (omega/S_L). Default False,
-      as in the source build and the firmware's own default: through the ~16 ms
-      velocity window it lags and destabilises the lightly damped beta chain
-      (docs/emulator.md); uncompensated, each motor adds Kt/S_L = 1.5e-4 N m s.
+    * ``bemf_comp``: firmware back-EMF compensation (15/16 of omega/S_L, from a
+      low-lag velocity observer). Default False, as in the source build and the
+      firmware's own default; uncompensated, each motor adds Kt/S_L = 1.5e-4 N m s.
+      On, sigma = 14/125 oscillates at the lattice's 0.03 s period and 9/125 keeps
+      its patterns (docs/emulator.md); the real rig should use it on.
     """
 
     cells: int = 16

@@ -41,11 +41,15 @@ def reaction_si(k_ab, sigma, k1, k2, astar, alpha_rad, beta_rad):
     return k_ab * (beta_rad - a) - psi - sigma * beta_rad, k_ab * (a - beta_rad)
 
 
+# share of omega/S_L the firmware's compensation adds (MC_BEMF_FRAC_NUM/DEN in mc_drive.h)
+BEMF_FRACTION = 15 / 16
+
+
 def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
     """Signed PWM duty (ticks) a perfect real-valued driver would command.
 
-    V = tau/Kt + omega/S_L (back-EMF term only if on; the window difference is
-    limited to +-4096 counts, twice the angle clamp), limited to +-vmax,
+    V = tau/Kt + (15/16) omega/S_L (back-EMF term only if on; the velocity dtheta_w, in
+    counts/tick with window_log2 fraction bits, is limited to +-4096), limited to +-vmax,
     duty = round(|V|/V_s * top), capped at floor(vmax*top/V_s) and the user limit.
     """
     vs = cfg["supply_mv"] / 1000.0
@@ -59,7 +63,7 @@ def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
     if bemf_on:
         dth = clamp(dtheta_w, -4096, 4096)
         omega = dth * RAD_PER_COUNT * cfg["ctrl_rate_hz"] / (1 << window_log2)
-        v += omega / sl
+        v += BEMF_FRACTION * omega / sl
     v = clamp(v, -vmax, vmax)
     duty = round(abs(v) / vs * top)
     cap = math.floor(cfg["vmax_mv"] * top / cfg["supply_mv"])
@@ -67,3 +71,35 @@ def drive_duty(cfg, tau_tu, dtheta_w, bemf_on, window_log2, duty_limit=None):
         cap = min(cap, duty_limit)
     duty = min(duty, cap)
     return duty if v >= 0 else -duty
+
+
+class ObserverFloat:
+    """Real-valued velocity observer (independent of the C shifts): per tick
+    pr = p + v, e = x - pr, p = pr + e/2, v = v + e/8, out = v + e/2, in counts and
+    counts/tick; starts at rest at the reset angle."""
+
+    def __init__(self, theta0: float):
+        self.p, self.v = float(theta0), 0.0
+
+    def step(self, theta: float) -> float:
+        pr = self.p + self.v
+        e = theta - pr
+        self.p = pr + e / 2
+        self.v += e / 8
+        return self.v + e / 2
+
+
+class ObserverInt:
+    """The same observer in the firmware's integer formats (Q16 states, floor shifts,
+    output counts/tick Q6 clamped to [-4096, 4095]): bit-exact reference for chains."""
+
+    def __init__(self, theta0: int):
+        self.p, self.v = clamp(theta0, -2048, 2048) << 16, 0
+
+    def step(self, theta: int) -> int:
+        theta = clamp(theta, -2048, 2048)
+        pr = self.p + self.v
+        e = (theta << 16) - pr
+        self.p = pr + (e >> 1)
+        self.v += e >> 3
+        return clamp((self.v + (e >> 1)) >> 10, -4096, 4095)

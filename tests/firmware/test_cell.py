@@ -2,7 +2,7 @@
 
 from hypothesis import given, settings, strategies as st
 
-from tests.firmware.reference import reaction, drive_duty
+from tests.firmware.reference import ObserverInt, reaction, drive_duty
 from tests.firmware.test_reaction import law_dict
 
 RIG = {"supply_mv": 9000, "vmax_mv": 5860, "kt_unm_per_v": 7500, "kv_mrad_per_vs": 49800,
@@ -43,22 +43,20 @@ def test_tick_matches_reference_chain(fw, path, a0, b0, bemf, pert, pert_ticks, 
     lib.mc_cell_set_bemf(cell.c, int(bemf))
     assert lib.mc_cell_perturb(cell.c, chain, pert, pert_ticks) == lib.MC_OK
     law = law_dict(cell.c.law)
-    w = 1 << cell.c.drive.vel_log2
+    # the observer restarts at rest from the angles held when compensation was switched on (0, 0)
+    obs = [ObserverInt(0), ObserverInt(0)]
     a, b = a0, b0
-    hist = []
     for k, (da, db) in enumerate(path):
         a, b = a + da, b + db
         assert cell.tick(a, b) == 0
-        hist.append((a, b))
-        # the window restarts from the angles held when compensation was switched on (0, 0)
-        pa, pb = hist[-1 - w] if len(hist) > w else (0, 0)
+        wa, wb = obs[0].step(a), obs[1].step(b)
         ra, rb = reaction(law, a, b)
         if k < pert_ticks:
             if chain == 0:
                 ra += pert * 32
             else:
                 rb += pert * 32
-        for i, (tau, dth) in enumerate([(ra, a - pa), (rb, b - pb)]):
+        for i, (tau, dth) in enumerate([(ra, wa), (rb, wb)]):
             ref = drive_duty(RIG, tau, dth, bemf, cell.c.drive.vel_log2)
             assert abs(cell.signed(i) - ref) <= 1, (k, i, cell.signed(i), ref)
             assert cell.c.out[i].enable == 1

@@ -27,20 +27,16 @@ RIG = {"supply_mv": 9000, "vmax_mv": 5860, "kt_unm_per_v": 7500, "kv_mrad_per_vs
 def derived_limits_ok(cfg):
     """The documented derived limits of mc_drive_configure (mc_drive.h): the torque
     clamp must cover 2*vmax, and the back-EMF multiplier (sixteenths of a tick per
-    count of window difference) must be below 2^18 at shift 0."""
+    observer LSB, 1/64 count/tick) must be below 2^18 at shift 0."""
     w = window_log2(cfg)
-    m_b0 = 16 * 15708e-6 * cfg["ctrl_rate_hz"] * cfg["pwm_top"] / (
+    m_b0 = 16 * 15708e-6 * cfg["ctrl_rate_hz"] * cfg["pwm_top"] * 15 / 16 / (
         cfg["kv_mrad_per_vs"] / 1000 * cfg["supply_mv"] / 1000 * (1 << w))
     return m_b0 < 2**18 - 0.5 and cfg["kt_unm_per_v"] * cfg["vmax_mv"] <= 65536000
 
 
 def window_log2(cfg):
-    w = cfg["vel_window_log2"]
-    if w < 0:
-        w = 0
-        while w < 8 and (1000 << w) < 16 * cfg["ctrl_rate_hz"]:
-            w += 1
-    return w
+    """Fraction bits of the observer's velocity (counts/tick Q6); vel_window_log2 is ignored."""
+    return 6
 
 
 def make_drive(ffi, lib, cfg):
@@ -146,16 +142,16 @@ def test_rig_constants_and_stall_torque(fw):
     assert out.duty == d.duty_max and out.dir == 0
     out = command(ffi, lib, d, 0, 0, 1)
     assert out.duty == 0
-    assert d.vel_log2 == 5            # 32 ticks = 16 ms at 2 kHz
+    assert d.vel_log2 == 6            # velocity input: counts/tick with 6 fraction bits
 
 
 def test_back_emf_term_matches_motor_relation(fw):
-    """With compensation on and zero torque wanted, the duty is omega/S_L over the supply."""
+    """With compensation on and zero torque wanted, the duty is (15/16) omega/S_L over the supply."""
     ffi, lib = fw
     rc, d = make_drive(ffi, lib, RIG)
     for counts in (1, 5, 32, 100):
-        omega = counts * 2 * math.pi / 400 * 2000 / 32      # rad/s over the 16 ms window
-        expect = omega / 49.8 / 9.0 * 2400
+        omega = counts * 2 * math.pi / 400 * 2000 / 64      # rad/s: counts/tick Q6 at 2 kHz
+        expect = 15 / 16 * omega / 49.8 / 9.0 * 2400
         out = command(ffi, lib, d, 0, counts, 1)
         assert abs(out.duty - min(expect, d.duty_max)) <= 1
         assert out.dir == 1

@@ -102,14 +102,15 @@ def test_every_tick_was_measured(ticks):
 
 def test_instructions_per_tick_within_budget(ticks):
     """Every tick of the shipped default configuration (drive on, no fault, back-EMF
-    compensation off) fits the budget; compensation on costs more and is reported."""
+    compensation off) fits its budget; with compensation on, every tick fits the larger one."""
     default = ticks.select(**qemu.BUDGET_CASE)
     with_bemf = ticks.select(enabled=True, fault=False, bemf=True)
     assert len(default) >= 100 and len(with_bemf) >= 100
     print(f"\ninstructions per mc_cell_tick: default median {np.median(default)} max {max(default)}; "
           f"back-EMF on median {np.median(with_bemf)} max {max(with_bemf)}")
     assert max(default) <= qemu.BUDGET
-    assert np.median(with_bemf) > np.median(default)      # the window really runs only when on
+    assert max(with_bemf) <= qemu.BUDGET_BEMF
+    assert np.median(with_bemf) > np.median(default)      # the observer really runs only when on
 
 
 # --------------------------------------------------------------------------- linked-image lint

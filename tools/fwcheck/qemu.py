@@ -242,6 +242,9 @@ BUDGET = 200
 # The budget holds for every tick of the shipped default configuration: drive
 # enabled, no fault, back-EMF compensation off (perturbation on or off).
 BUDGET_CASE = {"enabled": True, "fault": False, "bemf": False}
+# With back-EMF compensation on (the velocity observer runs): every such tick.
+BUDGET_BEMF = 240
+BUDGET_BEMF_CASE = {"enabled": True, "fault": False, "bemf": True}
 
 
 def _bench_trace(elf: Path | None):

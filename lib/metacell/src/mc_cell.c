@@ -26,8 +26,8 @@ void mc_cell_init(mc_cell_t *c)
     mc_drive_configure(&c->drive, &d);
     c->runaway_counts = 800;
     c->enc_burst = 8;
-    c->bemf_comp = 0;   /* see mc_cell.h: compensation through a 16 ms window lags */
-    mc_vel_reset(&c->vel, c->drive.vel_log2, 0, 0);
+    c->bemf_comp = 0;   /* off by default: see mc_cell.h */
+    mc_vel_reset(&c->vel, 0, 0);
 }
 
 int mc_cell_set_params(mc_cell_t *c, const mc_reaction_phys_t *p)
@@ -42,8 +42,6 @@ int mc_cell_set_drive(mc_cell_t *c, const mc_drive_config_t *cfg)
     if (rc == MC_OK) {
         if (limit >= 0)
             mc_drive_set_limit(&c->drive, limit);
-        /* the window length may have changed: restart at the last angles */
-        mc_vel_reset(&c->vel, c->drive.vel_log2, c->theta[0], c->theta[1]);
     }
     return rc;
 }
@@ -59,9 +57,9 @@ int mc_cell_set_runaway(mc_cell_t *c, int32_t counts)
 void mc_cell_enable(mc_cell_t *c, int on) { c->enabled = (uint8_t)(on != 0); }
 void mc_cell_set_bemf(mc_cell_t *c, int on)
 {
-    /* the window only runs while compensation is on: restart it from the last angles */
+    /* the observer only runs while compensation is on: restart it from the last angles, at rest */
     if (on && !c->bemf_comp)
-        mc_vel_reset(&c->vel, c->drive.vel_log2, c->theta[0], c->theta[1]);
+        mc_vel_reset(&c->vel, c->theta[0], c->theta[1]);
     c->bemf_comp = (uint8_t)(on != 0);
 }
 
@@ -81,7 +79,7 @@ void mc_cell_zero(mc_cell_t *c, int32_t pos_a, int32_t pos_b)
     c->zero[0] = pos_a;
     c->zero[1] = pos_b;
     c->theta[0] = c->theta[1] = 0;
-    mc_vel_reset(&c->vel, c->drive.vel_log2, 0, 0);
+    mc_vel_reset(&c->vel, 0, 0);
 }
 
 void mc_cell_clear_faults(mc_cell_t *c)
@@ -140,6 +138,16 @@ static uint16_t encoder_faults(mc_cell_t *c, uint32_t ea, uint32_t eb)
     return f;
 }
 
+/* Drive with back-EMF compensation: observer velocities (counts/tick Q6) add
+ * omega/S_L to each command. Out of line, so that the default path keeps its registers. */
+MC_NOINLINE void drive_bemf(mc_cell_t *c, mc_vel_t *o, int32_t ta, int32_t tb)
+{
+    int32_t wa, wb;
+    mc_vel_update_inl(o, ta, tb, &wa, &wb);
+    mc_drive_command_inl(&c->drive, c->torque[0], wa, 1, &c->out[0]);
+    mc_drive_command_inl(&c->drive, c->torque[1], wb, 1, &c->out[1]);
+}
+
 uint16_t mc_cell_tick(mc_cell_t *c, const mc_quad_snap_t *a, const mc_quad_snap_t *b)
 {
     uint16_t f = c->faults;
@@ -175,11 +183,11 @@ uint16_t mc_cell_tick(mc_cell_t *c, const mc_quad_snap_t *a, const mc_quad_snap_
         c->out[0].dir = c->out[1].dir = 0;
         return f;
     }
-    int32_t wa = 0, wb = 0;
-    int bemf = c->bemf_comp;
-    if (bemf)
-        mc_vel_update_inl(&c->vel, ta, tb, &wa, &wb);
-    mc_drive_command_inl(&c->drive, ra, wa, bemf, &c->out[0]);
-    mc_drive_command_inl(&c->drive, rb, wb, bemf, &c->out[1]);
+    if (c->bemf_comp) {
+        drive_bemf(c, &c->vel, ta, tb);
+        return f;
+    }
+    mc_drive_command_inl(&c->drive, ra, 0, 0, &c->out[0]);
+    mc_drive_command_inl(&c->drive, rb, 0, 0, &c->out[1]);
     return f;
 }

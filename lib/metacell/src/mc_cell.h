@@ -35,13 +35,17 @@ enum {
  * limited angle latches MC_FAULT_RUNAWAY_x. That limit (<= MC_ANGLE_CLAMP) is the
  * only clamp the law needs, and pos - zero is computed without overflow.
  *
- * Back-EMF compensation is off by default (as in the source build): through the
- * ~16 ms velocity window it lags, and the emulator shows it then acts as negative
- * damping on the lightly damped beta chain (docs/emulator.md). The window runs only
- * while compensation is on, and restarts from the last angles when it is switched on.
+ * Back-EMF compensation (V += omega/S_L) is off by default. With it on, the
+ * velocity comes from a low-lag tracking observer (sensors/mc_velocity.h: time
+ * constants of 1.5 ms and 0.5 ms at 2 kHz) that runs only while compensation is
+ * on and restarts, at rest, from the last angles when it is switched on.
+ * Off, each motor adds Kt/S_L (about 1.5e-4 N*m*s) of viscous damping; on, the
+ * lattice follows its own dynamics up to the 5.86 V cap (docs/firmware-proof.md
+ * says which the rig should use).
  *
  * Cost (Cortex-M0+, -Os, measured under QEMU by `python -m tools.fwcheck ticks`):
- * at most 200 instructions per tick in the default configuration.
+ * at most 200 instructions per tick in the default configuration, at most 240
+ * with back-EMF compensation on.
  */
 typedef struct {
     /* hot fields first: Thumb-1 word loads reach only 124 bytes past the base */
@@ -61,7 +65,7 @@ typedef struct {
     int32_t theta[2];         /* last zeroed angles (counts), limited to +-runaway_counts */
     int32_t torque[2];        /* last commanded torque (TU), before the drive */
     mc_drive_out_t out[2];    /* commands for the alpha and beta drivers */
-    mc_vel_t vel;             /* velocity windows, used with back-EMF compensation */
+    mc_vel_t vel;             /* velocity observer, used with back-EMF compensation */
     /* cold: touched only when a decoder error counter moves */
     int32_t enc_burst;        /* errors, default 8 */
     int32_t bucket[2];        /* leaky buckets, as of err_tick */
@@ -79,7 +83,7 @@ void mc_cell_enable(mc_cell_t *c, int on);
 void mc_cell_set_bemf(mc_cell_t *c, int on);
 /* Perturbing torque in uN*m (|t| <= 131000) on one chain for `ticks` ticks. */
 int mc_cell_perturb(mc_cell_t *c, int chain, int32_t torque_unm, uint32_t ticks);
-/* Make the given raw positions the new zero of both angles; velocity windows restart. */
+/* Make the given raw positions the new zero of both angles; the velocity observer restarts. */
 void mc_cell_zero(mc_cell_t *c, int32_t pos_a, int32_t pos_b);
 void mc_cell_clear_faults(mc_cell_t *c);
 void mc_cell_report_driver_fault(mc_cell_t *c);

@@ -30,8 +30,10 @@
 /* Force inlining of the control-path helpers (GCC/Clang); plain inline elsewhere. */
 #if defined(__GNUC__)
 #define MC_INLINE static inline __attribute__((always_inline))
+#define MC_NOINLINE static __attribute__((noinline))
 #else
 #define MC_INLINE static inline
+#define MC_NOINLINE static
 #endif
 
 /* clamp(x, -lim, +lim) for 0 <= lim <= 2^30; one compare on the common path:

@@ -274,7 +274,7 @@ static void random_drive_cfg(rng_t *g, mc_drive_config_t *c, int valid)
         c->kv_mrad_per_vs = r_range(g, 1000, 1000000);
         c->pwm_top = r_range(g, 255, 4095);
         c->ctrl_rate_hz = r_range(g, 100, 50000);
-        c->vel_window_log2 = r_range(g, -1, MC_VEL_RING_LOG2_MAX);
+        c->vel_window_log2 = r_range(g, -1, 8);
     } else {
         c->supply_mv = r_field(g, 4500, 37000);
         c->vmax_mv = r_field(g, 1, MC_VMAX_ABS_MV);
@@ -282,7 +282,7 @@ static void random_drive_cfg(rng_t *g, mc_drive_config_t *c, int valid)
         c->kv_mrad_per_vs = r_field(g, 1000, 1000000);
         c->pwm_top = r_field(g, 255, 4095);
         c->ctrl_rate_hz = r_field(g, 100, 50000);
-        c->vel_window_log2 = r_field(g, -1, MC_VEL_RING_LOG2_MAX);
+        c->vel_window_log2 = r_field(g, -1, 8);
     }
 }
 

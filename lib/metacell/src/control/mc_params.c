@@ -111,29 +111,26 @@ int mc_drive_configure(mc_drive_t *out, const mc_drive_config_t *c)
         c->kt_unm_per_v < 1000 || c->kt_unm_per_v > 100000 ||
         c->kv_mrad_per_vs < 1000 || c->kv_mrad_per_vs > 1000000 ||
         c->pwm_top < 255 || c->pwm_top > 4095 || c->ctrl_rate_hz < 100 ||
-        c->ctrl_rate_hz > 50000 || c->vel_window_log2 < -1 ||
-        c->vel_window_log2 > MC_VEL_RING_LOG2_MAX)
+        c->ctrl_rate_hz > 50000 || c->vel_window_log2 < -1 || c->vel_window_log2 > 8)
         return MC_ERR_CONFIG;
     /* the torque clamp (2^22 TU = 0.131 N*m) must reach at least 2*vmax, so that
      * clamping the torque never changes a command (even against back-EMF) */
     if ((int64_t)c->kt_unm_per_v * c->vmax_mv > 65536000LL)
         return MC_ERR_CONFIG;
-    int w = c->vel_window_log2;
-    if (w < 0) { /* smallest window >= 16 ms, capped */
-        w = 0;
-        while (w < MC_VEL_RING_LOG2_MAX && ((int64_t)1000 << w) < (int64_t)16 * c->ctrl_rate_hz)
-            w++;
-    }
+    /* the observer's velocity is counts/tick with w fraction bits (vel_window_log2 is
+     * validated for old configurations but no longer selects anything) */
+    int w = MC_VEL_OUT_LOG2;
     mc_drive_t d;
     /* m_t/2^s_t = 16 ticks * 128 TU [= 4e-6 N*m] / Kt / Vs * top
      *           = 16 * 4000 * top / (kt_unm_per_v * supply_mv) */
     uint64_t num_t = (uint64_t)64000u * (uint64_t)c->pwm_top;
     uint64_t den_t = (uint64_t)c->kt_unm_per_v * (uint64_t)c->supply_mv;
     d.s_t = pick_shift(num_t, den_t, 1u << 15, &d.m_t);
-    /* m_b/2^s_b = 16 * (2 pi/400 rad) * f / 2^w / S_L / Vs * top
+    /* m_b/2^s_b = 16 * (2 pi/400 rad) * f / 2^w / S_L / Vs * top   (velocity counts/tick Qw)
      *           = 16 * 15708 urad * f * top / (kv_mrad_per_vs * supply_mv * 2^w) */
-    uint64_t num_b = (uint64_t)15708u * 16u * (uint64_t)c->ctrl_rate_hz * (uint64_t)c->pwm_top;
-    uint64_t den_b = ((uint64_t)c->kv_mrad_per_vs * (uint64_t)c->supply_mv) << w;
+    uint64_t num_b = (uint64_t)15708u * 16u * (uint64_t)c->ctrl_rate_hz * (uint64_t)c->pwm_top *
+                     MC_BEMF_FRAC_NUM;
+    uint64_t den_b = (((uint64_t)c->kv_mrad_per_vs * (uint64_t)c->supply_mv) << w) * MC_BEMF_FRAC_DEN;
     d.s_b = pick_shift(num_b, den_b, 1u << 18, &d.m_b);
     if (d.s_t < 0 || d.s_b < 0)
         return MC_ERR_CONFIG;
