@@ -57,7 +57,7 @@ CASES = {
 }
 
 GOLDEN = {
-    "hil_bemf": "409615729093a9da6af74e36db7f815ccad55a8d6cb0912e06d0ea52948bda4c",
+    "hil_bemf": "bce619dff1addc2a4e514a9846c0c4acb6e50510d8f39f4f0c9ff377ffe590ce",
     "hil_default": "5d0f5e9f526a359b3fd60446a848c0d1f17c7506ec12bf08e676af0c1973892b",
     "hil_firmware_push": "1875f375e61d06ad9200679ca9666bb89506d4695ee83736e7c31f3b89518fc2",
     "hil_noise": "2e8e60d16a576fc6999f4ef2b0abfaeff8004f6dcee9e648d6dfa05abb8397de",
