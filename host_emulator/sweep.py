@@ -240,7 +240,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
     else:
         n = int(workers or os.cpu_count() or 1)
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=logging.ERROR)
+                               scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR)
         client = Client(cluster)
     try:
         nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
@@ -250,7 +250,11 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         futs = {client.submit(evaluate_points, c, retries=2, pure=False, key=f"sweep-{tag}-{i}"): c
                 for i, c in enumerate(chunks)}
         bar = tqdm(total=len(todo), unit="point", desc="sweep", disable=not progress, file=sys.stderr)
-        with open(out / "points.jsonl", "a") as fh:
+        pf = out / "points.jsonl"
+        cut = pf.exists() and pf.stat().st_size and not pf.read_bytes().endswith(b"\n")
+        with open(pf, "a") as fh:
+            if cut:
+                fh.write("\n")         # a line cut by a crash stays alone (ignored when read)
             for fut in as_completed(list(futs)):
                 c = futs[fut]
                 try:
