@@ -343,9 +343,9 @@ def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
     n = int(ds.attrs.get("cells", 16))
     ax.set_ylim(1.5, 4 * n)
     ax.set_yscale("log")
-    from matplotlib.ticker import NullFormatter, ScalarFormatter
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
 
-    ax.yaxis.set_major_formatter(ScalarFormatter())
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_yticks([2, 3, 5, 7.5, 10, 15, 20, 30, 60])
     ax.set_xlabel("sigma (N·m/rad)")
