@@ -58,6 +58,9 @@ def summarize(scene, res) -> dict:
         "model_options": scene.as_dict()["model_options"],
         "perturbation": scene.as_dict()["perturbation"],
     }
+    from .provenance import provenance
+
+    out["provenance"] = provenance()
     return _clean(out)
 
 
@@ -175,6 +178,10 @@ def _main(argv=None) -> int:
         from .paper import paper_main
 
         return paper_main(argv[1:])
+    if argv and argv[0] == "sweep":
+        from .sweep import sweep_main
+
+        return sweep_main(argv[1:])
     if argv and argv[0] == "bench":
         from .benchmarks.cli import main as bench_accuracy_main
 
@@ -198,6 +205,7 @@ def _main(argv=None) -> int:
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
     sub.add_parser("robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)")
     sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
+    sub.add_parser("sweep", help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)")
     sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
     sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
     sub.add_parser("bench", help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)")

@@ -1,72 +1,168 @@
-"""PNG plots of a run: space-time maps of alpha and beta, the final pattern, the dispersion curve."""
+"""Plots of a run: space-time maps of alpha and beta (with a growth-phase panel), the final pattern, the dispersion.
+
+Every function takes ``ax=`` (or ``axes=``) to draw into the caller's axes and returns the matplotlib Figure.
+Without axes, a figure comes from pyplot when the caller already uses pyplot (a notebook: the figure shows
+inline), else a bare ``matplotlib.figure.Figure`` (no backend, no global state). The package never calls
+``matplotlib.use``: the user's backend is left alone.
+"""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
 
-def _plt():
-    import matplotlib
+def new_figure(figsize=(8, 6), **kw):
+    """A Figure: through pyplot if the caller imported it (inline display in notebooks), else a bare Figure."""
+    if "matplotlib.pyplot" in sys.modules:
+        return sys.modules["matplotlib.pyplot"].figure(figsize=figsize, **kw)
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(figsize=figsize, **kw)
 
 
-def plot_spacetime(t, alpha, beta, path, title=""):
-    plt = _plt()
-    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
-    n = alpha.shape[1]
-    for ax, data, lab in ((axes[0], alpha, "alpha"), (axes[1], beta, "beta")):
-        lim = float(np.abs(data).max()) or 1.0
-        im = ax.imshow(data.T, aspect="auto", origin="lower", cmap="RdBu_r", vmin=-lim, vmax=lim,
-                       extent=(t[0], t[-1], 0.5, n + 0.5), interpolation="nearest")
-        ax.set_ylabel("cell j")
-        fig.colorbar(im, ax=ax, label=f"{lab} (rad)")
-    axes[1].set_xlabel("t (s)")
-    axes[0].set_title(title or "space-time")
+def _save(fig, path):
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    if "matplotlib.pyplot" in sys.modules:
+        sys.modules["matplotlib.pyplot"].close(fig)
 
 
-def plot_final(alpha, beta, path, title=""):
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
-    j = np.arange(1, len(alpha) + 1)
-    ax.plot(j, alpha, "o-", label="alpha")
-    ax.plot(j, beta, "s--", label="beta")
+def _arrays(run, alpha=None, beta=None):
+    if alpha is not None:
+        return np.asarray(run, dtype=float), np.asarray(alpha, dtype=float), np.asarray(beta, dtype=float)
+    t = getattr(run, "time", None)
+    if t is None:
+        t = run.t
+    return np.asarray(t, dtype=float), np.asarray(run.alpha, dtype=float), np.asarray(run.beta, dtype=float)
+
+
+def _growth_end(t, alpha, frac=0.9):
+    """Time at which max_j |alpha_j| first reaches `frac` of its final-window level (the pattern has formed)."""
+    amp = np.abs(alpha).max(axis=1)
+    level = np.median(amp[int(0.9 * len(amp)):]) if len(amp) > 10 else amp[-1]
+    if not level > 0:
+        return None
+    k = np.flatnonzero(amp >= frac * level)
+    return float(t[k[0]]) if len(k) else None
+
+
+def _title(scene=None, title=""):
+    if scene is None:
+        return title
+    p = scene.params
+    push = ", ".join(f"{q.torque_Nm * 1e3:+.0f} mN·m on {q.chain}_{q.cell} for {q.duration_s:g} s"
+                     for q in getattr(scene, "perturbations", ())) or "no push"
+    return (title or scene.name) + f"\nsigma = {p.sigma:.4g} N·m/rad; push: {push}"
+
+
+def plot_spacetime(run, alpha=None, beta=None, *, ax=None, axes=None, scene=None, title="", growth_panel=True):
+    """Space-time maps of alpha and beta (cells x time); with growth_panel, a second column zooms on the
+    growth phase (until the pattern reaches 90 % of its final amplitude, at least 0.5 s).
+
+    run: a RunResult (api or controller), or t with alpha=, beta= arrays (T, N). ax/axes: one Axes (alpha only)
+    or a sequence of 2 (alpha, beta) or 4 (alpha, beta, alpha zoom, beta zoom). Returns the Figure."""
+    t, a, b = _arrays(run, alpha, beta)
+    scene = scene if scene is not None else getattr(run, "scene", None)
+    if axes is None and ax is not None:
+        axes = [ax] if not isinstance(ax, (list, tuple, np.ndarray)) else list(np.ravel(ax))
+    if axes is None:
+        ncol = 2 if growth_panel else 1
+        fig = new_figure(figsize=(8 + 3 * (ncol - 1), 6), constrained_layout=True)
+        grid = fig.subplots(2, ncol, squeeze=False, gridspec_kw={"width_ratios": [2.2, 1] if ncol == 2 else [1]})
+        axes = [grid[0, 0], grid[1, 0]] + ([grid[0, 1], grid[1, 1]] if ncol == 2 else [])
+    else:
+        axes = list(np.ravel(axes))
+        fig = axes[0].figure
+    n = a.shape[1]
+    t_zoom = None
+    if len(axes) >= 4:
+        te = _growth_end(t, a)
+        t_zoom = min(t[-1], max(0.5, 1.2 * te if te else 0.5))
+    panels = [(axes[0], a, "alpha", None)]
+    if len(axes) >= 2:
+        panels.append((axes[1], b, "beta", None))
+    if t_zoom is not None:
+        panels += [(axes[2], a, "alpha", t_zoom), (axes[3], b, "beta", t_zoom)]
+    for axi, data, lab, tz in panels:
+        sel = slice(None) if tz is None else slice(0, int(np.searchsorted(t, tz, side="right")))
+        d, tt = data[sel], t[sel]
+        lim = float(np.abs(data).max()) or 1.0
+        im = axi.imshow(d.T, aspect="auto", origin="lower", cmap="RdBu_r", vmin=-lim, vmax=lim,
+                        extent=(tt[0], tt[-1] if len(tt) > 1 else tt[0] + 1e-9, 0.5, n + 0.5),
+                        interpolation="nearest")
+        axi.set_ylabel("cell j")
+        axi.set_xlabel("t (s)")
+        if tz is None:
+            fig.colorbar(im, ax=axi, label=f"{lab} (rad)")
+        else:
+            axi.set_title(f"{lab}: growth phase, 0-{tz:.2g} s", fontsize=9)
+    axes[0].set_title(_title(scene, title) or "space-time", fontsize=9)
+    return fig
+
+
+def plot_final(run, alpha=None, beta=None, *, ax=None, scene=None, title=""):
+    """Final alpha and beta profile against cell index. run: a RunResult, or final alpha with beta= (N,)."""
+    if alpha is None and not hasattr(run, "alpha"):
+        raise TypeError("plot_final(run) or plot_final(alpha_final, beta_final)")
+    if hasattr(run, "alpha"):
+        a, b = np.asarray(run.alpha)[-1], np.asarray(run.beta)[-1]
+        scene = scene if scene is not None else getattr(run, "scene", None)
+    else:
+        a, b = np.asarray(run, dtype=float), np.asarray(alpha, dtype=float)   # plot_final(alpha, beta)
+    if ax is None:
+        fig = new_figure(figsize=(7, 3.8), constrained_layout=True)
+        ax = fig.add_subplot(111)
+    fig = ax.figure
+    j = np.arange(1, len(a) + 1)
+    ax.plot(j, a, "o-", label="alpha")
+    ax.plot(j, b, "s--", label="beta")
     ax.axhline(0, color="0.6", lw=0.8)
     ax.set_xlabel("cell j")
     ax.set_ylabel("angle (rad)")
     ax.set_xticks(j)
     ax.legend()
-    ax.set_title(title or "final pattern")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    ax.set_title(_title(scene, title) or "final pattern", fontsize=9)
+    return fig
 
 
-def plot_dispersion_png(params, path, *, inertia=False):
-    """Uses analysis.stability.plot_dispersion; returns False (no file) if that module is unavailable."""
+def plot_dispersion(params, *, ax=None, inertia=False, measured_period_s=None):
+    """Growth rate against wavelength (analysis.stability.plot_dispersion); the measured period, if given,
+    is marked as a horizontal line at its angular frequency 2 pi / T. Returns the Figure."""
+    from .analysis.stability import plot_dispersion as _pd
+
+    if ax is None:
+        fig = new_figure(figsize=(7, 4.2), constrained_layout=True)
+        ax = fig.add_subplot(111)
+    _pd(params, ax=ax, inertia=inertia)
+    if measured_period_s:
+        w = 2 * np.pi / measured_period_s
+        lo, hi = ax.get_ylim()
+        if w <= hi:
+            ax.axhline(w, color="C3", lw=0.8, ls="-.", label=f"measured 2π/T, T = {measured_period_s:.3g} s")
+            ax.legend(fontsize=7, loc="lower right")
+    return ax.figure
+
+
+def plot_dispersion_png(params, path, *, inertia=False, measured_period_s=None):
+    """Write the dispersion plot to path; False (no file) if the analysis module is unavailable."""
     try:
-        from .analysis.stability import plot_dispersion
+        fig = plot_dispersion(params, inertia=inertia, measured_period_s=measured_period_s)
     except ImportError:
         return False
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
-    plot_dispersion(params, ax=ax, inertia=inertia)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
     return True
 
 
 def plot_run(res, scene, outdir: Path, *, inertia=False) -> list[Path]:
+    """The run's PNGs in outdir: spacetime.png, final_pattern.png, dispersion.png. Returns the paths."""
     outdir = Path(outdir)
     files = [outdir / "spacetime.png", outdir / "final_pattern.png"]
-    plot_spacetime(res.t, res.alpha, res.beta, files[0], f"{scene.name} ({scene.model})")
-    plot_final(res.alpha[-1], res.beta[-1], files[1], f"{scene.name}: t = {res.t[-1]:.2f} s")
+    fig = plot_spacetime(res.t, res.alpha, res.beta, scene=scene, title=f"{scene.name} ({scene.model})")
+    _save(fig, files[0])
+    fig = plot_final(res.alpha[-1], res.beta[-1], scene=scene, title=f"{scene.name}: t = {res.t[-1]:.2f} s")
+    _save(fig, files[1])
     d = outdir / "dispersion.png"
     if plot_dispersion_png(scene.params, d, inertia=inertia):
         files.append(d)

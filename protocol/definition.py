@@ -231,3 +231,43 @@ SCHEDULE = {
 }
 
 TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}   # b7: 7 raw bytes
+
+# ---------------------------------------------------------------------------
+# The CAN database's physical view (protocol/metacell.dbc only: the wire layout, the C header and the map id do
+# not depend on it). Tools that read the DBC (cantools decode/monitor, SavvyCAN, ...) show SI units and names;
+# code that wants the raw wire integers decodes with scaling=False, decode_choices=False.
+import math as _math  # noqa: E402
+
+COUNT_RAD = 2 * _math.pi / 400          # one encoder count (400 counts per revolution), rad
+
+# (frame, signal) -> (scale, offset, unit); "CMD" signals are named <REGISTER>_<field>.
+DBC_PHYSICAL = {
+    ("CELL_SAMPLE", "alpha"): (COUNT_RAD, 0, "rad"),
+    ("CELL_SAMPLE", "beta"): (COUNT_RAD, 0, "rad"),
+    ("CMD", "K_AB_value"): (1e-6, 0, "N*m/rad"),
+    ("CMD", "SIGMA_value"): (1e-6, 0, "N*m/rad"),
+    ("CMD", "K1_value"): (1e-6, 0, "N*m/rad"),
+    ("CMD", "K2_value"): (1e-6, 0, "N*m/rad"),
+    ("CMD", "ASTAR_value"): (1e-6, 0, "rad"),
+    ("CMD", "PERTURB_torque"): (4e-6, 0, "N*m"),
+    ("CMD", "PERTURB_ticks"): (1, 0, "tick"),
+    ("CMD", "PWM_LIMIT_ticks"): (1, 0, "timer tick"),
+}
+
+# (frame, signal) -> {raw value: name}: value tables of the enumerations. CELL_SAMPLE.flags is a bit field:
+# its table names the single-bit values (a combination decodes as its number).
+_REG_NAMES = {r["id"]: name for name, r in REGISTERS.items()}
+_RESULT_NAMES = {v: k for k, v in RESULTS.items()}
+DBC_CHOICES = {
+    ("CMD", "reg"): _REG_NAMES,
+    ("CMD_RESULT", "reg"): _REG_NAMES,
+    ("CMD_RESULT", "result"): _RESULT_NAMES,
+    ("PRIMARY_REJECT", "reason"): _RESULT_NAMES,
+    ("CELL_SAMPLE", "flags"): {0: "NONE", **{1 << b: name for name, b in CELL_FLAGS.items()}},
+    ("CMD", "PERTURB_chain"): {0: "ALPHA", 1: "BETA"},
+    ("CMD", "ENABLE_on"): {0: "OFF", 1: "ON"},
+    ("CMD", "BEMF_on"): {0: "OFF", 1: "ON"},
+}
+
+# frame -> cycle time in ms (frames sent on a fixed period; the per-cell frames follow the polling rate).
+DBC_CYCLE_MS = {"PRIMARY_STATUS": 1000}

@@ -157,15 +157,24 @@ def build_database(d):
 
     sz = d.TYPE_SIZES
 
+    phys = getattr(d, "DBC_PHYSICAL", {})
+    choices = getattr(d, "DBC_CHOICES", {})
+    frame = [""]                                 # the frame being built (for the physical view's lookups)
+
     def sig(name, typ, start_byte, scale=1, offset=0, unit="", comment="", **kw):
+        if (frame[0], name) in phys:
+            scale, offset, unit = phys[(frame[0], name)]
+        table = choices.get((frame[0], name))
         return Signal(name=name, start=start_byte * 8, length=8 * sz[typ], byte_order="little_endian",
                       is_signed=typ.startswith("i"),
-                      conversion=BaseConversion.factory(scale=scale, offset=offset),
+                      conversion=BaseConversion.factory(scale=scale, offset=offset, choices=dict(table) if table else None,
+                                                        is_float=False),
                       unit=unit or None, comment=comment or None, **kw)
 
     msgs = []
     for name, f in d.FRAMES.items():
         cells = range(1, d.N_CELLS + 1) if f["per_cell"] else [None]
+        frame[0] = name
         for j in cells:
             if f.get("multiplexed"):
                 sigs = [sig("reg", "u8", 0, comment="register (multiplexer)", is_multiplexer=True),
@@ -187,7 +196,7 @@ def build_database(d):
             fid = f["base"] + (j or 0)
             msgs.append(Message(frame_id=fid, name=mname, length=length, signals=sigs,
                                 comment=f["doc"].replace("cell j", f"cell {j}") if j else f["doc"],
-                                senders=[f["sender"]]))
+                                senders=[f["sender"]], cycle_time=getattr(d, "DBC_CYCLE_MS", {}).get(name)))
     msgs.sort(key=lambda m: m.frame_id)
     return Database(messages=msgs, nodes=[Node("PRIMARY"), Node("LAPTOP")],
                     version=f"metacell protocol {d.PROTO_VERSION} map 0x{map_id(d):04X}")

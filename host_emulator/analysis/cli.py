@@ -83,6 +83,8 @@ def dispersion_main(argv) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a Params field")
     ap.add_argument("--json", action="store_true", help="print JSON")
     ap.add_argument("--curve", action="store_true", help="include the sampled curve in the JSON")
+    ap.add_argument("--plot", default=None, metavar="PNG",
+                    help="also draw the dispersion (lattice and continuum, band, fastest wavelength) to PNG")
     args = ap.parse_args(argv)
     try:
         p = Params()
@@ -102,6 +104,11 @@ def dispersion_main(argv) -> int:
     except (ValueError, KeyError, FloatingPointError) as e:
         print(f"dispersion: error: {e.args[0] if e.args else e}", file=sys.stderr)
         return 2
+    if args.plot:
+        from ..plots import plot_dispersion_png
+
+        plot_dispersion_png(p, args.plot, inertia=args.inertia)
+        print(f"wrote {args.plot}", file=sys.stderr)
     if not args.curve:
         res.pop("curve")
     if args.json:

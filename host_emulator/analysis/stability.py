@@ -282,20 +282,30 @@ def plot_dispersion(params, ax=None, *, inertia=False):
     for res, style, label in ((disc, "C0", "lattice"), (cont, "C1", "continuum")):
         lam = np.asarray(res["curve"]["lambda_cells"])
         ax.plot(lam, res["curve"]["growth_per_s"], color=style, label=f"Re s, {label}")
-        im = np.asarray(res["curve"]["imag_per_s"])
-        if np.any(im > 0):
+        im = np.asarray(res["curve"]["imag_per_s"], dtype=float)
+        ytop = 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9)
+        im = np.where((im > 0) & (im <= ytop), im, np.nan)    # off-scale |Im s| is not drawn as spikes
+        if np.any(np.isfinite(im)):
             ax.plot(lam, im, color=style, ls="--", lw=0.8, label=f"|Im s|, {label}")
     band = disc["unstable_band_cells"]
     if band:
-        ax.axvspan(band[0], band[1] if band[1] is not None else 1e3, color="C0", alpha=0.12)
+        ax.axvspan(band[0], band[1] if band[1] is not None else 1e3, color="C0", alpha=0.12,
+                   label=f"unstable band {band[0]:.3g}-{'inf' if band[1] is None else format(band[1], '.3g')} cells")
     modes = [m for m in disc["lattice_modes"] if m["lambda_cells"]]
     ax.plot([m["lambda_cells"] for m in modes], [m["growth_per_s"] for m in modes], "o", ms=3,
             color="C0", label=f"free-end modes, {n} cells")
     if disc["fastest_lambda_cells"]:
-        ax.axvline(disc["fastest_lambda_cells"], color="C0", lw=0.6, ls=":")
+        ax.axvline(disc["fastest_lambda_cells"], color="C0", lw=0.8, ls=":",
+                   label=f"fastest wavelength {disc['fastest_lambda_cells']:.3g} cells")
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xscale("log")
     ax.set_xlim(1.8, 4 * n)
+    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullFormatter
+
+    ax.xaxis.set_major_locator(FixedLocator([t for t in (2, 3, 5, 7.5, 10, 15, 20, 30, 60, 120, 250, 500)
+                                             if t <= 4 * n]))      # no colliding log-axis labels
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ylo = min(np.percentile(disc["curve"]["growth_per_s"], 5), -abs(disc["fastest_growth_per_s"]))
     ax.set_ylim(ylo, 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9))
     ax.set_xlabel("wavelength lambda (cells)")

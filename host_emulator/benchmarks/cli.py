@@ -15,12 +15,10 @@ LATTICE_RATIO_TARGET = 30.0
 
 
 def _plot(panels, path):
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.6), squeeze=False)
+    fig = Figure(figsize=(6 * len(panels), 4.6))
+    axes = fig.subplots(1, len(panels), squeeze=False)
     for ax, (title, points, target) in zip(axes[0], panels):
         for meth in sorted({p.method for p in points}):
             pts = sorted((p.wall_s, p.error) for p in points if p.method == meth and p.error < 1e9)
@@ -37,7 +35,6 @@ def _plot(panels, path):
         ax.grid(True, which="both", lw=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def run_workprecision(args, out: Path) -> int:

@@ -1,5 +1,6 @@
 """The generated C header and DBC agree with protocol/definition.py; CRC-8 matches an independent bitwise reference."""
 
+import math
 import struct
 import subprocess
 import sys
@@ -84,7 +85,7 @@ def test_dbc_has_every_frame_with_the_defined_layout():
             for sname, stype, scale, offset, _, _ in f["signals"]:
                 s = m.get_signal_by_name(sname)
                 assert (s.start, s.length, s.is_signed) == (8 * off, 8 * D.TYPE_SIZES[stype], stype[0] == "i")
-                assert (s.scale, s.offset) == (scale, offset)
+                assert (s.scale, s.offset) == D.DBC_PHYSICAL.get((name, sname), (scale, offset, ""))[:2]
                 off += D.TYPE_SIZES[stype]
 
 
@@ -93,8 +94,13 @@ def test_dbc_has_every_frame_with_the_defined_layout():
        st.integers(0, 65535), st.integers(0, 255))
 def test_dbc_decodes_sample_frames(j, seq, a, b, t, flags):
     data = struct.pack("<BhhHB", seq, a, b, t, flags)
-    d = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)
-    assert (d["seq"], d["alpha"], d["beta"], d["flags"]) == (seq, a, b, flags)
+    raw = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data, scaling=False,
+                                          decode_choices=False)
+    assert (raw["seq"], raw["alpha"], raw["beta"], raw["flags"]) == (seq, a, b, flags)
+    d = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)   # physical units
+    assert d["alpha"] == pytest.approx(a * 2 * math.pi / 400) and d["beta"] == pytest.approx(b * 2 * math.pi / 400)
+    if flags in D.DBC_CHOICES[("CELL_SAMPLE", "flags")]:
+        assert str(d["flags"]) == D.DBC_CHOICES[("CELL_SAMPLE", "flags")][flags]
     assert d["t128"] == pytest.approx(t * 128e-6)
 
 
@@ -104,5 +110,9 @@ def test_dbc_decodes_sample_frames(j, seq, a, b, t, flags):
 def test_dbc_decodes_command_frames(j, seq, chain, torque, ticks):
     data = proto.cmd_data("PERTURB", seq, chain=chain, torque=torque, ticks=ticks)
     d = proto.database().decode_message(proto.cmd_frame_id(j), data + bytes(8 - len(data)))
-    assert d["reg"] == D.REGISTERS["PERTURB"]["id"] and d["seq"] == seq
-    assert (d["PERTURB_chain"], d["PERTURB_torque"], d["PERTURB_ticks"]) == (chain, 4 * torque, ticks)
+    assert str(d["reg"]) == "PERTURB" and d["seq"] == seq
+    assert str(d["PERTURB_chain"]) == ("ALPHA", "BETA")[chain] and d["PERTURB_ticks"] == ticks
+    assert d["PERTURB_torque"] == pytest.approx(4e-6 * torque)                     # N*m
+    raw = proto.database().decode_message(proto.cmd_frame_id(j), data + bytes(8 - len(data)), scaling=False,
+                                          decode_choices=False)
+    assert (raw["reg"], raw["PERTURB_chain"], raw["PERTURB_torque"]) == (D.REGISTERS["PERTURB"]["id"], chain, torque)

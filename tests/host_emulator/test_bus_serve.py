@@ -68,7 +68,7 @@ def n_samples(msgs, j):
 
 def alphas(msgs, j):
     db = proto.database()
-    return [db.decode_message(m.arbitration_id, bytes(m.data))["alpha"] for m in msgs
+    return [db.decode_message(m.arbitration_id, bytes(m.data), scaling=False)["alpha"] for m in msgs
             if proto.frame_kind(m.arbitration_id) == ("CELL_SAMPLE", j)]
 
 

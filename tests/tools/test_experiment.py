@@ -171,7 +171,7 @@ def cells_enabled(channel, seconds=0.6):
             m = bus.recv(timeout=0.1)
             if m is not None and proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE":
                 state[proto.frame_kind(m.arbitration_id)[1]] = bool(
-                    db.decode_message(m.arbitration_id, bytes(m.data))["flags"] & ENABLED)
+                    db.decode_message(m.arbitration_id, bytes(m.data), decode_choices=False)["flags"] & ENABLED)
     return state
 
 

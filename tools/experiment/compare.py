@@ -73,12 +73,10 @@ def table(rig: dict, emu: dict) -> str:
 
 
 def plot(rig: dict, emu: dict, path: Path) -> Path:
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6), sharex=True, constrained_layout=True)
+    fig = Figure(figsize=(7.5, 6), constrained_layout=True)
+    axes = fig.subplots(2, 1, sharex=True)
     for ax, chain, colour in ((axes[0], "alpha", "C0"), (axes[1], "beta", "C1")):
         em = finals(emu, chain)[0]
         m, lo, hi = finals(rig, chain)
@@ -97,7 +95,6 @@ def plot(rig: dict, emu: dict, path: Path) -> Path:
     axes[0].set_title(f"{rig['scene']}: rig vs emulator (pattern period {rig.get('pattern_period_cells') or 0:.3g} vs "
                       f"{emu.get('pattern_period_cells') or 0:.3g} cells)")
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 

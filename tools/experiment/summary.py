@@ -153,6 +153,9 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
         "log_files": [p.name for p in exp.log_files],
     })
     out.pop("solver", None)
+    from host_emulator.provenance import provenance
+
+    out["provenance"] = provenance()       # code version, library versions, UTC time, command line
     return json_ready(out), (None if res is None else (scene, res))
 
 

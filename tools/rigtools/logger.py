@@ -113,14 +113,15 @@ class SampleDecoder:
             return
         if kind == "CELL_SAMPLE":
             try:
-                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data))
+                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data), decode_choices=False,
+                                           scaling=False)      # raw wire integers: counts, 128 us ticks
             except Exception as e:
                 self.report(f"undecodable CELL_SAMPLE frame 0x{msg.arbitration_id:03X}: {e}")
                 return
-            self.sample(j, d["seq"], d["alpha"], d["beta"], round(d["t128"] / T128_S), d["flags"], msg.timestamp)
+            self.sample(j, d["seq"], d["alpha"], d["beta"], d["t128"], d["flags"], msg.timestamp)
         elif kind in ("CELL_STATUS", "CELL_LINK", "PRIMARY_STATUS", "PRIMARY_REJECT", "CMD_RESULT"):
             try:
-                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data))
+                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data), decode_choices=False)
             except Exception as e:   # wrong length etc.: keep going, say so
                 self.report(f"undecodable {kind} frame 0x{msg.arbitration_id:03X}: {e}")
                 return

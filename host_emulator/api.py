@@ -1,0 +1,161 @@
+"""Python API for notebooks and scripts: ``host_emulator.run(scene, overrides=..., accuracy=...)``.
+
+Example::
+
+    import host_emulator as he
+    r = he.run("default", overrides={"params.sigma": 0.05, "t_end_s": 2.0})
+    r.summary["pattern_wavelength_cells"]
+    ds = r.to_xarray()            # dims (time, cell), units and every scene parameter as attributes
+    he.plot_spacetime(r)          # a matplotlib Figure; pass ax= to draw into your own axes
+
+Nothing here selects a matplotlib backend: figures show inline in Jupyter and in whatever backend the user set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["RunResult", "run", "load_scene", "list_scenes"]
+
+
+def _override_list(overrides) -> list[str]:
+    if overrides is None:
+        return []
+    if isinstance(overrides, dict):
+        return [f"{k}={_toml(v)}" for k, v in overrides.items()]
+    if isinstance(overrides, str):
+        return [overrides]
+    return [str(o) for o in overrides]
+
+
+def _toml(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return repr(float(v))
+
+
+@dataclass
+class RunResult:
+    """One run of a scene.
+
+    time: (T,) s, sample times 0, dt_out, ..., t_end.
+    alpha, beta: (T, N) rad, angle of the tall (honey) and the short cylinder of cells j = 1..N (CCW positive).
+    summary: the dict that ``python -m host_emulator run`` writes as summary.json (observables, dispersion,
+    solver info, parameters, provenance).
+    scene: the validated Scene the run used. wall_s: wall-clock seconds of the run.
+    """
+
+    scene: object
+    time: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    summary: dict
+    wall_s: float
+    info: dict = field(default_factory=dict)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.time
+
+    def to_xarray(self):
+        """xarray.Dataset: alpha, beta (time x cell, rad); coords time (s), cell (1..N); attributes: units,
+        every scene parameter (params.*, model_options.*, perturbation.*), the scalar observables and provenance."""
+        import xarray as xr
+
+        n = self.alpha.shape[1]
+        ds = xr.Dataset(
+            {"alpha": (("time", "cell"), self.alpha, {"units": "rad", "long_name": "tall (alpha) cylinder angle"}),
+             "beta": (("time", "cell"), self.beta, {"units": "rad", "long_name": "short (beta) cylinder angle"})},
+            coords={"time": ("time", self.time, {"units": "s"}),
+                    "cell": ("cell", np.arange(1, n + 1), {"long_name": "cell index j"})})
+        ds.attrs.update(netcdf_attrs(self.scene, self.summary))
+        return ds
+
+    def plot(self, ax=None):
+        """Space-time map of alpha and beta (a Figure); see plots.plot_spacetime."""
+        from .plots import plot_spacetime
+
+        return plot_spacetime(self, ax=ax)
+
+
+def _flat(prefix, v, out):
+    if isinstance(v, dict):
+        for k, x in v.items():
+            _flat(f"{prefix}.{k}" if prefix else str(k), x, out)
+    elif isinstance(v, (list, tuple)):
+        if all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v) and v:
+            out[prefix] = np.asarray(v, dtype=float)
+        else:
+            for i, x in enumerate(v):
+                _flat(f"{prefix}.{i + 1}", x, out)
+    elif v is None:
+        out[prefix] = "none"
+    elif isinstance(v, bool):
+        out[prefix] = int(v)
+    elif isinstance(v, (int, float, str, np.integer, np.floating)):
+        out[prefix] = v
+    else:
+        out[prefix] = str(v)
+
+
+def netcdf_attrs(scene, summary: dict | None = None) -> dict:
+    """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance."""
+    from .provenance import provenance
+
+    out: dict = {}
+    d = scene.as_dict()
+    _flat("", {"scene": d["name"], "model": d["model"], "cells": d["cells"], "t_end_s": d["t_end_s"],
+               "accuracy": d["accuracy"], "params": d["params"], "model_options": d["model_options"],
+               "perturbation": d["perturbation"]}, out)
+    if summary:
+        for k in ("steady", "at_rest", "domain_walls", "pattern_wavelength_cells", "dominant_mode",
+                  "pattern_period_cells", "oscillation_period_s", "amplitude_rad", "growth_rate_per_s"):
+            if k in summary:
+                _flat(f"observable.{k}", summary[k], out)
+        if summary.get("dispersion"):
+            _flat("theory", {k: v for k, v in summary["dispersion"].items()}, out)
+    prov = (summary or {}).get("provenance") or provenance()
+    _flat("provenance", prov, out)
+    return out
+
+
+def load_scene(scene, overrides=None, accuracy=None):
+    """A validated Scene from a shipped name / TOML path (or a Scene, returned with the overrides applied)."""
+    from .scene import load_scene as _load
+
+    over = _override_list(overrides) + ([f'accuracy="{accuracy}"'] if accuracy else [])
+    if hasattr(scene, "as_dict") and not isinstance(scene, str):
+        if not over:
+            return scene
+        scene = scene.source or scene.name
+    return _load(str(scene), over)
+
+
+def list_scenes() -> list[str]:
+    from .scene import list_scenes as _ls
+
+    return [n for n, _, _ in _ls()]
+
+
+def run(scene="default", overrides=None, accuracy=None, *, progress=False, trackers=()) -> RunResult:
+    """Run a scene (shipped name, .toml path or Scene) and return its RunResult.
+
+    overrides: {"params.sigma": 0.05, "perturbation.1.torque_Nm": 0.01, "t_end_s": 2} or ["KEY=VALUE", ...]
+    (the keys of ``run --set``); accuracy: "fast" | "balanced" | "exact" (docs/accuracy.md).
+    Raises ConfigError (bad scene or key) or NumericalInstability (the run blew up).
+    """
+    from .cli import summarize
+    from .controller import run_scene
+    from .provenance import provenance
+
+    sc = load_scene(scene, overrides, accuracy)
+    res = run_scene(sc, progress=progress, trackers=list(trackers))
+    summary = summarize(sc, res)
+    summary["provenance"] = provenance()
+    return RunResult(sc, res.t, res.alpha, res.beta, summary, res.wall_s, res.info)

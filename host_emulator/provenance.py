@@ -1,0 +1,76 @@
+"""Provenance: which code, libraries and command produced an output (summary.json, NetCDF attributes, sweeps).
+
+``provenance()`` returns a flat dict of strings, safe as NetCDF attributes and JSON:
+
+* package_version: the installed distribution's version (metamaterial-rig);
+* git_describe: ``git describe --always --dirty --tags`` of the source tree ("unknown" outside a checkout);
+* firmware_build: the hash of the firmware library and emulator C sources the emulator compiled
+  (the same key that names the build directory, build/host/<hash>);
+* python, numpy, scipy, python_can (and xarray, dask when installed) versions;
+* created_utc: ISO 8601 time of the call; command: the command line (sys.argv joined, shell-quoted).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import shlex
+import subprocess
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@lru_cache(maxsize=1)
+def git_describe() -> str:
+    try:
+        out = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty", "--tags"],
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else "unknown"
+
+
+def firmware_build() -> str:
+    """Hash of the firmware + emulator C sources (the build key); "unknown" if the sources are not present."""
+    try:
+        from . import firmware
+
+        return firmware._digest(firmware._sources() + firmware._headers())
+    except Exception:           # noqa: BLE001 - provenance must never break an output
+        return "unknown"
+
+
+def _version(mod: str) -> str:
+    try:
+        from importlib.metadata import version
+
+        return version(mod)
+    except Exception:           # noqa: BLE001
+        return "not installed"
+
+
+@lru_cache(maxsize=1)
+def _static() -> dict:
+    return {
+        "package_version": _version("metamaterial-rig"),
+        "git_describe": git_describe(),
+        "python": sys.version.split()[0],
+        "numpy": _version("numpy"),
+        "scipy": _version("scipy"),
+        "python_can": _version("python-can"),
+        "xarray": _version("xarray"),
+        "dask": _version("dask"),
+    }
+
+
+def provenance(command=None) -> dict:
+    """Flat dict of strings naming the code version, library versions, UTC time and command line."""
+    argv = sys.argv if command is None else command
+    return {
+        **_static(),
+        "firmware_build": firmware_build(),
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "command": argv if isinstance(argv, str) else shlex.join(str(a) for a in argv),
+    }

@@ -1,0 +1,475 @@
+"""Parameter sweeps on Dask: a grid of scene overrides x noise seeds, run on a local or an existing cluster.
+
+    python -m host_emulator sweep default --grid params.sigma=0.04:0.12:41 \
+        --grid perturbation.1.torque_Nm=0.005,0.01,0.02,0.04 --seeds 5 --out out/sweep
+
+* Grid: ``KEY=START:STOP:NUM`` (NUM values, both ends included) or ``KEY=V1,V2,...``; KEY is any ``run --set``
+  key (params.sigma, perturbation.1.torque_Nm, model_options.noise.band_spread, t_end_s, ...). ``--seeds S``
+  adds a coordinate ``seed`` = 0..S-1 set as model_options.noise.seed (give the seeds something to vary,
+  e.g. ``--set model_options.noise.band_spread=0.02``).
+* Execution: points are cut into chunks; each Dask task evaluates one chunk through
+  ``evaluate_points(specs) -> results`` (one place to plug a batched runner in). With no ``--scheduler`` a
+  ``distributed.LocalCluster`` with one single-threaded worker process per core is started; with
+  ``--scheduler tcp://HOST:PORT`` the sweep runs unchanged on that cluster. Tasks whose worker dies are
+  retried by the scheduler; a chunk that still fails has each of its points recorded as failed, with the reason.
+* Output in DIR: ``points.jsonl`` (one line per finished point, appended as chunks finish: the sweep is
+  resumable, a re-run skips the points already there; ``--retry-failed`` runs failed ones again),
+  ``sweep.json`` (the sweep's definition; a re-run with another definition is refused), ``sweep.nc``
+  (xarray Dataset, NetCDF 3 through scipy: a coordinate per swept key, observables as variables, ``status``
+  and ``error`` per point, provenance and every base-scene parameter as attributes), ``phase_diagram.png``
+  (when params.sigma is swept) and ``regime_map.png`` (the first two swept keys, or ``--map KEY KEY``).
+
+Observables per point (NaN where not defined or not produced): domain_walls, pattern_wavelength_cells
+(2(N-1)/Z, cells), dominant_mode, pattern_period_cells, amplitude_rad, oscillation_period_s, growth_rate_per_s,
+at_rest and steady (1/0), and from the linear theory of the point's parameters: regime,
+theory_fastest_lambda_cells, theory_band_lo_cells, theory_band_hi_cells (inf: the band reaches infinitely long
+waves), theory_fastest_growth_per_s. Units are attributes of each variable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+OBSERVABLES = {            # name -> units (NaN in the dataset when a run does not report it)
+    "domain_walls": "1", "pattern_wavelength_cells": "cells", "dominant_mode": "1",
+    "pattern_period_cells": "cells", "amplitude_rad": "rad", "oscillation_period_s": "s",
+    "growth_rate_per_s": "1/s", "at_rest": "1 (true) / 0 (false)", "steady": "1 (true) / 0 (false)",
+    "theory_fastest_lambda_cells": "cells", "theory_band_lo_cells": "cells", "theory_band_hi_cells": "cells",
+    "theory_fastest_growth_per_s": "1/s", "wall_s": "s",
+}
+STRINGS = ("regime", "status", "error")
+
+
+class SweepError(ValueError):
+    """A bad sweep definition (grid syntax, keys, output directory)."""
+
+
+# ---- the grid -------------------------------------------------------------------------------------------
+
+def parse_grid(text: str) -> tuple[str, list]:
+    """'KEY=START:STOP:NUM' or 'KEY=V1,V2,...' -> (KEY, values)."""
+    from .scene import _value
+
+    if "=" not in text:
+        raise SweepError(f"--grid {text!r}: expected KEY=START:STOP:NUM or KEY=V1,V2,...")
+    key, spec = (s.strip() for s in text.split("=", 1))
+    if not key or not spec:
+        raise SweepError(f"--grid {text!r}: empty key or values")
+    if spec.count(":") == 2 and "," not in spec:
+        a, b, n = spec.split(":")
+        try:
+            a, b, n = float(_value(a)), float(_value(b)), int(n)
+        except (TypeError, ValueError):
+            raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
+        if n < 1 or not (math.isfinite(a) and math.isfinite(b)):
+            raise SweepError(f"--grid {text!r}: NUM must be >= 1 and START, STOP finite")
+        return key, [float(v) for v in np.linspace(a, b, n)]
+    vals = [_value(v) for v in spec.split(",") if v.strip()]
+    if not vals:
+        raise SweepError(f"--grid {text!r}: no values")
+    if len(set(map(repr, vals))) != len(vals):
+        raise SweepError(f"--grid {text!r}: repeated values")
+    return key, vals
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    return repr(v)
+
+
+def point_specs(scene: str, grid: dict, seeds: int | None, fixed=()) -> tuple[list[dict], dict]:
+    """Every grid point as a spec {"index", "scene", "overrides", "coords"}; and the coordinate axes."""
+    axes = {k: list(v) for k, v in grid.items()}
+    if seeds:
+        axes["seed"] = list(range(int(seeds)))
+    specs = []
+    for i, combo in enumerate(itertools.product(*axes.values())):
+        coords = dict(zip(axes, combo))
+        over = list(fixed) + [f"{k}={_fmt_value(v)}" for k, v in coords.items() if k != "seed"]
+        if "seed" in coords:
+            over.append(f"model_options.noise.seed={coords['seed']}")
+        specs.append({"index": i, "scene": scene, "overrides": over, "coords": coords})
+    return specs, axes
+
+
+# ---- one chunk of points: the task each Dask worker runs ------------------------------------------------
+
+def _num(v):
+    if v is None:
+        return float("nan")
+    if isinstance(v, bool):
+        return float(v)
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def evaluate_points(specs: list[dict]) -> list[dict]:
+    """Run each point spec and return one result dict per spec, in order; a failing point gives
+    {"status": "failed", "error": "<Type>: <message>"} instead of raising. (A batched runner can replace this
+    loop: same specs in, same results out.)"""
+    from .cli import summarize
+    from .controller import run_scene
+    from .scene import load_scene
+
+    out = []
+    for spec in specs:
+        r = {"index": spec["index"], "status": "ok", "error": ""}
+        t0 = time.perf_counter()
+        try:
+            sc = load_scene(spec["scene"], spec["overrides"])
+            res = run_scene(sc, progress=False)
+            s = summarize(sc, res)
+            for k in OBSERVABLES:
+                if k in s:
+                    r[k] = _num(s[k])
+            d = s.get("dispersion") or {}
+            band = d.get("unstable_band_cells")
+            r["regime"] = str(d.get("regime") or "")
+            r["theory_fastest_lambda_cells"] = _num(d.get("fastest_lambda_cells"))
+            r["theory_fastest_growth_per_s"] = _num(d.get("fastest_growth_per_s"))
+            r["theory_band_lo_cells"] = _num(band[0]) if band else float("nan")
+            r["theory_band_hi_cells"] = (float("inf") if band[1] is None else _num(band[1])) if band else float("nan")
+        except Exception as e:          # noqa: BLE001 - a failing point is recorded, never dropped
+            r["status"], r["error"] = "failed", f"{type(e).__name__}: {e}"
+        r["wall_s"] = time.perf_counter() - t0
+        out.append(r)
+    return out
+
+
+# ---- the store: points.jsonl + sweep.json, resumable ----------------------------------------------------
+
+def _jsonable(r: dict) -> dict:
+    return {k: (None if isinstance(v, float) and math.isnan(v) else
+                ("inf" if isinstance(v, float) and math.isinf(v) else v)) for k, v in r.items()}
+
+
+def _from_json(r: dict) -> dict:
+    return {k: (float("nan") if v is None else (float("inf") if v == "inf" else v)) for k, v in r.items()}
+
+
+def load_done(out: Path) -> dict[int, dict]:
+    done: dict[int, dict] = {}
+    f = out / "points.jsonl"
+    if f.exists():
+        for line in f.read_text().splitlines():
+            try:
+                r = _from_json(json.loads(line))
+            except json.JSONDecodeError:
+                continue                # a line cut by a crash: that point runs again
+            done[int(r["index"])] = r   # the latest line for a point wins (a retried failure)
+    return done
+
+
+# ---- the driver -----------------------------------------------------------------------------------------
+
+def sweep(scene: str = "default", grid: dict | None = None, *, seeds: int | None = None, out="out/sweep",
+          fixed=(), scheduler: str | None = None, workers: int | None = None, chunk: int | None = None,
+          progress: bool = True, retry_failed: bool = False, plots: bool = True, map_keys=None):
+    """Run the sweep (see module docstring) and return its xarray Dataset (also written to out/sweep.nc)."""
+    from .api import load_scene
+    from .provenance import provenance
+
+    grid = dict(grid or {})
+    for k, v in grid.items():
+        if not isinstance(v, (list, tuple)) or not v:
+            raise SweepError(f"grid[{k!r}]: expected a non-empty list of values")
+    if seeds is not None and (isinstance(seeds, bool) or int(seeds) < 1):
+        raise SweepError(f"seeds = {seeds!r}: expected a positive integer")
+    scene_name = str(scene)
+    specs, axes = point_specs(scene_name, grid, seeds, list(fixed))
+    base = load_scene(scene_name, list(fixed))
+    load_scene(scene_name, specs[0]["overrides"])      # a bad key fails here, before any cluster starts
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    definition = {"scene": scene_name, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}
+    dfile = out / "sweep.json"
+    if dfile.exists():
+        old = json.loads(dfile.read_text())
+        if {k: old.get(k) for k in definition} != json.loads(json.dumps(definition)):
+            raise SweepError(f"{out} holds a different sweep ({dfile}); choose another --out or delete it")
+    else:
+        dfile.write_text(json.dumps(definition, indent=1) + "\n")
+    done = load_done(out)
+    todo = [s for s in specs if s["index"] not in done
+            or (retry_failed and done[s["index"]].get("status") != "ok")]
+    if todo:
+        _run_on_dask(todo, out, scheduler, workers, chunk, progress)
+    done = load_done(out)
+    ds = to_dataset(specs, axes, done, base, definition)
+    ds.to_netcdf(out / "sweep.nc", engine="scipy")
+    if plots:
+        files = []
+        if "params.sigma" in axes:
+            _save(plot_phase_diagram(ds, base), out / "phase_diagram.png")
+            files.append("phase_diagram.png")
+        keys = list(map_keys or [k for k in axes if len(axes[k]) > 1][:2])
+        if len(keys) == 2:
+            _save(plot_regime_map(ds, keys[0], keys[1]), out / "regime_map.png")
+    return ds
+
+
+def _save(fig, path):
+    fig.savefig(path, dpi=110)
+    if "matplotlib.pyplot" in sys.modules:
+        sys.modules["matplotlib.pyplot"].close(fig)
+
+
+def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
+    import logging
+
+    from distributed import Client, LocalCluster, as_completed
+    from tqdm import tqdm
+
+    cluster = None
+    if scheduler:
+        client = Client(scheduler, timeout="20s")
+    else:
+        n = int(workers or os.cpu_count() or 1)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                               scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR)
+        client = Client(cluster)
+    try:
+        nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
+        size = int(chunk) if chunk else max(1, min(32, math.ceil(len(todo) / (4 * nw))))
+        chunks = [todo[i:i + size] for i in range(0, len(todo), size)]
+        tag = f"{os.getpid()}-{time.time_ns()}"
+        futs = {client.submit(evaluate_points, c, retries=2, pure=False, key=f"sweep-{tag}-{i}"): c
+                for i, c in enumerate(chunks)}
+        bar = tqdm(total=len(todo), unit="point", desc="sweep", disable=not progress, file=sys.stderr)
+        pf = out / "points.jsonl"
+        cut = pf.exists() and pf.stat().st_size and not pf.read_bytes().endswith(b"\n")
+        with open(pf, "a") as fh:
+            if cut:
+                fh.write("\n")         # a line cut by a crash stays alone (ignored when read)
+            for fut in as_completed(list(futs)):
+                c = futs[fut]
+                try:
+                    results = fut.result()
+                except Exception as e:      # noqa: BLE001 - e.g. KilledWorker: record every point of the chunk
+                    results = [{"index": s["index"], "status": "failed",
+                                "error": f"{type(e).__name__}: {e}"} for s in c]
+                for r in results:
+                    fh.write(json.dumps(_jsonable(r)) + "\n")
+                fh.flush()
+                bar.update(len(results))
+        bar.close()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def to_dataset(specs, axes, done, base, definition):
+    """The xarray Dataset of a sweep: dims = swept keys (+ seed), observables as variables."""
+    import xarray as xr
+
+    from .api import netcdf_attrs
+    from .provenance import provenance
+
+    shape = tuple(len(v) for v in axes.values())
+    dims = tuple(axes)
+    data = {k: np.full(shape, np.nan) for k in OBSERVABLES}
+    strs = {k: np.full(shape, "", dtype=object) for k in STRINGS}
+    strs["status"][...] = "pending"
+    for s in specs:
+        ix = np.unravel_index(s["index"], shape)
+        r = done.get(s["index"])
+        if r is None:
+            continue
+        for k in OBSERVABLES:
+            if k in r:
+                data[k][ix] = _num(r[k])
+        for k in STRINGS:
+            strs[k][ix] = str(r.get(k, "") or "")
+    vars_ = {k: (dims, v, {"units": u}) for k, v in data.items() for u in [OBSERVABLES[k]]}
+    vars_.update({k: (dims, v.astype(str)) for k, v in strs.items()})
+    coords = {}
+    for k, v in axes.items():
+        arr = np.asarray(v)
+        coords[k] = (k, arr if arr.dtype.kind in "ifu" else arr.astype(str))
+    ds = xr.Dataset(vars_, coords=coords)
+    ds.attrs.update(netcdf_attrs(base))
+    ds.attrs.update({f"provenance.{k}": v for k, v in provenance().items()})
+    ds.attrs["sweep.definition"] = json.dumps(definition)
+    ds.attrs["sweep.points"] = int(np.prod(shape))
+    ds.attrs["sweep.failed"] = int((strs["status"] == "failed").sum())
+    return ds
+
+
+# ---- plots ----------------------------------------------------------------------------------------------
+
+def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
+    """Selected wavelength (2(N-1)/Z, cells) of every point against sigma, with the linear theory's unstable
+    band (shaded) and fastest wavelength (line) of the base scene's parameters at each sigma. Returns the Figure."""
+    from .analysis.stability import dispersion
+    from .plots import new_figure
+
+    if ax is None:
+        fig = new_figure(figsize=(7.5, 4.8), constrained_layout=True)
+        ax = fig.add_subplot(111)
+    sig = np.asarray(ds["params.sigma"].values, dtype=float)
+    lam = ds["pattern_wavelength_cells"].transpose("params.sigma", ...).values.reshape(len(sig), -1)
+    xs = np.repeat(sig, lam.shape[1])
+    ax.plot(xs, lam.ravel(), "o", ms=3, alpha=0.5, color="k", label="sweep: selected wavelength 2(N-1)/Z")
+    if base is not None:
+        import dataclasses
+
+        inert = base.options.inertia and base.model != "continuum" if inertia is None else inertia
+        sg = np.linspace(sig.min(), sig.max(), max(60, len(sig)))
+        lo, hi, fast = [], [], []
+        for s in sg:
+            d = dispersion(dataclasses.replace(base.params, sigma=float(s)), inertia=inert, n_cells=base.cells,
+                           n_kappa=600)
+            b = d.get("unstable_band_cells")
+            lo.append(b[0] if b else np.nan)
+            hi.append((b[1] if b[1] is not None else 1e3) if b else np.nan)
+            fast.append(d.get("fastest_lambda_cells") or np.nan)
+        ax.fill_between(sg, lo, hi, color="C0", alpha=0.15, label="linear theory: unstable band")
+        ax.plot(sg, fast, color="C0", lw=1.5, label="linear theory: fastest wavelength")
+    n = int(ds.attrs.get("cells", 16))
+    ax.set_ylim(1.5, 4 * n)
+    ax.set_yscale("log")
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.set_yticks([2, 3, 5, 7.5, 10, 15, 20, 30, 60])
+    ax.set_xlabel("sigma (N·m/rad)")
+    ax.set_ylabel("wavelength (cells)")
+    ax.set_title(f"phase diagram: {ds.attrs.get('scene', '')}, {ds.sizes.get('seed', 1)} seed(s) per point",
+                 fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    return ax.figure
+
+
+OUTCOMES = ("rest", "pattern", "moving", "failed")
+
+
+def outcome(ds):
+    """Per point: 0 rest, 1 pattern (steady, domain walls), 2 moving (not steady), 3 failed, -1 pending."""
+    st = ds["status"].values.astype(str)
+    rest = ds["at_rest"].values == 1
+    steady = ds["steady"].values == 1
+    code = np.where(rest, 0, np.where(steady, 1, 2))
+    code = np.where(st == "failed", 3, np.where(st == "pending", -1, code))
+    return code
+
+
+def plot_regime_map(ds, xkey, ykey, *, ax=None):
+    """The most frequent outcome (rest / pattern / moving / failed) over the other swept keys, on xkey x ykey,
+    with the linear theory's regime of each point named in the title's legend. Returns the Figure."""
+    from matplotlib.colors import ListedColormap
+
+    from .plots import new_figure
+
+    for k in (xkey, ykey):
+        if k not in ds.dims:
+            raise SweepError(f"regime map: {k!r} is not a swept key; swept: {', '.join(map(str, ds.dims))}")
+    if ax is None:
+        fig = new_figure(figsize=(7, 4.8), constrained_layout=True)
+        ax = fig.add_subplot(111)
+    import xarray as xr
+
+    code = xr.DataArray(outcome(ds), dims=ds["status"].dims).transpose(ykey, xkey, ...)
+    c = code.values.reshape(code.shape[0], code.shape[1], -1)
+    mode = np.full(c.shape[:2], -1)
+    for i in range(c.shape[0]):
+        for j in range(c.shape[1]):
+            v = c[i, j][c[i, j] >= 0]
+            if len(v):
+                mode[i, j] = np.bincount(v, minlength=4).argmax()
+    cmap = ListedColormap(["0.85", "C0", "C1", "C3"])
+    xv, yv = np.asarray(ds[xkey].values), np.asarray(ds[ykey].values)
+    ax.imshow(np.ma.masked_less(mode, 0), origin="lower", aspect="auto", cmap=cmap, vmin=-0.5, vmax=3.5,
+              interpolation="nearest")
+    ax.set_xticks(range(len(xv)))
+    ax.set_xticklabels([f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in xv],
+                       rotation=90 if len(xv) > 8 else 0, fontsize=7)
+    ax.set_yticks(range(len(yv)))
+    ax.set_yticklabels([f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in yv], fontsize=7)
+    if len(xv) > 16:
+        for lab in ax.get_xticklabels()[1::2]:
+            lab.set_visible(False)
+    from matplotlib.patches import Patch
+
+    ax.legend(handles=[Patch(color=cmap(i), label=o) for i, o in enumerate(OUTCOMES)], fontsize=7,
+              loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_xlabel(xkey)
+    ax.set_ylabel(ykey)
+    ax.set_title(f"regime map (most frequent outcome): {ds.attrs.get('scene', '')}", fontsize=10)
+    return ax.figure
+
+
+# ---- command line ---------------------------------------------------------------------------------------
+
+EPILOG = """examples:
+  python -m host_emulator sweep default --grid params.sigma=0.04:0.12:41 \\
+      --grid perturbation.1.torque_Nm=0.005,0.01,0.02,0.04 --seeds 5 \\
+      --set model_options.noise.band_spread=0.02 --out out/sweep
+  python -m host_emulator sweep default --grid params.sigma=0.05,0.07 --set t_end_s=2 --workers 2 --out out/s2
+  dask scheduler --port 8786 &  dask worker tcp://127.0.0.1:8786 --nthreads 1 &
+  python -m host_emulator sweep default --grid params.sigma=0.04:0.12:9 --scheduler tcp://127.0.0.1:8786 --out out/s3
+
+Re-running the same command resumes: points already in DIR/points.jsonl are skipped.
+Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2 bad input."""
+
+
+def sweep_main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator sweep", epilog=EPILOG,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 description="Run a grid of scene overrides x noise seeds on Dask; write one "
+                                             "xarray dataset (sweep.nc), the phase diagram and a regime map.")
+    ap.add_argument("scene", help="shipped scene name or .toml path (see `python -m host_emulator scenes`)")
+    ap.add_argument("--grid", action="append", default=[], metavar="KEY=SPEC", required=True,
+                    help="a swept key: KEY=START:STOP:NUM (NUM values, ends included) or KEY=V1,V2,...; repeatable")
+    ap.add_argument("--seeds", type=int, default=None, metavar="S",
+                    help="add a coordinate seed = 0..S-1 (sets model_options.noise.seed)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a fixed override for every point, as in `run --set` (e.g. t_end_s=2)")
+    ap.add_argument("--out", required=True, metavar="DIR", help="output directory (resumable: re-run to continue)")
+    ap.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                    help="an existing Dask scheduler (default: start a local cluster)")
+    ap.add_argument("--workers", type=int, default=None, metavar="N",
+                    help="local cluster: worker processes (default: the machine's cores)")
+    ap.add_argument("--chunk", type=int, default=None, metavar="K", help="points per Dask task (default: automatic)")
+    ap.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
+    ap.add_argument("--map", nargs=2, default=None, metavar=("XKEY", "YKEY"),
+                    help="the regime map's axes (default: the first two swept keys with more than one value)")
+    ap.add_argument("--no-plots", action="store_true", help="skip phase_diagram.png and regime_map.png")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+    from .models import ConfigError
+
+    try:
+        if args.workers is not None and args.workers < 1:
+            raise SweepError("--workers must be >= 1")
+        if args.chunk is not None and args.chunk < 1:
+            raise SweepError("--chunk must be >= 1")
+        grid = dict(parse_grid(g) for g in args.grid)
+        ds = sweep(args.scene, grid, seeds=args.seeds, out=args.out, fixed=args.set, scheduler=args.scheduler,
+                   workers=args.workers, chunk=args.chunk, progress=not args.quiet,
+                   retry_failed=args.retry_failed, plots=not args.no_plots, map_keys=args.map)
+    except (SweepError, ConfigError, KeyError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    st = ds["status"].values.astype(str)
+    failed = int((st == "failed").sum())
+    print(f"sweep: {st.size} points, {int((st == 'ok').sum())} ok, {failed} failed; wrote {args.out}/sweep.nc")
+    if failed:
+        errs = ds["error"].values.astype(str)[st == "failed"]
+        print(f"  first failure: {errs[0]}", file=sys.stderr)
+    return 1 if failed else 0

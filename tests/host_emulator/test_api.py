@@ -1,0 +1,87 @@
+"""Python API: he.run -> RunResult, to_xarray, plots with ax=, no backend switch, provenance; the notebook runs."""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_run_result_and_xarray():
+    import host_emulator as he
+
+    r = he.run("default", overrides={"t_end_s": 0.5, "params.sigma": 0.05})
+    assert r.time.shape == (51,) and r.alpha.shape == (51, 16) and r.beta.shape == (51, 16)
+    assert r.scene.params.sigma == 0.05
+    ds = r.to_xarray()
+    assert ds.alpha.dims == ("time", "cell") and ds.alpha.attrs["units"] == "rad"
+    assert ds.time.attrs["units"] == "s" and list(ds.cell.values) == list(range(1, 17))
+    assert ds.attrs["params.sigma"] == 0.05 and ds.attrs["perturbation.1.cell"] == 8
+    assert ds.attrs["provenance.git_describe"] and ds.attrs["provenance.firmware_build"] != "unknown"
+    np.testing.assert_array_equal(ds.alpha.values, r.alpha)
+    # the same numbers as the CLI's run path
+    from host_emulator.controller import run_scene
+    from host_emulator.scene import load_scene
+
+    ref = run_scene(load_scene("default", ["t_end_s=0.5", "params.sigma=0.05"]), progress=False)
+    np.testing.assert_array_equal(ref.alpha, r.alpha)
+
+
+def test_run_bad_key_is_a_clear_error():
+    import host_emulator as he
+    from host_emulator.models import ConfigError
+
+    with pytest.raises(ConfigError, match="params.sigmaa"):
+        he.run("default", overrides={"params.sigmaa": 0.05})
+
+
+def test_plots_take_ax_and_leave_the_backend_alone(tmp_path):
+    import matplotlib
+
+    before = matplotlib.get_backend()
+    import host_emulator as he
+    from matplotlib.figure import Figure
+
+    r = he.run("default", overrides={"t_end_s": 0.6})
+    fig = Figure()
+    axes = fig.subplots(2, 2)
+    assert he.plot_spacetime(r, ax=axes) is fig
+    ax = Figure().add_subplot(111)
+    assert he.plot_final(r, ax=ax) is ax.figure
+    assert he.plot_dispersion(r.scene.params, ax=ax, inertia=True) is ax.figure
+    f2 = he.plot_spacetime(r)
+    f2.savefig(tmp_path / "s.png")
+    assert (tmp_path / "s.png").stat().st_size > 1000
+    assert "sigma = 0.072" in f2.axes[0].get_title()
+    assert matplotlib.get_backend() == before
+
+
+def test_package_never_selects_a_backend():
+    hits = [str(p) for d in ("host_emulator", "tools") for p in (ROOT / d).rglob("*.py")
+            if re.search(r"matplotlib\.use\(|pyplot\.switch_backend|plt\.switch_backend", p.read_text())]
+    assert hits == []
+
+
+def test_summary_json_names_the_code_version(tmp_path):
+    from host_emulator.cli import main
+
+    assert main(["run", "default", "--set", "t_end_s=0.3", "--out", str(tmp_path), "--quiet", "--no-plots"]) == 0
+    prov = json.loads((tmp_path / "summary.json").read_text())["provenance"]
+    for k in ("package_version", "git_describe", "firmware_build", "numpy", "scipy", "python_can", "created_utc",
+              "command", "python"):
+        assert prov[k], k
+    assert re.fullmatch(r"[0-9a-f]{16}", prov["firmware_build"])
+
+
+def test_example_notebook_executes():
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    nb = nbformat.read(ROOT / "docs" / "workbench.ipynb", as_version=4)
+    nbclient.NotebookClient(nb, timeout=240, kernel_name="python3",
+                            resources={"metadata": {"path": str(ROOT)}}).execute()
+    images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+              if "image/png" in o.get("data", {})]
+    assert len(images) >= 3          # figures show inline: the backend was not switched to Agg

