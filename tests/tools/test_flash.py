@@ -624,13 +624,17 @@ def test_planned_cell_flags_pass_cell_config_and_bad_ones_do_not():
 
 # ---- the PlatformIO post-build hook -------------------------------------------------------
 
+WANT_ARGS = {"cell": ["cell", "--root", "TC3_Handler", "--root", "hw_isr_encoder_alpha", "--root", "hw_isr_encoder_beta"],
+             "primary": ["primary"]}
+
+
 class _FakeSconsEnv:
-    def __init__(self, project):
+    def __init__(self, project, pioenv="cell"):
         # PlatformIO's python, without site-packages: only the fake project's `tools` is seen
         wrapper = Path(project) / "python-nosite"
         wrapper.write_text(f'#!/bin/sh\nexec {__import__("sys").executable} -S "$@"\n')
         wrapper.chmod(0o755)
-        self.vars = {"$PROJECT_DIR": str(project), "$PYTHONEXE": str(wrapper)}
+        self.vars = {"$PROJECT_DIR": str(project), "$PYTHONEXE": str(wrapper), "$PIOENV": pioenv}
         self.actions = []
 
     def subst(self, s):
@@ -640,8 +644,8 @@ class _FakeSconsEnv:
         self.actions.append((target, fn))
 
 
-def _load_hook(project):
-    env = _FakeSconsEnv(project)
+def _load_hook(project, pioenv="cell"):
+    env = _FakeSconsEnv(project, pioenv)
     code = (ROOT / "tools" / "flash" / "pio_fwcheck.py").read_text()
     exec(compile(code, "pio_fwcheck.py", "exec"), {"Import": lambda name: None, "env": env})
     (target, fn), = env.actions
@@ -649,13 +653,16 @@ def _load_hook(project):
     return env, fn
 
 
+@pytest.mark.parametrize("pioenv", ["cell", "primary"])
 @pytest.mark.parametrize("checker, expect_rc, text", [
     (None, 0, "NOT run"),                                   # no checker: warn, build goes on
     ("lint_ok", 0, "lint ok"),
     ("lint_fails", 3, "FAILED"),                            # checker says no: build fails
     ("no_lint", 0, "NOT run"),                              # older checker without `lint`
 ])
-def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text):
+def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text, pioenv):
+    """The hook lints the cell image from the control path plus the glue's interrupt handlers, and the primary
+    image from its own steady path (--role primary: it holds no control law, which used to fail every build)."""
     monkeypatch.delenv("MC_FWCHECK", raising=False)
     # a project whose own `tools` package (first on sys.path for `python -m`) shadows ours
     (tmp_path / "tools").mkdir()
@@ -669,9 +676,10 @@ def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text):
             "import sys\n"
             "if '--help' in sys.argv:\n"
             f"    print({'lint report' if checker != 'no_lint' else 'report'!r}); sys.exit(0)\n"
-            "assert sys.argv[1:3] == ['lint', '--elf'] and sys.argv[4:] == ['--root', 'TC3_Handler', '--root', 'hw_isr_encoder_alpha', '--root', 'hw_isr_encoder_beta'], sys.argv\n"
+            f"want = {WANT_ARGS[pioenv]!r}\n"
+            "assert sys.argv[1:4] == ['lint', '--role', want[0]] and sys.argv[4] == '--elf' and sys.argv[6:] == want[1:], sys.argv\n"
             f"print('lint ok' if {rc} == 0 else 'lint bad'); sys.exit({rc})\n")
-    env, fn = _load_hook(tmp_path)
+    env, fn = _load_hook(tmp_path, pioenv)
     assert fn(None, [tmp_path / "firmware.elf"], env) == expect_rc
     assert text in capfd.readouterr().out
     monkeypatch.setenv("MC_FWCHECK", "skip")

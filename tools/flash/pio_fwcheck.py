@@ -31,10 +31,13 @@ def _fwcheck(source, target, env):
               "soft-float/division check of the image NOT run")
         return 0
     elf = str(target[0])
+    # the primary image holds no control law: check its own steady path (poll scheduler, SLCAN)
+    role = "primary" if env.subst("$PIOENV") == "primary" else "cell"  # noqa: F821
     roots = []
-    for r in GLUE_ROOTS:
-        roots += ["--root", r]
-    rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--elf", elf] + roots,
+    if role == "cell":
+        for r in GLUE_ROOTS:
+            roots += ["--root", r]
+    rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots,
                          cwd=project)
     if rc != 0:
         print("fwcheck: FAILED on %s (exit %d)" % (elf, rc))

@@ -93,14 +93,15 @@ def _ticks(elf=None) -> bool:
     return calib_ok and worst <= qemu.BUDGET and worst_b <= qemu.BUDGET_BEMF
 
 
-def _lint(elf: str | None, extra_roots: list[str]) -> int:
+def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
     from pathlib import Path
     if not elf or not Path(elf).is_file():
         print(f"fwcheck lint: --elf must name a linked image (got {elf!r})", file=sys.stderr)
         return 2
-    rep = armbuild.lint_elf(Path(elf), tuple(armbuild.CONTROL_ROOTS) + tuple(extra_roots))
+    base = armbuild.PRIMARY_ROOTS if role == "primary" else armbuild.CONTROL_ROOTS
+    rep = armbuild.lint_elf(Path(elf), tuple(base) + tuple(extra_roots))
     if not rep.roots:
-        print(f"fwcheck lint: none of the control-path entry points is in {elf}")
+        print(f"fwcheck lint: none of the {role}'s entry points ({', '.join(base)}) is in {elf}")
         return 1
     print(f"fwcheck lint {elf}: roots {', '.join(rep.roots)}")
     for kind, chains in (("soft-float", rep.softfloat), ("division", rep.division)):
@@ -122,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-v", "--verbose", action="store_true", help="profile: print the trace")
     ap.add_argument("--elf", help="lint: linked image to check")
     ap.add_argument("--root", action="append", help="lint: extra control-path entry point")
+    ap.add_argument("--role", choices=("cell", "primary"), default="cell",
+                    help="lint: which image's entry points to check (cell: the control path; primary: poll and SLCAN)")
     ap.add_argument("--seed", type=lambda s: int(s, 0), default=None)
     ap.add_argument("--out", help="golden-header: output path")
     a = ap.parse_args(argv)
@@ -132,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {path}")
             return 0
         if a.command == "lint":
-            return _lint(a.elf, a.root or [])
+            return _lint(a.elf, a.root or [], a.role)
         objs, bench_elf = _variant(a.lib_src, a.cflags)
         if a.command == "profile":
             _profile(bench_elf, a.verbose)

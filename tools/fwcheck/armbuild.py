@@ -35,6 +35,10 @@ CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffunction-sections", "-fdata-sections
 #: Control-path entry points: the tick and the decoder ISR/snapshot.
 # The tick inlines the law, velocity and drive; their public wrappers are control
 # path too (the emulator and tests call them), so they are roots of their own.
+# The primary's steady path (poll scheduler, bus results, SLCAN in and out): no control law, but it runs
+# every cycle on the same divider-less core, so it is held to the same rule.
+PRIMARY_ROOTS = ("mc_primary_next", "mc_primary_complete", "mc_primary_can_rx", "mc_primary_pop", "mc_primary_ms",
+                 "mc_slcan_rx", "mc_slcan_encode")
 CONTROL_ROOTS = ("mc_cell_tick", "mc_quad_update", "mc_quad_snapshot", "mc_reaction_eval",
                  "mc_psi_prime", "mc_drive_command", "mc_vel_update")
 
