@@ -114,3 +114,15 @@ def test_dispersion_plot_names_band_and_fastest_wavelength():
     assert any(s.startswith("unstable band") for s in labels) and any(s.startswith("fastest wavelength") for s in labels)
     ticks = [t.get_text() for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
     assert ticks and all("^" not in s and "times" not in s for s in ticks)     # plain numbers, no 10^x labels
+
+
+def test_did_you_mean_for_scenes_and_keys():
+    from host_emulator.models import ConfigError
+    from host_emulator.scene import load_scene
+
+    with pytest.raises(ConfigError, match="did you mean 'default'"):
+        load_scene("defualt")
+    with pytest.raises(ConfigError, match="did you mean 'sigma'"):
+        load_scene("default", ["params.sigmaa=0.05"])
+    with pytest.raises(ConfigError, match="did you mean 't_end_s'"):
+        load_scene("default", ["t_end=1"])
