@@ -171,6 +171,9 @@ def apply_overrides(d: dict, items) -> dict:
             if part.isdigit() and parts[i - 1] == "perturbation":
                 lst = node["perturbation"]
                 k = int(part)
+                if k == 0 and lst:
+                    raise ConfigError(f"--set {key}: perturbations are numbered from 1 "
+                                      f"(perturbation.1 .. perturbation.{len(lst)})")
                 if not 1 <= k <= len(lst):
                     raise ConfigError(f"--set {key}: the scene has {len(lst)} perturbation(s)")
                 node = lst[k - 1]
