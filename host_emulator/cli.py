@@ -178,6 +178,10 @@ def _main(argv=None) -> int:
         from .paper import paper_main
 
         return paper_main(argv[1:])
+    if argv and argv[0] == "animate":
+        from .animate import animate_main
+
+        return animate_main(argv[1:])
     if argv and argv[0] == "sweep":
         from .sweep import sweep_main
 
@@ -205,6 +209,7 @@ def _main(argv=None) -> int:
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
     sub.add_parser("robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)")
     sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
+    sub.add_parser("animate", help="GIF/MP4 of the lattice forming its pattern (see animate --help)")
     sub.add_parser("sweep", help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)")
     sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
     sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")

@@ -102,6 +102,10 @@ _last: list = [float("-inf"), None]     # [monotonic time of the last check, its
 
 def load():
     """Return (ffi, lib) of the host build, compiling it on first use."""
+    if not LIB_SRC.is_dir():
+        raise RuntimeError(f"the firmware sources are not here ({LIB_SRC}): the emulator compiles lib/metacell "
+                           "from a source checkout; install the project with `pip install -e .` from the "
+                           "repository, not from a wheel")
     now = time.monotonic()
     if _last[1] is not None and now - _last[0] < RECHECK_S:
         return _last[1]

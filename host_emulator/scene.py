@@ -40,6 +40,14 @@ class Scene:
                 "accuracy": self.accuracy}
 
 
+def did_you_mean(word: str, choices) -> str:
+    """' (did you mean X?)' for the closest of choices, or ''."""
+    import difflib
+
+    m = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
+    return f" (did you mean {m[0]!r}?)" if m else ""
+
+
 def list_scenes() -> list[tuple[str, str, str]]:
     """(name, model, description) of every shipped scene."""
     out = []
@@ -61,7 +69,8 @@ def _parse_params(d, cells) -> Params:
         if k == "cells":
             raise ConfigError("params.cells: set the top-level `cells` key instead")
         if k not in types:
-            raise ConfigError(f"unknown key {key}; known: {', '.join(sorted(n for n in types if n != 'cells'))}")
+            raise ConfigError(f"unknown key {key}{did_you_mean(k, types)}; "
+                              f"known: {', '.join(sorted(n for n in types if n != 'cells'))}")
         cur = getattr(base, k)
         if isinstance(cur, bool):
             if not isinstance(v, bool):
@@ -90,7 +99,7 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         raise ConfigError("scene: expected a table")
     for k in d:
         if k not in TOP_KEYS:
-            raise ConfigError(f"unknown key {k!r}; known: {', '.join(TOP_KEYS)}")
+            raise ConfigError(f"unknown key {k!r}{did_you_mean(k, TOP_KEYS)}; known: {', '.join(TOP_KEYS)}")
     for k in REQUIRED:
         if k not in d:
             raise ConfigError(f"missing key {k!r}")
@@ -162,6 +171,9 @@ def apply_overrides(d: dict, items) -> dict:
             if part.isdigit() and parts[i - 1] == "perturbation":
                 lst = node["perturbation"]
                 k = int(part)
+                if k == 0 and lst:
+                    raise ConfigError(f"--set {key}: perturbations are numbered from 1 "
+                                      f"(perturbation.1 .. perturbation.{len(lst)})")
                 if not 1 <= k <= len(lst):
                     raise ConfigError(f"--set {key}: the scene has {len(lst)} perturbation(s)")
                 node = lst[k - 1]
@@ -183,7 +195,8 @@ def resolve(name_or_path: str) -> Path:
     f = SCENE_DIR / f"{name_or_path}.toml"
     if not f.is_file():
         names = ", ".join(n for n, _, _ in list_scenes())
-        raise ConfigError(f"unknown scene {name_or_path!r}; shipped scenes: {names} (or give a .toml path)")
+        hint = did_you_mean(name_or_path, [n for n, _, _ in list_scenes()])
+        raise ConfigError(f"unknown scene {name_or_path!r}{hint}; shipped scenes: {names} (or give a .toml path)")
     return f
 
 

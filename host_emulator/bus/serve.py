@@ -32,9 +32,15 @@ def _cells(text: str) -> tuple:
     if not text:
         return ()
     try:
-        cells = tuple(int(x) for x in text.split(","))
+        cells = ()
+        for part in (p.strip() for p in text.split(",")):
+            lo, sep, hi = part.partition("-")          # "3-5" is cells 3, 4, 5
+            a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
+            cells += tuple(range(a, b + 1))
+        if not cells:
+            raise ValueError
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected cell numbers like 3,7, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected cell numbers or ranges like 3,7 or 1-4, got {text!r}") from None
     for j in cells:
         if not 1 <= j <= 16:
             raise argparse.ArgumentTypeError(f"cell {j} outside 1..16")

@@ -85,3 +85,44 @@ def test_example_notebook_executes():
     images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
               if "image/png" in o.get("data", {})]
     assert len(images) >= 3          # figures show inline: the backend was not switched to Agg
+
+
+def test_animate_and_dispersion_plot_commands(tmp_path, capsys):
+    from host_emulator.cli import main
+
+    gif = tmp_path / "a.gif"
+    assert main(["animate", "default", "--set", "t_end_s=0.3", "--t-max", "0.2", "--fps", "5", "--out", str(gif)]) == 0
+    from PIL import Image
+
+    assert Image.open(gif).n_frames >= 2
+    assert main(["animate", "default", "--out", str(tmp_path / "a.avi")]) == 2
+    assert not (tmp_path / "a.avi").exists()
+    png = tmp_path / "d.png"
+    assert main(["dispersion", "--sigma", "9/125", "--inertia", "--cells", "16", "--plot", str(png)]) == 0
+    assert png.stat().st_size > 5000
+
+
+def test_dispersion_plot_names_band_and_fastest_wavelength():
+    from matplotlib.figure import Figure
+
+    import host_emulator as he
+    from host_emulator.params import Params
+
+    ax = Figure().add_subplot(111)
+    he.plot_dispersion(Params(sigma=0.072), ax=ax, inertia=True, measured_period_s=None)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any(s.startswith("unstable band") for s in labels) and any(s.startswith("fastest wavelength") for s in labels)
+    ticks = [t.get_text() for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
+    assert ticks and all("^" not in s and "times" not in s for s in ticks)     # plain numbers, no 10^x labels
+
+
+def test_did_you_mean_for_scenes_and_keys():
+    from host_emulator.models import ConfigError
+    from host_emulator.scene import load_scene
+
+    with pytest.raises(ConfigError, match="did you mean 'default'"):
+        load_scene("defualt")
+    with pytest.raises(ConfigError, match="did you mean 'sigma'"):
+        load_scene("default", ["params.sigmaa=0.05"])
+    with pytest.raises(ConfigError, match="did you mean 't_end_s'"):
+        load_scene("default", ["t_end=1"])

@@ -94,7 +94,13 @@ def _cells(text: str) -> list[int]:
     if text == "all":
         return list(range(1, proto.N_CELLS + 1))
     try:
-        cells = [int(x) for x in text.split(",")]
+        cells = []
+        for part in (p.strip() for p in text.split(",")):
+            lo, sep, hi = part.partition("-")          # "1-16" is cells 1..16
+            a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
+            if a > b:
+                raise ValueError(f"range {part!r} runs backwards")
+            cells += [j for j in range(a, b + 1) if j not in cells]
         for j in cells:
             proto.cell_address(j)
     except ValueError as e:
