@@ -156,40 +156,26 @@ def main(argv=None) -> int:
         return 0
 
 
+# subcommands with their own argument parsers: name -> (module, entry point), imported only when used
+SUBCOMMANDS = {
+    "dispersion": (".analysis.cli", "dispersion_main"),
+    "serve": (".bus.serve", "serve_main"),
+    "bench-speed": (".bench", "bench_main"),
+    "robustness": (".paper", "robustness_main"),
+    "paper": (".paper", "paper_main"),
+    "animate": (".animate", "animate_main"),
+    "sweep": (".sweep", "sweep_main"),
+    "bench": (".benchmarks.cli", "main"),
+}
+
+
 def _main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "dispersion":
-        from .analysis.cli import dispersion_main
+    if argv and argv[0] in SUBCOMMANDS:
+        import importlib
 
-        return dispersion_main(argv[1:])
-    if argv and argv[0] == "serve":
-        from .bus.serve import serve_main
-
-        return serve_main(argv[1:])
-    if argv and argv[0] == "bench-speed":
-        from .bench import bench_main
-
-        return bench_main(argv[1:])
-    if argv and argv[0] == "robustness":
-        from .paper import robustness_main
-
-        return robustness_main(argv[1:])
-    if argv and argv[0] == "paper":
-        from .paper import paper_main
-
-        return paper_main(argv[1:])
-    if argv and argv[0] == "animate":
-        from .animate import animate_main
-
-        return animate_main(argv[1:])
-    if argv and argv[0] == "sweep":
-        from .sweep import sweep_main
-
-        return sweep_main(argv[1:])
-    if argv and argv[0] == "bench":
-        from .benchmarks.cli import main as bench_accuracy_main
-
-        return bench_accuracy_main(argv[1:])
+        module, func = SUBCOMMANDS[argv[0]]
+        return getattr(importlib.import_module(module, __package__), func)(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m host_emulator",
                                  description="Host emulator of the robotic metamaterial (docs/physics.md).",
                                  epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.")

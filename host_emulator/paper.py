@@ -91,7 +91,7 @@ def fig2_theory(items):
     return curves
 
 
-def fig2_runs(items, repeats):
+def fig2_runs(items):
     runs = {}
     for key, (scene, sets, z) in FIG2_RUNS.items():
         sc, res, o = _run(scene, sets)
@@ -226,7 +226,7 @@ def build(out: Path, repeats: int = 10) -> dict:
     t0 = time.perf_counter()
     items: list[Item] = []
     curves = fig2_theory(items)
-    runs2 = fig2_runs(items, repeats)
+    runs2 = fig2_runs(items)
     runs3 = fig3_runs(items, repeats)
     out.mkdir(parents=True, exist_ok=True)
     files = ["fig2_dispersion.png", "fig2_spacetime.png", "fig3_patterns.png"]
@@ -341,11 +341,11 @@ def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURA
         scene = load_scene(name, base)
         grid = {}
         if scene.perturbations:
-            for tq in torques:
-                for du in durations:
-                    grid[f"{tq * 1e3:g} mN*m x {du:g} s"] = selects(_run(name, base + _push_sets(scene, tq, du))[2], want)
-            row["pushes"] = sum(grid.values()) / len(grid)
-            ok = [tq for tq in torques if all(grid[f"{tq * 1e3:g} mN*m x {du:g} s"] for du in durations)]
+            hit = {(tq, du): selects(_run(name, base + _push_sets(scene, tq, du))[2], want)
+                   for tq in torques for du in durations}
+            grid = {f"{tq * 1e3:g} mN*m x {du:g} s": v for (tq, du), v in hit.items()}
+            row["pushes"] = sum(hit.values()) / len(hit)
+            ok = [tq for tq in torques if all(hit[(tq, du)] for du in durations)]
             row["min_push_Nm"] = min(ok) if ok else None
         else:
             row["pushes"] = None
