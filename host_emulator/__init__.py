@@ -9,12 +9,34 @@ Python API (imports are lazy, so ``import host_emulator`` is cheap)::
     he.sweep("default", {"params.sigma": [0.05, 0.07]}, seeds=2, out="out/sw")   # xarray.Dataset
 """
 
-__all__ = ["run", "RunResult", "load_scene", "list_scenes", "sweep", "plot_spacetime", "plot_final",
-           "plot_dispersion", "plot_phase_diagram", "plot_regime_map", "provenance", "__version__"]
+__all__ = [
+    "run",
+    "RunResult",
+    "load_scene",
+    "list_scenes",
+    "sweep",
+    "plot_spacetime",
+    "plot_final",
+    "plot_dispersion",
+    "plot_phase_diagram",
+    "plot_regime_map",
+    "provenance",
+    "__version__",
+]
 
-_LAZY = {"run": "api", "RunResult": "api", "load_scene": "api", "list_scenes": "api",
-         "plot_spacetime": "plots", "plot_final": "plots", "plot_dispersion": "plots",
-         "sweep": "sweep", "plot_phase_diagram": "sweep", "plot_regime_map": "sweep", "provenance": "provenance"}
+_LAZY = {
+    "run": "api",
+    "RunResult": "api",
+    "load_scene": "api",
+    "list_scenes": "api",
+    "plot_spacetime": "plots",
+    "plot_final": "plots",
+    "plot_dispersion": "plots",
+    "sweep": "sweep",
+    "plot_phase_diagram": "sweep",
+    "plot_regime_map": "sweep",
+    "provenance": "provenance",
+}
 
 
 def __getattr__(name):
@@ -23,7 +45,7 @@ def __getattr__(name):
             from importlib.metadata import version
 
             return version("metamaterial-rig")
-        except Exception:       # noqa: BLE001 - not installed (a bare checkout)
+        except Exception:  # noqa: BLE001 - not installed (a bare checkout)
             return "0+unknown"
     if name in _LAZY:
         import importlib

@@ -25,8 +25,11 @@ DEFAULT = "balanced"
 # (stepper, fraction of the stable limit, beta_geometry or None)
 LATTICE = {"fast": ("rk4", 0.8, None), "balanced": ("rk4", 0.25, None), "exact": ("rk4", 1 / 32, "geometric")}
 # (stepper, plant steps per control tick, beta_geometry or None)
-HIL = {"fast": ("symplectic_euler", 1, None), "balanced": ("symplectic_euler", 1, None),
-       "exact": ("rk4", 2, "geometric")}
+HIL = {
+    "fast": ("symplectic_euler", 1, None),
+    "balanced": ("symplectic_euler", 1, None),
+    "exact": ("rk4", 2, "geometric"),
+}
 
 KNOB_KEYS = ("stepper", "dt", "substeps", "beta_geometry")
 

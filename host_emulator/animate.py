@@ -35,16 +35,18 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None):
     top.axis("off")
     for j in x:
         top.add_patch(__import__("matplotlib.patches", fromlist=["Circle"]).Circle((j, 0.35), 0.33, fc="0.9", ec="0.5"))
-        top.add_patch(__import__("matplotlib.patches", fromlist=["Circle"]).Circle((j, -0.45), 0.28, fc="0.95", ec="0.6"))
-    pa, = top.plot([], [], "-", color="C0", lw=2)
-    pb, = top.plot([], [], "-", color="C1", lw=2)
+        top.add_patch(
+            __import__("matplotlib.patches", fromlist=["Circle"]).Circle((j, -0.45), 0.28, fc="0.95", ec="0.6")
+        )
+    (pa,) = top.plot([], [], "-", color="C0", lw=2)
+    (pb,) = top.plot([], [], "-", color="C1", lw=2)
     lim = float(np.abs(a[:k_end]).max()) or 1.0
     bot.set_xlim(0.5, n + 0.5)
     bot.set_ylim(-1.1 * lim, 1.1 * lim)
     bot.axhline(0, color="0.7", lw=0.8)
     bot.set_xlabel("cell j")
     bot.set_ylabel("alpha (rad)")
-    prof, = bot.plot([], [], "o-", color="C0")
+    (prof,) = bot.plot([], [], "o-", color="C0")
     txt = top.set_title("", fontsize=9)
 
     def seg(y0, r, ang):
@@ -78,17 +80,24 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None):
 
 
 def animate_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator animate", description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter,
-                                 epilog="examples:\n  python -m host_emulator animate default --out lattice.gif\n"
-                                        "  python -m host_emulator animate exp1_ccw_ccw --t-max 1.5 --fps 15 "
-                                        "--out exp1.gif")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator animate",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  python -m host_emulator animate default --out lattice.gif\n"
+        "  python -m host_emulator animate exp1_ccw_ccw --t-max 1.5 --fps 15 "
+        "--out exp1.gif",
+    )
     ap.add_argument("scene", help="shipped scene name or .toml path")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
     ap.add_argument("--out", required=True, help="output file, .gif (Pillow) or .mp4 (imageio-ffmpeg)")
     ap.add_argument("--fps", type=int, default=20, help="frames per second of the animation (default 20)")
-    ap.add_argument("--t-max", type=float, default=2.0,
-                    help="animate up to this simulated time, s (default 2: the pattern forms in the first 0.5 s)")
+    ap.add_argument(
+        "--t-max",
+        type=float,
+        default=2.0,
+        help="animate up to this simulated time, s (default 2: the pattern forms in the first 0.5 s)",
+    )
     args = ap.parse_args(argv)
     from .api import run
     from .models import ConfigError, NumericalInstability

@@ -70,10 +70,15 @@ class RunResult:
 
         n = self.alpha.shape[1]
         ds = xr.Dataset(
-            {"alpha": (("time", "cell"), self.alpha, {"units": "rad", "long_name": "tall (alpha) cylinder angle"}),
-             "beta": (("time", "cell"), self.beta, {"units": "rad", "long_name": "short (beta) cylinder angle"})},
-            coords={"time": ("time", self.time, {"units": "s"}),
-                    "cell": ("cell", np.arange(1, n + 1), {"long_name": "cell index j"})})
+            {
+                "alpha": (("time", "cell"), self.alpha, {"units": "rad", "long_name": "tall (alpha) cylinder angle"}),
+                "beta": (("time", "cell"), self.beta, {"units": "rad", "long_name": "short (beta) cylinder angle"}),
+            },
+            coords={
+                "time": ("time", self.time, {"units": "s"}),
+                "cell": ("cell", np.arange(1, n + 1), {"long_name": "cell index j"}),
+            },
+        )
         ds.attrs.update(netcdf_attrs(self.scene, self.summary))
         return ds
 
@@ -110,12 +115,32 @@ def netcdf_attrs(scene, summary: dict | None = None) -> dict:
 
     out: dict = {}
     d = scene.as_dict()
-    _flat("", {"scene": d["name"], "model": d["model"], "cells": d["cells"], "t_end_s": d["t_end_s"],
-               "accuracy": d["accuracy"], "params": d["params"], "model_options": d["model_options"],
-               "perturbation": d["perturbation"]}, out)
+    _flat(
+        "",
+        {
+            "scene": d["name"],
+            "model": d["model"],
+            "cells": d["cells"],
+            "t_end_s": d["t_end_s"],
+            "accuracy": d["accuracy"],
+            "params": d["params"],
+            "model_options": d["model_options"],
+            "perturbation": d["perturbation"],
+        },
+        out,
+    )
     if summary:
-        for k in ("steady", "at_rest", "domain_walls", "pattern_wavelength_cells", "dominant_mode",
-                  "pattern_period_cells", "oscillation_period_s", "amplitude_rad", "growth_rate_per_s"):
+        for k in (
+            "steady",
+            "at_rest",
+            "domain_walls",
+            "pattern_wavelength_cells",
+            "dominant_mode",
+            "pattern_period_cells",
+            "oscillation_period_s",
+            "amplitude_rad",
+            "growth_rate_per_s",
+        ):
             if k in summary:
                 _flat(f"observable.{k}", summary[k], out)
         if summary.get("dispersion"):

@@ -37,8 +37,14 @@ def _build(scene):
     from .accuracy import resolve_options
     from .models import make_model
 
-    options = resolve_options(scene.model, scene.params, scene.perturbations, scene.options,
-                              getattr(scene, "accuracy", "balanced"), getattr(scene, "explicit_options", ()))
+    options = resolve_options(
+        scene.model,
+        scene.params,
+        scene.perturbations,
+        scene.options,
+        getattr(scene, "accuracy", "balanced"),
+        getattr(scene, "explicit_options", ()),
+    )
     model = make_model(scene.model, scene.params, scene.perturbations, options)
     solver = model.solver()
     n_out = max(1, round(scene.t_end_s / solver.dt_out))
@@ -117,8 +123,13 @@ def _run_hil_batch(scenes, keep, results, idx):
         info["batch_wall_s"] = wall
         info["cell_faults"] = s.faults()
         if keep == "trajectory":
-            t = np.concatenate([[0.0], np.arange(s.ticks_per_out, (n_out + 1) * s.ticks_per_out,
-                                                 s.ticks_per_out)[:n_out] / s.model.rate_hz])
+            t = np.concatenate(
+                [
+                    [0.0],
+                    np.arange(s.ticks_per_out, (n_out + 1) * s.ticks_per_out, s.ticks_per_out)[:n_out]
+                    / s.model.rate_hz,
+                ]
+            )
             a = np.concatenate([x0[k][None, :n], outs[k][:, :n]])
             b = np.concatenate([x0[k][None, n:], outs[k][:, n:]])
         else:
@@ -128,6 +139,7 @@ def _run_hil_batch(scenes, keep, results, idx):
 
 
 # ---- benchmark: the 1,000-point sweep of the default scene ------------------------------------------------
+
 
 def sweep_scenes(points: int, t_end_s: float = 10.0, base: str = "default"):
     """`points` variants of a scene: sigma, push cell and torque and the band-spread seed differ per point."""
@@ -141,9 +153,14 @@ def sweep_scenes(points: int, t_end_s: float = 10.0, base: str = "default"):
     out = []
     for i in range(points):
         sigma = 0.05 + 0.04 * ((i * 0.618033988749895) % 1.0)
-        over = [f"t_end_s={t_end_s!r}", f"params.sigma={sigma!r}", f"perturbation.1.cell={1 + i % 16}",
-                f"perturbation.1.torque_Nm={0.01 + 0.02 * ((i * 0.414213562) % 1.0)!r}",
-                "model_options.noise.band_spread=0.02", f"model_options.noise.seed={i}"]
+        over = [
+            f"t_end_s={t_end_s!r}",
+            f"params.sigma={sigma!r}",
+            f"perturbation.1.cell={1 + i % 16}",
+            f"perturbation.1.torque_Nm={0.01 + 0.02 * ((i * 0.414213562) % 1.0)!r}",
+            "model_options.noise.band_spread=0.02",
+            f"model_options.noise.seed={i}",
+        ]
         out.append(scene_from_dict(apply_overrides(d, over), str(f)))
     return out
 
@@ -165,7 +182,7 @@ def bench_sweep(points: int, workers: int, t_end_s: float = 10.0, keep: str = "f
 
     from .firmware import load
 
-    load()                                      # compile outside the timing
+    load()  # compile outside the timing
     bounds = [(points * w // workers, points * (w + 1) // workers, t_end_s, keep) for w in range(workers)]
     t0 = time.perf_counter()
     if workers == 1:
@@ -175,14 +192,22 @@ def bench_sweep(points: int, workers: int, t_end_s: float = 10.0, keep: str = "f
             parts = pool.map(_worker, bounds)
     wall = time.perf_counter() - t0
     compiled = sum(p[1] for p in parts)
-    return {"points": points, "workers": workers, "wall_s": wall, "points_per_s": points / wall,
-            "compiled_s": compiled, "overhead_per_point_ms": 1e3 * (sum(p[0] for p in parts) - compiled) / points,
-            "failed": sum(p[2] for p in parts)}
+    return {
+        "points": points,
+        "workers": workers,
+        "wall_s": wall,
+        "points_per_s": points / wall,
+        "compiled_s": compiled,
+        "overhead_per_point_ms": 1e3 * (sum(p[0] for p in parts) - compiled) / points,
+        "failed": sum(p[2] for p in parts),
+    }
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator.batch",
-                                 description="Wall time of a sweep of the 16-cell hil default scene run as batches.")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator.batch",
+        description="Wall time of a sweep of the 16-cell hil default scene run as batches.",
+    )
     ap.add_argument("--points", type=int, default=1000)
     ap.add_argument("--t-end", type=float, default=10.0, help="simulated seconds per point")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
@@ -192,17 +217,24 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.points < 1 or not (math.isfinite(args.t_end) and args.t_end > 0) or min(args.workers) < 1:
         ap.error("--points, --t-end and --workers must be positive")
-    print(f"sweep: {args.points} points of the 16-cell hil default, {args.t_end:g} s each, keep={args.keep}, "
-          f"{os.cpu_count()} cores")
+    print(
+        f"sweep: {args.points} points of the 16-cell hil default, {args.t_end:g} s each, keep={args.keep}, "
+        f"{os.cpu_count()} cores"
+    )
     for w in args.workers:
         runs = [bench_sweep(args.points, w, args.t_end, args.keep) for _ in range(max(1, args.repeat))]
         r = sorted(runs, key=lambda d: d["wall_s"])[len(runs) // 2]
         verdict = "meets" if r["wall_s"] <= args.target_s else "misses"
-        print(f"  {w} worker(s): wall {r['wall_s']:.2f} s ({verdict} the {args.target_s:g} s target), "
-              f"{r['points_per_s']:.0f} points/s, compiled loop {r['compiled_s']:.2f} s (summed over workers), "
-              f"overhead {r['overhead_per_point_ms']:.2f} ms/point, failed {r['failed']}"
-              + (f" [median of {len(runs)}: {statistics.median(d['wall_s'] for d in runs):.2f} s]"
-                 if len(runs) > 1 else ""))
+        print(
+            f"  {w} worker(s): wall {r['wall_s']:.2f} s ({verdict} the {args.target_s:g} s target), "
+            f"{r['points_per_s']:.0f} points/s, compiled loop {r['compiled_s']:.2f} s (summed over workers), "
+            f"overhead {r['overhead_per_point_ms']:.2f} ms/point, failed {r['failed']}"
+            + (
+                f" [median of {len(runs)}: {statistics.median(d['wall_s'] for d in runs):.2f} s]"
+                if len(runs) > 1
+                else ""
+            )
+        )
     return 0
 
 

@@ -10,8 +10,10 @@ import time
 
 
 def bench_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator bench-speed",
-                                 description="Print the real-time factor (simulated s per wall s) of a scene.")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator bench-speed",
+        description="Print the real-time factor (simulated s per wall s) of a scene.",
+    )
     ap.add_argument("scene", nargs="?", default="default")
     ap.add_argument("--repeat", type=int, default=5, help="timed runs (the median is reported)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
@@ -37,16 +39,24 @@ def bench_main(argv=None) -> int:
     wall = statistics.median(walls)
     sim = float(res.t[-1])
     info = res.info
-    print(f"scene {scene.name} ({scene.model}, {scene.cells} cells, {sim:g} s simulated) on one core "
-          f"[{platform.processor() or platform.machine()}, python {platform.python_version()}]")
+    print(
+        f"scene {scene.name} ({scene.model}, {scene.cells} cells, {sim:g} s simulated) on one core "
+        f"[{platform.processor() or platform.machine()}, python {platform.python_version()}]"
+    )
     if scene.model == "hil":
-        print(f"  control rate {info['control_rate_hz']} Hz, {info['substeps_per_tick']} plant step(s) per tick "
-              f"({info['stepper']}), output every {info['dt_out_s']} s")
-    print(f"  wall per run: median {wall * 1e3:.1f} ms (min {min(walls) * 1e3:.1f}, max {max(walls) * 1e3:.1f}, "
-          f"{len(walls)} runs)")
+        print(
+            f"  control rate {info['control_rate_hz']} Hz, {info['substeps_per_tick']} plant step(s) per tick "
+            f"({info['stepper']}), output every {info['dt_out_s']} s"
+        )
+    print(
+        f"  wall per run: median {wall * 1e3:.1f} ms (min {min(walls) * 1e3:.1f}, max {max(walls) * 1e3:.1f}, "
+        f"{len(walls)} runs)"
+    )
     if scene.model == "hil":
         ticks = round(sim * info["control_rate_hz"])
-        print(f"  cost: {wall / (ticks * scene.cells) * 1e9:.1f} ns per cell and control tick "
-              f"({ticks} ticks x {scene.cells} cells)")
+        print(
+            f"  cost: {wall / (ticks * scene.cells) * 1e9:.1f} ns per cell and control tick "
+            f"({ticks} ticks x {scene.cells} cells)"
+        )
     print(f"  realtime factor: {sim / wall:.0f}x (requirement: >= 100x; target for the hil default: >= 1000x)")
     return 0 if sim / wall >= 100 or scene.name != "default" else 1

@@ -28,8 +28,13 @@ def _clean(v):
     return v
 
 
-DISPERSION_KEYS = ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s",
-                   "unstable_band_cells")
+DISPERSION_KEYS = (
+    "regime",
+    "fastest_lambda_cells",
+    "fastest_growth_per_s",
+    "oscillation_period_s",
+    "unstable_band_cells",
+)
 
 
 def summarize(scene, res) -> dict:
@@ -106,8 +111,11 @@ def cmd_run(args) -> int:
         return 3
     summary = summarize(scene, res)
     np.savez_compressed(out / "trajectories.npz", t=res.t, alpha=res.alpha, beta=res.beta)
-    files = [] if args.no_plots else plot_run(res, scene, out, inertia=summary["dispersion"]["inertia"]
-                                             if summary["dispersion"] else False)
+    files = (
+        []
+        if args.no_plots
+        else plot_run(res, scene, out, inertia=summary["dispersion"]["inertia"] if summary["dispersion"] else False)
+    )
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _print_summary(summary, out, files)
@@ -124,19 +132,29 @@ def _fmt(v, unit="", nd=4):
 
 def _print_summary(s, out, files):
     d = s.get("dispersion") or {}
-    print(f"scene {s['scene']} ({s['model']}): {s['t_end_s']:.3g} s simulated in {s['wall_s']:.3g} s "
-          f"wall ({s['realtime_factor']:.0f}x real time)")
-    print(f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
-          f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}")
-    print(f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}   "
-          f"wavelength 2(N-1)/Z: {_fmt(s['pattern_wavelength_cells'], ' cells')}   "
-          f"dominant mode: {_fmt(s['dominant_mode'])} ({_fmt(s['dominant_mode_lambda_cells'], ' cells')})")
+    print(
+        f"scene {s['scene']} ({s['model']}): {s['t_end_s']:.3g} s simulated in {s['wall_s']:.3g} s "
+        f"wall ({s['realtime_factor']:.0f}x real time)"
+    )
+    print(
+        f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
+        f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}"
+    )
+    print(
+        f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}   "
+        f"wavelength 2(N-1)/Z: {_fmt(s['pattern_wavelength_cells'], ' cells')}   "
+        f"dominant mode: {_fmt(s['dominant_mode'])} ({_fmt(s['dominant_mode_lambda_cells'], ' cells')})"
+    )
     print("  final alpha (rad): " + " ".join(f"{v:+.2f}" for v in s["final_alpha_rad"]))
     if d:
-        print(f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
-              f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, growth {_fmt(d.get('fastest_growth_per_s'), '/s')}")
-    print(f"  wrote {out}/summary.json, trajectories.npz" + ("" if not files else ", plots: " +
-                                                              ", ".join(str(f) for f in files)))
+        print(
+            f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
+            f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, growth {_fmt(d.get('fastest_growth_per_s'), '/s')}"
+        )
+    print(
+        f"  wrote {out}/summary.json, trajectories.npz"
+        + ("" if not files else ", plots: " + ", ".join(str(f) for f in files))
+    )
 
 
 def cmd_bench(args) -> int:
@@ -149,7 +167,7 @@ def main(argv=None) -> int:
     """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
     try:
         return _main(argv)
-    except BrokenPipeError:          # e.g. `dispersion --json | head`: the reader left, not an error
+    except BrokenPipeError:  # e.g. `dispersion --json | head`: the reader left, not an error
         import os
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -176,24 +194,42 @@ def _main(argv=None) -> int:
 
         module, func = SUBCOMMANDS[argv[0]]
         return getattr(importlib.import_module(module, __package__), func)(argv[1:])
-    ap = argparse.ArgumentParser(prog="python -m host_emulator",
-                                 description="Host emulator of the robotic metamaterial (docs/physics.md).",
-                                 epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator",
+        description="Host emulator of the robotic metamaterial (docs/physics.md).",
+        epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
     sub.add_parser("scenes", help="list the shipped scenes")
     r = sub.add_parser("run", help="run a scene (shipped name or .toml path)")
     r.add_argument("scene")
-    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scene key, e.g. params.sigma=0.048, model_options.inertia=false, t_end_s=5")
+    r.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scene key, e.g. params.sigma=0.048, model_options.inertia=false, t_end_s=5",
+    )
     r.add_argument("--out", default=None, help="output directory (default out/<scene>)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--live", type=float, default=None, metavar="SECONDS",
-                   help="print max |alpha|, |beta| every SECONDS of simulated time")
+    r.add_argument(
+        "--live",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="print max |alpha|, |beta| every SECONDS of simulated time",
+    )
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    r.add_argument("--accuracy", choices=("fast", "balanced", "exact"), default=None,
-                   help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)")
+    r.add_argument(
+        "--accuracy",
+        choices=("fast", "balanced", "exact"),
+        default=None,
+        help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)",
+    )
     sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
-    sub.add_parser("robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)")
+    sub.add_parser(
+        "robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)"
+    )
     sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
     sub.add_parser("animate", help="GIF/MP4 of the lattice forming its pattern (see animate --help)")
     sub.add_parser("sweep", help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)")

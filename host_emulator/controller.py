@@ -14,8 +14,8 @@ from .trackers import ProgressTracker, RecordTracker, Tracker
 @dataclass
 class RunResult:
     t: np.ndarray
-    alpha: np.ndarray       # (T, N) rad
-    beta: np.ndarray        # (T, N) rad
+    alpha: np.ndarray  # (T, N) rad
+    beta: np.ndarray  # (T, N) rad
     wall_s: float
     info: dict = field(default_factory=dict)
 
@@ -66,8 +66,8 @@ def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResul
     return RunResult(t, a, b, wall, solver.info())
 
 
-CHUNK_MAX_SAMPLES = 256     # output samples per compiled call at most
-CHUNK_WALL_S = 0.2          # ... and about this much wall time, so progress bars and live trackers keep moving
+CHUNK_MAX_SAMPLES = 256  # output samples per compiled call at most
+CHUNK_WALL_S = 0.2  # ... and about this much wall time, so progress bars and live trackers keep moving
 
 
 def _run_chunked(solver, n_out: int, trackers: list[Tracker]):
@@ -97,8 +97,14 @@ def run_scene(scene, *, progress: bool = True, trackers: list[Tracker] = ()) -> 
     """Build the scene's model, run it and return the recorded trajectories."""
     from .accuracy import resolve_options
 
-    options = resolve_options(scene.model, scene.params, scene.perturbations, scene.options,
-                              getattr(scene, "accuracy", "balanced"), getattr(scene, "explicit_options", ()))
+    options = resolve_options(
+        scene.model,
+        scene.params,
+        scene.perturbations,
+        scene.options,
+        getattr(scene, "accuracy", "balanced"),
+        getattr(scene, "explicit_options", ()),
+    )
     model = make_model(scene.model, scene.params, scene.perturbations, options)
     solver = model.solver()
     extra = list(trackers)

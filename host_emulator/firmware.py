@@ -28,8 +28,18 @@ BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
 # Speed flags keep every float bit: no -ffast-math, no -march (FMA would fuse a*b+c), and -ffp-contract=off
 # so no compiler ever contracts; -fvisibility=hidden and -flto let the tick inline the firmware's small calls
 # (cffi reaches the functions from inside the module; only the module's init symbol is exported).
-CFLAGS = ["-std=c99", "-O3", "-ffp-contract=off", "-fno-trapping-math", "-fvisibility=hidden", "-flto", "-Wall", "-Wextra", "-Werror",
-          "-fno-strict-aliasing"]
+CFLAGS = [
+    "-std=c99",
+    "-O3",
+    "-ffp-contract=off",
+    "-fno-trapping-math",
+    "-fvisibility=hidden",
+    "-flto",
+    "-Wall",
+    "-Wextra",
+    "-Werror",
+    "-fno-strict-aliasing",
+]
 LDFLAGS = ["-O3", "-flto", "-flto-partition=one", "-ffp-contract=off", "-fno-trapping-math"]
 
 _lock = threading.Lock()
@@ -63,7 +73,9 @@ def _digest(paths: list[Path]) -> str:
     return h.hexdigest()[:16]
 
 
-_DEFINE_RE = re.compile(r"^#define\s+(MC_[A-Z0-9_]+|HE_[A-Z0-9_]+)\s+\(?(-?(?:0x[0-9A-Fa-f]+|\d+))[uUlL]*\)?\s*(?:/\*.*)?$")
+_DEFINE_RE = re.compile(
+    r"^#define\s+(MC_[A-Z0-9_]+|HE_[A-Z0-9_]+)\s+\(?(-?(?:0x[0-9A-Fa-f]+|\d+))[uUlL]*\)?\s*(?:/\*.*)?$"
+)
 
 
 def cdef_source(headers: list[Path] | None = None) -> str:
@@ -79,7 +91,9 @@ def cdef_source(headers: list[Path] | None = None) -> str:
         umbrella.write_text("".join(f'#include "{h}"\n' for h in headers))
         out = subprocess.run(
             [cc, "-E", "-P", "-nostdinc", "-I", str(fake), "-DMC_CDEF", str(umbrella)],
-            check=True, capture_output=True, text=True,
+            check=True,
+            capture_output=True,
+            text=True,
         ).stdout
     # integer-literal suffixes are C, not cffi
     out = re.sub(r"\b(\d+)[uU]\b", r"\1", out)
@@ -97,15 +111,17 @@ def cdef_source(headers: list[Path] | None = None) -> str:
 # Hashing every source costs ~2 ms; a sweep builds thousands of models, each asking for the build. A call
 # within RECHECK_S of the previous check reuses its answer (an edit is seen by the next call after that).
 RECHECK_S = 1.0
-_last: list = [float("-inf"), None]     # [monotonic time of the last check, its (ffi, lib)]
+_last: list = [float("-inf"), None]  # [monotonic time of the last check, its (ffi, lib)]
 
 
 def load():
     """Return (ffi, lib) of the host build, compiling it on first use."""
     if not LIB_SRC.is_dir():
-        raise RuntimeError(f"the firmware sources are not here ({LIB_SRC}): the emulator compiles lib/metacell "
-                           "from a source checkout; install the project with `pip install -e .` from the "
-                           "repository, not from a wheel")
+        raise RuntimeError(
+            f"the firmware sources are not here ({LIB_SRC}): the emulator compiles lib/metacell "
+            "from a source checkout; install the project with `pip install -e .` from the "
+            "repository, not from a wheel"
+        )
     now = time.monotonic()
     if _last[1] is not None and now - _last[0] < RECHECK_S:
         return _last[1]
@@ -130,7 +146,8 @@ def _build(srcs: list[Path], key: str):
         ffi.cdef(cdef_source())
         includes = "".join(f'#include "{h}"\n' for h in _headers())
         ffi.set_source(
-            name, includes,
+            name,
+            includes,
             sources=[str(s) for s in srcs],
             include_dirs=[str(LIB_SRC), str(HOST_CSRC)],
             extra_compile_args=CFLAGS,

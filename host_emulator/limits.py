@@ -8,15 +8,15 @@ from __future__ import annotations
 import math
 import os
 
-INT32 = 2 ** 31
-MAX_CELL_STEPS = 1e10        # plant steps x cells: about an hour at the compiled loop's speed
-FIRMWARE_PARAMS = ("k_ab", "k1", "k2", "sigma", "alpha_star")   # sent as int32 micro-units (uN*m/rad, urad)
-RANGES = {                   # physically meaningful ranges; outside them the solvers slow to a halt
+INT32 = 2**31
+MAX_CELL_STEPS = 1e10  # plant steps x cells: about an hour at the compiled loop's speed
+FIRMWARE_PARAMS = ("k_ab", "k1", "k2", "sigma", "alpha_star")  # sent as int32 micro-units (uN*m/rad, urad)
+RANGES = {  # physically meaningful ranges; outside them the solvers slow to a halt
     "band_scale": (1e-3, 100.0),
     "eta_scale": (1e-3, 1e3),
     "gamma": (1e-4, 1e3),
 }
-JITTER_MAX_COUNTS = 400.0    # one revolution of the encoder
+JITTER_MAX_COUNTS = 400.0  # one revolution of the encoder
 POINTS_MAX = 256
 
 
@@ -29,7 +29,7 @@ def mem_available() -> float:
                     return float(line.split()[1]) * 1024
     except OSError:
         pass
-    return 8.0 * 2 ** 30
+    return 8.0 * 2**30
 
 
 def check_run(scene) -> str | None:
@@ -53,10 +53,12 @@ def check_run(scene) -> str | None:
     if o.dt is not None:
         steps = t_end / o.dt * scene.cells
         if steps > MAX_CELL_STEPS:
-            return (f"model_options.dt = {o.dt} s over t_end_s = {t_end} s is {steps:.3g} cell steps "
-                    f"(limit {MAX_CELL_STEPS:.0e}, about an hour): use a larger dt or a shorter run")
+            return (
+                f"model_options.dt = {o.dt} s over t_end_s = {t_end} s is {steps:.3g} cell steps "
+                f"(limit {MAX_CELL_STEPS:.0e}, about an hour): use a larger dt or a shorter run"
+            )
     n_out = t_end / o.dt_out + 1
-    per_sample = scene.cells * 2 * 8 * 4          # alpha, beta float64, a few working copies
+    per_sample = scene.cells * 2 * 8 * 4  # alpha, beta float64, a few working copies
     if scene.model == "continuum":
         if o.points_per_cell > POINTS_MAX:
             return f"model_options.points_per_cell = {o.points_per_cell}: expected 1..{POINTS_MAX}"
@@ -64,8 +66,10 @@ def check_run(scene) -> str | None:
     need = n_out * per_sample
     avail = mem_available()
     if need > 0.5 * avail:
-        return (f"t_end_s = {t_end} s every dt_out = {o.dt_out} s needs about {need / 2 ** 30:.3g} GiB of output "
-                f"arrays; this machine has {avail / 2 ** 30:.3g} GiB available")
+        return (
+            f"t_end_s = {t_end} s every dt_out = {o.dt_out} s needs about {need / 2**30:.3g} GiB of output "
+            f"arrays; this machine has {avail / 2**30:.3g} GiB available"
+        )
     return None
 
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -37,8 +36,11 @@ from .scene import load_scene
 PERIOD_TOL = 0.10
 SOURCE_PERIOD_S = 0.03
 NOISE = {"band_spread": 0.05, "eta_spread": 0.05}
-SIGMAS = {"a": ("9/125", 9 / 125, "conditionally_unstable"), "b": ("6/125", 6 / 125, "unconditionally_unstable"),
-          "c": ("14/125", 14 / 125, "stable")}
+SIGMAS = {
+    "a": ("9/125", 9 / 125, "conditionally_unstable"),
+    "b": ("6/125", 6 / 125, "unconditionally_unstable"),
+    "c": ("14/125", 14 / 125, "stable"),
+}
 # Fig. 2 a.ii-c.ii (one push on alpha_8) and Fig. 3 (rest, symmetric, antisymmetric loading)
 FIG2_RUNS = {"a": ("exp3_single_sigma9", [], 4), "b": ("exp3_single_sigma6", [], 2)}
 FIG3_RUNS = {"a": ("exp5_rest", 0), "b": ("exp1_ccw_ccw", 2), "c": ("exp2_ccw_cw", 3)}
@@ -55,8 +57,15 @@ class Item:
     extra: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        return {"figure": self.figure, "item": self.what, "source": self.source, "ours": self.ours,
-                "agree": bool(self.agree), "note": self.note, **self.extra}
+        return {
+            "figure": self.figure,
+            "item": self.what,
+            "source": self.source,
+            "ours": self.ours,
+            "agree": bool(self.agree),
+            "note": self.note,
+            **self.extra,
+        }
 
 
 def _run(name, sets):
@@ -71,8 +80,14 @@ def _walls_item(fig, what, z_source, obs_list):
     frac = hits / len(zs)
     lam = [o["pattern_wavelength_cells"] for o in obs_list]
     ours = lam[0] if len(lam) == 1 else {"fraction_selecting_source": frac, "lambda_cells": lam}
-    return Item(fig, what, 30 / z_source if z_source else None, ours, frac > 0.5,
-                note=f"domain walls {zs}; source Z = {z_source}")
+    return Item(
+        fig,
+        what,
+        30 / z_source if z_source else None,
+        ours,
+        frac > 0.5,
+        note=f"domain walls {zs}; source Z = {z_source}",
+    )
 
 
 def fig2_theory(items):
@@ -84,10 +99,17 @@ def fig2_theory(items):
             d = dispersion(p, discrete=True, n_cells=16)
             c = dispersion(p, discrete=False)
             curves[(key, bs)] = (d, c)
-            items.append(Item(f"2{key}.i", f"regime at sigma = {label}, {which}", regime, d["regime"],
-                              d["regime"] == regime,
-                              note=f"fastest {d['fastest_lambda_cells'] and round(d['fastest_lambda_cells'], 2)} cells, "
-                                   f"band {d['unstable_band_cells'] and [None if x is None else round(x, 2) for x in d['unstable_band_cells']]}"))
+            items.append(
+                Item(
+                    f"2{key}.i",
+                    f"regime at sigma = {label}, {which}",
+                    regime,
+                    d["regime"],
+                    d["regime"] == regime,
+                    note=f"fastest {d['fastest_lambda_cells'] and round(d['fastest_lambda_cells'], 2)} cells, "
+                    f"band {d['unstable_band_cells'] and [None if x is None else round(x, 2) for x in d['unstable_band_cells']]}",
+                )
+            )
     return curves
 
 
@@ -101,20 +123,40 @@ def fig2_runs(items):
     sc, res, o = _run("exp3_single_sigma14", ["model=lattice", "model_options.dt_out=0.002"])
     runs["c1"] = (sc, res)
     per = o["oscillation_period_s"]
-    items.append(Item("2c.ii", "oscillation period, sigma = 14/125, eta x1 (lattice, actuator limit)", SOURCE_PERIOD_S,
-                      per, per is not None and abs(per - SOURCE_PERIOD_S) <= PERIOD_TOL * SOURCE_PERIOD_S,
-                      note=f"dominant mode {o['dominant_mode']} (0 = uniform), amplitude {o['amplitude_rad']:.3f} rad"))
+    items.append(
+        Item(
+            "2c.ii",
+            "oscillation period, sigma = 14/125, eta x1 (lattice, actuator limit)",
+            SOURCE_PERIOD_S,
+            per,
+            per is not None and abs(per - SOURCE_PERIOD_S) <= PERIOD_TOL * SOURCE_PERIOD_S,
+            note=f"dominant mode {o['dominant_mode']} (0 = uniform), amplitude {o['amplitude_rad']:.3f} rad",
+        )
+    )
     sc, res, o = _run("exp3_single_sigma14", ["params.bemf_comp=true"])
     runs["c1h"] = (sc, res)
     per = o["oscillation_period_s"]
-    items.append(Item("2c.ii", "oscillation period, sigma = 14/125, eta x1 (hil, back-EMF compensation on)",
-                      SOURCE_PERIOD_S, per,
-                      per is not None and abs(per - SOURCE_PERIOD_S) <= PERIOD_TOL * SOURCE_PERIOD_S,
-                      note="the firmware's velocity estimate sets this period (docs/band-stiffness.md)"))
+    items.append(
+        Item(
+            "2c.ii",
+            "oscillation period, sigma = 14/125, eta x1 (hil, back-EMF compensation on)",
+            SOURCE_PERIOD_S,
+            per,
+            per is not None and abs(per - SOURCE_PERIOD_S) <= PERIOD_TOL * SOURCE_PERIOD_S,
+            note="the firmware's velocity estimate sets this period (docs/band-stiffness.md)",
+        )
+    )
     sc, res, o = _run("exp4_stable_eta10", [])
     runs["c10"] = (sc, res)
-    items.append(Item("2c.ii", "sigma = 14/125, eta x10: decays to rest", "rest", "rest" if o["at_rest"] else "moving",
-                      o["at_rest"]))
+    items.append(
+        Item(
+            "2c.ii",
+            "sigma = 14/125, eta x10: decays to rest",
+            "rest",
+            "rest" if o["at_rest"] else "moving",
+            o["at_rest"],
+        )
+    )
     return runs
 
 
@@ -135,8 +177,9 @@ def fig3_runs(items, repeats):
         runs[key + "_finals"] = np.array(finals)
         if z == 0:
             rest = sum(o["at_rest"] for o in obs) / len(obs)
-            items.append(Item(f"3{key}", "no perturbation stays at rest", "rest", {"fraction_at_rest": rest},
-                              rest == 1.0))
+            items.append(
+                Item(f"3{key}", "no perturbation stays at rest", "rest", {"fraction_at_rest": rest}, rest == 1.0)
+            )
         else:
             items.append(_walls_item(f"3{key}", f"pattern of {scene} ({repeats} noisy repeats)", z, obs))
     return runs
@@ -161,11 +204,24 @@ def draw_fig2_theory(curves, path):
         for bs, ls, which in ((0.5, "-", "table k"), (1.0, "--", "rig k")):
             d, c = curves[(key, bs)]
             norm = max(abs(d["fastest_growth_per_s"]), abs(c["fastest_growth_per_s"]), 1e-12)
-            ax.plot(c["curve"]["lambda_cells"], np.asarray(c["curve"]["growth_per_s"]) / norm, ls, color="C0" if bs == 0.5 else "C1",
-                    lw=1, label=f"continuum, {which}")
+            ax.plot(
+                c["curve"]["lambda_cells"],
+                np.asarray(c["curve"]["growth_per_s"]) / norm,
+                ls,
+                color="C0" if bs == 0.5 else "C1",
+                lw=1,
+                label=f"continuum, {which}",
+            )
             modes = [m for m in d["lattice_modes"] if m["lambda_cells"]]
-            ax.plot([m["lambda_cells"] for m in modes], [m["growth_per_s"] / norm for m in modes], "o" if bs == 0.5 else "s",
-                    ms=3.5, mfc="none", color="C0" if bs == 0.5 else "C1", label=f"16-cell modes, {which}")
+            ax.plot(
+                [m["lambda_cells"] for m in modes],
+                [m["growth_per_s"] / norm for m in modes],
+                "o" if bs == 0.5 else "s",
+                ms=3.5,
+                mfc="none",
+                color="C0" if bs == 0.5 else "C1",
+                label=f"16-cell modes, {which}",
+            )
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xscale("log")
         ax.set_xlim(1.8, 60)
@@ -182,8 +238,16 @@ def draw_fig2_theory(curves, path):
 def _spacetime(ax, res, title):
     lim = float(np.abs(res.alpha).max()) or 1.0
     n = res.alpha.shape[1]
-    im = ax.imshow(res.alpha.T, aspect="auto", origin="lower", cmap="RdBu_r", vmin=-lim, vmax=lim,
-                   extent=(res.t[0], res.t[-1], 0.5, n + 0.5), interpolation="nearest")
+    im = ax.imshow(
+        res.alpha.T,
+        aspect="auto",
+        origin="lower",
+        cmap="RdBu_r",
+        vmin=-lim,
+        vmax=lim,
+        extent=(res.t[0], res.t[-1], 0.5, n + 0.5),
+        interpolation="nearest",
+    )
     ax.set_title(title, fontsize=9)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("cell j")
@@ -192,8 +256,12 @@ def _spacetime(ax, res, title):
 
 def draw_fig2_runs(runs, path):
     fig = _figure(14, 3.4)
-    panels = [("a", "2a.ii sigma 9/125"), ("b", "2b.ii sigma 6/125"), ("c1", "2c.ii 14/125 eta x1 (lattice), first 0.5 s"),
-              ("c10", "2c.ii 14/125 eta x10")]
+    panels = [
+        ("a", "2a.ii sigma 9/125"),
+        ("b", "2b.ii sigma 6/125"),
+        ("c1", "2c.ii 14/125 eta x1 (lattice), first 0.5 s"),
+        ("c10", "2c.ii 14/125 eta x10"),
+    ]
     for i, (k, title) in enumerate(panels):
         ax = fig.add_subplot(1, len(panels), i + 1)
         sc, res = runs[k]
@@ -211,8 +279,14 @@ def draw_fig3(runs, path):
         finals = runs[key + "_finals"]
         j = np.arange(1, finals.shape[1] + 1)
         mean = finals.mean(axis=0)
-        ax.errorbar(j, mean, yerr=[np.clip(mean - finals.min(axis=0), 0, None), np.clip(finals.max(axis=0) - mean, 0, None)],
-                    fmt="o-", ms=3, capsize=2)
+        ax.errorbar(
+            j,
+            mean,
+            yerr=[np.clip(mean - finals.min(axis=0), 0, None), np.clip(finals.max(axis=0) - mean, 0, None)],
+            fmt="o-",
+            ms=3,
+            capsize=2,
+        )
         ax.axhline(0, color="0.6", lw=0.6)
         ax.set_ylim(-1.2, 1.2)
         ax.set_xlabel("cell j")
@@ -233,9 +307,16 @@ def build(out: Path, repeats: int = 10) -> dict:
     draw_fig2_theory(curves, out / files[0])
     draw_fig2_runs(runs2, out / files[1])
     draw_fig3(runs3, out / files[2])
-    doc = {"items": [i.as_dict() for i in items], "agree": sum(i.agree for i in items), "total": len(items),
-           "repeats": repeats, "noise": NOISE, "period_tolerance": PERIOD_TOL, "files": files,
-           "wall_s": time.perf_counter() - t0}
+    doc = {
+        "items": [i.as_dict() for i in items],
+        "agree": sum(i.agree for i in items),
+        "total": len(items),
+        "repeats": repeats,
+        "noise": NOISE,
+        "period_tolerance": PERIOD_TOL,
+        "files": files,
+        "wall_s": time.perf_counter() - t0,
+    }
     (out / "paper.json").write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
     return doc
 
@@ -261,17 +342,24 @@ def print_table(doc, file=sys.stdout):
     print(f"{'fig':6s} {'item':<{w}s}  {'source':>22s}  {'ours':<40s} agree", file=file)
     for i in doc["items"]:
         ours = _short(i["ours"])
-        print(f"{i['figure']:6s} {i['item']:<{w}s}  {_short(i['source']):>22s}  {ours[:40]:<40s} "
-              f"{'yes' if i['agree'] else 'NO'}", file=file)
+        print(
+            f"{i['figure']:6s} {i['item']:<{w}s}  {_short(i['source']):>22s}  {ours[:40]:<40s} "
+            f"{'yes' if i['agree'] else 'NO'}",
+            file=file,
+        )
     print(f"{doc['agree']} of {doc['total']} items agree ({doc['repeats']} repeats, {doc['wall_s']:.1f} s)", file=file)
 
 
 def paper_main(argv) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator paper",
-                                 description="Regenerate the source paper's Fig. 2 and Fig. 3 and compare item by item.",
-                                 epilog="example: python -m host_emulator paper --out out/paper --repeats 10")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator paper",
+        description="Regenerate the source paper's Fig. 2 and Fig. 3 and compare item by item.",
+        epilog="example: python -m host_emulator paper --out out/paper --repeats 10",
+    )
     ap.add_argument("--out", default="out/paper", help="output directory (default out/paper)")
-    ap.add_argument("--repeats", type=int, default=10, help="noisy hil repeats per Fig. 3 panel (default 10, as the rig)")
+    ap.add_argument(
+        "--repeats", type=int, default=10, help="noisy hil repeats per Fig. 3 panel (default 10, as the rig)"
+    )
     args = ap.parse_args(argv)
     if not 1 <= args.repeats <= 1000:
         print(f"paper: error: --repeats {args.repeats}: must be in 1..1000", file=sys.stderr)
@@ -293,11 +381,15 @@ if __name__ == "__main__":  # pragma: no cover
 # ---- robustness: how many noise seeds and hand pushes select the source's result -------------------------------
 # scene -> (model, the source's result: Z domain walls, "rest", or an oscillation period in s)
 ROBUST_SCENES = {
-    "exp1_ccw_ccw": ("hil", 2), "exp2_ccw_cw": ("hil", 3), "exp3_single_sigma9": ("hil", 4),
-    "exp3_single_sigma6": ("hil", 2), "exp3_single_sigma14": ("lattice", SOURCE_PERIOD_S),
-    "exp4_stable_eta10": ("hil", "rest"), "exp5_rest": ("hil", "rest"),
+    "exp1_ccw_ccw": ("hil", 2),
+    "exp2_ccw_cw": ("hil", 3),
+    "exp3_single_sigma9": ("hil", 4),
+    "exp3_single_sigma6": ("hil", 2),
+    "exp3_single_sigma14": ("lattice", SOURCE_PERIOD_S),
+    "exp4_stable_eta10": ("hil", "rest"),
+    "exp5_rest": ("hil", "rest"),
 }
-ROBUST_TORQUES_NM = (0.005, 0.01, 0.02, 0.04)     # a light to a firm push by hand (the motors' stall torque is 0.044)
+ROBUST_TORQUES_NM = (0.005, 0.01, 0.02, 0.04)  # a light to a firm push by hand (the motors' stall torque is 0.044)
 ROBUST_DURATIONS_S = (0.05, 0.1, 0.2)
 ROBUST_JITTER_COUNTS = 0.5
 
@@ -341,8 +433,11 @@ def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURA
         scene = load_scene(name, base)
         grid = {}
         if scene.perturbations:
-            hit = {(tq, du): selects(_run(name, base + _push_sets(scene, tq, du))[2], want)
-                   for tq in torques for du in durations}
+            hit = {
+                (tq, du): selects(_run(name, base + _push_sets(scene, tq, du))[2], want)
+                for tq in torques
+                for du in durations
+            }
             grid = {f"{tq * 1e3:g} mN*m x {du:g} s": v for (tq, du), v in hit.items()}
             row["pushes"] = sum(hit.values()) / len(hit)
             ok = [tq for tq in torques if all(hit[(tq, du)] for du in durations)]
@@ -355,25 +450,38 @@ def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURA
 
 
 def print_robustness(res, seeds, file=sys.stdout):
-    print(f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file)
+    print(
+        f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file
+    )
     for name, r in res.items():
+
         def pct(v):
             return "-" if v is None else f"{100 * v:.0f} %"
+
         src = f"Z={r['source']}" if isinstance(r["source"], int) else str(r["source"])
         mp = r.get("min_push_Nm")
-        print(f"{name:22s} {r['model']:8s} {src:>8s} {pct(r['seeds']):>7s} {pct(r['seeds_jitter']):>8s} "
-              f"{pct(r['pushes']):>7s}  {'-' if mp is None else f'{mp * 1e3:g} mN*m'}", file=file)
+        print(
+            f"{name:22s} {r['model']:8s} {src:>8s} {pct(r['seeds']):>7s} {pct(r['seeds_jitter']):>8s} "
+            f"{pct(r['pushes']):>7s}  {'-' if mp is None else f'{mp * 1e3:g} mN*m'}",
+            file=file,
+        )
     print(f"({seeds} seeds; pushes: {len(ROBUST_TORQUES_NM)} torques x {len(ROBUST_DURATIONS_S)} durations)", file=file)
 
 
 def robustness_main(argv) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator robustness",
-                                 description="Fraction of noise seeds and of hand pushes that select the source's "
-                                             "result, per paper scene.",
-                                 epilog="example: python -m host_emulator robustness --seeds 20 --out out/robust")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator robustness",
+        description="Fraction of noise seeds and of hand pushes that select the source's result, per paper scene.",
+        epilog="example: python -m host_emulator robustness --seeds 20 --out out/robust",
+    )
     ap.add_argument("--seeds", type=int, default=20, help="noise seeds per scene (default 20)")
-    ap.add_argument("--scene", action="append", default=None, choices=sorted(ROBUST_SCENES),
-                    help="only this scene (repeatable; default all paper scenes)")
+    ap.add_argument(
+        "--scene",
+        action="append",
+        default=None,
+        choices=sorted(ROBUST_SCENES),
+        help="only this scene (repeatable; default all paper scenes)",
+    )
     ap.add_argument("--out", default=None, help="directory for robustness.json (default: print only)")
     args = ap.parse_args(argv)
     if not 1 <= args.seeds <= 10000:
@@ -384,8 +492,14 @@ def robustness_main(argv) -> int:
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        doc = {"seeds": args.seeds, "noise": NOISE, "jitter_counts": ROBUST_JITTER_COUNTS,
-               "torques_Nm": list(ROBUST_TORQUES_NM), "durations_s": list(ROBUST_DURATIONS_S), "scenes": res}
+        doc = {
+            "seeds": args.seeds,
+            "noise": NOISE,
+            "jitter_counts": ROBUST_JITTER_COUNTS,
+            "torques_Nm": list(ROBUST_TORQUES_NM),
+            "durations_s": list(ROBUST_DURATIONS_S),
+            "scenes": res,
+        }
         (out / "robustness.json").write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
         print(f"wrote {out}/robustness.json")
     return 0

@@ -8,31 +8,31 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 # ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
-LATTICE_M = 0.060            # a, lattice parameter
-R_ALPHA_M = 0.010            # r, alpha cylinder radius (alpha bands at r)
-R_BETA_ARM_M = 0.020         # 2r, beta band attachment radius
-I_ALPHA = 6.39e-7            # kg m^2
-I_BETA = 3.13e-7             # kg m^2
-ETA_ALPHA = 4.18e-4          # N m s (honey, measured)
-K_ALPHA_TABLE = 1.46e-2      # N m / rad, linearised band stiffness (table)
-K_BETA_TABLE = 4.57e-2       # N m / rad
-L_ALPHA_M = 0.083            # band rest lengths
+LATTICE_M = 0.060  # a, lattice parameter
+R_ALPHA_M = 0.010  # r, alpha cylinder radius (alpha bands at r)
+R_BETA_ARM_M = 0.020  # 2r, beta band attachment radius
+I_ALPHA = 6.39e-7  # kg m^2
+I_BETA = 3.13e-7  # kg m^2
+ETA_ALPHA = 4.18e-4  # N m s (honey, measured)
+K_ALPHA_TABLE = 1.46e-2  # N m / rad, linearised band stiffness (table)
+K_BETA_TABLE = 4.57e-2  # N m / rad
+L_ALPHA_M = 0.083  # band rest lengths
 L_BETA_M = 0.055
-DELTA_A0_M = LATTICE_M + R_ALPHA_M * math.pi - L_ALPHA_M   # 8.4 mm pre-stretch
-DELTA_B0_M = LATTICE_M - L_BETA_M                           # 5 mm
+DELTA_A0_M = LATTICE_M + R_ALPHA_M * math.pi - L_ALPHA_M  # 8.4 mm pre-stretch
+DELTA_B0_M = LATTICE_M - L_BETA_M  # 5 mm
 
 # cubic band force fits f(delta) [N], delta in metres: c0 + c1 d + c2 d^2 + c3 d^3
 BAND_A_COEF = (0.28, 268.08, -8817.84, 123843.17)
 BAND_B_COEF = (0.19, 164.96, -5965.25, 118186.51)
 
 # ---- motor and driver (docs/physics.md#actuators) ----------------------------------------------
-MOTOR_KT_NM_PER_V = 0.09 / 12.0      # stall torque / rated voltage
-MOTOR_SPEED_CONST = 49.8             # S_L, rad/(V s), measured (datasheet 47.9)
+MOTOR_KT_NM_PER_V = 0.09 / 12.0  # stall torque / rated voltage
+MOTOR_SPEED_CONST = 49.8  # S_L, rad/(V s), measured (datasheet 47.9)
 SUPPLY_V = 9.0
-VMAX_V = 5.86                        # DRV8874 2.1 A limit at 9 V
+VMAX_V = 5.86  # DRV8874 2.1 A limit at 9 V
 COUNTS_PER_REV = 400
 
 # ---- reaction law (docs/physics.md#reaction-torques) -------------------------------------------------
@@ -146,7 +146,7 @@ class Params:
         """Extra viscous coefficient of an uncompensated motor: Kt / S_L."""
         return self.kt / self.speed_const
 
-    def with_overrides(self, **kw) -> "Params":
+    def with_overrides(self, **kw) -> Params:
         names = {f.name for f in dataclasses.fields(self)}
         bad = sorted(set(kw) - names)
         if bad:
@@ -159,6 +159,7 @@ class Params:
 
         a = np.asarray(alpha, dtype=float)
         b = self.k1 * self.alpha_star / (self.k1 - self.k2)
-        out = np.where(a < -b, self.k1 * (a + self.alpha_star),
-                       np.where(a > b, self.k1 * (a - self.alpha_star), self.k2 * a))
+        out = np.where(
+            a < -b, self.k1 * (a + self.alpha_star), np.where(a > b, self.k1 * (a - self.alpha_star), self.k2 * a)
+        )
         return out if out.ndim else float(out)

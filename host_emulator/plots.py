@@ -41,7 +41,7 @@ def _arrays(run, alpha=None, beta=None):
 def _growth_end(t, alpha, frac=0.9):
     """Time at which max_j |alpha_j| first reaches `frac` of its final-window level (the pattern has formed)."""
     amp = np.abs(alpha).max(axis=1)
-    level = np.median(amp[int(0.9 * len(amp)):]) if len(amp) > 10 else amp[-1]
+    level = np.median(amp[int(0.9 * len(amp)) :]) if len(amp) > 10 else amp[-1]
     if not level > 0:
         return None
     k = np.flatnonzero(amp >= frac * level)
@@ -52,8 +52,13 @@ def _title(scene=None, title=""):
     if scene is None:
         return title
     p = scene.params
-    push = ", ".join(f"{q.torque_Nm * 1e3:+.0f} mN·m on {q.chain}_{q.cell} for {q.duration_s:g} s"
-                     for q in getattr(scene, "perturbations", ())) or "no push"
+    push = (
+        ", ".join(
+            f"{q.torque_Nm * 1e3:+.0f} mN·m on {q.chain}_{q.cell} for {q.duration_s:g} s"
+            for q in getattr(scene, "perturbations", ())
+        )
+        or "no push"
+    )
     return (title or scene.name) + f"\nsigma = {p.sigma:.4g} N·m/rad; push: {push}"
 
 
@@ -89,9 +94,16 @@ def plot_spacetime(run, alpha=None, beta=None, *, ax=None, axes=None, scene=None
         sel = slice(None) if tz is None else slice(0, int(np.searchsorted(t, tz, side="right")))
         d, tt = data[sel], t[sel]
         lim = float(np.abs(data).max()) or 1.0
-        im = axi.imshow(d.T, aspect="auto", origin="lower", cmap="RdBu_r", vmin=-lim, vmax=lim,
-                        extent=(tt[0], tt[-1] if len(tt) > 1 else tt[0] + 1e-9, 0.5, n + 0.5),
-                        interpolation="nearest")
+        im = axi.imshow(
+            d.T,
+            aspect="auto",
+            origin="lower",
+            cmap="RdBu_r",
+            vmin=-lim,
+            vmax=lim,
+            extent=(tt[0], tt[-1] if len(tt) > 1 else tt[0] + 1e-9, 0.5, n + 0.5),
+            interpolation="nearest",
+        )
         axi.set_ylabel("cell j")
         axi.set_xlabel("t (s)")
         if tz is None:
@@ -110,7 +122,7 @@ def plot_final(run, alpha=None, beta=None, *, ax=None, scene=None, title=""):
         a, b = np.asarray(run.alpha)[-1], np.asarray(run.beta)[-1]
         scene = scene if scene is not None else getattr(run, "scene", None)
     else:
-        a, b = np.asarray(run, dtype=float), np.asarray(alpha, dtype=float)   # plot_final(alpha, beta)
+        a, b = np.asarray(run, dtype=float), np.asarray(alpha, dtype=float)  # plot_final(alpha, beta)
     if ax is None:
         fig = new_figure(figsize=(7, 3.8), constrained_layout=True)
         ax = fig.add_subplot(111)

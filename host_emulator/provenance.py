@@ -25,8 +25,12 @@ ROOT = Path(__file__).resolve().parents[1]
 @lru_cache(maxsize=1)
 def git_describe() -> str:
     try:
-        out = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty", "--tags"],
-                             capture_output=True, text=True, timeout=10)
+        out = subprocess.run(
+            ["git", "-C", str(ROOT), "describe", "--always", "--dirty", "--tags"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else "unknown"
@@ -38,7 +42,7 @@ def firmware_build() -> str:
         from . import firmware
 
         return firmware._digest(firmware._sources() + firmware._headers())
-    except Exception:           # noqa: BLE001 - provenance must never break an output
+    except Exception:  # noqa: BLE001 - provenance must never break an output
         return "unknown"
 
 
@@ -47,7 +51,7 @@ def _version(mod: str) -> str:
         from importlib.metadata import version
 
         return version(mod)
-    except Exception:           # noqa: BLE001
+    except Exception:  # noqa: BLE001
         return "not installed"
 
 
@@ -71,6 +75,6 @@ def provenance(command=None) -> dict:
     return {
         **_static(),
         "firmware_build": firmware_build(),
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "created_utc": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "command": argv if isinstance(argv, str) else shlex.join(str(a) for a in argv),
     }

@@ -8,7 +8,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .models.options import (ConfigError, ModelOptions, Perturbation, parse_options, parse_perturbation)
+from .models.options import ConfigError, ModelOptions, Perturbation, parse_options, parse_perturbation
 from .params import Params
 
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
@@ -28,16 +28,24 @@ class Scene:
     options: ModelOptions = field(default_factory=ModelOptions)
     perturbations: tuple[Perturbation, ...] = ()
     source: str = ""
-    accuracy: str = "balanced"             # fast | balanced | exact (host_emulator/accuracy.py)
+    accuracy: str = "balanced"  # fast | balanced | exact (host_emulator/accuracy.py)
     explicit_options: tuple[str, ...] = ()  # model_options keys the scene set itself (they beat the preset)
 
     def as_dict(self) -> dict:
         """JSON-ready record of everything the run used."""
         opts = dataclasses.asdict(self.options)
-        return {"name": self.name, "description": self.description, "model": self.model, "cells": self.cells,
-                "t_end_s": self.t_end_s, "params": dataclasses.asdict(self.params), "model_options": opts,
-                "perturbation": [p.as_dict() for p in self.perturbations], "source": self.source,
-                "accuracy": self.accuracy}
+        return {
+            "name": self.name,
+            "description": self.description,
+            "model": self.model,
+            "cells": self.cells,
+            "t_end_s": self.t_end_s,
+            "params": dataclasses.asdict(self.params),
+            "model_options": opts,
+            "perturbation": [p.as_dict() for p in self.perturbations],
+            "source": self.source,
+            "accuracy": self.accuracy,
+        }
 
 
 def did_you_mean(word: str, choices) -> str:
@@ -69,8 +77,10 @@ def _parse_params(d, cells) -> Params:
         if k == "cells":
             raise ConfigError("params.cells: set the top-level `cells` key instead")
         if k not in types:
-            raise ConfigError(f"unknown key {key}{did_you_mean(k, types)}; "
-                              f"known: {', '.join(sorted(n for n in types if n != 'cells'))}")
+            raise ConfigError(
+                f"unknown key {key}{did_you_mean(k, types)}; "
+                f"known: {', '.join(sorted(n for n in types if n != 'cells'))}"
+            )
         cur = getattr(base, k)
         if isinstance(cur, bool):
             if not isinstance(v, bool):
@@ -84,8 +94,20 @@ def _parse_params(d, cells) -> Params:
             v = float(v)
         kw[k] = v
     p = base.with_overrides(**kw)
-    for k in ("I_a", "I_b", "eta_a", "gamma", "eta_scale", "k_a", "k_b", "supply_v", "vmax_v", "kt",
-              "speed_const", "control_rate_hz"):
+    for k in (
+        "I_a",
+        "I_b",
+        "eta_a",
+        "gamma",
+        "eta_scale",
+        "k_a",
+        "k_b",
+        "supply_v",
+        "vmax_v",
+        "kt",
+        "speed_const",
+        "control_rate_hz",
+    ):
         if not getattr(p, k) > 0:
             raise ConfigError(f"params.{k} = {getattr(p, k)!r}: must be > 0")
     if p.alpha_star < 0:
@@ -127,13 +149,16 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     if d["model"] == "hil" and options.perturb_via == "firmware":
         for i, p in enumerate(perturbations):
             if abs(p.torque_Nm) > 0.131:
-                raise ConfigError(f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most 0.131 N*m")
+                raise ConfigError(
+                    f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most 0.131 N*m"
+                )
     from .accuracy import DEFAULT, check_level
 
     accuracy = check_level(d.get("accuracy", DEFAULT))
     explicit = tuple(d.get("model_options", {}).keys())
-    return Scene(d["name"], desc, d["model"], cells, float(t_end), params, options, perturbations, source,
-                 accuracy, explicit)
+    return Scene(
+        d["name"], desc, d["model"], cells, float(t_end), params, options, perturbations, source, accuracy, explicit
+    )
 
 
 def _value(text: str):
@@ -172,8 +197,9 @@ def apply_overrides(d: dict, items) -> dict:
                 lst = node["perturbation"]
                 k = int(part)
                 if k == 0 and lst:
-                    raise ConfigError(f"--set {key}: perturbations are numbered from 1 "
-                                      f"(perturbation.1 .. perturbation.{len(lst)})")
+                    raise ConfigError(
+                        f"--set {key}: perturbations are numbered from 1 (perturbation.1 .. perturbation.{len(lst)})"
+                    )
                 if not 1 <= k <= len(lst):
                     raise ConfigError(f"--set {key}: the scene has {len(lst)} perturbation(s)")
                 node = lst[k - 1]

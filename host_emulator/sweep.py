@@ -39,12 +39,21 @@ from pathlib import Path
 
 import numpy as np
 
-OBSERVABLES = {            # name -> units (NaN in the dataset when a run does not report it)
-    "domain_walls": "1", "pattern_wavelength_cells": "cells", "dominant_mode": "1",
-    "pattern_period_cells": "cells", "amplitude_rad": "rad", "oscillation_period_s": "s",
-    "growth_rate_per_s": "1/s", "at_rest": "1 (true) / 0 (false)", "steady": "1 (true) / 0 (false)",
-    "theory_fastest_lambda_cells": "cells", "theory_band_lo_cells": "cells", "theory_band_hi_cells": "cells",
-    "theory_fastest_growth_per_s": "1/s", "wall_s": "s",
+OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report it)
+    "domain_walls": "1",
+    "pattern_wavelength_cells": "cells",
+    "dominant_mode": "1",
+    "pattern_period_cells": "cells",
+    "amplitude_rad": "rad",
+    "oscillation_period_s": "s",
+    "growth_rate_per_s": "1/s",
+    "at_rest": "1 (true) / 0 (false)",
+    "steady": "1 (true) / 0 (false)",
+    "theory_fastest_lambda_cells": "cells",
+    "theory_band_lo_cells": "cells",
+    "theory_band_hi_cells": "cells",
+    "theory_fastest_growth_per_s": "1/s",
+    "wall_s": "s",
 }
 STRINGS = ("regime", "status", "error")
 
@@ -54,6 +63,7 @@ class SweepError(ValueError):
 
 
 # ---- the grid -------------------------------------------------------------------------------------------
+
 
 def parse_grid(text: str) -> tuple[str, list]:
     """'KEY=START:STOP:NUM' or 'KEY=V1,V2,...' -> (KEY, values)."""
@@ -106,6 +116,7 @@ def point_specs(scene: str, grid: dict, seeds: int | None, fixed=()) -> tuple[li
 
 # ---- one chunk of points: the task each Dask worker runs ------------------------------------------------
 
+
 def _num(v):
     if v is None:
         return float("nan")
@@ -132,12 +143,12 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
         r = {"index": spec["index"], "status": "ok", "error": ""}
         try:
             loaded.append((r, load_scene(spec["scene"], spec["overrides"])))
-        except Exception as e:          # noqa: BLE001 - a failing point is recorded, never dropped
+        except Exception as e:  # noqa: BLE001 - a failing point is recorded, never dropped
             r["status"], r["error"], r["wall_s"] = "failed", f"{type(e).__name__}: {e}", 0.0
         out.append(r)
     try:
         results = run_batch([sc for _, sc in loaded], errors="return")
-    except Exception as e:              # noqa: BLE001 - e.g. a point the batch refuses to build
+    except Exception as e:  # noqa: BLE001 - e.g. a point the batch refuses to build
         results = [e] * len(loaded)
     for (r, sc), res in zip(loaded, results):
         try:
@@ -155,7 +166,7 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
             r["theory_band_lo_cells"] = _num(band[0]) if band else float("nan")
             r["theory_band_hi_cells"] = (float("inf") if band[1] is None else _num(band[1])) if band else float("nan")
             r["wall_s"] = float(res.wall_s)
-        except Exception as e:          # noqa: BLE001 - a failing point is recorded, never dropped
+        except Exception as e:  # noqa: BLE001 - a failing point is recorded, never dropped
             r["status"], r["error"] = "failed", f"{type(e).__name__}: {e}"
             r.setdefault("wall_s", 0.0)
     return out
@@ -163,9 +174,14 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
 
 # ---- the store: points.jsonl + sweep.json, resumable ----------------------------------------------------
 
+
 def _jsonable(r: dict) -> dict:
-    return {k: (None if isinstance(v, float) and math.isnan(v) else
-                ("inf" if isinstance(v, float) and math.isinf(v) else v)) for k, v in r.items()}
+    return {
+        k: (
+            None if isinstance(v, float) and math.isnan(v) else ("inf" if isinstance(v, float) and math.isinf(v) else v)
+        )
+        for k, v in r.items()
+    }
 
 
 def _from_json(r: dict) -> dict:
@@ -180,19 +196,31 @@ def load_done(out: Path) -> dict[int, dict]:
             try:
                 r = _from_json(json.loads(line))
             except json.JSONDecodeError:
-                continue                # a line cut by a crash: that point runs again
-            done[int(r["index"])] = r   # the latest line for a point wins (a retried failure)
+                continue  # a line cut by a crash: that point runs again
+            done[int(r["index"])] = r  # the latest line for a point wins (a retried failure)
     return done
 
 
 # ---- the driver -----------------------------------------------------------------------------------------
 
-def sweep(scene: str = "default", grid: dict | None = None, *, seeds: int | None = None, out="out/sweep",
-          fixed=(), scheduler: str | None = None, workers: int | None = None, chunk: int | None = None,
-          progress: bool = True, retry_failed: bool = False, plots: bool = True, map_keys=None):
+
+def sweep(
+    scene: str = "default",
+    grid: dict | None = None,
+    *,
+    seeds: int | None = None,
+    out="out/sweep",
+    fixed=(),
+    scheduler: str | None = None,
+    workers: int | None = None,
+    chunk: int | None = None,
+    progress: bool = True,
+    retry_failed: bool = False,
+    plots: bool = True,
+    map_keys=None,
+):
     """Run the sweep (see module docstring) and return its xarray Dataset (also written to out/sweep.nc)."""
     from .api import load_scene
-    from .provenance import provenance
 
     grid = dict(grid or {})
     for k, v in grid.items():
@@ -203,7 +231,7 @@ def sweep(scene: str = "default", grid: dict | None = None, *, seeds: int | None
     scene_name = str(scene)
     specs, axes = point_specs(scene_name, grid, seeds, list(fixed))
     base = load_scene(scene_name, list(fixed))
-    load_scene(scene_name, specs[0]["overrides"])      # a bad key fails here, before any cluster starts
+    load_scene(scene_name, specs[0]["overrides"])  # a bad key fails here, before any cluster starts
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     definition = {"scene": scene_name, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}
@@ -215,8 +243,7 @@ def sweep(scene: str = "default", grid: dict | None = None, *, seeds: int | None
     else:
         dfile.write_text(json.dumps(definition, indent=1) + "\n")
     done = load_done(out)
-    todo = [s for s in specs if s["index"] not in done
-            or (retry_failed and done[s["index"]].get("status") != "ok")]
+    todo = [s for s in specs if s["index"] not in done or (retry_failed and done[s["index"]].get("status") != "ok")]
     if todo:
         _run_on_dask(todo, out, scheduler, workers, chunk, progress)
     done = load_done(out)
@@ -250,29 +277,38 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         client = Client(scheduler, timeout="20s")
     else:
         n = int(workers or os.cpu_count() or 1)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                               scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR)
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            scheduler_kwargs={"dashboard": False},
+            silence_logs=logging.ERROR,
+        )
         client = Client(cluster)
     try:
         nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
         size = int(chunk) if chunk else max(1, min(32, math.ceil(len(todo) / (4 * nw))))
-        chunks = [todo[i:i + size] for i in range(0, len(todo), size)]
+        chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
         tag = f"{os.getpid()}-{time.time_ns()}"
-        futs = {client.submit(evaluate_points, c, retries=2, pure=False, key=f"sweep-{tag}-{i}"): c
-                for i, c in enumerate(chunks)}
+        futs = {
+            client.submit(evaluate_points, c, retries=2, pure=False, key=f"sweep-{tag}-{i}"): c
+            for i, c in enumerate(chunks)
+        }
         bar = tqdm(total=len(todo), unit="point", desc="sweep", disable=not progress, file=sys.stderr)
         pf = out / "points.jsonl"
         cut = pf.exists() and pf.stat().st_size and not pf.read_bytes().endswith(b"\n")
         with open(pf, "a") as fh:
             if cut:
-                fh.write("\n")         # a line cut by a crash stays alone (ignored when read)
+                fh.write("\n")  # a line cut by a crash stays alone (ignored when read)
             for fut in as_completed(list(futs)):
                 c = futs[fut]
                 try:
                     results = fut.result()
-                except Exception as e:      # noqa: BLE001 - e.g. KilledWorker: record every point of the chunk
-                    results = [{"index": s["index"], "status": "failed",
-                                "error": f"{type(e).__name__}: {e}"} for s in c]
+                except Exception as e:  # noqa: BLE001 - e.g. KilledWorker: record every point of the chunk
+                    results = [
+                        {"index": s["index"], "status": "failed", "error": f"{type(e).__name__}: {e}"} for s in c
+                    ]
                 for r in results:
                     fh.write(json.dumps(_jsonable(r)) + "\n")
                 fh.flush()
@@ -323,6 +359,7 @@ def to_dataset(specs, axes, done, base, definition):
 
 # ---- plots ----------------------------------------------------------------------------------------------
 
+
 def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
     """Selected wavelength (2(N-1)/Z, cells) of every point against sigma, with the linear theory's unstable
     band (shaded) and fastest wavelength (line) of the base scene's parameters at each sigma. Returns the Figure."""
@@ -343,8 +380,9 @@ def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
         sg = np.linspace(sig.min(), sig.max(), max(60, len(sig)))
         lo, hi, fast = [], [], []
         for s in sg:
-            d = dispersion(dataclasses.replace(base.params, sigma=float(s)), inertia=inert, n_cells=base.cells,
-                           n_kappa=600)
+            d = dispersion(
+                dataclasses.replace(base.params, sigma=float(s)), inertia=inert, n_cells=base.cells, n_kappa=600
+            )
             b = d.get("unstable_band_cells")
             lo.append(b[0] if b else np.nan)
             hi.append((b[1] if b[1] is not None else 1e3) if b else np.nan)
@@ -361,8 +399,9 @@ def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
     ax.set_yticks([2, 3, 5, 7.5, 10, 15, 20, 30, 60])
     ax.set_xlabel("sigma (N·m/rad)")
     ax.set_ylabel("wavelength (cells)")
-    ax.set_title(f"phase diagram: {ds.attrs.get('scene', '')}, {ds.sizes.get('seed', 1)} seed(s) per point",
-                 fontsize=10)
+    ax.set_title(
+        f"phase diagram: {ds.attrs.get('scene', '')}, {ds.sizes.get('seed', 1)} seed(s) per point", fontsize=10
+    )
     ax.legend(fontsize=7, loc="upper right")
     return ax.figure
 
@@ -405,11 +444,21 @@ def plot_regime_map(ds, xkey, ykey, *, ax=None):
                 mode[i, j] = np.bincount(v, minlength=4).argmax()
     cmap = ListedColormap(["0.85", "C0", "C1", "C3"])
     xv, yv = np.asarray(ds[xkey].values), np.asarray(ds[ykey].values)
-    ax.imshow(np.ma.masked_less(mode, 0), origin="lower", aspect="auto", cmap=cmap, vmin=-0.5, vmax=3.5,
-              interpolation="nearest")
+    ax.imshow(
+        np.ma.masked_less(mode, 0),
+        origin="lower",
+        aspect="auto",
+        cmap=cmap,
+        vmin=-0.5,
+        vmax=3.5,
+        interpolation="nearest",
+    )
     ax.set_xticks(range(len(xv)))
-    ax.set_xticklabels([f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in xv],
-                       rotation=90 if len(xv) > 8 else 0, fontsize=7)
+    ax.set_xticklabels(
+        [f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in xv],
+        rotation=90 if len(xv) > 8 else 0,
+        fontsize=7,
+    )
     ax.set_yticks(range(len(yv)))
     ax.set_yticklabels([f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in yv], fontsize=7)
     if len(xv) > 16:
@@ -417,8 +466,12 @@ def plot_regime_map(ds, xkey, ykey, *, ax=None):
             lab.set_visible(False)
     from matplotlib.patches import Patch
 
-    ax.legend(handles=[Patch(color=cmap(i), label=o) for i, o in enumerate(OUTCOMES)], fontsize=7,
-              loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.legend(
+        handles=[Patch(color=cmap(i), label=o) for i, o in enumerate(OUTCOMES)],
+        fontsize=7,
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+    )
     ax.set_xlabel(xkey)
     ax.set_ylabel(ykey)
     ax.set_title(f"regime map (most frequent outcome): {ds.attrs.get('scene', '')}", fontsize=10)
@@ -440,26 +493,59 @@ Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2
 
 
 def sweep_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator sweep", epilog=EPILOG,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter,
-                                 description="Run a grid of scene overrides x noise seeds on Dask; write one "
-                                             "xarray dataset (sweep.nc), the phase diagram and a regime map.")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator sweep",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run a grid of scene overrides x noise seeds on Dask; write one "
+        "xarray dataset (sweep.nc), the phase diagram and a regime map.",
+    )
     ap.add_argument("scene", help="shipped scene name or .toml path (see `python -m host_emulator scenes`)")
-    ap.add_argument("--grid", action="append", default=[], metavar="KEY=SPEC", required=True,
-                    help="a swept key: KEY=START:STOP:NUM (NUM values, ends included) or KEY=V1,V2,...; repeatable")
-    ap.add_argument("--seeds", type=int, default=None, metavar="S",
-                    help="add a coordinate seed = 0..S-1 (sets model_options.noise.seed)")
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="a fixed override for every point, as in `run --set` (e.g. t_end_s=2)")
+    ap.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="KEY=SPEC",
+        required=True,
+        help="a swept key: KEY=START:STOP:NUM (NUM values, ends included) or KEY=V1,V2,...; repeatable",
+    )
+    ap.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        metavar="S",
+        help="add a coordinate seed = 0..S-1 (sets model_options.noise.seed)",
+    )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a fixed override for every point, as in `run --set` (e.g. t_end_s=2)",
+    )
     ap.add_argument("--out", required=True, metavar="DIR", help="output directory (resumable: re-run to continue)")
-    ap.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                    help="an existing Dask scheduler (default: start a local cluster)")
-    ap.add_argument("--workers", type=int, default=None, metavar="N",
-                    help="local cluster: worker processes (default: the machine's cores)")
+    ap.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="tcp://HOST:PORT",
+        help="an existing Dask scheduler (default: start a local cluster)",
+    )
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local cluster: worker processes (default: the machine's cores)",
+    )
     ap.add_argument("--chunk", type=int, default=None, metavar="K", help="points per Dask task (default: automatic)")
     ap.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
-    ap.add_argument("--map", nargs=2, default=None, metavar=("XKEY", "YKEY"),
-                    help="the regime map's axes (default: the first two swept keys with more than one value)")
+    ap.add_argument(
+        "--map",
+        nargs=2,
+        default=None,
+        metavar=("XKEY", "YKEY"),
+        help="the regime map's axes (default: the first two swept keys with more than one value)",
+    )
     ap.add_argument("--no-plots", action="store_true", help="skip phase_diagram.png and regime_map.png")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
@@ -471,9 +557,20 @@ def sweep_main(argv=None) -> int:
         if args.chunk is not None and args.chunk < 1:
             raise SweepError("--chunk must be >= 1")
         grid = dict(parse_grid(g) for g in args.grid)
-        ds = sweep(args.scene, grid, seeds=args.seeds, out=args.out, fixed=args.set, scheduler=args.scheduler,
-                   workers=args.workers, chunk=args.chunk, progress=not args.quiet,
-                   retry_failed=args.retry_failed, plots=not args.no_plots, map_keys=args.map)
+        ds = sweep(
+            args.scene,
+            grid,
+            seeds=args.seeds,
+            out=args.out,
+            fixed=args.set,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            chunk=args.chunk,
+            progress=not args.quiet,
+            retry_failed=args.retry_failed,
+            plots=not args.no_plots,
+            map_keys=args.map,
+        )
     except (SweepError, ConfigError, KeyError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -46,9 +46,9 @@ class RecordTracker(Tracker):
 
     def sample_many(self, t, alpha, beta):
         k = len(t)
-        self.t[self.i:self.i + k] = t
-        self.alpha[self.i:self.i + k] = alpha
-        self.beta[self.i:self.i + k] = beta
+        self.t[self.i : self.i + k] = t
+        self.alpha[self.i : self.i + k] = alpha
+        self.beta[self.i : self.i + k] = beta
         self.i += k
 
     def result(self):
@@ -66,9 +66,15 @@ class ProgressTracker(Tracker):
     def start(self, solver, t_end_s, n_samples):
         from tqdm import tqdm
 
-        self.bar = tqdm(total=round(t_end_s, 6), unit="sim s", delay=self.delay_s, file=self.file,
-                        disable=self.disable, leave=False,
-                        bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}]")
+        self.bar = tqdm(
+            total=round(t_end_s, 6),
+            unit="sim s",
+            delay=self.delay_s,
+            file=self.file,
+            disable=self.disable,
+            leave=False,
+            bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}]",
+        )
         self.last = 0.0
 
     def sample(self, t, alpha, beta):
@@ -97,6 +103,8 @@ class LiveTracker(Tracker):
 
     def sample(self, t, alpha, beta):
         if t + 1e-12 >= self.next:
-            print(f"t={t:7.3f} s  max|alpha|={np.abs(alpha).max():.4f}  max|beta|={np.abs(beta).max():.4f} rad",
-                  file=self.file)
+            print(
+                f"t={t:7.3f} s  max|alpha|={np.abs(alpha).max():.4f}  max|beta|={np.abs(beta).max():.4f} rad",
+                file=self.file,
+            )
             self.next += self.every_s

@@ -86,11 +86,11 @@ BLOCKS = {
 }
 
 CELL_FLAGS = {
-    "ENABLED": 0,      # drive enable requested
-    "BEMF": 1,         # back-EMF compensation on
-    "PERTURBING": 2,   # a perturbation is running
-    "PENDING": 3,      # a write waits for the next tick boundary
-    "FAULT": 4,        # faults != 0 (drivers off)
+    "ENABLED": 0,  # drive enable requested
+    "BEMF": 1,  # back-EMF compensation on
+    "PERTURBING": 2,  # a perturbation is running
+    "PENDING": 3,  # a write waits for the next tick boundary
+    "FAULT": 4,  # faults != 0 (drivers off)
 }
 
 # Writable registers. Payloads are the same bytes in the I2C write and in the
@@ -98,41 +98,50 @@ CELL_FLAGS = {
 # "range" is informative for tools; the cell library is the authority and
 # rejects anything it does not accept (RESULT RANGE/SHAPE/CONFIG).
 REGISTERS = {
-    "POINTER":      {"id": 0x01, "payload": [("block", "u8", None)],
-                     "doc": "select the block returned by the next read (SNAPSHOT after it); applied at once. "
-                            "As a CAN CMD: the primary reads that block and sends it as BLOCK_DATA frames"},
-    "K_AB":         {"id": 0x10, "payload": [("value", "i32", "uN*m/rad")], "doc": "k_ab, -250000..250000"},
-    "SIGMA":        {"id": 0x11, "payload": [("value", "i32", "uN*m/rad")], "doc": "sigma, -250000..250000"},
-    "K1":           {"id": 0x12, "payload": [("value", "i32", "uN*m/rad")], "doc": "k1 (> 0, > k2)"},
-    "K2":           {"id": 0x13, "payload": [("value", "i32", "uN*m/rad")], "doc": "k2 (< k1)"},
-    "ASTAR":        {"id": 0x14, "payload": [("value", "i32", "urad")], "doc": "alpha*, 0..6283185"},
-    "ENABLE":       {"id": 0x20, "payload": [("on", "u8", None)], "doc": "drive enable, 0 or 1"},
-    "BEMF":         {"id": 0x21, "payload": [("on", "u8", None)], "doc": "back-EMF compensation, 0 or 1"},
-    "PERTURB":      {"id": 0x22, "payload": [("chain", "u8", None), ("torque", "i16", "4 uN*m"),
-                                             ("ticks", "u16", "control ticks")],
-                     "doc": "perturbing torque on chain 0=alpha 1=beta, |torque*4| <= 131000 uN*m"},
-    "ZERO":         {"id": 0x23, "payload": [], "doc": "make the current positions the zero of both angles"},
-    "PWM_LIMIT":    {"id": 0x24, "payload": [("ticks", "u16", "timer ticks")], "doc": "PWM duty limit (clamped to the 5.86 V cap)"},
+    "POINTER": {
+        "id": 0x01,
+        "payload": [("block", "u8", None)],
+        "doc": "select the block returned by the next read (SNAPSHOT after it); applied at once. "
+        "As a CAN CMD: the primary reads that block and sends it as BLOCK_DATA frames",
+    },
+    "K_AB": {"id": 0x10, "payload": [("value", "i32", "uN*m/rad")], "doc": "k_ab, -250000..250000"},
+    "SIGMA": {"id": 0x11, "payload": [("value", "i32", "uN*m/rad")], "doc": "sigma, -250000..250000"},
+    "K1": {"id": 0x12, "payload": [("value", "i32", "uN*m/rad")], "doc": "k1 (> 0, > k2)"},
+    "K2": {"id": 0x13, "payload": [("value", "i32", "uN*m/rad")], "doc": "k2 (< k1)"},
+    "ASTAR": {"id": 0x14, "payload": [("value", "i32", "urad")], "doc": "alpha*, 0..6283185"},
+    "ENABLE": {"id": 0x20, "payload": [("on", "u8", None)], "doc": "drive enable, 0 or 1"},
+    "BEMF": {"id": 0x21, "payload": [("on", "u8", None)], "doc": "back-EMF compensation, 0 or 1"},
+    "PERTURB": {
+        "id": 0x22,
+        "payload": [("chain", "u8", None), ("torque", "i16", "4 uN*m"), ("ticks", "u16", "control ticks")],
+        "doc": "perturbing torque on chain 0=alpha 1=beta, |torque*4| <= 131000 uN*m",
+    },
+    "ZERO": {"id": 0x23, "payload": [], "doc": "make the current positions the zero of both angles"},
+    "PWM_LIMIT": {
+        "id": 0x24,
+        "payload": [("ticks", "u16", "timer ticks")],
+        "doc": "PWM duty limit (clamped to the 5.86 V cap)",
+    },
     "CLEAR_FAULTS": {"id": 0x25, "payload": [], "doc": "clear latched faults"},
 }
 
 # Results (snapshot cmd_result, CAN CMD_RESULT.result). Codes >= 0x10 come from
 # the primary, not from the cell.
 RESULTS = {
-    "NONE": 0x00,        # no write processed yet
+    "NONE": 0x00,  # no write processed yet
     "OK": 0x01,
-    "RANGE": 0x02,       # value outside its range (library MC_ERR_RANGE)
-    "SHAPE": 0x03,       # k1 <= k2 or k1 <= 0 (MC_ERR_SHAPE)
-    "CONFIG": 0x04,      # drive configuration refused (MC_ERR_CONFIG)
-    "LENGTH": 0x05,      # frame length does not match the register
-    "CRC": 0x06,         # CRC-8 mismatch
-    "REG": 0x07,         # unknown register
-    "NACK": 0x10,        # cell did not acknowledge the write (after retries)
-    "TIMEOUT": 0x11,     # no acknowledgement in the cell's snapshot in time
-    "BUSY": 0x12,        # a command to this cell is still in flight
-    "NO_CELL": 0x13,     # cell number outside 1..N_CELLS
-    "BAD_FRAME": 0x14,   # CAN command frame malformed (dlc, reg)
-    "NO_ROOM": 0x15,     # the primary's outgoing queue had no room to take the command (resend later)
+    "RANGE": 0x02,  # value outside its range (library MC_ERR_RANGE)
+    "SHAPE": 0x03,  # k1 <= k2 or k1 <= 0 (MC_ERR_SHAPE)
+    "CONFIG": 0x04,  # drive configuration refused (MC_ERR_CONFIG)
+    "LENGTH": 0x05,  # frame length does not match the register
+    "CRC": 0x06,  # CRC-8 mismatch
+    "REG": 0x07,  # unknown register
+    "NACK": 0x10,  # cell did not acknowledge the write (after retries)
+    "TIMEOUT": 0x11,  # no acknowledgement in the cell's snapshot in time
+    "BUSY": 0x12,  # a command to this cell is still in flight
+    "NO_CELL": 0x13,  # cell number outside 1..N_CELLS
+    "BAD_FRAME": 0x14,  # CAN command frame malformed (dlc, reg)
+    "NO_ROOM": 0x15,  # the primary's outgoing queue had no room to take the command (resend later)
 }
 
 # ---------------------------------------------------------------------------
@@ -141,7 +150,10 @@ RESULTS = {
 # Signals are packed little-endian in order, starting at byte 0.
 FRAMES = {
     "CELL_SAMPLE": {
-        "base": 0x100, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "base": 0x100,
+        "per_cell": True,
+        "sender": "PRIMARY",
+        "dlc": 8,
         "doc": "one snapshot of cell j, sent for every successful poll",
         "signals": [
             ("seq", "u8", 1, 0, "", "per-cell sample counter (wraps at 256): gaps = lost samples"),
@@ -152,7 +164,10 @@ FRAMES = {
         ],
     },
     "CELL_STATUS": {
-        "base": 0x200, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "base": 0x200,
+        "per_cell": True,
+        "sender": "PRIMARY",
+        "dlc": 8,
         "doc": "cell-side status of cell j (every STATUS_EVERY cycles and on change)",
         "signals": [
             ("faults", "u16", 1, 0, "", "latched MC_FAULT_* flags"),
@@ -164,7 +179,10 @@ FRAMES = {
         ],
     },
     "CELL_LINK": {
-        "base": 0x280, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "base": 0x280,
+        "per_cell": True,
+        "sender": "PRIMARY",
+        "dlc": 8,
         "doc": "primary-side link counters of cell j (every STATUS_EVERY cycles)",
         "signals": [
             ("nack", "u16", 1, 0, "", "address/data NACKs (wraps)"),
@@ -174,12 +192,18 @@ FRAMES = {
         ],
     },
     "CMD": {
-        "base": 0x300, "per_cell": True, "sender": "LAPTOP", "dlc": None,
+        "base": 0x300,
+        "per_cell": True,
+        "sender": "LAPTOP",
+        "dlc": None,
         "doc": "command to cell j: reg, seq, payload of REGISTERS[reg] (dlc = 2 + payload)",
         "multiplexed": True,
     },
     "CMD_RESULT": {
-        "base": 0x380, "per_cell": True, "sender": "PRIMARY", "dlc": 4,
+        "base": 0x380,
+        "per_cell": True,
+        "sender": "PRIMARY",
+        "dlc": 4,
         "doc": "result of a CMD to cell j",
         "signals": [
             ("reg", "u8", 1, 0, "", "register of the command"),
@@ -189,7 +213,10 @@ FRAMES = {
         ],
     },
     "BLOCK_DATA": {
-        "base": 0x400, "per_cell": True, "sender": "PRIMARY", "dlc": 8,
+        "base": 0x400,
+        "per_cell": True,
+        "sender": "PRIMARY",
+        "dlc": 8,
         "doc": "a read block of cell j (CMD reg POINTER), in 7-byte chunks, CRC-checked by the primary",
         "signals": [
             ("part", "u8", 1, 0, "", "(block id << 4) | chunk index; chunk k holds block bytes 7k..7k+6"),
@@ -197,7 +224,10 @@ FRAMES = {
         ],
     },
     "PRIMARY_STATUS": {
-        "base": 0x0F0, "per_cell": False, "sender": "PRIMARY", "dlc": 8,
+        "base": 0x0F0,
+        "per_cell": False,
+        "sender": "PRIMARY",
+        "dlc": 8,
         "doc": "primary heartbeat, once per second",
         "signals": [
             ("uptime_ms", "u32", 1e-3, 0, "s", "primary clock (wraps after 49.7 days)"),
@@ -207,7 +237,10 @@ FRAMES = {
         ],
     },
     "PRIMARY_REJECT": {
-        "base": 0x0F1, "per_cell": False, "sender": "PRIMARY", "dlc": 8,
+        "base": 0x0F1,
+        "per_cell": False,
+        "sender": "PRIMARY",
+        "dlc": 8,
         "doc": "a frame from the laptop was rejected by the primary",
         "signals": [
             ("reason", "u8", 1, 0, "", "RESULTS code (BAD_FRAME, NO_CELL, ...)"),
@@ -222,15 +255,15 @@ FRAMES = {
 # Primary schedule defaults (configurable at run time; documented here so the C
 # and Python sides agree).
 SCHEDULE = {
-    "I2C_HZ": 400000,          # bus clock
-    "STATUS_EVERY": 64,        # cycles between CELL_STATUS/CELL_LINK frames per cell
-    "TXN_TIMEOUT_US": 2000,    # per-transaction timeout
-    "ACK_TIMEOUT_US": 50000,   # command acknowledgement timeout
-    "WRITE_RETRIES": 2,        # extra attempts of a NACKed write
-    "BACKOFF_MAX": 64,         # cycles a repeatedly timing-out cell is skipped (max)
+    "I2C_HZ": 400000,  # bus clock
+    "STATUS_EVERY": 64,  # cycles between CELL_STATUS/CELL_LINK frames per cell
+    "TXN_TIMEOUT_US": 2000,  # per-transaction timeout
+    "ACK_TIMEOUT_US": 50000,  # command acknowledgement timeout
+    "WRITE_RETRIES": 2,  # extra attempts of a NACKed write
+    "BACKOFF_MAX": 64,  # cycles a repeatedly timing-out cell is skipped (max)
 }
 
-TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}   # b7: 7 raw bytes
+TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}  # b7: 7 raw bytes
 
 # ---------------------------------------------------------------------------
 # The CAN database's physical view (protocol/metacell.dbc only: the wire layout, the C header and the map id do
@@ -238,7 +271,7 @@ TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}
 # code that wants the raw wire integers decodes with scaling=False, decode_choices=False.
 import math as _math  # noqa: E402
 
-COUNT_RAD = 2 * _math.pi / 400          # one encoder count (400 counts per revolution), rad
+COUNT_RAD = 2 * _math.pi / 400  # one encoder count (400 counts per revolution), rad
 
 # (frame, signal) -> (scale, offset, unit); "CMD" signals are named <REGISTER>_<field>.
 DBC_PHYSICAL = {

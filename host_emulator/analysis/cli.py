@@ -67,24 +67,39 @@ def _fmt(v, unit=""):
 
 
 def dispersion_main(argv) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator dispersion",
-                                 description="Linear stability of the uniform rest state (docs/physics.md#linear-stability).")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator dispersion",
+        description="Linear stability of the uniform rest state (docs/physics.md#linear-stability).",
+    )
     ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
     ap.add_argument("--inertia", action="store_true", help="include cylinder inertia (4 roots per mode)")
     ap.add_argument("--eta-scale", type=str, default=None, help="multiply both viscous coefficients")
-    ap.add_argument("--band-scale", type=str, default=None,
-                    help="band-law scale (effective stiffness 2 x band_scale x table k): 1.0 = the rig's pair of "
-                         "bands, the default of every scene; 0.5 = the table k of the source's stability figure")
+    ap.add_argument(
+        "--band-scale",
+        type=str,
+        default=None,
+        help="band-law scale (effective stiffness 2 x band_scale x table k): 1.0 = the rig's pair of "
+        "bands, the default of every scene; 0.5 = the table k of the source's stability figure",
+    )
     g = ap.add_mutually_exclusive_group()
-    g.add_argument("--discrete", dest="discrete", action="store_true", default=True,
-                   help="lattice dispersion, kappa^2 -> 2(1 - cos kappa) (default)")
+    g.add_argument(
+        "--discrete",
+        dest="discrete",
+        action="store_true",
+        default=True,
+        help="lattice dispersion, kappa^2 -> 2(1 - cos kappa) (default)",
+    )
     g.add_argument("--continuum", dest="discrete", action="store_false", help="continuum dispersion")
     ap.add_argument("--cells", type=int, default=None, help="also list the modes of a free-end chain of N cells")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a Params field")
     ap.add_argument("--json", action="store_true", help="print JSON")
     ap.add_argument("--curve", action="store_true", help="include the sampled curve in the JSON")
-    ap.add_argument("--plot", default=None, metavar="PNG",
-                    help="also draw the dispersion (lattice and continuum, band, fastest wavelength) to PNG")
+    ap.add_argument(
+        "--plot",
+        default=None,
+        metavar="PNG",
+        help="also draw the dispersion (lattice and continuum, band, fastest wavelength) to PNG",
+    )
     args = ap.parse_args(argv)
     try:
         p = Params()
@@ -114,22 +129,34 @@ def dispersion_main(argv) -> int:
     if args.json:
         print(json.dumps(res, indent=2, allow_nan=False))
         return 0
-    print(f"sigma = {p.sigma:.6g} N m/rad, eta_scale = {p.eta_scale:g}, gamma = {p.gamma:g}, "
-          f"band_scale = {p.band_scale:g} (k_a = {p.ka_eff:.4g}, k_b = {p.kb_eff:.4g} N m/rad), "
-          f"{res['model']}{', inertia' if res['inertia'] else ', no inertia'}")
-    rows = [("regime", res["regime"].replace("_", " ")),
-            ("fastest wavelength", _fmt(res["fastest_lambda_cells"], " cells")),
-            ("fastest growth rate", _fmt(res["fastest_growth_per_s"], " 1/s")),
-            ("oscillation period", _fmt(res["oscillation_period_s"], " s")),
-            ("unstable band", _fmt(res["unstable_band_cells"], " cells")),
-            ("uniform mode growth", _fmt(res["uniform_mode_growth_per_s"], " 1/s")),
-            ("uniform mode period", _fmt(res["uniform_mode_period_s"], " s")),
-            ("Turing conditions", "all hold" if res["turing"]["all"] else
-             "fail: " + ", ".join(k for k, v in res["turing"].items() if k != "all" and not v["holds"]))]
+    print(
+        f"sigma = {p.sigma:.6g} N m/rad, eta_scale = {p.eta_scale:g}, gamma = {p.gamma:g}, "
+        f"band_scale = {p.band_scale:g} (k_a = {p.ka_eff:.4g}, k_b = {p.kb_eff:.4g} N m/rad), "
+        f"{res['model']}{', inertia' if res['inertia'] else ', no inertia'}"
+    )
+    rows = [
+        ("regime", res["regime"].replace("_", " ")),
+        ("fastest wavelength", _fmt(res["fastest_lambda_cells"], " cells")),
+        ("fastest growth rate", _fmt(res["fastest_growth_per_s"], " 1/s")),
+        ("oscillation period", _fmt(res["oscillation_period_s"], " s")),
+        ("unstable band", _fmt(res["unstable_band_cells"], " cells")),
+        ("uniform mode growth", _fmt(res["uniform_mode_growth_per_s"], " 1/s")),
+        ("uniform mode period", _fmt(res["uniform_mode_period_s"], " s")),
+        (
+            "Turing conditions",
+            "all hold"
+            if res["turing"]["all"]
+            else "fail: " + ", ".join(k for k, v in res["turing"].items() if k != "all" and not v["holds"]),
+        ),
+    ]
     if "lattice_fastest_mode" in res:
         m = res["lattice_fastest_mode"]
-        rows.append((f"fastest of {args.cells} cells", f"m={m['m']} lambda={_fmt(m['lambda_cells'])} "
-                                                        f"growth={m['growth_per_s']:.4g} 1/s"))
+        rows.append(
+            (
+                f"fastest of {args.cells} cells",
+                f"m={m['m']} lambda={_fmt(m['lambda_cells'])} growth={m['growth_per_s']:.4g} 1/s",
+            )
+        )
     w = max(len(r[0]) for r in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")

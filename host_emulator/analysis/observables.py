@@ -42,13 +42,21 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["observables", "spatial_period", "temporal_period", "growth_rate", "is_steady", "domain_walls",
-           "dominant_mode", "is_at_rest"]
+__all__ = [
+    "observables",
+    "spatial_period",
+    "temporal_period",
+    "growth_rate",
+    "is_steady",
+    "domain_walls",
+    "dominant_mode",
+    "is_at_rest",
+]
 
 ENCODER_STEP_RAD = 2 * math.pi / 400
-DEFAULT_TOL_RAD = 2 * ENCODER_STEP_RAD     # two encoder counts
-REST_TOL_RAD = 3 * ENCODER_STEP_RAD        # at rest: within three encoder counts of zero
-WALL_THRESHOLD_RAD = 0.1                   # cells with |alpha| above this take part in the wall count
+DEFAULT_TOL_RAD = 2 * ENCODER_STEP_RAD  # two encoder counts
+REST_TOL_RAD = 3 * ENCODER_STEP_RAD  # at rest: within three encoder counts of zero
+WALL_THRESHOLD_RAD = 0.1  # cells with |alpha| above this take part in the wall count
 
 
 def _as_arrays(t, alpha, beta):
@@ -62,8 +70,10 @@ def _as_arrays(t, alpha, beta):
     if t.ndim != 1 or t.size < 2:
         raise ValueError("t must be 1-D with at least 2 samples")
     if alpha.shape[0] != t.size or beta.shape != alpha.shape:
-        raise ValueError(f"shape mismatch: t {t.shape}, alpha {alpha.shape}, beta {beta.shape}; "
-                         "expected alpha and beta (T, N) with T = len(t)")
+        raise ValueError(
+            f"shape mismatch: t {t.shape}, alpha {alpha.shape}, beta {beta.shape}; "
+            "expected alpha and beta (T, N) with T = len(t)"
+        )
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(alpha)) and np.all(np.isfinite(beta))):
         raise ValueError("non-finite values in t/alpha/beta (a diverged run?)")
     if np.any(np.diff(t) <= 0):
@@ -109,8 +119,9 @@ def spatial_period(profile, *, tol_rad=DEFAULT_TOL_RAD, n_grid=400):
     i = int(np.argmax(ev))
     k = ks[i]
     if 0 < i < ks.size - 1:
-        r = minimize_scalar(lambda kk: -explained(kk), bounds=(ks[i - 1], ks[i + 1]), method="bounded",
-                            options={"xatol": 1e-9})
+        r = minimize_scalar(
+            lambda kk: -explained(kk), bounds=(ks[i - 1], ks[i + 1]), method="bounded", options={"xatol": 1e-9}
+        )
         if -r.fun >= ev[i]:
             k = float(r.x)
     return 2 * math.pi / k
@@ -148,16 +159,16 @@ def temporal_period(t, alpha, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD):
     ref = np.median(alpha[idx], axis=0)
     dev = alpha - ref
     mag = np.abs(dev).max(axis=1)
-    i0 = int(np.argmax(mag))                       # peak excursion: free motion follows
+    i0 = int(np.argmax(mag))  # peak excursion: free motion follows
     if t.size - i0 < 5:
         return None
     j = int(np.argmax(np.ptp(dev[i0:], axis=0)))
     y = dev[i0:, j]
-    band = max(0.5 * tol_rad, 1e-9 * np.abs(y).max())   # one encoder count: quantisation jitter is no oscillation
+    band = max(0.5 * tol_rad, 1e-9 * np.abs(y).max())  # one encoder count: quantisation jitter is no oscillation
     cr = _crossings(t[i0:], y, band)
     if len(cr) < 3:
         return None
-    k = (len(cr) - 1) // 2 * 2          # whole periods only: crossings in the same direction
+    k = (len(cr) - 1) // 2 * 2  # whole periods only: crossings in the same direction
     return 2.0 * (cr[k] - cr[0]) / k
 
 
@@ -167,11 +178,11 @@ def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
     alpha = np.asarray(alpha, dtype=float)
     if alpha.ndim == 1:
         alpha = alpha[:, None]
-    amp = np.abs(alpha).max(axis=1)                # distance from the rest state alpha = 0
+    amp = np.abs(alpha).max(axis=1)  # distance from the rest state alpha = 0
     amax = amp.max()
     if not amax > min_amplitude_rad:
         return None
-    i_hi = int(np.argmax(amp >= 0.2 * amax))       # first sample at 20 % of the peak
+    i_hi = int(np.argmax(amp >= 0.2 * amax))  # first sample at 20 % of the peak
     if i_hi < 4:
         return None
     # the contiguous rise ending at i_hi, restricted to its upper two decades
@@ -182,8 +193,8 @@ def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
         i_lo += 1
     if i_hi - i_lo + 1 < 5 or amp[i_hi] < 3 * amp[i_lo]:
         return None
-    tt = t[i_lo: i_hi + 1]
-    ly = np.log(amp[i_lo: i_hi + 1])
+    tt = t[i_lo : i_hi + 1]
+    ly = np.log(amp[i_lo : i_hi + 1])
     slope, icpt = np.polyfit(tt, ly, 1)
     res = ly - (slope * tt + icpt)
     r2 = 1.0 - (res @ res) / max(((ly - ly.mean()) ** 2).sum(), 1e-300)
@@ -216,8 +227,16 @@ def is_at_rest(t, alpha, beta, *, settle_window_s=None, rest_tol_rad=REST_TOL_RA
     return bool(max(np.abs(alpha[idx]).max(), np.abs(beta[idx]).max()) <= rest_tol_rad)
 
 
-def observables(t, alpha, beta, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD,
-                wall_threshold_rad=WALL_THRESHOLD_RAD, rest_tol_rad=REST_TOL_RAD) -> dict:
+def observables(
+    t,
+    alpha,
+    beta,
+    *,
+    settle_window_s=None,
+    tol_rad=DEFAULT_TOL_RAD,
+    wall_threshold_rad=WALL_THRESHOLD_RAD,
+    rest_tol_rad=REST_TOL_RAD,
+) -> dict:
     """All observables of a run as a JSON-ready dict (see module docstring for definitions)."""
     if not (math.isfinite(tol_rad) and tol_rad > 0):
         raise ValueError(f"tol_rad={tol_rad!r} must be finite and > 0")

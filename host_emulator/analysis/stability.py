@@ -27,8 +27,14 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 __all__ = [
-    "reaction_jacobian", "jacobian", "growth_rates", "turing_conditions", "dispersion",
-    "plot_dispersion", "classify_regime", "q_of_kappa",
+    "reaction_jacobian",
+    "jacobian",
+    "growth_rates",
+    "turing_conditions",
+    "dispersion",
+    "plot_dispersion",
+    "classify_regime",
+    "q_of_kappa",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -38,8 +44,12 @@ TWO_PI = 2.0 * math.pi
 def _check(params, inertia=False):
     """Reject parameters for which the linear system is not defined (clear error, nothing computed)."""
     bad = []
-    for name, val in (("eta_alpha", params.eta_alpha), ("eta_beta", params.eta_beta),
-                      ("ka_eff", params.ka_eff), ("kb_eff", params.kb_eff)):
+    for name, val in (
+        ("eta_alpha", params.eta_alpha),
+        ("eta_beta", params.eta_beta),
+        ("ka_eff", params.ka_eff),
+        ("kb_eff", params.kb_eff),
+    ):
         if not (math.isfinite(val) and val > 0):
             bad.append(f"{name}={val!r} must be finite and > 0")
     for name in ("k_ab", "k1", "k2", "sigma"):
@@ -101,12 +111,12 @@ def growth_rates(params, kappa, *, discrete=True, inertia=False) -> np.ndarray:
     a[:, 0, 0] -= q * kd[0]
     a[:, 1, 1] -= q * kd[1]
     if not inertia:
-        m = a / eta[None, :, None]                     # E^-1 A(q)
+        m = a / eta[None, :, None]  # E^-1 A(q)
     else:
         inert = np.array([params.I_a, params.I_b])
         m = np.zeros((k.size, 4, 4))
-        m[:, 0, 2] = m[:, 1, 3] = 1.0                  # x' = v
-        m[:, 2:, :2] = a / inert[None, :, None]        # I v' = A x - E v
+        m[:, 0, 2] = m[:, 1, 3] = 1.0  # x' = v
+        m[:, 2:, :2] = a / inert[None, :, None]  # I v' = A x - E v
         m[:, 2, 2] = -eta[0] / inert[0]
         m[:, 3, 3] = -eta[1] / inert[1]
     return _sort_desc(np.linalg.eigvals(m).astype(complex))
@@ -137,9 +147,13 @@ def turing_conditions(params) -> dict:
     out = {
         "trace_negative": {"expr": "k_ab(1+1/gamma)+k2 > 0", "value": c1, "holds": bool(c1 > 0)},
         "det_positive": {"expr": "k_ab(k2+sigma) > 0", "value": c2, "holds": bool(c2 > 0)},
-        "diffusion_driven": {"expr": "-d k2 - k_ab(1+d) > 2 sqrt(k_ab d (k2+sigma))",
-                             "value": lhs - rhs if rad >= 0 else None, "lhs": lhs,
-                             "rhs": rhs if rad >= 0 else None, "holds": c3_holds},
+        "diffusion_driven": {
+            "expr": "-d k2 - k_ab(1+d) > 2 sqrt(k_ab d (k2+sigma))",
+            "value": lhs - rhs if rad >= 0 else None,
+            "lhs": lhs,
+            "rhs": rhs if rad >= 0 else None,
+            "holds": c3_holds,
+        },
     }
     out["all"] = bool(out["trace_negative"]["holds"] and out["det_positive"]["holds"] and c3_holds)
     return out
@@ -167,8 +181,10 @@ def _kappa_max(params, discrete, inertia):
         if _lead(params, kmax, False, inertia).real <= 0:
             return kmax
         kmax *= 2.0
-    raise ValueError("continuum growth rate stays positive at arbitrarily short wavelengths: "
-                     "check that k_a, k_b > 0 (diffusion must damp short waves)")
+    raise ValueError(
+        "continuum growth rate stays positive at arbitrarily short wavelengths: "
+        "check that k_a, k_b > 0 (diffusion must damp short waves)"
+    )
 
 
 def _lam(k):
@@ -194,7 +210,7 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
     if n_kappa < 16:
         raise ValueError("n_kappa must be >= 16")
     kmax = _kappa_max(params, discrete, inertia)
-    kap = np.linspace(0.0, kmax, n_kappa + 1)            # includes kappa = 0 (uniform mode)
+    kap = np.linspace(0.0, kmax, n_kappa + 1)  # includes kappa = 0 (uniform mode)
     s = growth_rates(params, kap, discrete=discrete, inertia=inertia)[:, 0]
     re = s.real
     if not np.all(np.isfinite(s)):
@@ -207,8 +223,9 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
     i = int(np.argmax(re))
     k_best, s_best = kap[i], s[i]
     if 0 < i < len(kap) - 1:
-        r = minimize_scalar(lambda k: -f(k), bounds=(kap[i - 1], kap[i + 1]), method="bounded",
-                            options={"xatol": 1e-10})
+        r = minimize_scalar(
+            lambda k: -f(k), bounds=(kap[i - 1], kap[i + 1]), method="bounded", options={"xatol": 1e-10}
+        )
         if -r.fun >= re[i]:
             k_best = float(r.x)
             s_best = _lead(params, k_best, discrete, inertia)
@@ -258,8 +275,13 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
         km = np.pi * np.arange(n) / n
         sm = growth_rates(params, km, discrete=discrete, inertia=inertia)[:, 0]
         out["lattice_modes"] = [
-            {"m": m, "kappa": float(km[m]), "lambda_cells": _lam(km[m]) if m else None,
-             "growth_per_s": float(sm[m].real), "imag_per_s": float(abs(sm[m].imag))}
+            {
+                "m": m,
+                "kappa": float(km[m]),
+                "lambda_cells": _lam(km[m]) if m else None,
+                "growth_per_s": float(sm[m].real),
+                "imag_per_s": float(abs(sm[m].imag)),
+            }
             for m in range(n)
         ]
         mbest = int(np.argmax(sm.real))
@@ -275,6 +297,7 @@ def plot_dispersion(params, ax=None, *, inertia=False):
     """
     if ax is None:
         from matplotlib.figure import Figure
+
         ax = Figure(figsize=(6.4, 4.0)).add_subplot(111)
     n = int(getattr(params, "cells", 16) or 16)
     disc = dispersion(params, inertia=inertia, discrete=True, n_cells=n, n_kappa=800)
@@ -284,33 +307,51 @@ def plot_dispersion(params, ax=None, *, inertia=False):
         ax.plot(lam, res["curve"]["growth_per_s"], color=style, label=f"Re s, {label}")
         im = np.asarray(res["curve"]["imag_per_s"], dtype=float)
         ytop = 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9)
-        im = np.where((im > 0) & (im <= ytop), im, np.nan)    # off-scale |Im s| is not drawn as spikes
+        im = np.where((im > 0) & (im <= ytop), im, np.nan)  # off-scale |Im s| is not drawn as spikes
         if np.any(np.isfinite(im)):
             ax.plot(lam, im, color=style, ls="--", lw=0.8, label=f"|Im s|, {label}")
     band = disc["unstable_band_cells"]
     if band:
-        ax.axvspan(band[0], band[1] if band[1] is not None else 1e3, color="C0", alpha=0.12,
-                   label=f"unstable band {band[0]:.3g}-{'inf' if band[1] is None else format(band[1], '.3g')} cells")
+        ax.axvspan(
+            band[0],
+            band[1] if band[1] is not None else 1e3,
+            color="C0",
+            alpha=0.12,
+            label=f"unstable band {band[0]:.3g}-{'inf' if band[1] is None else format(band[1], '.3g')} cells",
+        )
     modes = [m for m in disc["lattice_modes"] if m["lambda_cells"]]
-    ax.plot([m["lambda_cells"] for m in modes], [m["growth_per_s"] for m in modes], "o", ms=3,
-            color="C0", label=f"free-end modes, {n} cells")
+    ax.plot(
+        [m["lambda_cells"] for m in modes],
+        [m["growth_per_s"] for m in modes],
+        "o",
+        ms=3,
+        color="C0",
+        label=f"free-end modes, {n} cells",
+    )
     if disc["fastest_lambda_cells"]:
-        ax.axvline(disc["fastest_lambda_cells"], color="C0", lw=0.8, ls=":",
-                   label=f"fastest wavelength {disc['fastest_lambda_cells']:.3g} cells")
+        ax.axvline(
+            disc["fastest_lambda_cells"],
+            color="C0",
+            lw=0.8,
+            ls=":",
+            label=f"fastest wavelength {disc['fastest_lambda_cells']:.3g} cells",
+        )
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xscale("log")
     ax.set_xlim(1.8, 4 * n)
     from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullFormatter
 
-    ax.xaxis.set_major_locator(FixedLocator([t for t in (2, 3, 5, 7.5, 10, 15, 20, 30, 60, 120, 250, 500)
-                                             if t <= 4 * n]))      # no colliding log-axis labels
+    ax.xaxis.set_major_locator(
+        FixedLocator([t for t in (2, 3, 5, 7.5, 10, 15, 20, 30, 60, 120, 250, 500) if t <= 4 * n])
+    )  # no colliding log-axis labels
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(NullFormatter())
     ylo = min(np.percentile(disc["curve"]["growth_per_s"], 5), -abs(disc["fastest_growth_per_s"]))
     ax.set_ylim(ylo, 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9))
     ax.set_xlabel("wavelength lambda (cells)")
     ax.set_ylabel("growth rate (1/s)")
-    ax.set_title(f"sigma = {params.sigma:.4g}: {disc['regime'].replace('_', ' ')}"
-                 f"{' (inertia)' if inertia else ''}", fontsize=10)
+    ax.set_title(
+        f"sigma = {params.sigma:.4g}: {disc['regime'].replace('_', ' ')}{' (inertia)' if inertia else ''}", fontsize=10
+    )
     ax.legend(fontsize=7, loc="lower right")
     return ax

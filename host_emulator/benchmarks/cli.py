@@ -56,9 +56,11 @@ def run_workprecision(args, out: Path) -> int:
         print(f"    {m:18s} {fmt(None if w is None else w * 1e3)} ms")
     ratio = peer[1] / best[1] if best and peer else None
     if ratio is not None:
-        print(f"  RATIO lattice: best scipy ({peer[0]}, {peer[1] * 1e3:.0f} ms) / best ours ({best[0]}, "
-              f"{best[1] * 1e3:.2f} ms) = {ratio:.0f}x  (target >= {LATTICE_RATIO_TARGET:.0f}x: "
-              f"{'met' if ratio >= LATTICE_RATIO_TARGET else 'NOT met'})")
+        print(
+            f"  RATIO lattice: best scipy ({peer[0]}, {peer[1] * 1e3:.0f} ms) / best ours ({best[0]}, "
+            f"{best[1] * 1e3:.2f} ms) = {ratio:.0f}x  (target >= {LATTICE_RATIO_TARGET:.0f}x: "
+            f"{'met' if ratio >= LATTICE_RATIO_TARGET else 'NOT met'})"
+        )
         status |= 0 if ratio >= LATTICE_RATIO_TARGET else 1
     peer_ratios = {}
     for fam in ("diffrax", "CVODE", "scipy"):
@@ -66,13 +68,20 @@ def run_workprecision(args, out: Path) -> int:
         if best and fb:
             peer_ratios[fam] = (fb[0], fb[1], fb[1] / best[1])
     if best:
-        print(f"  RATIOS lattice at {LATTICE_TARGET:g} rad, best of each peer / best ours ({best[0]}, "
-              f"{best[1] * 1e3:.2f} ms): " + ", ".join(f"{f} {v[2]:.1f}x ({v[0]}, {v[1] * 1e3:.1f} ms)"
-                                                       for f, v in peer_ratios.items())
-              + "".join(f"; {f}: not run" for f in ("diffrax", "CVODE", "scipy") if f not in peer_ratios))
+        print(
+            f"  RATIOS lattice at {LATTICE_TARGET:g} rad, best of each peer / best ours ({best[0]}, "
+            f"{best[1] * 1e3:.2f} ms): "
+            + ", ".join(f"{f} {v[2]:.1f}x ({v[0]}, {v[1] * 1e3:.1f} ms)" for f, v in peer_ratios.items())
+            + "".join(f"; {f}: not run" for f in ("diffrax", "CVODE", "scipy") if f not in peer_ratios)
+        )
     summary["lattice_peer_ratios"] = peer_ratios
-    summary["lattice"] = {"ratio": ratio, "best_ours": best, "best_scipy": peer, "reference_check_rad": ref_check,
-                          "points": [p.__dict__ for p in pts]}
+    summary["lattice"] = {
+        "ratio": ratio,
+        "best_ours": best,
+        "best_scipy": peer,
+        "reference_check_rad": ref_check,
+        "points": [p.__dict__ for p in pts],
+    }
     panels.append((f"lattice 16 cells, 3 s (ratio at {LATTICE_TARGET:g} rad: {fmt(ratio)}x)", pts, LATTICE_TARGET))
 
     if not args.no_hil:
@@ -83,7 +92,9 @@ def run_workprecision(args, out: Path) -> int:
         panels.append(("hil 16 cells, 3 s, vs rk4 x64 plant steps per tick", hpts, None))
 
     if not args.no_continuum:
-        print("\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), 16 cells x 4 points, 3 s simulated ==")
+        print(
+            "\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), 16 cells x 4 points, 3 s simulated =="
+        )
         _, cpts, have_pde = cb.continuum_workprecision(3.0, m=4, quick=args.quick)
         print(wp.points_table(cpts))
         if have_pde:
@@ -91,9 +102,11 @@ def run_workprecision(args, out: Path) -> int:
             tgt = max(LATTICE_TARGET, 1.01 * min(p.error for p in peers))
             at, best, peer = wp.summarize(cpts, tgt, ours_prefix=("py-pde",))
             cr = peer[1] / best[1] if best and peer else None
-            print(f"  RATIO continuum at max error {tgt:.2g} rad: best py-pde ({peer[0]}, {peer[1]:.2f} s warm) / "
-                  f"best ours ({best[0]}, {best[1] * 1e3:.1f} ms) = {fmt(cr)}x "
-                  f"(target > 1x: {'met' if cr and cr > 1 else 'NOT met'})")
+            print(
+                f"  RATIO continuum at max error {tgt:.2g} rad: best py-pde ({peer[0]}, {peer[1]:.2f} s warm) / "
+                f"best ours ({best[0]}, {best[1] * 1e3:.1f} ms) = {fmt(cr)}x "
+                f"(target > 1x: {'met' if cr and cr > 1 else 'NOT met'})"
+            )
             summary["continuum"] = {"ratio": cr, "target_error": tgt, "best_ours": best, "best_pypde": peer}
         summary.setdefault("continuum", {})["points"] = [p.__dict__ for p in cpts]
         panels.append(("continuum 16x4 grid, 3 s", cpts, LATTICE_TARGET))
@@ -103,8 +116,10 @@ def run_workprecision(args, out: Path) -> int:
         cells_t, time_t, spreads = sc.scaling(quick=args.quick)
         print(cells_t)
         for m, (k, e10, e100) in spreads.items():
-            print(f"  {m}: max/min cost per cell-second over 16..4096 cells: kernel {k:.2f}x, "
-                  f"run with 10 ms samples {e10:.2f}x, with 100 ms samples {e100:.2f}x (target <= 1.3x)")
+            print(
+                f"  {m}: max/min cost per cell-second over 16..4096 cells: kernel {k:.2f}x, "
+                f"run with 10 ms samples {e10:.2f}x, with 100 ms samples {e100:.2f}x (target <= 1.3x)"
+            )
         print("\n== scaling: cost against simulated time (16 cells) ==")
         print(time_t)
         summary["scaling"] = {"spreads": spreads}
@@ -118,9 +133,11 @@ def run_workprecision(args, out: Path) -> int:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator bench",
-                                 description="Work-precision against scipy/py-pde, scaling, and (--fidelity) "
-                                             "the cost and effect of each model component. Pinned to one core.")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator bench",
+        description="Work-precision against scipy/py-pde, scaling, and (--fidelity) "
+        "the cost and effect of each model component. Pinned to one core.",
+    )
     ap.add_argument("--fidelity", action="store_true", help="only the fidelity-cost table")
     ap.add_argument("--quick", action="store_true", help="fewer step sizes/tolerances (a smoke run)")
     ap.add_argument("--no-hil", action="store_true")
@@ -132,7 +149,7 @@ def main(argv=None) -> int:
     print(f"# host_emulator bench on {where} [{platform.machine()}, python {platform.python_version()}]")
     from ..firmware import load
 
-    load()                 # compile outside every timing
+    load()  # compile outside every timing
     out = Path(args.out)
     if args.fidelity:
         from .fidelity import run_fidelity

@@ -44,10 +44,11 @@ def best_time(fn, repeat: int = 3, budget_s: float = 2.0):
 @dataclass
 class WPPoint:
     """One run of a work-precision sweep."""
-    method: str          # e.g. "rk4" or "scipy DOP853"
-    setting: str         # "dt=2.5e-4" or "rtol=1e-6"
+
+    method: str  # e.g. "rk4" or "scipy DOP853"
+    setting: str  # "dt=2.5e-4" or "rtol=1e-6"
     wall_s: float
-    error: float         # max |angle - reference| over samples, cells and chains (rad); inf if it failed
+    error: float  # max |angle - reference| over samples, cells and chains (rad); inf if it failed
     note: str = ""
     extra: dict = field(default_factory=dict)
 
@@ -56,7 +57,7 @@ def wall_at(points: list[WPPoint], target: float) -> float | None:
     """Wall time a method needs for max error `target`: log-log interpolation on its Pareto front
     (cheapest run reaching each error level). None when no run of the method reaches the target."""
     pts = sorted((p.wall_s, p.error) for p in points if math.isfinite(p.error) and p.error > 0)
-    front = []           # increasing wall, strictly decreasing error
+    front = []  # increasing wall, strictly decreasing error
     for w, e in pts:
         if not front or e < front[-1][1]:
             front.append((w, e))
@@ -66,7 +67,7 @@ def wall_at(points: list[WPPoint], target: float) -> float | None:
         return front[0][0]
     for (w0, e0), (w1, e1) in zip(front[:-1], front[1:]):
         if e0 > target >= e1:
-            if math.log(e1) == math.log(e0):     # errors an ulp apart: their logs round to the same value
+            if math.log(e1) == math.log(e0):  # errors an ulp apart: their logs round to the same value
                 return w1
             f = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
             return math.exp(math.log(w0) + f * (math.log(w1) - math.log(w0)))

@@ -37,8 +37,11 @@ def as_lattice(params, cells, m, perturbations):
     from ..models.options import Perturbation
 
     p = params.with_overrides(cells=cells * m, k_a=params.k_a * m * m, k_b=params.k_b * m * m)
-    perts = [Perturbation((q.cell - 1) * m + i + 1, q.chain, q.torque_Nm, q.start_s, q.duration_s)
-             for q in perturbations for i in range(m)]
+    perts = [
+        Perturbation((q.cell - 1) * m + i + 1, q.chain, q.torque_Nm, q.start_s, q.duration_s)
+        for q in perturbations
+        for i in range(m)
+    ]
     return p, perts
 
 
@@ -48,8 +51,9 @@ def run_fast(scene, stepper, dt, m):
     from ..models.options import ModelOptions
 
     p, perts = as_lattice(scene.params, scene.cells, m, scene.perturbations)
-    model = LatticeModel(p, perts, ModelOptions(inertia=False, bands="linear", stepper=stepper, dt=dt,
-                                                dt_out=scene.options.dt_out))
+    model = LatticeModel(
+        p, perts, ModelOptions(inertia=False, bands="linear", stepper=stepper, dt=dt, dt_out=scene.options.dt_out)
+    )
     s = model.solver()
     n_out = int(round(scene.t_end_s / s.dt_out))
     nn = model.n
@@ -65,8 +69,16 @@ def run_fast(scene, stepper, dt, m):
 def run_bdf(scene, m, rtol, atol):
     from ..models.continuum import simulate_continuum
 
-    _, a, b = simulate_continuum(scene.params, scene.cells, scene.t_end_s, [q.as_dict() for q in scene.perturbations],
-                                 dt_out_s=scene.options.dt_out, points_per_cell=m, rtol=rtol, atol=atol)
+    _, a, b = simulate_continuum(
+        scene.params,
+        scene.cells,
+        scene.t_end_s,
+        [q.as_dict() for q in scene.perturbations],
+        dt_out_s=scene.options.dt_out,
+        points_per_cell=m,
+        rtol=rtol,
+        atol=atol,
+    )
     return np.concatenate([a, b], axis=1)
 
 
@@ -82,11 +94,15 @@ def pypde_problem(scene, m):
     fa, fb = [], []
     for q in scene.perturbations:
         # torque density T over the cell [cell-1, cell], on for start <= t < end (sign(0) = 0: half at the edge)
-        w = (f"((sign(t - {q.start_s!r}) - sign(t - {q.start_s + q.duration_s!r}))/2"
-             f"*Heaviside(x - {q.cell - 1})*Heaviside({q.cell} - x))")
+        w = (
+            f"((sign(t - {q.start_s!r}) - sign(t - {q.start_s + q.duration_s!r}))/2"
+            f"*Heaviside(x - {q.cell - 1})*Heaviside({q.cell} - x))"
+        )
         (fa if q.chain == "alpha" else fb).append(f" + {q.torque_Nm / (ea if q.chain == 'alpha' else eb)!r}*{w}")
-    eqs = {"a": f"{p.ka_eff / ea!r}*laplace(a) + ({p.k_ab!r}*(b - a) - {psi} - {p.sigma!r}*b)/{ea!r}" + "".join(fa),
-           "b": f"{p.kb_eff / eb!r}*laplace(b) + {p.k_ab!r}*(a - b)/{eb!r}" + "".join(fb)}
+    eqs = {
+        "a": f"{p.ka_eff / ea!r}*laplace(a) + ({p.k_ab!r}*(b - a) - {psi} - {p.sigma!r}*b)/{ea!r}" + "".join(fa),
+        "b": f"{p.kb_eff / eb!r}*laplace(b) + {p.k_ab!r}*(a - b)/{eb!r}" + "".join(fb),
+    }
     eq = pde.PDE(eqs, bc={"derivative": 0})
     grid = pde.CartesianGrid([[0, scene.cells]], [scene.cells * m])
     state = pde.FieldCollection([pde.ScalarField(grid, 0.0, label="a"), pde.ScalarField(grid, 0.0, label="b")])
@@ -99,7 +115,7 @@ def run_pypde(scene, m, solver, **kw):
     eq, state = pypde_problem(scene, m)
     storage = pde.MemoryStorage()
     eq.solve(state, t_range=scene.t_end_s, solver=solver, tracker=[storage.tracker(scene.options.dt_out)], **kw)
-    data = np.array([d for d in storage.data])          # (T, 2, n)
+    data = np.array([d for d in storage.data])  # (T, 2, n)
     S = centre_matrix(scene.cells, m)
     return np.concatenate([data[:, 0] @ S.T, data[:, 1] @ S.T], axis=1)
 
@@ -110,19 +126,24 @@ def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
     scene = load_scene("continuum_single", [f"t_end_s={t_end_s}", f"model_options.points_per_cell={m}"])
     t0 = time.perf_counter()
     ref = run_bdf(scene, m, 1e-10, 1e-13)
-    log(f"  reference: models/continuum.py BDF rtol 1e-10 atol 1e-13, {scene.cells} cells x {m} points "
-        f"({time.perf_counter() - t0:.1f} s)")
+    log(
+        f"  reference: models/continuum.py BDF rtol 1e-10 atol 1e-13, {scene.cells} cells x {m} points "
+        f"({time.perf_counter() - t0:.1f} s)"
+    )
     points = []
-    for st, grid in (("imex_euler", (2e-4, 1e-4, 5e-5, 2.5e-5, 1.25e-5)), ("rk4", (3e-5, 1.5e-5, 7.5e-6)),
-                     ("noh_bathe", (2.5e-5, 1.25e-5, 6.25e-6))):
-        for dt in (grid[::2] if quick else grid):
+    for st, grid in (
+        ("imex_euler", (2e-4, 1e-4, 5e-5, 2.5e-5, 1.25e-5)),
+        ("rk4", (3e-5, 1.5e-5, 7.5e-6)),
+        ("noh_bathe", (2.5e-5, 1.25e-5, 6.25e-6)),
+    ):
+        for dt in grid[::2] if quick else grid:
             try:
                 (x, h, lim), w = best_time(lambda: run_fast(scene, st, dt, m), repeat=3)
             except ValueError as e:
                 log(f"  continuum {st} dt {dt:g}: {e}")
                 continue
             points.append(WPPoint(f"lattice-engine {st}", f"dt={h:.3g}", w, max_err(x, ref)))
-    for rtol in ((1e-4, 1e-6, 1e-8) if not quick else (1e-4, 1e-7)):
+    for rtol in (1e-4, 1e-6, 1e-8) if not quick else (1e-4, 1e-7):
         x, w = best_time(lambda: run_bdf(scene, m, rtol, rtol * 1e-3), repeat=2, budget_s=3.0)
         points.append(WPPoint("continuum.py BDF", f"rtol={rtol:g}", w, max_err(x, ref)))
     try:
@@ -131,14 +152,18 @@ def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
         log("  py-pde not installed: its rows are skipped (install with: .venv/bin/pip install -e '.[bench]')")
         return scene, points, False
     runs = [("euler", dict(dt=dt)) for dt in ((2e-5, 5e-6) if not quick else (2e-5,))]
-    runs += [("runge-kutta", dict(dt=1e-5, adaptive=True, tolerance=tol)) for tol in ((1e-4, 1e-6) if not quick else (1e-5,))]
+    runs += [
+        ("runge-kutta", dict(dt=1e-5, adaptive=True, tolerance=tol)) for tol in ((1e-4, 1e-6) if not quick else (1e-5,))
+    ]
     warmed = set()
     for solver, kw in runs:
-        if solver not in warmed:       # numba compilation of the rhs and stepper: timed apart
+        if solver not in warmed:  # numba compilation of the rhs and stepper: timed apart
             t0 = time.perf_counter()
             run_pypde(replace(scene, t_end_s=0.05), m, solver, **(kw | {"dt": 1e-5}))
-            log(f"  py-pde {solver}: first call (with numba compilation) {time.perf_counter() - t0:.1f} s; "
-                "the rows below are warm calls")
+            log(
+                f"  py-pde {solver}: first call (with numba compilation) {time.perf_counter() - t0:.1f} s; "
+                "the rows below are warm calls"
+            )
             warmed.add(solver)
         x, w = best_time(lambda: run_pypde(scene, m, solver, **kw), repeat=1)
         setting = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in kw.items())

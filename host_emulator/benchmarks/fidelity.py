@@ -44,29 +44,57 @@ def variants(question):
 
     def sc(model=None, params=None, **opt):
         return replace(b, model=model or b.model, params=params or P, options=replace(o, **opt))
+
     lat = dict(stepper="rk4", substeps=None, dt=None)
     rows = [
         ("reference", "hil rk4 x4, geometric beta, cubic, 2 kHz", b),
-        ("plant step", "hil symplectic_euler x1 (accuracy fast = balanced)", sc(stepper="symplectic_euler", substeps=1)),
+        (
+            "plant step",
+            "hil symplectic_euler x1 (accuracy fast = balanced)",
+            sc(stepper="symplectic_euler", substeps=1),
+        ),
         ("plant step", "hil rk4 x1", sc(substeps=1)),
         ("geometric beta", "small-angle beta bands", sc(beta_geometry="small")),
         ("non-linear bands", "linear bands (table k)", sc(bands="linear", beta_geometry="small")),
-        ("inertia", "overdamped plant (no inertia; imex_euler x1, the explicit steppers need ~1 us steps)",
-         sc(inertia=False, stepper="imex_euler", substeps=1)),
-        ("motor model", "lattice: ideal reaction torque, no motor/driver/encoder",
-         sc("lattice", params=P.with_overrides(eta_a=P.eta_a), **lat)),
-        ("motor model", "lattice + motor back-EMF damping as extra eta",
-         sc("lattice", params=P.with_overrides(eta_a=P.eta_a + P.eta_bemf, gamma=(P.eta_a * P.gamma + P.eta_bemf)
-                                               / (P.eta_a + P.eta_bemf)), **lat)),
+        (
+            "inertia",
+            "overdamped plant (no inertia; imex_euler x1, the explicit steppers need ~1 us steps)",
+            sc(inertia=False, stepper="imex_euler", substeps=1),
+        ),
+        (
+            "motor model",
+            "lattice: ideal reaction torque, no motor/driver/encoder",
+            sc("lattice", params=P.with_overrides(eta_a=P.eta_a), **lat),
+        ),
+        (
+            "motor model",
+            "lattice + motor back-EMF damping as extra eta",
+            sc(
+                "lattice",
+                params=P.with_overrides(
+                    eta_a=P.eta_a + P.eta_bemf, gamma=(P.eta_a * P.gamma + P.eta_bemf) / (P.eta_a + P.eta_bemf)
+                ),
+                **lat,
+            ),
+        ),
         ("PWM quantisation", "pwm_top 255 (analogWrite 8 bit)", sc(params=P.with_overrides(pwm_top=255))),
         ("PWM quantisation", "pwm_top 4095", sc(params=P.with_overrides(pwm_top=4095))),
-        ("control rate", "500 Hz (plant step kept: 16 per tick)", sc(params=P.with_overrides(control_rate_hz=500.0),
-                                                                     substeps=16)),
-        ("control rate", "20 kHz (plant step kept: 1 per tick)", sc(params=P.with_overrides(control_rate_hz=20000.0),
-                                                                    substeps=1)),
+        (
+            "control rate",
+            "500 Hz (plant step kept: 16 per tick)",
+            sc(params=P.with_overrides(control_rate_hz=500.0), substeps=16),
+        ),
+        (
+            "control rate",
+            "20 kHz (plant step kept: 1 per tick)",
+            sc(params=P.with_overrides(control_rate_hz=20000.0), substeps=1),
+        ),
         ("back-EMF compensation", "firmware compensates back-EMF", sc(params=P.with_overrides(bemf_comp=True))),
-        ("noise", "encoder jitter 0.3 counts + glitches 1e-4",
-         sc(noise=NoiseOptions(seed=1, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-4))),
+        (
+            "noise",
+            "encoder jitter 0.3 counts + glitches 1e-4",
+            sc(noise=NoiseOptions(seed=1, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-4)),
+        ),
         ("noise", "band and honey spread 5 %", sc(noise=NoiseOptions(seed=1, band_spread=0.05, eta_spread=0.05))),
     ]
     return rows
@@ -91,11 +119,16 @@ def run_one(scene, question):
             # the same tilt after the encoders' zero (the firmware sees it as a real deflection)
             s.x[: scene.cells] = TILT_RAD
         return run_solver(s, scene.t_end_s)
+
     try:
         res, w = best_time(go, repeat=2, budget_s=3.0)
-    except Exception as e:           # an unstable variant is a result too
-        return None, math.nan, "unstable: " + ("diverged" if "diverg" in str(e) else "band range" if "band" in str(e)
-                                               else type(e).__name__)
+    except Exception as e:  # an unstable variant is a result too
+        return (
+            None,
+            math.nan,
+            "unstable: "
+            + ("diverged" if "diverg" in str(e) else "band range" if "band" in str(e) else type(e).__name__),
+        )
     return observables(res.t, res.alpha, res.beta), w, ""
 
 
@@ -112,10 +145,35 @@ def run_fidelity(args, out) -> int:
             if ref is None:
                 ref = (obs, fa)
             d = float(np.max(np.abs(fa - ref[1])))
-            rows.append([comp, label, fmt(w * 1e3), fmt(obs["pattern_period_cells"]), fmt(obs["amplitude_rad"]),
-                         fmt(obs["oscillation_period_s"]), str(obs["steady"]), fmt(d, 2)])
-        print(f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 50 mrad uniform tilt'}), "
-              "16 cells, 10 s ==")
-        print(table(rows, ["component", "variant", "cpu ms", "pattern period cells", "amplitude rad",
-                           "oscillation period s", "steady", "max |final alpha - ref| rad"]))
+            rows.append(
+                [
+                    comp,
+                    label,
+                    fmt(w * 1e3),
+                    fmt(obs["pattern_period_cells"]),
+                    fmt(obs["amplitude_rad"]),
+                    fmt(obs["oscillation_period_s"]),
+                    str(obs["steady"]),
+                    fmt(d, 2),
+                ]
+            )
+        print(
+            f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 50 mrad uniform tilt'}), "
+            "16 cells, 10 s =="
+        )
+        print(
+            table(
+                rows,
+                [
+                    "component",
+                    "variant",
+                    "cpu ms",
+                    "pattern period cells",
+                    "amplitude rad",
+                    "oscillation period s",
+                    "steady",
+                    "max |final alpha - ref| rad",
+                ],
+            )
+        )
     return 0

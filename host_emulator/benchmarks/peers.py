@@ -39,7 +39,7 @@ def _segments(scene, t_eval):
 
 
 def _pert_vector(scene, n, t):
-    P = np.zeros(2 * n)     # external torque on each cylinder over the segment starting at t
+    P = np.zeros(2 * n)  # external torque on each cylinder over the segment starting at t
     for q in scene.perturbations:
         if q.start_s <= t < q.start_s + q.duration_s:
             P[(0 if q.chain == "alpha" else n) + q.cell - 1] += q.torque_Nm
@@ -50,6 +50,7 @@ def _pert_vector(scene, n, t):
 def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
     try:
         import jax
+
         jax.config.update("jax_enable_x64", True)
         import diffrax
         import jax.numpy as jnp
@@ -81,17 +82,18 @@ def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
         return p.band_scale * L * (g(ch, d0 + L * (xs - xo)) - g(ch, d0 - L * (xs - xo)))
 
     def rhs(t, y, pert):
-        x, v = y[:2 * n], y[2 * n:]
+        x, v = y[: 2 * n], y[2 * n :]
         parts = []
         for ch in range(2):
-            xc = x[ch * n:(ch + 1) * n]
+            xc = x[ch * n : (ch + 1) * n]
             right = band[ch] * bond(ch, xc[:-1], xc[1:])
             left = band[ch] * bond(ch, xc[1:], xc[:-1])
             parts.append(-jnp.concatenate([right, jnp.zeros(1)]) - jnp.concatenate([jnp.zeros(1), left]))
         F = jnp.concatenate(parts)
         a, b = x[:n], x[n:]
-        psi = jnp.where(a < -bstar, p.k1 * (a + p.alpha_star), jnp.where(a > bstar, p.k1 * (a - p.alpha_star),
-                                                                         p.k2 * a))
+        psi = jnp.where(
+            a < -bstar, p.k1 * (a + p.alpha_star), jnp.where(a > bstar, p.k1 * (a - p.alpha_star), p.k2 * a)
+        )
         F = F + jnp.concatenate([p.k_ab * (b - a) - psi - p.sigma * b, p.k_ab * (a - b)]) + pert
         return jnp.concatenate([v, (F - eta * v) * inv_i])
 
@@ -100,14 +102,23 @@ def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
     points = []
     solvers = {"Tsit5": diffrax.Tsit5(), "Dopri8": diffrax.Dopri8()}
     for name, solver in solvers.items():
-        for rtol in (RTOLS_QUICK if quick else RTOLS):
+        for rtol in RTOLS_QUICK if quick else RTOLS:
             ctrl = diffrax.PIDController(rtol=rtol, atol=rtol * 1e-2)
 
             @jax.jit
             def seg_solve(y, pert, t0, t1, ts):
-                sol = diffrax.diffeqsolve(diffrax.ODETerm(rhs), solver, t0, t1, None, y, args=pert,
-                                          saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
-                                          max_steps=2_000_000)
+                sol = diffrax.diffeqsolve(
+                    diffrax.ODETerm(rhs),
+                    solver,
+                    t0,
+                    t1,
+                    None,
+                    y,
+                    args=pert,
+                    saveat=diffrax.SaveAt(ts=ts),
+                    stepsize_controller=ctrl,
+                    max_steps=2_000_000,
+                )
                 return sol.ys
 
             def run():
@@ -125,13 +136,14 @@ def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
                 run()
                 first = clock() - t0
                 y, w = best_time(run, repeat=3, budget_s=2.0)
-                err = max_err(y[:, :2 * n], ref_x)
-            except Exception as e:          # noqa: BLE001 - a failing peer is reported, not fatal
+                err = max_err(y[:, : 2 * n], ref_x)
+            except Exception as e:  # noqa: BLE001 - a failing peer is reported, not fatal
                 log(f"  diffrax {name} rtol {rtol:g}: {type(e).__name__}: {str(e).splitlines()[0][:120]}")
                 continue
             log(f"  diffrax {name} rtol {rtol:g}: compile {max(first - w, 0.0) * 1e3:.0f} ms, warm {w * 1e3:.1f} ms")
-            points.append(WPPoint(f"diffrax {name}", f"rtol={rtol:g}", w, err,
-                                  extra={"compile_s": max(first - w, 0.0)}))
+            points.append(
+                WPPoint(f"diffrax {name}", f"rtol={rtol:g}", w, err, extra={"compile_s": max(first - w, 0.0)})
+            )
     return points
 
 
@@ -153,13 +165,15 @@ def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
     segs = _segments(scene, t_eval)
     points = []
     for method in ("Adams", "BDF"):
-        for rtol in (RTOLS_QUICK if quick else RTOLS):
+        for rtol in RTOLS_QUICK if quick else RTOLS:
+
             def run():
                 y = np.asarray(y0, float)
                 ys = [y]
                 for a, b, te in segs:
                     sol = CVODE(f, method=method, rtol=rtol, atol=rtol * 1e-2, max_num_steps=10_000_000).solve(
-                        np.concatenate([[a], te]), y)
+                        np.concatenate([[a], te]), y
+                    )
                     if not sol.success:
                         raise RuntimeError(sol.message)
                     ys.extend(sol.y[1:])
@@ -169,7 +183,7 @@ def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
             try:
                 y, w = best_time(run, repeat=2, budget_s=1.0)
                 err = max_err(y[:, :n2], ref_x)
-            except Exception as e:          # noqa: BLE001
+            except Exception as e:  # noqa: BLE001
                 log(f"  CVODE {method} rtol {rtol:g}: {type(e).__name__}: {str(e).splitlines()[0][:120]}")
                 w, err = math.nan, math.inf
             points.append(WPPoint(f"CVODE {method}", f"rtol={rtol:g}", w, err))

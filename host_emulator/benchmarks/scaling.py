@@ -8,8 +8,6 @@ constant cost per cell-second; the spread max/min over the sizes is printed.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from .common import clock, fmt, table
 
 CELLS = (16, 64, 256, 1024, 4096)
@@ -41,6 +39,7 @@ def kernel_time(model_name, cells, t_end_s):
         if rc != m.lib.HE_OK:
             raise RuntimeError(f"{model_name} {cells} cells: rc {rc}")
         return clock() - t0
+
     return min(go() for _ in range(5))
 
 
@@ -66,18 +65,31 @@ def scaling(quick=False, log=print):
     spreads = {}
     for model_name in ("lattice", "hil"):
         per = [[], [], []]
-        for n in (CELLS if not quick else (16, 256, 4096)):
-            cs = 800.0 if model_name == "lattice" else 400.0      # cell-seconds per measurement
+        for n in CELLS if not quick else (16, 256, 4096):
+            cs = 800.0 if model_name == "lattice" else 400.0  # cell-seconds per measurement
             t_end = round(cs / n, 3)
-            walls = [kernel_time(model_name, n, t_end), e2e_time(model_name, n, t_end, 0.01),
-                     e2e_time(model_name, n, t_end, 0.1)]
-            c = [w / (n * t_end) * 1e6 for w in walls]             # us per cell-second
+            walls = [
+                kernel_time(model_name, n, t_end),
+                e2e_time(model_name, n, t_end, 0.01),
+                e2e_time(model_name, n, t_end, 0.1),
+            ]
+            c = [w / (n * t_end) * 1e6 for w in walls]  # us per cell-second
             for i in range(3):
                 per[i].append(c[i])
             rows.append([model_name, n, fmt(t_end), fmt(walls[0] * 1e3)] + [fmt(x) for x in c])
         spreads[model_name] = tuple(max(p) / min(p) for p in per)
-    out = table(rows, ["model", "cells", "sim s", "kernel cpu ms", "kernel us/cell-s",
-                       "run us/cell-s (10 ms samples)", "run us/cell-s (100 ms samples)"])
+    out = table(
+        rows,
+        [
+            "model",
+            "cells",
+            "sim s",
+            "kernel cpu ms",
+            "kernel us/cell-s",
+            "run us/cell-s (10 ms samples)",
+            "run us/cell-s (100 ms samples)",
+        ],
+    )
     # against simulated time (16 cells)
     trows = []
     for model_name in ("lattice", "hil"):

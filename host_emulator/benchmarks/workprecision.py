@@ -21,7 +21,7 @@ LATTICE_STEPPERS = ("euler", "symplectic_euler", "imex_euler", "noh_bathe", "rk4
 DT_GRID = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5, 3.125e-5)
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA")
 TARGET = 1e-4
-PEERS = ("scipy", "py-pde", "diffrax", "CVODE")   # method-name prefixes that are not ours
+PEERS = ("scipy", "py-pde", "diffrax", "CVODE")  # method-name prefixes that are not ours
 
 
 # ---------------------------------------------------------------- lattice
@@ -97,6 +97,7 @@ def numpy_rhs(scene):
         F, C = ref.forces(t, y[:n2])
         v = y[n2:]
         return np.concatenate([v, (F - C * v) * inv_i])
+
     return rhs
 
 
@@ -112,6 +113,7 @@ def compiled_rhs(scene):
         F, C = m.forces(t, y[:n2])
         v = y[n2:]
         return np.concatenate([v, (F - C * v) * inv_i])
+
     return rhs
 
 
@@ -123,8 +125,10 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
     t0 = time.perf_counter()
     ref, nfev = solve_segments(compiled_rhs(scene), y0, scene, t_eval, "DOP853", 1e-10, 1e-12)
     ref_x = ref[:, :n2]
-    log(f"  reference: DOP853 rtol 1e-10 atol 1e-12 on the compiled rhs, {nfev} rhs calls, "
-        f"{time.perf_counter() - t0:.2f} s")
+    log(
+        f"  reference: DOP853 rtol 1e-10 atol 1e-12 on the compiled rhs, {nfev} rhs calls, "
+        f"{time.perf_counter() - t0:.2f} s"
+    )
     points: list[WPPoint] = []
     from ..models.lattice import LatticeModel
 
@@ -143,8 +147,9 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
     for meth in SCIPY_METHODS:
         for rtol in rtols:
             try:
-                (y, nf), w = best_time(lambda: solve_segments(rhs, y0, scene, t_eval, meth, rtol, rtol * 1e-2),
-                                       repeat=2, budget_s=1.0)
+                (y, nf), w = best_time(
+                    lambda: solve_segments(rhs, y0, scene, t_eval, meth, rtol, rtol * 1e-2), repeat=2, budget_s=1.0
+                )
                 err = max_err(y[:, :n2], ref_x)
             except RuntimeError as e:
                 w, err, nf = math.nan, math.inf, 0
@@ -184,8 +189,9 @@ HIL_STEPPERS = ("symplectic_euler", "imex_euler", "noh_bathe", "rk4")
 def run_hil(scene, stepper, substeps):
     from ..models.hil import HilModel
 
-    model = HilModel(scene.params, scene.perturbations, replace(scene.options, stepper=stepper, substeps=substeps,
-                                                                dt=None))
+    model = HilModel(
+        scene.params, scene.perturbations, replace(scene.options, stepper=stepper, substeps=substeps, dt=None)
+    )
     return _sampled_states(model.solver(), scene.t_end_s, model.n)
 
 
@@ -196,7 +202,9 @@ def hil_workprecision(t_end_s=3.0, quick=False, log=print):
 
     scene = load_scene("default", [f"t_end_s={t_end_s}"])
     ref = run_hil(scene, "rk4", 64)
-    log(f"  reference: the same hil loop, rk4, 64 plant steps per control tick ({1 / scene.params.control_rate_hz / 64:.3g} s)")
+    log(
+        f"  reference: the same hil loop, rk4, 64 plant steps per control tick ({1 / scene.params.control_rate_hz / 64:.3g} s)"
+    )
     points = []
     subs = (1, 2, 4, 8) if not quick else (1, 4)
     for st in HIL_STEPPERS:
@@ -204,7 +212,7 @@ def hil_workprecision(t_end_s=3.0, quick=False, log=print):
             try:
                 x, w = best_time(lambda: run_hil(scene, st, m), repeat=3)
                 err = max_err(x, ref)
-            except ValueError as e:          # sub-step above the stable limit
+            except ValueError as e:  # sub-step above the stable limit
                 log(f"  hil {st} x{m}: {e}")
                 continue
             points.append(WPPoint(st, f"substeps={m}", w, err))

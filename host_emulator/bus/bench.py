@@ -1,6 +1,6 @@
 """Benchmark: full-lattice sample rate the I2C bus allows (from the transaction bytes) vs what the compiled primary schedule reaches in the emulator.
 
-    python -m host_emulator.bus.bench [--seconds 5]
+python -m host_emulator.bus.bench [--seconds 5]
 """
 
 from __future__ import annotations
@@ -31,8 +31,7 @@ def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, di
             kind, j = proto.frame_kind(fid)
             if kind == "CELL_SAMPLE":
                 per_cell[j] += 1
-    return ((rig.p.cycles - c0) / seconds, time.perf_counter() - t0, rig,
-            {j: c / seconds for j, c in per_cell.items()})
+    return ((rig.p.cycles - c0) / seconds, time.perf_counter() - t0, rig, {j: c / seconds for j, c in per_cell.items()})
 
 
 def main(argv=None) -> int:
@@ -46,21 +45,29 @@ def main(argv=None) -> int:
         tm = I2CTiming(hz)
         limit = lattice_rate_limit(hz)
         rate, wall, rig, _ = measure(hz, args.seconds)
-        print(f"I2C {hz // 1000} kHz: snapshot read = {n} bytes = {tm.bits(n)} bit periods "
-              f"({tm.transaction_s(n) * 1e6:.1f} us incl. t_BUF) per cell, {proto.N_CELLS} cells")
+        print(
+            f"I2C {hz // 1000} kHz: snapshot read = {n} bytes = {tm.bits(n)} bit periods "
+            f"({tm.transaction_s(n) * 1e6:.1f} us incl. t_BUF) per cell, {proto.N_CELLS} cells"
+        )
         print(f"  bus-limited full-lattice rate : {limit:8.2f} Hz")
-        print(f"  emulated primary schedule     : {rate:8.2f} Hz  = {100 * rate / limit:.1f} % of the limit "
-              f"(sw overhead {rig.opts.sw_overhead_us} us/transaction; {wall / args.seconds:.3f} s wall per s)")
+        print(
+            f"  emulated primary schedule     : {rate:8.2f} Hz  = {100 * rate / limit:.1f} % of the limit "
+            f"(sw overhead {rig.opts.sw_overhead_us} us/transaction; {wall / args.seconds:.3f} s wall per s)"
+        )
     rate, _, _, _ = measure(400_000, args.seconds, sw_overhead_us=40, stretch_us=20)
-    print(f"400 kHz, pessimistic glue (40 us software per transaction, 20 us clock stretch per read): "
-          f"{rate:.2f} Hz = {100 * rate / lattice_rate_limit(400_000):.1f} % of the limit")
+    print(
+        f"400 kHz, pessimistic glue (40 us software per transaction, 20 us clock stretch per read): "
+        f"{rate:.2f} Hz = {100 * rate / lattice_rate_limit(400_000):.1f} % of the limit"
+    )
     bad = (3, 7, 11)
     _, _, rig, per = measure(400_000, args.seconds, absent=(3,), stuck=(7,), babble=(11,))
     worst = min(r for j, r in per.items() if j not in bad)
-    print(f"400 kHz with cell 3 absent, 7 stuck, 11 babbling: every other cell still gets >= {worst:.2f} samples/s "
-          f"({100 * worst / lattice_rate_limit(400_000):.1f} % of the healthy bus limit); "
-          f"timeouts {rig.p.cell[6].timeout}, skipped {rig.p.cell[6].skipped}, "
-          f"NACKs {rig.p.cell[2].nack}, integrity errors {rig.p.cell[10].integrity}")
+    print(
+        f"400 kHz with cell 3 absent, 7 stuck, 11 babbling: every other cell still gets >= {worst:.2f} samples/s "
+        f"({100 * worst / lattice_rate_limit(400_000):.1f} % of the healthy bus limit); "
+        f"timeouts {rig.p.cell[6].timeout}, skipped {rig.p.cell[6].skipped}, "
+        f"NACKs {rig.p.cell[2].nack}, integrity errors {rig.p.cell[10].integrity}"
+    )
     return 0
 
 

@@ -28,9 +28,9 @@ from .i2c import I2CTiming
 @dataclass
 class BusOptions:
     i2c_hz: int = 400_000
-    period_us: int = 0                 # full-cycle period, 0 = back to back
-    sw_overhead_us: int = 10           # primary software time per transaction
-    stretch_us: int = 0                # SCL held by a secondary while its onRequest runs
+    period_us: int = 0  # full-cycle period, 0 = back to back
+    sw_overhead_us: int = 10  # primary software time per transaction
+    stretch_us: int = 0  # SCL held by a secondary while its onRequest runs
     txn_timeout_us: int | None = None  # default: 2 x longest block read + 200 us
     ack_timeout_us: int = 50_000
     status_every: int = 64
@@ -59,34 +59,42 @@ class EmulatedRig:
         self.tick_us = 1_000_000 // rate
         self.regs = ffi.new("mc_regs_t[]", self.n)
         for j in range(self.n):
-            if lib.mc_regs_init(self.regs + j, solver.cells + j, lib.MC_ADDR_BASE + j, opts.build,
-                                solver.model.phys) != lib.MC_OK:
+            if (
+                lib.mc_regs_init(self.regs + j, solver.cells + j, lib.MC_ADDR_BASE + j, opts.build, solver.model.phys)
+                != lib.MC_OK
+            ):
                 raise ValueError("register handler refused its address")
         self.link = ffi.new("mc_link_t *")
         lib.mc_link_init(self.link, 0)
         longest = max(lib.MC_BLK_SNAPSHOT_LEN, lib.MC_BLK_PARAMS_LEN, lib.MC_BLK_IDENT_LEN, lib.MC_WRITE_MAX_LEN)
         tmo = opts.txn_timeout_us or int(2e6 * self.timing.transaction_s(longest)) + 200
-        if lib.mc_primary_configure(ffi.addressof(self.link, "p"), opts.period_us, tmo, opts.ack_timeout_us,
-                                    opts.status_every) != 0:
-            raise ValueError(f"primary refused period_us={opts.period_us}, txn_timeout_us={tmo}, "
-                             f"ack_timeout_us={opts.ack_timeout_us}, status_every={opts.status_every}")
+        if (
+            lib.mc_primary_configure(
+                ffi.addressof(self.link, "p"), opts.period_us, tmo, opts.ack_timeout_us, opts.status_every
+            )
+            != 0
+        ):
+            raise ValueError(
+                f"primary refused period_us={opts.period_us}, txn_timeout_us={tmo}, "
+                f"ack_timeout_us={opts.ack_timeout_us}, status_every={opts.status_every}"
+            )
         self.p = ffi.addressof(self.link, "p")
         self.txn = ffi.new("mc_txn_t *")
         self.rxbuf = ffi.new("uint8_t[64]")
         self.outbuf = ffi.new("char[]", 8192)
         self.replybuf = ffi.new("char[]", 4096)
         self.used = ffi.new("uint32_t *")
-        self._early = bytearray()     # frames drained while feeding input
+        self._early = bytearray()  # frames drained while feeding input
         self.qa = ffi.new("mc_quad_snap_t *")
         self.qb = ffi.new("mc_quad_snap_t *")
         self.rng = random.Random(opts.seed)
         self.t_us = 0
         self.next_tick_us = 0
         self.published_tick = [-1] * self.n
-        self.bus_free_us = 0          # when the primary may start its next transaction
-        self.pending = []             # (time_us, kind, payload) of the transaction in flight
+        self.bus_free_us = 0  # when the primary may start its next transaction
+        self.pending = []  # (time_us, kind, payload) of the transaction in flight
         self.ticks = 0
-        self.band_stops = 0           # plant range stops turned into runaway faults
+        self.band_stops = 0  # plant range stops turned into runaway faults
         self.transactions = 0
         self.bus_busy_us = 0.0
 
@@ -102,12 +110,12 @@ class EmulatedRig:
             if self.regs[j].rx_full:
                 self._snap(j)
                 lib.mc_regs_apply(self.regs + j, self.solver.cells + j, self.qa, self.qb)
-        ev = self.solver.events   # scene perturbations with perturb_via = "firmware"
+        ev = self.solver.events  # scene perturbations with perturb_via = "firmware"
         while ev and ev[0][0] <= self.solver.tick:
             _, j, ch, unm, nt = ev.pop(0)
             lib.mc_cell_perturb(self.solver.cells + j, ch, unm, nt)
         try:
-            self.solver._run(1)   # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
+            self.solver._run(1)  # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
         except NumericalInstability:
             if not self._band_stop():
                 raise
@@ -125,7 +133,7 @@ class EmulatedRig:
         where = self.ffi.new("int *", -1)
         n = self.n
         hit = False
-        for _ in range(8 * n):       # each pass puts one pair back; neighbours may follow
+        for _ in range(8 * n):  # each pass puts one pair back; neighbours may follow
             if lib.he_plant_range_check(plant, sol._px, where) != lib.HE_ERR_BAND or where[0] < 0:
                 break
             ch, j = divmod(where[0], n)
@@ -171,8 +179,10 @@ class EmulatedRig:
             self.pending = [(now + t.timeout_us, "done", (lib.MC_I2C_TIMEOUT, b""))]
         elif kind == lib.MC_TXN_READ:
             dur = tm.transaction_s(nbytes) + self.opts.stretch_us * 1e-6
-            self.pending = [(now + round(tm.request_offset_s() * 1e6), "request", (j, nbytes)),
-                            (now + round(dur * 1e6), "done", None)]
+            self.pending = [
+                (now + round(tm.request_offset_s() * 1e6), "request", (j, nbytes)),
+                (now + round(dur * 1e6), "done", None),
+            ]
         else:
             dur = tm.transaction_s(nbytes)
             data = bytes(self.ffi.buffer(t.buf, nbytes))
@@ -206,7 +216,7 @@ class EmulatedRig:
                 now = max(self.bus_free_us, self.t_us)
                 self.t_us = now
                 if not self._start(now) and not self._start(now):
-                    self.bus_free_us = now + 20   # primary idle (period not due): look again in 20 us
+                    self.bus_free_us = now + 20  # primary idle (period not due): look again in 20 us
                 continue
             t_bus = self.pending[0][0] if self.pending else None
             if t_bus is not None and t_bus < self.next_tick_us and t_bus <= t_end_us:
@@ -220,7 +230,7 @@ class EmulatedRig:
                 return
 
     # ---- laptop side ---------------------------------------------------------
-    USB_CHUNK = 64   # bytes the primary takes from USB between two queue drains (one CDC packet)
+    USB_CHUNK = 64  # bytes the primary takes from USB between two queue drains (one CDC packet)
 
     def feed(self, data: bytes) -> bytes:
         """Bytes from the laptop at the current time; returns the SLCAN replies.
@@ -229,11 +239,12 @@ class EmulatedRig:
         firmware's loop does; the drained frames come out of the next drain()."""
         out = bytearray()
         while data:
-            piece = data[:self.USB_CHUNK]
-            n = self.lib.mc_link_rx(self.link, self.t_us & 0xFFFFFFFF, piece, len(piece), self.used,
-                                    self.replybuf, len(self.replybuf))
+            piece = data[: self.USB_CHUNK]
+            n = self.lib.mc_link_rx(
+                self.link, self.t_us & 0xFFFFFFFF, piece, len(piece), self.used, self.replybuf, len(self.replybuf)
+            )
             out += self.ffi.buffer(self.replybuf, n)
-            data = data[self.used[0]:]
+            data = data[self.used[0] :]
             if len(data):
                 self._early += self._drain()
         return bytes(out)
@@ -268,6 +279,7 @@ class EmulatedRig:
     def angles(self):
         """Plant angles (alpha, beta) in counts."""
         import math
+
         n = self.n
         k = 400 / (2 * math.pi)
         return [x * k for x in self.solver.x[:n]], [x * k for x in self.solver.x[n:]]
@@ -280,6 +292,6 @@ def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overri
 
     sc = load_scene(scene_name, overrides)
     if sc.model != "hil":
-        raise ValueError(f"scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = \"hil\"")
+        raise ValueError(f'scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = "hil"')
     model = HilModel(sc.params, list(sc.perturbations), sc.options)
     return EmulatedRig(model.solver(), opts), sc

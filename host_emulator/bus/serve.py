@@ -24,8 +24,8 @@ import tty
 from ..models.plant import NumericalInstability
 from .rig import BusOptions, make_rig
 
-CHUNK_S = 0.005          # simulated time advanced per loop pass
-BACKLOG_MAX = 1 << 16    # bytes kept for a slow reader before new output is dropped
+CHUNK_S = 0.005  # simulated time advanced per loop pass
+BACKLOG_MAX = 1 << 16  # bytes kept for a slow reader before new output is dropped
 
 
 def _cells(text: str) -> tuple:
@@ -34,7 +34,7 @@ def _cells(text: str) -> tuple:
     try:
         cells = ()
         for part in (p.strip() for p in text.split(",")):
-            lo, sep, hi = part.partition("-")          # "3-5" is cells 3, 4, 5
+            lo, sep, hi = part.partition("-")  # "3-5" is cells 3, 4, 5
             a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
             cells += tuple(range(a, b + 1))
         if not cells:
@@ -48,8 +48,10 @@ def _cells(text: str) -> tuple:
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator serve",
-                                 description="Serve the emulated rig's primary as an SLCAN device on a pseudo-terminal.")
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator serve",
+        description="Serve the emulated rig's primary as an SLCAN device on a pseudo-terminal.",
+    )
     ap.add_argument("scene", nargs="?", default="default", help="hil scene name or .toml path (default: default)")
     ap.add_argument("--slcan", action="store_true", help="speak SLCAN on a pty (the only mode; accepted for clarity)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
@@ -91,16 +93,20 @@ def serve_main(argv=None) -> int:
         print(f"serve: {problem}", file=sys.stderr)
         return 2
     try:
-        rig, scene = make_rig(args.scene, BusOptions(i2c_hz=args.i2c_hz, period_us=args.period_us,
-                                                     absent=args.absent, stuck=args.stuck, babble=args.babble),
-                              args.set)
+        rig, scene = make_rig(
+            args.scene,
+            BusOptions(
+                i2c_hz=args.i2c_hz, period_us=args.period_us, absent=args.absent, stuck=args.stuck, babble=args.babble
+            ),
+            args.set,
+        )
     except (ValueError, KeyError, OSError) as e:
         print(f"serve: {e}", file=sys.stderr)
         return 2
     master, slave, path = open_pty()
     os.close(slave)
     slave = None
-    client = False     # a client holds the pty open (reads of the master do not fail with EIO)
+    client = False  # a client holds the pty open (reads of the master do not fail with EIO)
     sessions = 0
     if args.link:
         try:
@@ -132,7 +138,7 @@ def serve_main(argv=None) -> int:
                     raise
                 data = b""
                 present = e.errno == errno.EAGAIN
-            if present != client:      # a client opened or closed the port: new session
+            if present != client:  # a client opened or closed the port: new session
                 client = present
                 sessions += present
                 rig.session()
@@ -141,7 +147,7 @@ def serve_main(argv=None) -> int:
                 backlog += rig.feed(data)
             out = rig.drain()
             if len(backlog) + len(out) > BACKLOG_MAX:
-                dropped += len(out)      # nobody reads: drop new output (gaps show in seq)
+                dropped += len(out)  # nobody reads: drop new output (gaps show in seq)
             else:
                 backlog += out
             if backlog and client:
@@ -167,10 +173,13 @@ def serve_main(argv=None) -> int:
                 pass
         os.close(master)
     p = rig.p
-    print(f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
-          f"{sessions} client sessions, {dropped} bytes dropped (slow reader), {p.tx_drop} frames dropped "
-          f"(queue full), {p.no_room} commands answered NO_ROOM, {p.ans_drop} answers dropped, "
-          f"{rig.band_stops} plant range stops reported as runaway faults", flush=True)
+    print(
+        f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
+        f"{sessions} client sessions, {dropped} bytes dropped (slow reader), {p.tx_drop} frames dropped "
+        f"(queue full), {p.no_room} commands answered NO_ROOM, {p.ans_drop} answers dropped, "
+        f"{rig.band_stops} plant range stops reported as runaway faults",
+        flush=True,
+    )
     return status
 
 

@@ -13,15 +13,26 @@ def make_model(name: str, params, perturbations=(), options: ModelOptions | None
     """Instantiate a model by name (the continuum model is imported lazily: it needs scipy only)."""
     if name == "lattice":
         from .lattice import LatticeModel
+
         return LatticeModel(params, perturbations, options)
     if name == "hil":
         from .hil import HilModel
+
         return HilModel(params, perturbations, options)
     if name == "continuum":
         from .continuum_adapter import ContinuumModel
+
         return ContinuumModel(params, perturbations, options)
     raise ConfigError(f"model = {name!r}: expected one of {', '.join(MODELS)}")
 
 
-__all__ = ["MODELS", "make_model", "ModelOptions", "NoiseOptions", "Perturbation", "ConfigError",
-           "NumericalInstability", "STEPPERS"]
+__all__ = [
+    "MODELS",
+    "make_model",
+    "ModelOptions",
+    "NoiseOptions",
+    "Perturbation",
+    "ConfigError",
+    "NumericalInstability",
+    "STEPPERS",
+]

@@ -47,8 +47,9 @@ def validate_perturbations(perturbations, cells):
         missing = _PERT_KEYS - set(p)
         extra = set(p) - _PERT_KEYS
         if missing or extra:
-            raise ValueError(f"{where}: missing {sorted(missing)} unknown {sorted(extra)}; "
-                             f"keys are {sorted(_PERT_KEYS)}")
+            raise ValueError(
+                f"{where}: missing {sorted(missing)} unknown {sorted(extra)}; keys are {sorted(_PERT_KEYS)}"
+            )
         cell = p["cell"]
         if isinstance(cell, bool) or not isinstance(cell, (int, np.integer)) or not 1 <= cell <= cells:
             raise ValueError(f"{where}: cell={cell!r} must be an integer in 1..{cells}")
@@ -73,7 +74,7 @@ def _psi_prime_and_slope(params, a):
     k1, k2, ast = params.k1, params.k2, params.alpha_star
     if k1 == k2:
         return k2 * a, np.full_like(a, k2)
-    b = k1 * ast / (k1 - k2)                           # breakpoint |alpha| = k1 alpha* / (k1 - k2)
+    b = k1 * ast / (k1 - k2)  # breakpoint |alpha| = k1 alpha* / (k1 - k2)
     outer = np.abs(a) > b
     pp = np.where(outer, k1 * (a - np.sign(a) * ast), k2 * a)
     return pp, np.where(outer, k1, k2)
@@ -105,8 +106,20 @@ def _check_params(params):
         raise ValueError("invalid parameters for the continuum model: " + "; ".join(bad))
 
 
-def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, points_per_cell=4,
-                       rtol=1e-6, atol=1e-9, initial=None, max_angle_rad=1e4, method="BDF"):
+def simulate_continuum(
+    params,
+    cells,
+    t_end_s,
+    perturbations,
+    *,
+    dt_out_s=0.01,
+    points_per_cell=4,
+    rtol=1e-6,
+    atol=1e-9,
+    initial=None,
+    max_angle_rad=1e4,
+    method="BDF",
+):
     """Integrate the PDE from rest (or ``initial``) and return (t, alpha, beta) sampled at the cell centres.
 
     t: (T,) s from 0 to t_end_s every dt_out_s (t_end_s included); alpha, beta: (T, cells) rad.
@@ -123,8 +136,7 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
         raise ValueError(f"t_end_s={t_end_s!r} must be finite and > 0")
     if not (math.isfinite(dt_out_s) and 0 < dt_out_s <= t_end_s):
         raise ValueError(f"dt_out_s={dt_out_s!r} must be in (0, t_end_s]")
-    if isinstance(points_per_cell, bool) or not isinstance(points_per_cell, (int, np.integer)) \
-            or points_per_cell < 1:
+    if isinstance(points_per_cell, bool) or not isinstance(points_per_cell, (int, np.integer)) or points_per_cell < 1:
         raise ValueError(f"points_per_cell={points_per_cell!r} must be a positive integer")
     pert = validate_perturbations(perturbations, cells)
 
@@ -138,8 +150,8 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
     da = (params.ka_eff / ea) * lap
     db = (params.kb_eff / eb) * lap
     eye = sp.identity(n, format="csr")
-    c_ab = sp.csr_matrix(eye * ((kab - sig) / ea))     # d(alpha_t)/d(beta)
-    c_ba = sp.csr_matrix(eye * (kab / eb))             # d(beta_t)/d(alpha)
+    c_ab = sp.csr_matrix(eye * ((kab - sig) / ea))  # d(alpha_t)/d(beta)
+    c_ba = sp.csr_matrix(eye * (kab / eb))  # d(beta_t)/d(alpha)
     jbb = db - eye * (kab / eb)
 
     y0 = np.zeros(2 * n)
@@ -171,6 +183,7 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
             at = da @ a + (kab * (b - a) - pp - sig * b) / ea + fa
             bt = db @ b + (kab * (a - b)) / eb + fb
             return np.concatenate([at, bt])
+
         return rhs
 
     def jac(_t, y):
@@ -181,7 +194,7 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
     # output times and segment boundaries (perturbation switch-on/off)
     n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
     t_out = np.arange(n_out) * dt_out_s
-    t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)   # t_end exactly, never beyond
+    t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)  # t_end exactly, never beyond
     cuts = {0.0, t_end_s}
     for p in pert:
         for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
@@ -195,20 +208,30 @@ def simulate_continuum(params, cells, t_end_s, perturbations, *, dt_out_s=0.01, 
     for t0, t1 in zip(cuts[:-1], cuts[1:]):
         fa, fb = forcing(0.5 * (t0 + t1))
         sel = np.nonzero((t_out > t0) & (t_out <= t1))[0]
-        sol = solve_ivp(make_rhs(fa, fb), (t0, t1), y, method=method, jac=jac, rtol=rtol, atol=atol,
-                        t_eval=np.append(t_out[sel], t1) if sel.size == 0 or t_out[sel[-1]] != t1 else t_out[sel])
+        sol = solve_ivp(
+            make_rhs(fa, fb),
+            (t0, t1),
+            y,
+            method=method,
+            jac=jac,
+            rtol=rtol,
+            atol=atol,
+            t_eval=np.append(t_out[sel], t1) if sel.size == 0 or t_out[sel[-1]] != t1 else t_out[sel],
+        )
         if not sol.success:
             raise ContinuumError(f"continuum solver failed at t = {sol.t[-1]:.6g} s: {sol.message}")
         if not np.all(np.isfinite(sol.y)):
             raise ContinuumError(f"continuum state became non-finite in [{t0:.6g}, {t1:.6g}] s")
         peak = float(np.max(np.abs(sol.y)))
         if peak > max_angle_rad:
-            raise ContinuumError(f"continuum state diverged: |angle| = {peak:.3g} rad > {max_angle_rad:g} rad "
-                                 f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)")
-        ys[sel] = sol.y[:, :sel.size].T
+            raise ContinuumError(
+                f"continuum state diverged: |angle| = {peak:.3g} rad > {max_angle_rad:g} rad "
+                f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)"
+            )
+        ys[sel] = sol.y[:, : sel.size].T
         y = sol.y[:, -1]
 
-    if not np.all(np.isfinite(ys)):            # every output row must have been written
+    if not np.all(np.isfinite(ys)):  # every output row must have been written
         raise ContinuumError("internal error: some output times were not reached by the integration")
 
     # linear interpolation of the grid to the cell centres x_c = j - 1/2

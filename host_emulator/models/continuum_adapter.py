@@ -29,8 +29,11 @@ class ContinuumSolver:
         self.dt_out = model.options.dt_out
 
     def info(self) -> dict:
-        return {"stepper": "scipy BDF (continuum)", "dt_out_s": self.dt_out,
-                "points_per_cell": self.model.options.points_per_cell}
+        return {
+            "stepper": "scipy BDF (continuum)",
+            "dt_out_s": self.dt_out,
+            "points_per_cell": self.model.options.points_per_cell,
+        }
 
     def run_all(self, t_end_s: float):
         try:
@@ -39,8 +42,14 @@ class ContinuumSolver:
             raise RuntimeError(f"continuum model unavailable: {e}") from e
         m = self.model
         try:
-            t, a, b = simulate_continuum(m.params, m.n, t_end_s, [q.as_dict() for q in m.perturbations],
-                                         dt_out_s=self.dt_out, points_per_cell=m.options.points_per_cell)
+            t, a, b = simulate_continuum(
+                m.params,
+                m.n,
+                t_end_s,
+                [q.as_dict() for q in m.perturbations],
+                dt_out_s=self.dt_out,
+                points_per_cell=m.options.points_per_cell,
+            )
         except (ArithmeticError, FloatingPointError) as e:
             raise NumericalInstability(f"continuum: {e}") from e
         except RuntimeError as e:

@@ -42,21 +42,24 @@ class HilModel(LatticeModel):
     ideal_reaction = False
 
     def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
-        super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [],
-                         options)
+        super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [], options)
         self.all_perturbations = list(perturbations)
         self.phys, self.drive_cfg = firmware_config(self.ffi, self.lib, params)
         # trial configuration, so bad parameters fail here with the firmware's verdict
         c = self.ffi.new("mc_cell_t *")
         self.lib.mc_cell_init(c)
         if self.lib.mc_cell_set_params(c, self.phys) != self.lib.MC_OK:
-            raise ValueError("firmware rejected the reaction parameters (|k| <= 0.25 N*m/rad, 0 <= alpha_star <= 2 pi, "
-                             f"k1 > max(k2, 0)): k_ab={params.k_ab}, sigma={params.sigma}, k1={params.k1}, "
-                             f"k2={params.k2}, alpha_star={params.alpha_star}")
+            raise ValueError(
+                "firmware rejected the reaction parameters (|k| <= 0.25 N*m/rad, 0 <= alpha_star <= 2 pi, "
+                f"k1 > max(k2, 0)): k_ab={params.k_ab}, sigma={params.sigma}, k1={params.k1}, "
+                f"k2={params.k2}, alpha_star={params.alpha_star}"
+            )
         if self.lib.mc_cell_set_drive(c, self.drive_cfg) != self.lib.MC_OK:
-            raise ValueError("firmware rejected the drive configuration (control_rate_hz 100..50000, pwm_top "
-                             f"255..4095, vmax_v <= 5.86 and <= supply_v): control_rate_hz={params.control_rate_hz}, "
-                             f"pwm_top={params.pwm_top}, vmax_v={params.vmax_v}, supply_v={params.supply_v}")
+            raise ValueError(
+                "firmware rejected the drive configuration (control_rate_hz 100..50000, pwm_top "
+                f"255..4095, vmax_v <= 5.86 and <= supply_v): control_rate_hz={params.control_rate_hz}, "
+                f"pwm_top={params.pwm_top}, vmax_v={params.vmax_v}, supply_v={params.supply_v}"
+            )
         self.rate_hz = int(self.drive_cfg.ctrl_rate_hz)
 
     def step_limit(self, stepper: str | None = None) -> tuple[float, str]:
@@ -69,7 +72,7 @@ class HilModel(LatticeModel):
             lims.append(super().step_limit(stepper))
         return min(lims)
 
-    def solver(self, x0=None, v0=None) -> "HilSolver":
+    def solver(self, x0=None, v0=None) -> HilSolver:
         return HilSolver(self, x0, v0)
 
 
@@ -90,9 +93,11 @@ class HilSolver:
         if opt.substeps is not None:
             self.substeps = opt.substeps
             if tick / self.substeps > self.limit:
-                raise ValueError(f"model_options.substeps = {opt.substeps}: plant step {tick / opt.substeps:.4g} s "
-                                 f"exceeds the stable limit {self.limit:.4g} s of stepper {opt.stepper!r} "
-                                 f"({self.limit_chain} chain)")
+                raise ValueError(
+                    f"model_options.substeps = {opt.substeps}: plant step {tick / opt.substeps:.4g} s "
+                    f"exceeds the stable limit {self.limit:.4g} s of stepper {opt.stepper!r} "
+                    f"({self.limit_chain} chain)"
+                )
         else:
             _, self.substeps = choose_step(self.limit, tick, opt.dt, opt.stepper, self.limit_chain)
         self.ticks_per_out = max(1, round(opt.dt_out * model.rate_hz))
@@ -144,21 +149,31 @@ class HilSolver:
             for q in model.all_perturbations:
                 unm = round(q.torque_Nm * 1e6)
                 if abs(unm) > 131000:
-                    raise ValueError(f"perturbation torque {q.torque_Nm} N*m: the firmware accepts |torque| <= 0.131 N*m")
+                    raise ValueError(
+                        f"perturbation torque {q.torque_Nm} N*m: the firmware accepts |torque| <= 0.131 N*m"
+                    )
                 k0 = round(q.start_s * model.rate_hz)
-                self.events.append((k0, q.cell - 1, 0 if q.chain == "alpha" else 1, unm,
-                                    max(1, round(q.duration_s * model.rate_hz))))
+                self.events.append(
+                    (k0, q.cell - 1, 0 if q.chain == "alpha" else 1, unm, max(1, round(q.duration_s * model.rate_hz)))
+                )
             self.events.sort()
         self.tick = 0
         self.t = 0.0
 
     def info(self) -> dict:
-        return {"stepper": self.stepper, "dt_s": 1.0 / self.model.rate_hz / self.substeps,
-                "substeps_per_tick": self.substeps, "control_rate_hz": self.model.rate_hz,
-                "stable_step_limit_s": self.limit, "limit_chain": self.limit_chain, "dt_out_s": self.dt_out,
-                "perturb_via": self.model.options.perturb_via,
-                "faults": int(self.h.fault_or), "encoder_errors": self.encoder_errors(),
-                "glitches_injected": int(self.h.glitches)}
+        return {
+            "stepper": self.stepper,
+            "dt_s": 1.0 / self.model.rate_hz / self.substeps,
+            "substeps_per_tick": self.substeps,
+            "control_rate_hz": self.model.rate_hz,
+            "stable_step_limit_s": self.limit,
+            "limit_chain": self.limit_chain,
+            "dt_out_s": self.dt_out,
+            "perturb_via": self.model.options.perturb_via,
+            "faults": int(self.h.fault_or),
+            "encoder_errors": self.encoder_errors(),
+            "glitches_injected": int(self.h.glitches),
+        }
 
     def encoder_errors(self) -> int:
         return int(sum(self.quad[i].errors for i in range(2 * self.model.n)))
@@ -173,7 +188,8 @@ class HilSolver:
     def _error(self, rc, samples=None) -> NumericalInstability:
         err = NumericalInstability(
             f"hil: {error_text(self.model.lib, rc)} at t = {self._pt[0]:.6g} s (stepper {self.stepper}, "
-            f"{self.substeps} plant steps per control tick, stable limit {self.limit:.3g} s); numerically unstable")
+            f"{self.substeps} plant steps per control tick, stable limit {self.limit:.3g} s); numerically unstable"
+        )
         err.samples = samples
         return err
 
@@ -208,23 +224,24 @@ class HilSolver:
             raise ValueError(f"k_max = {k_max}: must be >= 1")
         m = self.model
         ffi, lib, n, tpo = m.ffi, m.lib, m.n, self.ticks_per_out
-        while self.events and self.events[0][0] <= self.tick:      # commands due now, as advance() applies them
+        while self.events and self.events[0][0] <= self.tick:  # commands due now, as advance() applies them
             _, j, ch, unm, nt = self.events.pop(0)
             lib.mc_cell_perturb(self.cells + j, ch, unm, nt)
         free = k_max
-        if self.events:                                              # samples ending at or before the next command
+        if self.events:  # samples ending at or before the next command
             free = min(free, (self.events[0][0] - self.tick) // tpo)
-        if free < 1:                                                 # a command inside the next sample
+        if free < 1:  # a command inside the next sample
             self.advance()
             a, b = self.state()
             return np.array([self.t]), a[None, :], b[None, :]
         buf = np.empty((free, 2 * n))
         done = ffi.new("int64_t *", 0)
         tick0 = self.tick
-        rc = lib.he_hil_run_sampled(self.h, tick0, m.rate_hz, tpo, free, self._pt, self._px, self._pv,
-                                    ffi.from_buffer("double[]", buf), done)
+        rc = lib.he_hil_run_sampled(
+            self.h, tick0, m.rate_hz, tpo, free, self._pt, self._px, self._pv, ffi.from_buffer("double[]", buf), done
+        )
         k = int(done[0])
-        t = np.arange(tick0 + tpo, tick0 + (k + 1) * tpo, tpo)[:k] / m.rate_hz   # tick / rate_hz, as advance()
+        t = np.arange(tick0 + tpo, tick0 + (k + 1) * tpo, tpo)[:k] / m.rate_hz  # tick / rate_hz, as advance()
         out = (t, buf[:k, :n], buf[:k, n:])
         self.tick = tick0 + k * tpo
         if rc != lib.HE_OK:

@@ -28,8 +28,9 @@ class LatticeModel:
         self.options = options or ModelOptions()
         self.perturbations = list(perturbations)
         self.ffi, self.lib = firmware.load()
-        self.plant = build_plant(self.ffi, self.lib, params, self.options, self.n, self.perturbations,
-                                 ideal_reaction=self.ideal_reaction)
+        self.plant = build_plant(
+            self.ffi, self.lib, params, self.options, self.n, self.perturbations, ideal_reaction=self.ideal_reaction
+        )
 
     def forces(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = np.ascontiguousarray(x, dtype=float)
@@ -38,15 +39,20 @@ class LatticeModel:
         F = np.empty(2 * self.n)
         C = np.empty(2 * self.n)
         ffi = self.ffi
-        self.lib.he_plant_forces(self.plant, float(t), ffi.from_buffer("double[]", x),
-                                 ffi.from_buffer("double[]", F), ffi.from_buffer("double[]", C))
+        self.lib.he_plant_forces(
+            self.plant,
+            float(t),
+            ffi.from_buffer("double[]", x),
+            ffi.from_buffer("double[]", F),
+            ffi.from_buffer("double[]", C),
+        )
         return F, C
 
     def step_limit(self, stepper: str | None = None) -> tuple[float, str]:
         sid = stepper_id(self.lib, stepper or self.options.stepper)
         return step_limit(self.ffi, self.lib, self.plant, sid)
 
-    def solver(self, x0=None, v0=None) -> "LatticeSolver":
+    def solver(self, x0=None, v0=None) -> LatticeSolver:
         return LatticeSolver(self, x0, v0)
 
 
@@ -72,8 +78,14 @@ class LatticeSolver:
         self._pt = ffi.new("double *", 0.0)
 
     def info(self) -> dict:
-        return {"stepper": self.stepper, "dt_s": self.h, "steps_per_sample": self.nsub,
-                "stable_step_limit_s": self.limit, "limit_chain": self.limit_chain, "dt_out_s": self.dt_out}
+        return {
+            "stepper": self.stepper,
+            "dt_s": self.h,
+            "steps_per_sample": self.nsub,
+            "stable_step_limit_s": self.limit,
+            "limit_chain": self.limit_chain,
+            "dt_out_s": self.dt_out,
+        }
 
     def state(self):
         n = self.model.n
@@ -84,7 +96,8 @@ class LatticeSolver:
             f"{self.model.name}: {error_text(self.model.lib, rc)} at t = {t:.6g} s "
             f"(stepper {self.stepper}, step {self.h:.3g} s, stable limit {self.limit:.3g} s); "
             "the run is unstable (physically, if the linear analysis predicts growth for these parameters, "
-            "else numerically: reduce model_options.dt)")
+            "else numerically: reduce model_options.dt)"
+        )
         err.samples = samples
         raise err
 
@@ -112,10 +125,22 @@ class LatticeSolver:
         buf = np.empty((k_max, 2 * n))
         done = m.ffi.new("int64_t *", 0)
         k0 = self.k
-        rc = m.lib.he_advance_sampled(m.plant, self.sid, self.h, self.nsub, self.dt_out, k0, k_max, self._pt,
-                                      self._px, self._pv, m.ffi.from_buffer("double[]", buf), done)
+        rc = m.lib.he_advance_sampled(
+            m.plant,
+            self.sid,
+            self.h,
+            self.nsub,
+            self.dt_out,
+            k0,
+            k_max,
+            self._pt,
+            self._px,
+            self._pv,
+            m.ffi.from_buffer("double[]", buf),
+            done,
+        )
         k = int(done[0])
-        t = np.arange(k0 + 1, k0 + k + 1) * self.dt_out      # k dt_out, as advance() computes it
+        t = np.arange(k0 + 1, k0 + k + 1) * self.dt_out  # k dt_out, as advance() computes it
         out = (t, buf[:k, :n], buf[:k, n:])
         if rc != m.lib.HE_OK:
             self.k = k0 + k + 1

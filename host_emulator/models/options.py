@@ -20,10 +20,10 @@ class NoiseOptions:
     1 + s*N(0,1) (clipped at 0.2); encoder noise is hil only."""
 
     seed: int = 0
-    band_spread: float = 0.0            # stiffness factor of each band pair (bond), both chains
-    eta_spread: float = 0.0             # honey viscosity factor of each cell (alpha chain)
+    band_spread: float = 0.0  # stiffness factor of each band pair (bond), both chains
+    eta_spread: float = 0.0  # honey viscosity factor of each cell (alpha chain)
     encoder_jitter_counts: float = 0.0  # std dev of the sampled encoder position, counts
-    encoder_glitch_prob: float = 0.0    # per encoder per plant step: an illegal AB pair
+    encoder_glitch_prob: float = 0.0  # per encoder per plant step: an illegal AB pair
 
 
 @dataclass(frozen=True)
@@ -31,14 +31,14 @@ class ModelOptions:
     """[model_options] of a scene. Defaults: the physics the source's own simulations use."""
 
     inertia: bool = True
-    bands: str = "cubic"              # "cubic" (docs/physics.md#band-torque fit, slack, x band_scale) | "linear" (table k)
-    beta_geometry: str = "small"      # "small" | "geometric" (docs/physics.md#band-torque full form)
+    bands: str = "cubic"  # "cubic" (docs/physics.md#band-torque fit, slack, x band_scale) | "linear" (table k)
+    beta_geometry: str = "small"  # "small" | "geometric" (docs/physics.md#band-torque full form)
     stepper: str = DEFAULT_STEPPER
-    dt: float | None = None           # largest plant step, s (None: a quarter of the stable limit)
-    dt_out: float = 0.01              # output sample interval, s
-    perturb_via: str = "plant"        # hil: "plant" (external torque, like a hand) | "firmware" (mc_cell_perturb)
-    substeps: int | None = None       # hil: plant steps per control tick (None: from dt / stable limit)
-    points_per_cell: int = 4          # continuum grid
+    dt: float | None = None  # largest plant step, s (None: a quarter of the stable limit)
+    dt_out: float = 0.01  # output sample interval, s
+    perturb_via: str = "plant"  # hil: "plant" (external torque, like a hand) | "firmware" (mc_cell_perturb)
+    substeps: int | None = None  # hil: plant steps per control tick (None: from dt / stable limit)
+    points_per_cell: int = 4  # continuum grid
     noise: NoiseOptions = field(default_factory=NoiseOptions)
 
 
@@ -124,8 +124,13 @@ class Perturbation:
     duration_s: float
 
     def as_dict(self) -> dict:
-        return {"cell": self.cell, "chain": self.chain, "torque_Nm": self.torque_Nm,
-                "start_s": self.start_s, "duration_s": self.duration_s}
+        return {
+            "cell": self.cell,
+            "chain": self.chain,
+            "torque_Nm": self.torque_Nm,
+            "start_s": self.start_s,
+            "duration_s": self.duration_s,
+        }
 
 
 _PERT_KEYS = ("cell", "chain", "torque_Nm", "start_s", "duration_s")
@@ -145,6 +150,10 @@ def parse_perturbation(d: dict, cells: int, where: str) -> Perturbation:
         raise ConfigError(f"{where}.cell = {cell}: must be in 1..{cells}")
     if d["chain"] not in CHAINS:
         raise ConfigError(f"{where}.chain = {d['chain']!r}: expected alpha or beta")
-    return Perturbation(cell, d["chain"], _num(f"{where}.torque_Nm", d["torque_Nm"]),
-                        _num(f"{where}.start_s", d["start_s"], nonneg=True),
-                        _num(f"{where}.duration_s", d["duration_s"], nonneg=True))
+    return Perturbation(
+        cell,
+        d["chain"],
+        _num(f"{where}.torque_Nm", d["torque_Nm"]),
+        _num(f"{where}.start_s", d["start_s"], nonneg=True),
+        _num(f"{where}.duration_s", d["duration_s"], nonneg=True),
+    )

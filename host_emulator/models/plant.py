@@ -29,8 +29,9 @@ def spreads(params: Params, options: ModelOptions, n: int):
     return band, eta
 
 
-def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
-                perturbations: list[Perturbation], *, ideal_reaction: bool):
+def build_plant(
+    ffi, lib, params: Params, options: ModelOptions, n: int, perturbations: list[Perturbation], *, ideal_reaction: bool
+):
     """A new he_plant_t (cffi owned) for n cells. Raises ValueError if the C side rejects it."""
     if not 1 <= n <= lib.HE_MAX_CELLS:
         raise ValueError(f"cells = {n}: must be in 1..{lib.HE_MAX_CELLS}")
@@ -44,7 +45,7 @@ def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
     p.reaction = lib.HE_REACT_IDEAL if ideal_reaction else lib.HE_REACT_NONE
     p.slack_f0 = 1 if params.slack_f0 else 0
     p.I = [params.I_a, params.I_b]
-    p.k_lin = [params.ka_eff, params.kb_eff]   # linear bands: the cubic law's small-deflection slope
+    p.k_lin = [params.ka_eff, params.kb_eff]  # linear bands: the cubic law's small-deflection slope
     p.band_scale = params.band_scale
     p.lever = [P.R_ALPHA_M, P.R_BETA_ARM_M]
     p.lattice_m = P.LATTICE_M
@@ -53,7 +54,7 @@ def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
     p.coef = [list(P.BAND_A_COEF), list(P.BAND_B_COEF)]
     p.k_ab, p.sigma, p.k1, p.k2, p.astar = params.k_ab, params.sigma, params.k1, params.k2, params.alpha_star
     p.speed_const = params.speed_const
-    p.react_limit = params.torque_limit_nm      # inf: no actuator limit
+    p.react_limit = params.torque_limit_nm  # inf: no actuator limit
     band, eta = spreads(params, options, n)
     for j in range(n):
         p.eta[0][j] = params.eta_alpha * eta[0, j]
@@ -69,9 +70,11 @@ def build_plant(ffi, lib, params: Params, options: ModelOptions, n: int,
         e.t0 = q.start_s
         e.t1 = q.start_s + q.duration_s
     if lib.he_plant_check(p) != lib.HE_OK:
-        raise ValueError("plant parameters rejected (non-positive inertia/damping or non-finite value); "
-                         f"check I_a={params.I_a}, I_b={params.I_b}, eta_a={params.eta_a}, gamma={params.gamma}, "
-                         f"eta_scale={params.eta_scale}")
+        raise ValueError(
+            "plant parameters rejected (non-positive inertia/damping or non-finite value); "
+            f"check I_a={params.I_a}, I_b={params.I_b}, eta_a={params.eta_a}, gamma={params.gamma}, "
+            f"eta_scale={params.eta_scale}"
+        )
     return p
 
 
@@ -86,23 +89,28 @@ def error_text(lib, rc: int) -> str:
     return {
         lib.HE_ERR_NONFINITE: "state became NaN/inf",
         lib.HE_ERR_DIVERGED: f"state diverged (|angle| > {lib.HE_ANGLE_LIMIT_RAD} rad or "
-                             f"|speed| > {lib.HE_SPEED_LIMIT_RAD_S} rad/s)",
-        lib.HE_ERR_BAND: (f"a band stretched beyond {lib.HE_BAND_STOP_FACTOR}x the cubic fit's range "
-                          "(30% strain): the motion grew out of the physical range"),
+        f"|speed| > {lib.HE_SPEED_LIMIT_RAD_S} rad/s)",
+        lib.HE_ERR_BAND: (
+            f"a band stretched beyond {lib.HE_BAND_STOP_FACTOR}x the cubic fit's range "
+            "(30% strain): the motion grew out of the physical range"
+        ),
         lib.HE_ERR_ARG: "invalid plant configuration",
         lib.HE_ERR_STEPPER: "unknown stepper id",
     }.get(rc, f"error {rc}")
 
 
-def choose_step(limit: float, span: float, dt_max: float | None, stepper: str, chain: str,
-                what: str = "model_options.dt") -> tuple[float, int]:
+def choose_step(
+    limit: float, span: float, dt_max: float | None, stepper: str, chain: str, what: str = "model_options.dt"
+) -> tuple[float, int]:
     """Split `span` (s) into m equal steps h <= dt_max (or <= limit/4 when dt_max is None).
 
     A requested dt above the stable limit is refused with an error naming the limit."""
     if dt_max is not None and dt_max > limit:
-        raise ValueError(f"{what} = {dt_max:g} s exceeds the stable step limit {limit:.4g} s of stepper "
-                         f"{stepper!r} (stiffest mode on the {chain} chain: inertia/stiffness/damping); "
-                         f"use dt <= {limit:.4g}")
+        raise ValueError(
+            f"{what} = {dt_max:g} s exceeds the stable step limit {limit:.4g} s of stepper "
+            f"{stepper!r} (stiffest mode on the {chain} chain: inertia/stiffness/damping); "
+            f"use dt <= {limit:.4g}"
+        )
     target = dt_max if dt_max is not None else limit / 4
     m = max(1, int(np.ceil(span / target - 1e-9)))
     return span / m, m

@@ -13,12 +13,18 @@ from .. import params as P
 from .options import ModelOptions, Perturbation
 from .plant import spreads
 
-STAGE_EDGE = 1e-9   # = HE_STAGE_EDGE: stages at a step's ends are evaluated at t + e h, t + (1 - e) h
+STAGE_EDGE = 1e-9  # = HE_STAGE_EDGE: stages at a step's ends are evaluated at t + e h, t + (1 - e) h
 
 
 class ReferencePlant:
-    def __init__(self, params, options: ModelOptions | None = None, perturbations: list[Perturbation] = (),
-                 *, ideal_reaction=True):
+    def __init__(
+        self,
+        params,
+        options: ModelOptions | None = None,
+        perturbations: list[Perturbation] = (),
+        *,
+        ideal_reaction=True,
+    ):
         self.p = params
         self.o = options or ModelOptions()
         self.n = params.cells
@@ -64,10 +70,10 @@ class ReferencePlant:
         n = self.n
         out = np.zeros(2 * n)
         for ch in range(2):
-            xc = x[ch * n:(ch + 1) * n]
-            right = self.band[ch] * self.bond_torque(ch, xc[:-1], xc[1:])   # on j from j+1
-            left = self.band[ch] * self.bond_torque(ch, xc[1:], xc[:-1])    # on j+1 from j
-            o = out[ch * n:(ch + 1) * n]
+            xc = x[ch * n : (ch + 1) * n]
+            right = self.band[ch] * self.bond_torque(ch, xc[:-1], xc[1:])  # on j from j+1
+            left = self.band[ch] * self.bond_torque(ch, xc[1:], xc[:-1])  # on j+1 from j
+            o = out[ch * n : (ch + 1) * n]
             o[:-1] -= right
             o[1:] -= left
         return out
@@ -78,7 +84,7 @@ class ReferencePlant:
         C = self.eta.copy()
         if self.ideal:
             a, b = x[:n], x[n:]
-            lim = self.p.torque_limit_nm       # actuator limit (inf when off)
+            lim = self.p.torque_limit_nm  # actuator limit (inf when off)
             F[:n] += np.clip(self.p.k_ab * (b - a) - self.p.psi_prime(a) - self.p.sigma * b, -lim, lim)
             F[n:] += np.clip(self.p.k_ab * (a - b), -lim, lim)
         if mgain is not None:
@@ -91,14 +97,18 @@ class ReferencePlant:
 
     # ---- steppers (numpy mirrors of the registered ones) ------------------
     def step(self, stepper, t, x, v, h):
-        E = STAGE_EDGE   # end stages just inside the step (he_step.h HE_STAGE_EDGE)
+        E = STAGE_EDGE  # end stages just inside the step (he_step.h HE_STAGE_EDGE)
         if not self.o.inertia:
+
             def f(tt, xx):
                 F, C = self.forces(tt, xx)
                 return F / C
+
             if stepper == "rk4":
-                k1 = f(t + E * h, x); k2 = f(t + h / 2, x + h / 2 * k1)
-                k3 = f(t + h / 2, x + h / 2 * k2); k4 = f(t + h - E * h, x + h * k3)
+                k1 = f(t + E * h, x)
+                k2 = f(t + h / 2, x + h / 2 * k1)
+                k3 = f(t + h / 2, x + h / 2 * k2)
+                k4 = f(t + h - E * h, x + h * k3)
                 return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), (k1 + 2 * k2 + 2 * k3 + k4) / 6
             vv = f(t + E * h, x)
             return x + h * vv, vv
@@ -113,6 +123,7 @@ class ReferencePlant:
         def f(tt, xx, vv):
             F, C = self.forces(tt, xx)
             return vv, (F - C * vv) / self.I
+
         a1, b1 = f(t + E * h, x, v)
         a2, b2 = f(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
         a3, b3 = f(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class StepperInfo:
     name: str
-    cid: str          # name of the HE_STEP_* constant in the compiled module
+    cid: str  # name of the HE_STEP_* constant in the compiled module
     order: int
     description: str
 
@@ -24,15 +24,29 @@ def register(info: StepperInfo) -> StepperInfo:
     return info
 
 
-register(StepperInfo("euler", "HE_STEP_EULER", 1,
-                     "explicit Euler (conditionally stable; reference only)"))
-register(StepperInfo("symplectic_euler", "HE_STEP_SYMPLECTIC", 1,
-                     "semi-implicit Euler: velocity first with implicit damping, then position"))
+register(StepperInfo("euler", "HE_STEP_EULER", 1, "explicit Euler (conditionally stable; reference only)"))
+register(
+    StepperInfo(
+        "symplectic_euler",
+        "HE_STEP_SYMPLECTIC",
+        1,
+        "semi-implicit Euler: velocity first with implicit damping, then position",
+    )
+)
 register(StepperInfo("rk4", "HE_STEP_RK4", 4, "classical fourth-order Runge-Kutta"))
-register(StepperInfo("noh_bathe", "HE_STEP_NOH_BATHE", 2,
-                     "Noh-Bathe two-sub-step explicit (p = 0.54), 2 force evaluations per step"))
-register(StepperInfo("imex_euler", "HE_STEP_IMEX", 1,
-                     "linearly implicit Euler: bands + damping implicit (tridiagonal per chain), reaction explicit"))
+register(
+    StepperInfo(
+        "noh_bathe", "HE_STEP_NOH_BATHE", 2, "Noh-Bathe two-sub-step explicit (p = 0.54), 2 force evaluations per step"
+    )
+)
+register(
+    StepperInfo(
+        "imex_euler",
+        "HE_STEP_IMEX",
+        1,
+        "linearly implicit Euler: bands + damping implicit (tridiagonal per chain), reaction explicit",
+    )
+)
 
 DEFAULT_STEPPER = "symplectic_euler"
 

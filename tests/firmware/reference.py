@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-TU_NM = 2.0 ** -5 * 1e-6               # one torque unit in N*m
+TU_NM = 2.0**-5 * 1e-6  # one torque unit in N*m
 RAD_PER_COUNT = 2 * math.pi / 400
 ANGLE_CLAMP = 2048
 

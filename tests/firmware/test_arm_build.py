@@ -8,8 +8,9 @@ import pytest
 
 from tools.fwcheck import armbuild
 
-pytestmark = pytest.mark.skipif(shutil.which(armbuild.CC) is None,
-                                reason="arm-none-eabi-gcc missing (tools/setup.sh installs it)")
+pytestmark = pytest.mark.skipif(
+    shutil.which(armbuild.CC) is None, reason="arm-none-eabi-gcc missing (tools/setup.sh installs it)"
+)
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +34,9 @@ def test_library_references_no_soft_float_helper(lib_objs):
 
 
 def test_soft_float_checker_flags_a_float_object(tmp_path, lib_objs):
-    bad = compile_snippet(tmp_path, "floaty", "float f(float a, int b) { return a * 2.5f + b; }\n"
-                                              "double g(double x) { return x / 3.0; }\n")
+    bad = compile_snippet(
+        tmp_path, "floaty", "float f(float a, int b) { return a * 2.5f + b; }\ndouble g(double x) { return x / 3.0; }\n"
+    )
     found = armbuild.softfloat_violations(lib_objs + [bad])
     assert list(found) == ["floaty.o"]
     assert {"__aeabi_fmul", "__aeabi_ddiv"} <= set(found["floaty.o"])
@@ -97,9 +99,9 @@ def test_code_size_is_reported(lib_objs):
     assert total.name == "total" and len(rows) == len(lib_objs) + 1
     assert total.text == sum(r.text for r in rows[:-1]) > 0
     # cross-check against binutils' own section listing of one object
-    out = subprocess.run(["arm-none-eabi-size", "-A", str(lib_objs[0])], capture_output=True,
-                         text=True, check=True).stdout
-    text = sum(int(ln.split()[1]) for ln in out.splitlines()
-               if ln.startswith((".text", ".rodata")))
+    out = subprocess.run(
+        ["arm-none-eabi-size", "-A", str(lib_objs[0])], capture_output=True, text=True, check=True
+    ).stdout
+    text = sum(int(ln.split()[1]) for ln in out.splitlines() if ln.startswith((".text", ".rodata")))
     assert rows[0].text >= text
     print("\n" + armbuild.format_size(rows))

@@ -38,7 +38,7 @@ def test_a_flood_of_commands_gets_one_answer_each():
     burst = b"".join(cmd_line(1 + k % 16, "ENABLE", k & 0xFF, on=1) for k in range(10_000))
     text = rig.feed(burst) and b""
     text += rig.drain()
-    for _ in range(50):                      # owed results arrive with the next snapshots
+    for _ in range(50):  # owed results arrive with the next snapshots
         rig.advance_to(rig.t_us + 10_000)
         text += rig.drain()
     got = results(text)
@@ -53,12 +53,19 @@ def test_no_room_answer_when_the_queue_is_full():
     rig, _ = make_rig("exp5_rest")
     rig.feed(b"O\r")
     lib = rig.lib
-    rig.advance_to(200_000)                  # queue full of samples, nobody drains
-    assert rig.p.tx_drop > 255               # wide counter (the heartbeat byte saturates)
-    assert lib.mc_primary_qfree(rig.p) == 16 + 2      # MC_PRIMARY_QRESERVE
+    rig.advance_to(200_000)  # queue full of samples, nobody drains
+    assert rig.p.tx_drop > 255  # wide counter (the heartbeat byte saturates)
+    assert lib.mc_primary_qfree(rig.p) == 16 + 2  # MC_PRIMARY_QRESERVE
     for k in range(40):
-        lib.mc_link_rx(rig.link, rig.t_us, cmd_line(3, "ENABLE", k, on=1), len(cmd_line(3, "ENABLE", k, on=1)),
-                       rig.used, rig.replybuf, len(rig.replybuf))
+        lib.mc_link_rx(
+            rig.link,
+            rig.t_us,
+            cmd_line(3, "ENABLE", k, on=1),
+            len(cmd_line(3, "ENABLE", k, on=1)),
+            rig.used,
+            rig.replybuf,
+            len(rig.replybuf),
+        )
     got = results(rig._drain())
     assert {c for _, _, c in got} == {R["BUSY"], R["NO_ROOM"]}
     assert rig.p.no_room == sum(c == R["NO_ROOM"] for _, _, c in got)
@@ -70,10 +77,10 @@ def test_no_room_answer_when_the_queue_is_full():
 def test_open_drops_stale_frames_and_session_drops_the_half_line():
     rig, _ = make_rig("exp5_rest")
     rig.feed(b"O\r")
-    rig.advance_to(50_000)                   # frames queued, not drained (a client that stopped reading)
+    rig.advance_to(50_000)  # frames queued, not drained (a client that stopped reading)
     queued = 127 - rig.lib.mc_primary_qfree(rig.p)
     assert queued > 0
-    rig.feed(b"C\rO\r")                      # a new client opens: the queued frames are stale
+    rig.feed(b"C\rO\r")  # a new client opens: the queued frames are stale
     assert rig.p.stale_drop >= queued
     assert rig.drain() == b""
     # a client dies mid-line; the next one's first command must not be spoiled by the half line
@@ -94,8 +101,8 @@ def test_a_plant_range_stop_becomes_the_cells_runaway_fault():
     rig, _ = make_rig("exp5_rest")
     sol, lib = rig.solver, rig.lib
     rig.advance_to(10_000)
-    sol.x[4] += 6.0                          # cell 5 alpha 6 rad from its neighbours: past the band stop (4.1 rad)
-    rig.advance_to(200_000)                  # would raise NumericalInstability without the stop
+    sol.x[4] += 6.0  # cell 5 alpha 6 rad from its neighbours: past the band stop (4.1 rad)
+    rig.advance_to(200_000)  # would raise NumericalInstability without the stop
     assert rig.band_stops >= 1
     faults = [int(sol.cells[j].faults) for j in range(16)]
     assert any(f & lib.MC_FAULT_RUNAWAY_A for f in faults[3:6])

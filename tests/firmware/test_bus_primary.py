@@ -59,7 +59,7 @@ def test_samples_from_every_cell_match_the_cells():
     for j, data in k["CELL_SAMPLE"]:
         d = db.decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)
         if j in last:
-            assert d["seq"] == (last[j] + 1) & 0xFF        # healthy cell: no gaps
+            assert d["seq"] == (last[j] + 1) & 0xFF  # healthy cell: no gaps
         last[j] = d["seq"]
     # the newest sample of each cell equals the cell's angle at (or one tick before) the read
     for j in range(1, 17):
@@ -114,7 +114,7 @@ def test_command_reaches_cell_and_result_comes_back():
     ph.sigma_unm = 48000
     lib.mc_reaction_from_phys(law, ph)
     assert c.law.g_sigma == law.g_sigma
-    assert rig.solver.cells[2].law.g_sigma != law.g_sigma      # only the addressed cell
+    assert rig.solver.cells[2].law.g_sigma != law.g_sigma  # only the addressed cell
 
 
 def test_out_of_range_reported_by_the_cell_and_nothing_changes():
@@ -130,20 +130,23 @@ def test_out_of_range_reported_by_the_cell_and_nothing_changes():
 def test_malformed_commands_rejected_with_status():
     rig, _ = make_rig("exp5_rest")
     collect(rig, 0.05)
-    send(rig, 2, bytes([0x7E, 1]))                                        # unknown register
-    send(rig, 2, proto.cmd_data("K_AB", 2, value=1)[:4])                  # wrong length
-    send(rig, 2, bytes([0x10]))                                           # too short
-    assert rig.feed(b"t7FF0\r") == b"z\r"                                  # unknown id
-    assert rig.feed(b"t3000\r") == b"z\r"                                  # cell 0
-    assert rig.feed(b"T00000301110\r") == b"Z\r"                           # extended id
-    assert rig.feed(b"t10\r") == b"\a"                                     # malformed line
+    send(rig, 2, bytes([0x7E, 1]))  # unknown register
+    send(rig, 2, proto.cmd_data("K_AB", 2, value=1)[:4])  # wrong length
+    send(rig, 2, bytes([0x10]))  # too short
+    assert rig.feed(b"t7FF0\r") == b"z\r"  # unknown id
+    assert rig.feed(b"t3000\r") == b"z\r"  # cell 0
+    assert rig.feed(b"T00000301110\r") == b"Z\r"  # extended id
+    assert rig.feed(b"t10\r") == b"\a"  # malformed line
     frames = collect(rig, 0.05)
     res = results(frames)
     assert (2, 0x7E, 1, R["REG"], 0) in res
     assert (2, 0x10, 2, R["BAD_FRAME"], 0) in res
     rej = [struct.unpack("<BIBH", d) for _, d in by_kind(frames)["PRIMARY_REJECT"]]
-    assert [(r[0], r[1] & 0x1FFFFFFF) for r in rej] == [(R["BAD_FRAME"], 0x7FF), (R["NO_CELL"], 0x300),
-                                                        (R["BAD_FRAME"], 0x301)]
+    assert [(r[0], r[1] & 0x1FFFFFFF) for r in rej] == [
+        (R["BAD_FRAME"], 0x7FF),
+        (R["NO_CELL"], 0x300),
+        (R["BAD_FRAME"], 0x301),
+    ]
     assert rig.link.s.errors == 1
 
 
@@ -226,11 +229,13 @@ def snapshot_block(addr, tick=1, alpha=0, beta=0, cmd_seq=0, result=0):
 def test_read_integrity_checks(fw):
     _, lib = fw
     pr = Primary(fw)
-    bad = {2: lambda a: b"\xff" * 23,                                   # empty transmit buffer
-           3: lambda a: snapshot_block(a + 1),                          # another cell's block
-           4: lambda a: snapshot_block(a)[:22],                         # short read
-           5: lambda a: snapshot_block(a)[:-1] + bytes([snapshot_block(a)[-1] ^ 1]),   # CRC
-           6: lambda a: bytes([0x11]) + snapshot_block(a)[1:]}          # wrong tag (IDENT)
+    bad = {
+        2: lambda a: b"\xff" * 23,  # empty transmit buffer
+        3: lambda a: snapshot_block(a + 1),  # another cell's block
+        4: lambda a: snapshot_block(a)[:22],  # short read
+        5: lambda a: snapshot_block(a)[:-1] + bytes([snapshot_block(a)[-1] ^ 1]),  # CRC
+        6: lambda a: bytes([0x11]) + snapshot_block(a)[1:],
+    }  # wrong tag (IDENT)
     for _ in range(16):
         pr.step(lambda t: (lib.MC_I2C_OK, bad.get(t.cell + 1, lambda a: snapshot_block(a, alpha=t.cell))(t.addr), 500))
     got = {j for j, _ in by_kind(pr.frames())["CELL_SAMPLE"]}
@@ -247,8 +252,8 @@ def test_timeouts_back_off_exponentially_and_reset(fw):
     def outcome(t):
         if t.cell == 4:
             polled.append(pr.p.cycles)
-            if len(polled) <= 7:   # the first seven polls time out, then the cell recovers
-                return lib.MC_I2C_OK, snapshot_block(t.addr), pr.p.txn_timeout_us + 1   # late = timeout
+            if len(polled) <= 7:  # the first seven polls time out, then the cell recovers
+                return lib.MC_I2C_OK, snapshot_block(t.addr), pr.p.txn_timeout_us + 1  # late = timeout
         return lib.MC_I2C_OK, snapshot_block(t.addr), 500
 
     while pr.p.cycles < 300:
@@ -279,13 +284,16 @@ def test_pointer_command_reads_blocks_back():
     send(rig, 5, proto.cmd_data("SIGMA", 10, value=-12345))
     frames = collect(rig, 0.05)
     send(rig, 5, proto.cmd_data("POINTER", 11, block=D.BLOCKS["PARAMS"]["id"]))
-    send(rig, 5 + 1, proto.cmd_data("POINTER", 12, block=7))                       # no such block
+    send(rig, 5 + 1, proto.cmd_data("POINTER", 12, block=7))  # no such block
     frames += collect(rig, 0.05)
     res = results(frames)
     assert (3, 0x01, 9, R["OK"], 0) in res and (5, 0x01, 11, R["OK"], 0) in res and (6, 0x01, 12, R["RANGE"], 0) in res
     ident = proto.decode_block("IDENT", blocks(frames, 3)[1][:11])
-    assert (ident["addr"], ident["fw_version"], ident["map_id"]) == \
-        (proto.cell_address(3), rig.lib.MC_FW_VERSION, rig.lib.MC_PROTO_MAP_ID)
+    assert (ident["addr"], ident["fw_version"], ident["map_id"]) == (
+        proto.cell_address(3),
+        rig.lib.MC_FW_VERSION,
+        rig.lib.MC_PROTO_MAP_ID,
+    )
     params = proto.decode_block("PARAMS", blocks(frames, 5)[2][:25])
     assert (params["addr"], params["sigma"], params["k_ab"]) == (proto.cell_address(5), -12345, 20000)
     # the polls go on undisturbed: every cell keeps sampling, no integrity errors from the pointer moves

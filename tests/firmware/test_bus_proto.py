@@ -15,8 +15,9 @@ D = proto.D
 
 
 def test_generated_files_are_current():
-    r = subprocess.run([sys.executable, str(proto.PROTOCOL_DIR / "generate.py"), "--check"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, str(proto.PROTOCOL_DIR / "generate.py"), "--check"], capture_output=True, text=True
+    )
     assert r.returncode == 0, r.stderr
 
 
@@ -90,14 +91,21 @@ def test_dbc_has_every_frame_with_the_defined_layout():
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.integers(1, 16), st.integers(0, 255), st.integers(-32768, 32767), st.integers(-32768, 32767),
-       st.integers(0, 65535), st.integers(0, 255))
+@given(
+    st.integers(1, 16),
+    st.integers(0, 255),
+    st.integers(-32768, 32767),
+    st.integers(-32768, 32767),
+    st.integers(0, 65535),
+    st.integers(0, 255),
+)
 def test_dbc_decodes_sample_frames(j, seq, a, b, t, flags):
     data = struct.pack("<BhhHB", seq, a, b, t, flags)
-    raw = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data, scaling=False,
-                                          decode_choices=False)
+    raw = proto.database().decode_message(
+        D.FRAMES["CELL_SAMPLE"]["base"] + j, data, scaling=False, decode_choices=False
+    )
     assert (raw["seq"], raw["alpha"], raw["beta"], raw["flags"]) == (seq, a, b, flags)
-    d = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)   # physical units
+    d = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)  # physical units
     assert d["alpha"] == pytest.approx(a * 2 * math.pi / 400) and d["beta"] == pytest.approx(b * 2 * math.pi / 400)
     if flags in D.DBC_CHOICES[("CELL_SAMPLE", "flags")]:
         assert str(d["flags"]) == D.DBC_CHOICES[("CELL_SAMPLE", "flags")][flags]
@@ -105,14 +113,16 @@ def test_dbc_decodes_sample_frames(j, seq, a, b, t, flags):
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.integers(1, 16), st.integers(0, 255), st.sampled_from([0, 1]), st.integers(-32768, 32767),
-       st.integers(0, 65535))
+@given(
+    st.integers(1, 16), st.integers(0, 255), st.sampled_from([0, 1]), st.integers(-32768, 32767), st.integers(0, 65535)
+)
 def test_dbc_decodes_command_frames(j, seq, chain, torque, ticks):
     data = proto.cmd_data("PERTURB", seq, chain=chain, torque=torque, ticks=ticks)
     d = proto.database().decode_message(proto.cmd_frame_id(j), data + bytes(8 - len(data)))
     assert str(d["reg"]) == "PERTURB" and d["seq"] == seq
     assert str(d["PERTURB_chain"]) == ("ALPHA", "BETA")[chain] and d["PERTURB_ticks"] == ticks
-    assert d["PERTURB_torque"] == pytest.approx(4e-6 * torque)                     # N*m
-    raw = proto.database().decode_message(proto.cmd_frame_id(j), data + bytes(8 - len(data)), scaling=False,
-                                          decode_choices=False)
+    assert d["PERTURB_torque"] == pytest.approx(4e-6 * torque)  # N*m
+    raw = proto.database().decode_message(
+        proto.cmd_frame_id(j), data + bytes(8 - len(data)), scaling=False, decode_choices=False
+    )
     assert (raw["reg"], raw["PERTURB_chain"], raw["PERTURB_torque"]) == (D.REGISTERS["PERTURB"]["id"], chain, torque)

@@ -50,9 +50,18 @@ class Cell:
     def config(self):
         """Everything a write may change, as bytes (the tick-evolving state excluded)."""
         c, ffi = self.c, self.ffi
-        return (bytes(ffi.buffer(ffi.addressof(c, "law"))), bytes(ffi.buffer(ffi.addressof(c, "drive"))),
-                tuple(c.zero), c.enabled, c.bemf_comp, c.pert_torque, c.pert_ticks, c.pert_chain, c.faults,
-                bytes(ffi.buffer(self.r.params[self.r.params_idx])))
+        return (
+            bytes(ffi.buffer(ffi.addressof(c, "law"))),
+            bytes(ffi.buffer(ffi.addressof(c, "drive"))),
+            tuple(c.zero),
+            c.enabled,
+            c.bemf_comp,
+            c.pert_torque,
+            c.pert_ticks,
+            c.pert_chain,
+            c.faults,
+            bytes(ffi.buffer(self.r.params[self.r.params_idx])),
+        )
 
 
 @pytest.fixture
@@ -64,7 +73,7 @@ def test_write_applies_only_at_the_tick_boundary(cell, fw):
     ffi, lib = fw
     before = cell.config()
     cell.cmd("SIGMA", 7, value=48000)
-    assert cell.config() == before                  # received, not applied
+    assert cell.config() == before  # received, not applied
     assert cell.snapshot()["cmd_seq"] == 0
     cell.tick()
     law = ffi.new("mc_reaction_t *")
@@ -84,10 +93,17 @@ def test_params_block_reports_parameters_in_force(cell):
     raw = cell.read()
     assert proto.crc8(raw[:-1]) == raw[-1]
     p = proto.decode_block("PARAMS", raw)
-    assert (p["tag"], p["addr"], p["k_ab"], p["sigma"], p["k1"], p["k2"], p["astar"]) == \
-        (0x12, ADDR, 15000, 72000, 60000, -60000, 1178097)
+    assert (p["tag"], p["addr"], p["k_ab"], p["sigma"], p["k1"], p["k2"], p["astar"]) == (
+        0x12,
+        ADDR,
+        15000,
+        72000,
+        60000,
+        -60000,
+        1178097,
+    )
     assert p["pwm_limit"] == cell.c.drive.duty_limit
-    assert cell.read()[0] == 0x10   # the pointer went back to the snapshot
+    assert cell.read()[0] == 0x10  # the pointer went back to the snapshot
 
 
 def test_ident_block(cell, fw):
@@ -96,8 +112,13 @@ def test_ident_block(cell, fw):
     raw = cell.read()
     assert proto.crc8(raw[:-1]) == raw[-1]
     i = proto.decode_block("IDENT", raw)
-    assert (i["tag"], i["addr"], i["fw_version"], i["build"], i["map_id"]) == \
-        (0x11, ADDR, lib.MC_FW_VERSION, 0xC0FFEE, lib.MC_PROTO_MAP_ID)
+    assert (i["tag"], i["addr"], i["fw_version"], i["build"], i["map_id"]) == (
+        0x11,
+        ADDR,
+        lib.MC_FW_VERSION,
+        0xC0FFEE,
+        lib.MC_PROTO_MAP_ID,
+    )
 
 
 def test_snapshot_is_one_tick(cell):
@@ -132,7 +153,7 @@ def test_perturb_enable_bemf_pwm_clear(cell):
     assert cell.c.drive.duty_limit == 100
     cell.cmd("PWM_LIMIT", 4, ticks=cell.c.drive.pwm_top)
     cell.tick()
-    assert cell.c.drive.duty_limit == cell.c.drive.duty_max   # clamped to the 5.86 V cap
+    assert cell.c.drive.duty_limit == cell.c.drive.duty_max  # clamped to the 5.86 V cap
     cell.c.faults = 4
     cell.cmd("CLEAR_FAULTS", 5)
     cell.tick()
@@ -168,29 +189,35 @@ def test_unknown_register_rejected(cell):
 
 
 def test_wrong_length_rejected(cell):
-    body = bytes([D.REGISTERS["K_AB"]["id"], 1, 0, 0])   # 2 payload bytes, needs 4
+    body = bytes([D.REGISTERS["K_AB"]["id"], 1, 0, 0])  # 2 payload bytes, needs 4
     _rejected(cell, body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]), "LENGTH")
-    _rejected(cell, bytes(40), "LENGTH")                 # longer than any write
+    _rejected(cell, bytes(40), "LENGTH")  # longer than any write
 
 
-@pytest.mark.parametrize("reg,vals,expect", [
-    ("K_AB", {"value": 250001}, "RANGE"), ("ASTAR", {"value": -1}, "RANGE"),
-    ("K1", {"value": -70000}, "SHAPE"), ("K2", {"value": 60000}, "SHAPE"),
-    ("ENABLE", {"on": 2}, "RANGE"), ("BEMF", {"on": 255}, "RANGE"),
-    ("PERTURB", {"chain": 2, "torque": 1, "ticks": 1}, "RANGE"),
-    ("PERTURB", {"chain": 0, "torque": 32767, "ticks": 1}, "RANGE"),
-    ("PWM_LIMIT", {"ticks": 5000}, "RANGE"),
-])
+@pytest.mark.parametrize(
+    "reg,vals,expect",
+    [
+        ("K_AB", {"value": 250001}, "RANGE"),
+        ("ASTAR", {"value": -1}, "RANGE"),
+        ("K1", {"value": -70000}, "SHAPE"),
+        ("K2", {"value": 60000}, "SHAPE"),
+        ("ENABLE", {"on": 2}, "RANGE"),
+        ("BEMF", {"on": 255}, "RANGE"),
+        ("PERTURB", {"chain": 2, "torque": 1, "ticks": 1}, "RANGE"),
+        ("PERTURB", {"chain": 0, "torque": 32767, "ticks": 1}, "RANGE"),
+        ("PWM_LIMIT", {"ticks": 5000}, "RANGE"),
+    ],
+)
 def test_out_of_range_rejected(cell, reg, vals, expect):
     _rejected(cell, proto.i2c_write_frame(J, reg, 0x42, proto.pack_payload(reg, **vals)), expect)
 
 
 def test_empty_receive_ignored_and_mailbox_full_counted(cell):
-    cell.write(b"")                         # SAMD21: onReceive(0) after a read
+    cell.write(b"")  # SAMD21: onReceive(0) after a read
     cell.tick()
     assert cell.snapshot()["bus_err"] == 0 and cell.snapshot()["cmd_seq"] == 0
     cell.cmd("ENABLE", 1, on=1)
-    cell.cmd("ENABLE", 2, on=0)             # before the tick: dropped
+    cell.cmd("ENABLE", 2, on=0)  # before the tick: dropped
     cell.tick()
     s = cell.snapshot()
     assert (s["cmd_seq"], s["bus_err"], cell.c.enabled) == (1, 1, 1)
@@ -200,7 +227,7 @@ def test_bad_pointer_counted_and_ignored(cell):
     f = bytearray(proto.i2c_write_frame(J, "POINTER", 0, b"\x01"))
     f[-1] ^= 1
     cell.write(bytes(f))
-    cell.write(proto.i2c_write_frame(J, "POINTER", 0, b"\x09"))   # no such block
+    cell.write(proto.i2c_write_frame(J, "POINTER", 0, b"\x09"))  # no such block
     assert cell.read()[0] == 0x10
     cell.tick()
     assert cell.snapshot()["bus_err"] == 2
@@ -213,7 +240,8 @@ def test_short_read_is_truncated(cell):
 def _reference_result(frame: bytes):
     """Independent model of the validation order: length, CRC, register, length, ranges."""
     if len(frame) < 3 or len(frame) > 3 + max(
-            sum(D.TYPE_SIZES[f[1]] for f in r["payload"]) for r in D.REGISTERS.values()):
+        sum(D.TYPE_SIZES[f[1]] for f in r["payload"]) for r in D.REGISTERS.values()
+    ):
         return "LENGTH"
     if proto.crc8(bytes([ADDR << 1]) + frame[:-1]) != frame[-1]:
         return "CRC"
@@ -245,11 +273,19 @@ def _reference_result(frame: bytes):
 
 frames = st.one_of(
     st.binary(max_size=16),
-    st.builds(lambda seq, blk: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(
-        bytes([D.REGISTERS["POINTER"]["id"], seq, blk])), st.integers(0, 255), st.integers(0, 4)),
-    st.builds(lambda reg, seq, p: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(
-        bytes([reg, seq]) + p), st.sampled_from([r["id"] for r in D.REGISTERS.values()] + [0x7F]),
-        st.integers(0, 255), st.binary(max_size=8)),
+    st.builds(
+        lambda seq, blk: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(
+            bytes([D.REGISTERS["POINTER"]["id"], seq, blk])
+        ),
+        st.integers(0, 255),
+        st.integers(0, 4),
+    ),
+    st.builds(
+        lambda reg, seq, p: (lambda body: body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]))(bytes([reg, seq]) + p),
+        st.sampled_from([r["id"] for r in D.REGISTERS.values()] + [0x7F]),
+        st.integers(0, 255),
+        st.binary(max_size=8),
+    ),
 )
 
 
@@ -263,8 +299,9 @@ def test_any_write_matches_reference_and_rejections_change_nothing(fw, frame):
     cell.tick()
     if frame and frame[0] == D.REGISTERS["POINTER"]["id"]:
         # applied at once, not a command: a valid one selects the block of the next read only
-        valid = (len(frame) == 4 and proto.crc8(bytes([ADDR << 1]) + frame[:-1]) == frame[-1]
-                 and frame[2] < len(D.BLOCKS))
+        valid = (
+            len(frame) == 4 and proto.crc8(bytes([ADDR << 1]) + frame[:-1]) == frame[-1] and frame[2] < len(D.BLOCKS)
+        )
         assert cell.read()[0] == 0x10 | (frame[2] if valid else 0)
         s = cell.snapshot()
         assert s["cmd_result"] == D.RESULTS["NONE"] and s["bus_err"] == (0 if valid else 1)

@@ -67,7 +67,7 @@ def model(line: str, is_open: bool, listen: bool):
         fid, dlc = int(rest[:n], 16), int(rest[n])
         if dlc > 8 or fid > (0x7FF if n == 3 else 0x1FFFFFFF):
             return "error", "\a", None
-        body = rest[n + 1:]
+        body = rest[n + 1 :]
         if c in "rR":
             if body:
                 return "error", "\a", None
@@ -84,8 +84,12 @@ def model(line: str, is_open: bool, listen: bool):
 alphabet = st.sampled_from(list("tTrRSsOLCVvNFZMmx0123456789abcdefABCDEFG \x07\x7f"))
 lines = st.one_of(
     st.text(alphabet, max_size=30),
-    st.builds(lambda k, i, d: k + i + str(len(d)) + d.hex(), st.sampled_from(["t", "r"]),
-              st.text(st.sampled_from("0123456789ABCDEF"), min_size=3, max_size=3), st.binary(max_size=8)),
+    st.builds(
+        lambda k, i, d: k + i + str(len(d)) + d.hex(),
+        st.sampled_from(["t", "r"]),
+        st.text(st.sampled_from("0123456789ABCDEF"), min_size=3, max_size=3),
+        st.binary(max_size=8),
+    ),
     st.builds(lambda i, d: "T" + f"{i:08X}" + str(len(d)) + d.hex(), st.integers(0, 0x3FFFFFFF), st.binary(max_size=8)),
 )
 
@@ -99,14 +103,18 @@ def test_parser_matches_model(fw, is_open, listen, line):
     errs = sl.s.errors
     kind, reply, frame = model(line, is_open, listen and is_open)
     ev, got_reply, got_frame = sl.line(line)
-    names = {fw[1].MC_SLCAN_EV_NONE: "none", fw[1].MC_SLCAN_EV_REPLY: "reply",
-             fw[1].MC_SLCAN_EV_FRAME: "frame", fw[1].MC_SLCAN_EV_ERROR: "error"}
+    names = {
+        fw[1].MC_SLCAN_EV_NONE: "none",
+        fw[1].MC_SLCAN_EV_REPLY: "reply",
+        fw[1].MC_SLCAN_EV_FRAME: "frame",
+        fw[1].MC_SLCAN_EV_ERROR: "error",
+    }
     assert (names[ev], got_reply, got_frame) == (kind, reply, frame), repr(line)
     assert sl.s.errors == errs + (kind == "error")
 
 
 def test_open_close_and_state(sl):
-    assert sl.line("t1002AABB")[0] == sl.lib.MC_SLCAN_EV_ERROR     # closed: rejected
+    assert sl.line("t1002AABB")[0] == sl.lib.MC_SLCAN_EV_ERROR  # closed: rejected
     assert sl.line("O")[1] == "\r" and sl.s.open == 1
     assert sl.line("Z1")[1] == "\r" and sl.s.timestamps == 1
     assert sl.line("S6")[1] == "\r" and sl.s.bitrate == 6
@@ -117,16 +125,16 @@ def test_overlong_and_binary_lines_rejected(sl):
     sl.line("O")
     assert sl.line("t" + "1" * 40)[1] == "\a"
     assert sl.line("t10\x0012")[1] == "\a"
-    assert sl.line("t1000")[0] == sl.lib.MC_SLCAN_EV_FRAME          # parser recovered
+    assert sl.line("t1000")[0] == sl.lib.MC_SLCAN_EV_FRAME  # parser recovered
     assert sl.s.errors == 2
 
 
 def python_can_parse(string):
     """The frame parsing of python-can's slcanBus._recv_internal (4.x), for t/T/r/R lines."""
     if string[0] == "T":
-        return int(string[1:9], 16), int(string[9]), bytes.fromhex(string[10: 10 + int(string[9]) * 2])
+        return int(string[1:9], 16), int(string[9]), bytes.fromhex(string[10 : 10 + int(string[9]) * 2])
     if string[0] == "t":
-        return int(string[1:4], 16), int(string[4]), bytes.fromhex(string[5: 5 + int(string[4]) * 2])
+        return int(string[1:4], 16), int(string[4]), bytes.fromhex(string[5 : 5 + int(string[4]) * 2])
     raise AssertionError(string)
 
 
@@ -150,4 +158,4 @@ def test_encode_roundtrip_and_python_can_compatible(fw, ext, fid, data, ts_on, t
 
 
 def test_encode_rejects_invalid(sl):
-    assert sl.encode(0x800, b"") == ""         # 11-bit id out of range
+    assert sl.encode(0x800, b"") == ""  # 11-bit id out of range

@@ -1,12 +1,20 @@
 """Cell tick: reference chain (reaction -> drive) within one LSB, perturbation, zeroing and latched faults."""
 
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from tests.firmware.reference import ObserverInt, reaction, drive_duty
+from tests.firmware.reference import ObserverInt, drive_duty, reaction
 from tests.firmware.test_reaction import law_dict
 
-RIG = {"supply_mv": 9000, "vmax_mv": 5860, "kt_unm_per_v": 7500, "kv_mrad_per_vs": 49800,
-       "pwm_top": 2400, "ctrl_rate_hz": 2000, "vel_window_log2": -1}
+RIG = {
+    "supply_mv": 9000,
+    "vmax_mv": 5860,
+    "kt_unm_per_v": 7500,
+    "kv_mrad_per_vs": 49800,
+    "pwm_top": 2400,
+    "ctrl_rate_hz": 2000,
+    "vel_window_log2": -1,
+}
 
 
 class Cell:
@@ -34,8 +42,15 @@ PATH = st.lists(st.tuples(st.integers(-3, 3), st.integers(-3, 3)), min_size=1, m
 
 
 @settings(max_examples=300, deadline=None)
-@given(path=PATH, a0=st.integers(-300, 300), b0=st.integers(-300, 300), bemf=st.booleans(),
-       pert=st.integers(-131000, 131000), pert_ticks=st.integers(0, 60), chain=st.integers(0, 1))
+@given(
+    path=PATH,
+    a0=st.integers(-300, 300),
+    b0=st.integers(-300, 300),
+    bemf=st.booleans(),
+    pert=st.integers(-131000, 131000),
+    pert_ticks=st.integers(0, 60),
+    chain=st.integers(0, 1),
+)
 def test_tick_matches_reference_chain(fw, path, a0, b0, bemf, pert, pert_ticks, chain):
     cell = Cell(fw)
     lib = cell.lib
@@ -68,7 +83,7 @@ def test_disabled_cell_drives_nothing(fw):
         assert cell.tick(a, -a) == 0
         for i in (0, 1):
             assert cell.c.out[i].enable == 0 and cell.c.out[i].duty == 0
-    assert cell.c.torque[0] != 0   # the law still runs (telemetry), the drive is off
+    assert cell.c.torque[0] != 0  # the law still runs (telemetry), the drive is off
 
 
 def test_perturbation_lasts_exactly_its_ticks(fw):
@@ -82,7 +97,7 @@ def test_perturbation_lasts_exactly_its_ticks(fw):
     assert torques == [10000 * 32] * 5 + [0] * 3
     assert lib.mc_cell_perturb(cell.c, 2, 1000, 5) == lib.MC_ERR_RANGE
     assert lib.mc_cell_perturb(cell.c, 0, 131001, 5) == lib.MC_ERR_RANGE
-    assert cell.c.pert_ticks == 0   # the rejected commands changed nothing
+    assert cell.c.pert_ticks == 0  # the rejected commands changed nothing
 
 
 def test_zero_offsets(fw):
@@ -91,22 +106,21 @@ def test_zero_offsets(fw):
     lib.mc_cell_zero(cell.c, 1000, -2000)
     assert cell.tick(1010, -2030) == 0
     assert (cell.c.theta[0], cell.c.theta[1]) == (10, -30)
-    lib.mc_cell_zero(cell.c, -(2**31), 2**31 - 1)      # extreme zeros: saturate, never wrap
+    lib.mc_cell_zero(cell.c, -(2**31), 2**31 - 1)  # extreme zeros: saturate, never wrap
     f = cell.tick(2**31 - 1, -(2**31))
-    assert (cell.c.theta[0], cell.c.theta[1]) == (800, -800)    # held at the runaway limit
+    assert (cell.c.theta[0], cell.c.theta[1]) == (800, -800)  # held at the runaway limit
     assert f & lib.MC_FAULT_RUNAWAY_A and f & lib.MC_FAULT_RUNAWAY_B
 
 
 @settings(max_examples=500, deadline=None)
-@given(pos=st.integers(-(2**31), 2**31 - 1), zero=st.integers(-(2**31), 2**31 - 1),
-       lim=st.integers(1, 2048))
+@given(pos=st.integers(-(2**31), 2**31 - 1), zero=st.integers(-(2**31), 2**31 - 1), lim=st.integers(1, 2048))
 def test_angle_is_exact_difference_or_limited_with_fault(fw, pos, zero, lim):
     cell = Cell(fw)
     lib = cell.lib
     assert lib.mc_cell_set_runaway(cell.c, lim) == lib.MC_OK
     lib.mc_cell_zero(cell.c, zero, 0)
     f = cell.tick(pos, 0)
-    true = pos - zero                      # exact, in Python integers
+    true = pos - zero  # exact, in Python integers
     if abs(true) <= lim:
         assert cell.c.theta[0] == true and not f & lib.MC_FAULT_RUNAWAY_A
     else:
@@ -118,7 +132,7 @@ def test_runaway_latches_until_cleared(fw):
     lib = cell.lib
     assert cell.tick(801, 0) & lib.MC_FAULT_RUNAWAY_A
     assert cell.c.out[0].enable == 0 and cell.c.out[1].enable == 0
-    assert cell.tick(0, 0) & lib.MC_FAULT_RUNAWAY_A          # latched
+    assert cell.tick(0, 0) & lib.MC_FAULT_RUNAWAY_A  # latched
     assert cell.c.out[0].duty == 0
     lib.mc_cell_clear_faults(cell.c)
     assert cell.tick(0, 5) == 0 and cell.c.out[0].enable == 1
@@ -132,11 +146,11 @@ def test_encoder_burst_faults_isolated_glitches_do_not(fw):
     cell = Cell(fw)
     lib = cell.lib
     errs = 0
-    for k in range(3000):                  # one glitch every 300 ticks: counted, tolerated
+    for k in range(3000):  # one glitch every 300 ticks: counted, tolerated
         if k % 300 == 0:
             errs += 1
         assert cell.tick(0, 0, err_a=errs) == 0
-    for _ in range(9):                     # nine in a row: a burst
+    for _ in range(9):  # nine in a row: a burst
         errs += 1
         f = cell.tick(0, 0, err_a=errs)
     assert f & lib.MC_FAULT_ENCODER_A and not f & lib.MC_FAULT_ENCODER_B
@@ -146,7 +160,7 @@ def test_encoder_burst_faults_isolated_glitches_do_not(fw):
 def test_error_counter_wrap_is_not_a_burst(fw):
     cell = Cell(fw)
     cell.c.err_last[0] = 2**32 - 1
-    assert cell.tick(0, 0, err_a=0) == 0    # one new error across the wrap
+    assert cell.tick(0, 0, err_a=0) == 0  # one new error across the wrap
 
 
 def test_saturated_decoder_and_driver_fault_latch(fw):

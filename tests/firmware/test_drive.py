@@ -2,7 +2,8 @@
 
 import math
 
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tests.firmware.reference import drive_duty
 
@@ -10,18 +11,27 @@ I32 = st.integers(min_value=-(2**31), max_value=2**31 - 1)
 TAU = st.one_of(I32, st.integers(-3_000_000, 3_000_000), st.integers(-20000, 20000))
 DTH = st.one_of(I32, st.integers(-1500, 1500), st.integers(-20, 20))
 
-CONFIG = st.fixed_dictionaries({
-    "supply_mv": st.integers(5860, 37000),
-    "vmax_mv": st.integers(1, 5860),
-    "kt_unm_per_v": st.one_of(st.integers(4000, 12000), st.integers(4000, 100000)),
-    "kv_mrad_per_vs": st.integers(1000, 1000000),
-    "pwm_top": st.integers(255, 4095),
-    "ctrl_rate_hz": st.integers(100, 50000),
-    "vel_window_log2": st.integers(-1, 8),
-})
+CONFIG = st.fixed_dictionaries(
+    {
+        "supply_mv": st.integers(5860, 37000),
+        "vmax_mv": st.integers(1, 5860),
+        "kt_unm_per_v": st.one_of(st.integers(4000, 12000), st.integers(4000, 100000)),
+        "kv_mrad_per_vs": st.integers(1000, 1000000),
+        "pwm_top": st.integers(255, 4095),
+        "ctrl_rate_hz": st.integers(100, 50000),
+        "vel_window_log2": st.integers(-1, 8),
+    }
+)
 
-RIG = {"supply_mv": 9000, "vmax_mv": 5860, "kt_unm_per_v": 7500, "kv_mrad_per_vs": 49800,
-       "pwm_top": 2400, "ctrl_rate_hz": 2000, "vel_window_log2": -1}
+RIG = {
+    "supply_mv": 9000,
+    "vmax_mv": 5860,
+    "kt_unm_per_v": 7500,
+    "kv_mrad_per_vs": 49800,
+    "pwm_top": 2400,
+    "ctrl_rate_hz": 2000,
+    "vel_window_log2": -1,
+}
 
 
 def derived_limits_ok(cfg):
@@ -29,8 +39,15 @@ def derived_limits_ok(cfg):
     clamp must cover 2*vmax, and the back-EMF multiplier (sixteenths of a tick per
     observer LSB, 1/64 count/tick) must be below 2^18 at shift 0."""
     w = window_log2(cfg)
-    m_b0 = 16 * 15708e-6 * cfg["ctrl_rate_hz"] * cfg["pwm_top"] * 15 / 16 / (
-        cfg["kv_mrad_per_vs"] / 1000 * cfg["supply_mv"] / 1000 * (1 << w))
+    m_b0 = (
+        16
+        * 15708e-6
+        * cfg["ctrl_rate_hz"]
+        * cfg["pwm_top"]
+        * 15
+        / 16
+        / (cfg["kv_mrad_per_vs"] / 1000 * cfg["supply_mv"] / 1000 * (1 << w))
+    )
     return m_b0 < 2**18 - 0.5 and cfg["kt_unm_per_v"] * cfg["vmax_mv"] <= 65536000
 
 
@@ -134,15 +151,15 @@ def test_rig_constants_and_stall_torque(fw):
     ffi, lib = fw
     rc, d = make_drive(ffi, lib, RIG)
     assert d.duty_max == math.floor(5860 * 2400 / 9000)
-    tau_44mNm = round(0.04395 / (2 ** -5 * 1e-6))
+    tau_44mNm = round(0.04395 / (2**-5 * 1e-6))
     out = command(ffi, lib, d, tau_44mNm, 0, 0)
     assert out.duty in (d.duty_max - 1, d.duty_max) and out.dir == 1
-    assert 2**14 <= d.m_t < 2**15 and 2**17 <= d.m_b < 2**18   # full multiplier precision
+    assert 2**14 <= d.m_t < 2**15 and 2**17 <= d.m_b < 2**18  # full multiplier precision
     out = command(ffi, lib, d, -tau_44mNm * 10, 0, 0)
     assert out.duty == d.duty_max and out.dir == 0
     out = command(ffi, lib, d, 0, 0, 1)
     assert out.duty == 0
-    assert d.vel_log2 == 6            # velocity input: counts/tick with 6 fraction bits
+    assert d.vel_log2 == 6  # velocity input: counts/tick with 6 fraction bits
 
 
 def test_back_emf_term_matches_motor_relation(fw):
@@ -150,7 +167,7 @@ def test_back_emf_term_matches_motor_relation(fw):
     ffi, lib = fw
     rc, d = make_drive(ffi, lib, RIG)
     for counts in (1, 5, 32, 100):
-        omega = counts * 2 * math.pi / 400 * 2000 / 64      # rad/s: counts/tick Q6 at 2 kHz
+        omega = counts * 2 * math.pi / 400 * 2000 / 64  # rad/s: counts/tick Q6 at 2 kHz
         expect = 15 / 16 * omega / 49.8 / 9.0 * 2400
         out = command(ffi, lib, d, 0, counts, 1)
         assert abs(out.duty - min(expect, d.duty_max)) <= 1

@@ -39,8 +39,12 @@ def _how():
 @pytest.fixture(scope="module")
 def build_log(tmp_path_factory):
     cmd, why = _how()
-    env = dict(os.environ, PIO=str(PIO), PATH=f"{PIO.parent}{os.pathsep}{os.environ.get('PATH', '')}",
-               PIO_OFFLINE_WORK=str(tmp_path_factory.mktemp("pio")))
+    env = dict(
+        os.environ,
+        PIO=str(PIO),
+        PATH=f"{PIO.parent}{os.pathsep}{os.environ.get('PATH', '')}",
+        PIO_OFFLINE_WORK=str(tmp_path_factory.mktemp("pio")),
+    )
     if why == "own":
         logs = []
         for args in (["run", "-e", "cell"], ["run", "-e", "primary"], ["test", "-e", "native"]):
@@ -64,7 +68,7 @@ def _sections(log):
 
 def test_both_images_build_and_fit_their_budgets(build_log):
     sizes = _sections(build_log)
-    assert len(sizes) == 4, sizes          # RAM and Flash of cell, then of primary
+    assert len(sizes) == 4, sizes  # RAM and Flash of cell, then of primary
     for role, chunk in (("cell", sizes[:2]), ("primary", sizes[2:])):
         for kind, used in chunk:
             assert 0 < used <= BUDGET[role][kind], (role, kind, used)

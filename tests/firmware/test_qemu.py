@@ -10,7 +10,8 @@ from tools.fwcheck import armbuild, hostvec, qemu
 
 pytestmark = pytest.mark.skipif(
     shutil.which(armbuild.CC) is None or shutil.which(qemu.QEMU) is None,
-    reason="arm-none-eabi-gcc / qemu-system-arm missing (tools/setup.sh installs them)")
+    reason="arm-none-eabi-gcc / qemu-system-arm missing (tools/setup.sh installs them)",
+)
 
 
 @pytest.fixture(scope="module")
@@ -65,15 +66,15 @@ def test_vectors_cover_every_family_and_the_edges(host):
     assert rx.min() == np.iinfo(np.int32).min and rx.max() == np.iinfo(np.int32).max
     assert (np.abs(rx.astype(np.int64)) <= 2048).mean() > 0.5
     drv = fam(r, 3)
-    assert set(np.unique(drv[:, 5].view(np.int32))) == {0}          # every drive config valid
+    assert set(np.unique(drv[:, 5].view(np.int32))) == {0}  # every drive config valid
     assert set(np.unique((drv[:, 0] >> 16) & 0xFF)) == set(range(6))
     sduty, lim = drv[:, 8].view(np.int32), drv[:, 12].view(np.int32)
-    assert (sduty == lim).any() and (sduty == -lim).any()            # both voltage clamps hit
+    assert (sduty == lim).any() and (sduty == -lim).any()  # both voltage clamps hit
     q = fam(r, 4)
-    assert q[:, 11].sum() > 0 and (q[:, 9] > 0).sum() > 0            # saturation and glitches seen
+    assert q[:, 11].sum() > 0 and (q[:, 9] > 0).sum() > 0  # saturation and glitches seen
     cell = fam(r, 5)
     enabled = (cell[:, 9] >> 24) & 1
-    assert 0.1 < enabled.mean() < 0.9                                 # drive on and off
+    assert 0.1 < enabled.mean() < 0.9  # drive on and off
     for bit in range(6):
         assert ((cell[:, 8] >> bit) & 1).any(), f"fault bit {bit} never raised"
 
@@ -106,14 +107,17 @@ def test_instructions_per_tick_within_budget(ticks):
     default = ticks.select(**qemu.BUDGET_CASE)
     with_bemf = ticks.select(enabled=True, fault=False, bemf=True)
     assert len(default) >= 100 and len(with_bemf) >= 100
-    print(f"\ninstructions per mc_cell_tick: default median {np.median(default)} max {max(default)}; "
-          f"back-EMF on median {np.median(with_bemf)} max {max(with_bemf)}")
+    print(
+        f"\ninstructions per mc_cell_tick: default median {np.median(default)} max {max(default)}; "
+        f"back-EMF on median {np.median(with_bemf)} max {max(with_bemf)}"
+    )
     assert max(default) <= qemu.BUDGET
     assert max(with_bemf) <= qemu.BUDGET_BEMF
-    assert np.median(with_bemf) > np.median(default)      # the observer really runs only when on
+    assert np.median(with_bemf) > np.median(default)  # the observer really runs only when on
 
 
 # --------------------------------------------------------------------------- linked-image lint
+
 
 def test_lint_passes_a_linked_image_of_the_library():
     elf = qemu.build_image("vectors")
@@ -124,20 +128,33 @@ def test_lint_passes_a_linked_image_of_the_library():
 
 def test_lint_flags_a_linked_image_that_divides_or_floats(tmp_path):
     src = tmp_path / "bad.c"
-    src.write_text("static int __attribute__((noinline)) helper(int a, int b) { return a / b; }\n"
-                   "float scale(float x) { return x * 0.3f; }\n"
-                   "int ctl(int a, int b) { return helper(a, b) + (int)scale((float)a); }\n")
+    src.write_text(
+        "static int __attribute__((noinline)) helper(int a, int b) { return a / b; }\n"
+        "float scale(float x) { return x * 0.3f; }\n"
+        "int ctl(int a, int b) { return helper(a, b) + (int)scale((float)a); }\n"
+    )
     obj = armbuild.compile_objects([src], tmp_path)[0]
     elf = tmp_path / "bad.elf"
-    armbuild._run([armbuild.CC, *armbuild.CPU_FLAGS, "-nostdlib", "-nostartfiles", "-Wl,-e,ctl",
-                   "-o", str(elf), str(obj), "-lgcc"])
+    armbuild._run(
+        [
+            armbuild.CC,
+            *armbuild.CPU_FLAGS,
+            "-nostdlib",
+            "-nostartfiles",
+            "-Wl,-e,ctl",
+            "-o",
+            str(elf),
+            str(obj),
+            "-lgcc",
+        ]
+    )
     rep = armbuild.lint_elf(elf, ("ctl",))
     # libgcc's __aeabi_idiv and __divsi3 share one address; objdump names either
     assert [c[:2] for c in rep.division] == [["ctl", "helper"]]
     assert armbuild.DIVISION_RE.match(rep.division[0][-1])
     assert any(chain[-1] == "__aeabi_fmul" for chain in rep.softfloat)
     assert not rep.ok
-    assert not armbuild.lint_elf(elf, ("mc_cell_tick",)).ok        # no root present: fails
+    assert not armbuild.lint_elf(elf, ("mc_cell_tick",)).ok  # no root present: fails
 
 
 # --------------------------------------------------------------------------- Unity tests (test/)
@@ -157,23 +174,41 @@ def build_and_run_unity(tmp_path, header_text):
     (tdir / "golden_vectors.h").write_text(header_text)
     exe = tmp_path / "unity_native"
     srcs = [str(tdir / "test_main.c"), str(SHIM / "unity.c"), *map(str, armbuild.library_sources())]
-    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{SHIM}",
-                    f"-I{armbuild.LIB_SRC}", *srcs, "-o", str(exe)], check=True,
-                   capture_output=True, text=True)
+    subprocess.run(
+        [
+            "cc",
+            "-std=c99",
+            "-O2",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            f"-I{SHIM}",
+            f"-I{armbuild.LIB_SRC}",
+            *srcs,
+            "-o",
+            str(exe),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     return subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
 
 
 @pytest.fixture(scope="module")
 def fresh_header():
     from tools.fwcheck import golden
+
     return golden.header_text()
 
 
 def test_golden_header_is_current(fresh_header):
     from tools.fwcheck import golden
+
     assert golden.HEADER_PATH.read_text() == fresh_header, (
         "test/test_native_vectors/golden_vectors.h is stale: the library's behaviour changed. "
-        "If intended, run `.venv/bin/python -m tools.fwcheck golden-header` and commit it.")
+        "If intended, run `.venv/bin/python -m tools.fwcheck golden-header` and commit it."
+    )
 
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no host C compiler")
@@ -185,10 +220,9 @@ def test_unity_tests_pass_natively(tmp_path, fresh_header):
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no host C compiler")
 def test_unity_tests_fail_on_a_wrong_golden_value(tmp_path, fresh_header):
-    line = next(ln for ln in fresh_header.splitlines()
-                if ln.startswith("static const uint32_t golden_fam_fnv"))
+    line = next(ln for ln in fresh_header.splitlines() if ln.startswith("static const uint32_t golden_fam_fnv"))
     vals = line.split("{")[1].split("}")[0].split(", ")
-    vals[3] = f"{int(vals[3].rstrip('u'), 16) ^ 1:#010x}u"      # the drive family
+    vals[3] = f"{int(vals[3].rstrip('u'), 16) ^ 1:#010x}u"  # the drive family
     bad = line.split("{")[0] + "{" + ", ".join(vals) + "};"
     p = build_and_run_unity(tmp_path, fresh_header.replace(line, bad))
     assert p.returncode != 0

@@ -1,11 +1,12 @@
 """Quadrature decoder (exact counts on legal streams, every glitch counted) and velocity observer."""
 
 import numpy as np
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tests.firmware.reference import ObserverFloat, ObserverInt
 
-GRAY = [0b00, 0b01, 0b11, 0b10]   # counting up
+GRAY = [0b00, 0b01, 0b11, 0b10]  # counting up
 
 
 def new_quad(ffi, lib, ab=0):
@@ -28,7 +29,7 @@ def test_counts_equal_net_legal_steps_and_glitches_are_counted(fw, events, start
     expect_err = 0
     for e in events:
         if e == 2:
-            phase = (phase + 2) % 4            # both channels change: a missed edge
+            phase = (phase + 2) % 4  # both channels change: a missed edge
             expect_err += 1
         else:
             phase = (phase + e) % 4
@@ -66,7 +67,7 @@ def test_position_saturates_never_wraps(fw, steps, up):
 def test_upper_bits_of_sample_are_ignored(fw):
     ffi, lib = fw
     q = new_quad(ffi, lib, 0)
-    lib.mc_quad_update(q, 0b101)   # 01 with a stray bit
+    lib.mc_quad_update(q, 0b101)  # 01 with a stray bit
     assert q.pos == 1 and q.errors == 0
 
 
@@ -74,8 +75,9 @@ THETA = st.integers(-3000, 3000)
 
 
 @settings(max_examples=300, deadline=None)
-@given(a0=THETA, b0=THETA, steps=st.lists(st.tuples(st.integers(-40, 40), st.integers(-40, 40)),
-                                         min_size=1, max_size=300))
+@given(
+    a0=THETA, b0=THETA, steps=st.lists(st.tuples(st.integers(-40, 40), st.integers(-40, 40)), min_size=1, max_size=300)
+)
 def test_velocity_observer_matches_float_reference(fw, a0, b0, steps):
     """The fixed-point observer (Q16 states, floor shifts) stays within one output LSB
     (1/64 count/tick) of the real-valued observer, inputs clamped to +-2048."""
@@ -130,7 +132,7 @@ def test_velocity_observer_lag_at_the_long_wave_oscillation(fw):
     out = ffi.new("int32_t[2]")
     w = 2 * np.pi * 34.5 / 2000
     n = np.arange(4000)
-    th = np.round(150 * np.sin(w * n)).astype(int)   # 16 counts/tick peak
+    th = np.round(150 * np.sin(w * n)).astype(int)  # 16 counts/tick peak
     est = []
     for t in th:
         lib.mc_vel_update(vel, int(t), 0, out)

@@ -2,10 +2,10 @@
 
 import math
 
-import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from tests.firmware.reference import reaction, reaction_si, psi_prime_piecewise, RAD_PER_COUNT, TU_NM
+from tests.firmware.reference import RAD_PER_COUNT, TU_NM, psi_prime_piecewise, reaction, reaction_si
 
 I32 = st.integers(min_value=-(2**31), max_value=2**31 - 1)
 NEAR = st.integers(min_value=-3000, max_value=3000)
@@ -44,8 +44,15 @@ def test_default_law_within_one_lsb_of_float_reference(fw, a, b):
 
 
 @settings(max_examples=2000, deadline=None)
-@given(g_ab=GAIN, g_s=GAIN, g1=st.integers(1, 131071), g2=GAIN,
-       astar=st.integers(0, 6400), a=st.one_of(I32, NEAR), b=st.one_of(I32, NEAR))
+@given(
+    g_ab=GAIN,
+    g_s=GAIN,
+    g1=st.integers(1, 131071),
+    g2=GAIN,
+    astar=st.integers(0, 6400),
+    a=st.one_of(I32, NEAR),
+    b=st.one_of(I32, NEAR),
+)
 def test_any_valid_law_within_one_lsb(fw, g_ab, g_s, g1, g2, astar, a, b):
     ffi, lib = fw
     if g2 >= g1:
@@ -68,7 +75,7 @@ def test_psi_prime_is_the_piecewise_law_odd_and_continuous(fw, g1, g2, astar, x)
     assert lib.mc_reaction_set_raw(r, 0, 0, g1, g2, astar) == lib.MC_OK
     p = lib.mc_psi_prime(r, x)
     assert abs(p - psi_prime_piecewise(g1, g2, astar / 16.0, x)) <= 1.0
-    assert lib.mc_psi_prime(r, -x) == -p                          # odd
+    assert lib.mc_psi_prime(r, -x) == -p  # odd
     # continuous: one count never jumps by more than the steepest slope (+ rounding of c1)
     assert abs(lib.mc_psi_prime(r, min(x + 1, 2048)) - p) <= max(abs(g1), abs(g2)) + 1
 
@@ -76,7 +83,7 @@ def test_psi_prime_is_the_piecewise_law_odd_and_continuous(fw, g1, g2, astar, x)
 def test_default_psi_roots_at_zero_and_alpha_star(fw):
     ffi, lib = fw
     r = default_law(ffi, lib)
-    assert r.astar_q4 == 1200                                     # 3*pi/8 = 75 counts exactly
+    assert r.astar_q4 == 1200  # 3*pi/8 = 75 counts exactly
     assert lib.mc_psi_prime(r, 0) == 0
     assert abs(lib.mc_psi_prime(r, 75)) <= 1 and abs(lib.mc_psi_prime(r, -75)) <= 1
     # breakpoint b = k1 a*/(k1 - k2) = a*/2 for k2 = -k1: psi' peaks there
@@ -122,8 +129,10 @@ def _gain(k_unm):
 
 
 @settings(max_examples=500, deadline=None)
-@given(field=st.sampled_from(["k_ab_unm", "sigma_unm", "k1_unm", "k2_unm", "astar_urad"]),
-       value=st.one_of(I32, st.integers(-300000, 300000)))
+@given(
+    field=st.sampled_from(["k_ab_unm", "sigma_unm", "k1_unm", "k2_unm", "astar_urad"]),
+    value=st.one_of(I32, st.integers(-300000, 300000)),
+)
 def test_rejected_parameters_leave_running_ones(fw, field, value):
     """A set is accepted exactly when every value is in range and psi' keeps its shape
     (k1 > 0, k1 > k2 in the gains actually held); a rejected set changes nothing."""
@@ -152,17 +161,19 @@ def test_specific_rejections(fw):
     lib.mc_cell_init(c)
     before = law_dict(c.law)
     p = ffi.new("mc_reaction_phys_t*")
-    for field, value, err in [("sigma_unm", 250001, lib.MC_ERR_RANGE),
-                              ("k1_unm", -60000, lib.MC_ERR_SHAPE),      # k1 <= k2
-                              ("k1_unm", 0, lib.MC_ERR_SHAPE),
-                              ("astar_urad", -1, lib.MC_ERR_RANGE),
-                              ("astar_urad", 7_000_000, lib.MC_ERR_RANGE)]:
+    for field, value, err in [
+        ("sigma_unm", 250001, lib.MC_ERR_RANGE),
+        ("k1_unm", -60000, lib.MC_ERR_SHAPE),  # k1 <= k2
+        ("k1_unm", 0, lib.MC_ERR_SHAPE),
+        ("astar_urad", -1, lib.MC_ERR_RANGE),
+        ("astar_urad", 7_000_000, lib.MC_ERR_RANGE),
+    ]:
         lib.mc_cell_default_params(p)
         setattr(p, field, value)
         assert lib.mc_cell_set_params(c, p) == err, field
         assert law_dict(c.law) == before
     lib.mc_cell_default_params(p)
-    p.sigma_unm = 48000   # 6/125
+    p.sigma_unm = 48000  # 6/125
     assert lib.mc_cell_set_params(c, p) == lib.MC_OK
     assert c.law.g_sigma == round(48000e-6 * RAD_PER_COUNT / TU_NM)
     assert lib.mc_cell_set_params(c, ffi.NULL) == lib.MC_ERR_ARG

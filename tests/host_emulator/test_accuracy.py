@@ -22,9 +22,9 @@ def test_default_is_balanced_and_presets_apply():
 
 
 def test_explicit_options_win_and_bad_level_is_refused():
-    sc = load_scene("exp3_single_sigma9", ["model_options.stepper=\"noh_bathe\"", "accuracy=exact"])
+    sc = load_scene("exp3_single_sigma9", ['model_options.stepper="noh_bathe"', "accuracy=exact"])
     o = resolve_options(sc.model, sc.params, sc.perturbations, sc.options, sc.accuracy, sc.explicit_options)
-    assert o.stepper == "noh_bathe" and o.beta_geometry == "small"      # the scene file sets beta_geometry
+    assert o.stepper == "noh_bathe" and o.beta_geometry == "small"  # the scene file sets beta_geometry
     with pytest.raises(ConfigError, match="accuracy = 'precise'"):
         load_scene("default", ["accuracy=precise"])
 
@@ -42,10 +42,11 @@ def test_presets_are_ordered_by_error_on_the_lattice_scene():
 
     from host_emulator.controller import run_solver
 
-    sc = load_scene("exp3_single_sigma9", ["t_end_s=1", "model_options.beta_geometry=\"small\""])
+    sc = load_scene("exp3_single_sigma9", ["t_end_s=1", 'model_options.beta_geometry="small"'])
     errs = {}
-    ref_opts = replace(resolve_options("lattice", sc.params, sc.perturbations, sc.options, "exact",
-                                       sc.explicit_options))
+    ref_opts = replace(
+        resolve_options("lattice", sc.params, sc.perturbations, sc.options, "exact", sc.explicit_options)
+    )
     ref_opts = replace(ref_opts, dt=ref_opts.dt / 2)
     ref = run_solver(make_model("lattice", sc.params, sc.perturbations, ref_opts).solver(), 1.0)
     for level in ("fast", "balanced", "exact"):
@@ -59,9 +60,24 @@ def test_presets_are_ordered_by_error_on_the_lattice_scene():
 def test_run_accuracy_flag(tmp_path, capsys):
     from host_emulator.cli import main
 
-    assert main(["run", "exp5_rest", "--accuracy", "fast", "--quiet", "--no-plots", "--out", str(tmp_path),
-                 "--set", "t_end_s=0.2"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "exp5_rest",
+                "--accuracy",
+                "fast",
+                "--quiet",
+                "--no-plots",
+                "--out",
+                str(tmp_path),
+                "--set",
+                "t_end_s=0.2",
+            ]
+        )
+        == 0
+    )
     import json
 
     s = json.loads((tmp_path / "summary.json").read_text())
-    assert s["solver"]["stepper"] == "symplectic_euler"          # hil fast preset
+    assert s["solver"]["stepper"] == "symplectic_euler"  # hil fast preset

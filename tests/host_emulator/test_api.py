@@ -42,8 +42,9 @@ def test_plots_take_ax_and_leave_the_backend_alone(tmp_path):
     import matplotlib
 
     before = matplotlib.get_backend()
-    import host_emulator as he
     from matplotlib.figure import Figure
+
+    import host_emulator as he
 
     r = he.run("default", overrides={"t_end_s": 0.6})
     fig = Figure()
@@ -60,8 +61,12 @@ def test_plots_take_ax_and_leave_the_backend_alone(tmp_path):
 
 
 def test_package_never_selects_a_backend():
-    hits = [str(p) for d in ("host_emulator", "tools") for p in (ROOT / d).rglob("*.py")
-            if re.search(r"matplotlib\.use\(|pyplot\.switch_backend|plt\.switch_backend", p.read_text())]
+    hits = [
+        str(p)
+        for d in ("host_emulator", "tools")
+        for p in (ROOT / d).rglob("*.py")
+        if re.search(r"matplotlib\.use\(|pyplot\.switch_backend|plt\.switch_backend", p.read_text())
+    ]
     assert hits == []
 
 
@@ -70,8 +75,17 @@ def test_summary_json_names_the_code_version(tmp_path):
 
     assert main(["run", "default", "--set", "t_end_s=0.3", "--out", str(tmp_path), "--quiet", "--no-plots"]) == 0
     prov = json.loads((tmp_path / "summary.json").read_text())["provenance"]
-    for k in ("package_version", "git_describe", "firmware_build", "numpy", "scipy", "python_can", "created_utc",
-              "command", "python"):
+    for k in (
+        "package_version",
+        "git_describe",
+        "firmware_build",
+        "numpy",
+        "scipy",
+        "python_can",
+        "created_utc",
+        "command",
+        "python",
+    ):
         assert prov[k], k
     assert re.fullmatch(r"[0-9a-f]{16}", prov["firmware_build"])
 
@@ -80,11 +94,13 @@ def test_example_notebook_executes():
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")
     nb = nbformat.read(ROOT / "docs" / "workbench.ipynb", as_version=4)
-    nbclient.NotebookClient(nb, timeout=240, kernel_name="python3",
-                            resources={"metadata": {"path": str(ROOT)}}).execute()
-    images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
-              if "image/png" in o.get("data", {})]
-    assert len(images) >= 3          # figures show inline: the backend was not switched to Agg
+    nbclient.NotebookClient(
+        nb, timeout=240, kernel_name="python3", resources={"metadata": {"path": str(ROOT)}}
+    ).execute()
+    images = [
+        o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if "image/png" in o.get("data", {})
+    ]
+    assert len(images) >= 3  # figures show inline: the backend was not switched to Agg
 
 
 def test_animate_and_dispersion_plot_commands(tmp_path, capsys):
@@ -111,9 +127,11 @@ def test_dispersion_plot_names_band_and_fastest_wavelength():
     ax = Figure().add_subplot(111)
     he.plot_dispersion(Params(sigma=0.072), ax=ax, inertia=True, measured_period_s=None)
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert any(s.startswith("unstable band") for s in labels) and any(s.startswith("fastest wavelength") for s in labels)
+    assert any(s.startswith("unstable band") for s in labels) and any(
+        s.startswith("fastest wavelength") for s in labels
+    )
     ticks = [t.get_text() for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
-    assert ticks and all("^" not in s and "times" not in s for s in ticks)     # plain numbers, no 10^x labels
+    assert ticks and all("^" not in s and "times" not in s for s in ticks)  # plain numbers, no 10^x labels
 
 
 def test_did_you_mean_for_scenes_and_keys():

@@ -17,9 +17,17 @@ def _same(a, b):
 
 def test_batch_matches_run_scene_per_point():
     scenes = sweep_scenes(4, 0.6)
-    scenes.append(load_scene("default", ["t_end_s=0.6", "model_options.noise.encoder_jitter_counts=0.3",
-                                         "model_options.noise.encoder_glitch_prob=0.01",
-                                         "model_options.noise.seed=3"]))
+    scenes.append(
+        load_scene(
+            "default",
+            [
+                "t_end_s=0.6",
+                "model_options.noise.encoder_jitter_counts=0.3",
+                "model_options.noise.encoder_glitch_prob=0.01",
+                "model_options.noise.seed=3",
+            ],
+        )
+    )
     # firmware perturbation commands and a lattice scene take the run_scene path inside the same call
     scenes.append(load_scene("default", ["t_end_s=0.6", "model_options.perturb_via=firmware"]))
     scenes.append(load_scene("default", ["t_end_s=0.3", "model=lattice"]))

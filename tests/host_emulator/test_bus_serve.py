@@ -16,8 +16,13 @@ ROOT = proto.ROOT
 
 @pytest.fixture(scope="module")
 def server():
-    p = subprocess.Popen([sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "60"],
-                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "60"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     first = p.stdout.readline()
     m = re.match(r"slcan pty: (\S+)", first)
     assert m, (first, p.stderr.read() if p.poll() is not None else "")
@@ -51,8 +56,9 @@ def until(bus, pred, timeout=5.0):
 
 
 def command(bus, j, reg, seq, **values):
-    bus.send(can.Message(arbitration_id=proto.cmd_frame_id(j), data=proto.cmd_data(reg, seq, **values),
-                         is_extended_id=False))
+    bus.send(
+        can.Message(arbitration_id=proto.cmd_frame_id(j), data=proto.cmd_data(reg, seq, **values), is_extended_id=False)
+    )
     end = time.monotonic() + 5
     while time.monotonic() < end:
         m = bus.recv(timeout=0.1)
@@ -68,8 +74,11 @@ def n_samples(msgs, j):
 
 def alphas(msgs, j):
     db = proto.database()
-    return [db.decode_message(m.arbitration_id, bytes(m.data), scaling=False)["alpha"] for m in msgs
-            if proto.frame_kind(m.arbitration_id) == ("CELL_SAMPLE", j)]
+    return [
+        db.decode_message(m.arbitration_id, bytes(m.data), scaling=False)["alpha"]
+        for m in msgs
+        if proto.frame_kind(m.arbitration_id) == ("CELL_SAMPLE", j)
+    ]
 
 
 def test_python_can_slcan_gets_all_cells_and_commands_act(server):
@@ -78,7 +87,7 @@ def test_python_can_slcan_gets_all_cells_and_commands_act(server):
         msgs = collect(bus, 1.0)
         cells = set()
         for m in msgs:
-            d = db.decode_message(m.arbitration_id, bytes(m.data))   # every frame decodes with the DBC
+            d = db.decode_message(m.arbitration_id, bytes(m.data))  # every frame decodes with the DBC
             kind, j = proto.frame_kind(m.arbitration_id)
             if kind == "CELL_SAMPLE":
                 cells.add(j)
@@ -88,8 +97,8 @@ def test_python_can_slcan_gets_all_cells_and_commands_act(server):
 
         # a parameter write changes behaviour: with PWM limit 0 a perturbation cannot move the motor
         assert command(bus, 12, "PWM_LIMIT", 1, ticks=0) == "OK"
-        assert command(bus, 12, "PERTURB", 2, chain=0, torque=7500, ticks=400) == "OK"   # 30 mN*m, 0.2 s
-        held = alphas(until(bus, lambda fr: n_samples(fr, 12) >= 50), 12)   # >= 0.45 s of samples
+        assert command(bus, 12, "PERTURB", 2, chain=0, torque=7500, ticks=400) == "OK"  # 30 mN*m, 0.2 s
+        held = alphas(until(bus, lambda fr: n_samples(fr, 12) >= 50), 12)  # >= 0.45 s of samples
         assert len(held) >= 50 and max(abs(a) for a in held) <= 2
         assert command(bus, 4, "PERTURB", 3, chain=0, torque=7500, ticks=400) == "OK"
         moved = alphas(until(bus, lambda fr: n_samples(fr, 4) >= 50), 4)
@@ -100,8 +109,12 @@ def test_python_can_slcan_gets_all_cells_and_commands_act(server):
 
 def test_python_can_logger_records_the_emulator(server, tmp_path):
     out = tmp_path / "emu.asc"
-    p = subprocess.Popen([sys.executable, "-m", "can.logger", "-i", "slcan", "-c", f"{server}@115200", "-f", str(out)],
-                         cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "can.logger", "-i", "slcan", "-c", f"{server}@115200", "-f", str(out)],
+        cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     time.sleep(5.0)
     p.send_signal(signal.SIGINT)
     try:
@@ -113,15 +126,26 @@ def test_python_can_logger_records_the_emulator(server, tmp_path):
     assert {proto.FRAMES["CELL_SAMPLE"]["base"] + j for j in range(1, 17)} <= ids
 
 
-@pytest.mark.parametrize("args,msg", [(["nosuchscene"], "unknown scene"), (["continuum_single"], "needs model"),
-                                      (["default", "--speed", "0"], "--speed"),
-                                      (["default", "--speed", "nan"], "--speed"),
-                                      (["default", "--duration", "nan"], "--duration"),
-                                      (["default", "--period-us", "-1"], "--period-us"),
-                                      (["default", "--stuck", "17"], "outside 1..16")])
+@pytest.mark.parametrize(
+    "args,msg",
+    [
+        (["nosuchscene"], "unknown scene"),
+        (["continuum_single"], "needs model"),
+        (["default", "--speed", "0"], "--speed"),
+        (["default", "--speed", "nan"], "--speed"),
+        (["default", "--duration", "nan"], "--duration"),
+        (["default", "--period-us", "-1"], "--period-us"),
+        (["default", "--stuck", "17"], "outside 1..16"),
+    ],
+)
 def test_serve_refuses_bad_arguments(args, msg):
-    r = subprocess.run([sys.executable, "-m", "host_emulator", "serve", *args, "--slcan"], cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "host_emulator", "serve", *args, "--slcan"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 2 and msg in r.stderr and "slcan pty" not in r.stdout
 
 
@@ -132,9 +156,9 @@ def test_a_dead_client_leaves_nothing_stale(server):
 
     dead = serial.Serial(server, 115200, timeout=0.1)
     dead.write(b"O\r")
-    time.sleep(2.0)                               # frames pile up unread
-    dead.write(proto.cmd_frame_id(3).to_bytes(2, "big").hex().encode()[:3])   # half a line
-    dead.close()                                  # dies without C
+    time.sleep(2.0)  # frames pile up unread
+    dead.write(proto.cmd_frame_id(3).to_bytes(2, "big").hex().encode()[:3])  # half a line
+    dead.close()  # dies without C
     time.sleep(0.5)
     with can.Bus(interface="slcan", channel=f"{server}@115200", sleep_after_open=0.5) as bus:
         first = collect(bus, 1.0)

@@ -16,8 +16,7 @@ from host_emulator.trackers import ProgressTracker
 
 # edges off the 10 ms output grid, so chunks must not straddle them differently from the per-sample path
 PERTS = [Perturbation(5, "alpha", 0.03, 0.0137, 0.0519), Perturbation(11, "beta", -0.02, 0.2031, 0.0402)]
-NOISE = NoiseOptions(seed=3, band_spread=0.05, eta_spread=0.05, encoder_jitter_counts=0.4,
-                     encoder_glitch_prob=1e-3)
+NOISE = NoiseOptions(seed=3, band_spread=0.05, eta_spread=0.05, encoder_jitter_counts=0.4, encoder_glitch_prob=1e-3)
 
 
 def per_sample(solver, n_out):
@@ -64,7 +63,7 @@ def test_lattice_chunked_is_bit_identical(stepper):
     n_out = 60
     ref_s = make_model("lattice", p, PERTS, opts).solver()
     ref = per_sample(ref_s, n_out)
-    assert np.abs(ref[1]).max() > 1e-3                   # the push moved something
+    assert np.abs(ref[1]).max() > 1e-3  # the push moved something
     for sizes in ([256], [1, 7, 3, 50], [13]):
         s = make_model("lattice", p, PERTS, opts).solver()
         same(ref, chunked(s, n_out, sizes))
@@ -100,11 +99,11 @@ def test_hil_chunks_split_at_firmware_commands():
     """A chunk never runs past a firmware command: the command's sample is a chunk of its own (or the end)."""
     opts = ModelOptions(perturb_via="firmware")
     s = make_model("hil", Params(), PERTS, opts).solver()
-    t1, _, _ = s.advance_many(256)          # command at tick 27 (13.7 ms): samples ending at 10 ms only
+    t1, _, _ = s.advance_many(256)  # command at tick 27 (13.7 ms): samples ending at 10 ms only
     assert len(t1) == 1 and t1[-1] == pytest.approx(0.01)
-    t2, _, _ = s.advance_many(256)          # the sample containing tick 27, alone
+    t2, _, _ = s.advance_many(256)  # the sample containing tick 27, alone
     assert len(t2) == 1
-    t3, _, _ = s.advance_many(256)          # next command at tick 406 (203.1 ms): up to 200 ms
+    t3, _, _ = s.advance_many(256)  # next command at tick 406 (203.1 ms): up to 200 ms
     assert t3[-1] == pytest.approx(0.2)
 
 
@@ -129,11 +128,11 @@ def fail_per_sample(s, n):
 
 def test_lattice_unstable_run_stops_at_the_same_sample_with_the_same_time():
     k_fail, msg = fail_per_sample(unstable_lattice(), 2000)
-    assert k_fail > 2                               # it grows for a while first
+    assert k_fail > 2  # it grows for a while first
     s = unstable_lattice()
     with pytest.raises(NumericalInstability) as ei:
         s.advance_many(2000)
-    assert str(ei.value) == msg                     # same cause and the failing sample's time
+    assert str(ei.value) == msg  # same cause and the failing sample's time
     t, a, b = ei.value.samples
     assert len(t) == k_fail and t[-1] == pytest.approx(k_fail * s.dt_out)
     assert np.all(np.isfinite(a)) and np.all(np.isfinite(b))
@@ -146,7 +145,7 @@ def test_lattice_unstable_run_stops_at_the_same_sample_with_the_same_time():
 
     with pytest.raises(NumericalInstability, match="at t = "):
         run_solver(unstable_lattice(), 2000 * s.dt_out, [Keep()])
-    assert len(got) == k_fail + 1                   # t = 0 and every completed sample
+    assert len(got) == k_fail + 1  # t = 0 and every completed sample
 
 
 def unstable_hil():
@@ -175,16 +174,25 @@ def test_advance_many_rejects_a_bad_count():
 
 
 @settings(max_examples=25, deadline=None)
-@given(starts=st.lists(st.integers(0, 120), min_size=1, max_size=4), ticks=st.integers(1, 30),
-       sizes=st.lists(st.integers(1, 12), min_size=1, max_size=4), seed=st.integers(0, 2**32 - 1))
+@given(
+    starts=st.lists(st.integers(0, 120), min_size=1, max_size=4),
+    ticks=st.integers(1, 30),
+    sizes=st.lists(st.integers(1, 12), min_size=1, max_size=4),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_hil_chunking_property(starts, ticks, sizes, seed):
     """Any firmware command ticks (on or off the sample grid), any chunk sizes: the same trajectory, bit for bit,
     as the per-sample path (3 cells, 1 kHz control, 5 ticks per 5 ms sample)."""
     p = Params(cells=3, control_rate_hz=1000)
-    perts = [Perturbation(1 + i % 3, "alpha" if i % 2 else "beta", 0.02, k / 1000, ticks / 1000)
-             for i, k in enumerate(starts)]
-    opts = ModelOptions(perturb_via="firmware", dt_out=0.005,
-                        noise=NoiseOptions(seed=seed % 1000, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-3))
+    perts = [
+        Perturbation(1 + i % 3, "alpha" if i % 2 else "beta", 0.02, k / 1000, ticks / 1000)
+        for i, k in enumerate(starts)
+    ]
+    opts = ModelOptions(
+        perturb_via="firmware",
+        dt_out=0.005,
+        noise=NoiseOptions(seed=seed % 1000, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-3),
+    )
     n_out = 30
     ref_s = make_model("hil", p, perts, opts).solver()
     ref = per_sample(ref_s, n_out)
@@ -195,7 +203,11 @@ def test_hil_chunking_property(starts, ticks, sizes, seed):
 
 def test_progress_bar_reaches_the_end_with_chunks():
     bar = ProgressTracker(delay_s=0.0, file=io.StringIO())
-    res = run_solver(make_model("hil", Params(cells=4), [Perturbation(2, "alpha", 0.03, 0.0137, 0.05)], ModelOptions()).solver(), 1.0, [bar])
+    res = run_solver(
+        make_model("hil", Params(cells=4), [Perturbation(2, "alpha", 0.03, 0.0137, 0.05)], ModelOptions()).solver(),
+        1.0,
+        [bar],
+    )
     assert len(res.t) == 101 and bar.last == pytest.approx(1.0) and bar.bar.n == pytest.approx(1.0)
 
 

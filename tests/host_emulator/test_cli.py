@@ -1,8 +1,8 @@
 """`python -m host_emulator`: scenes listing, run writes a complete summary.json (never NaN), NPZ and plots; errors exit non-zero."""
 
 import json
-import re
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -12,8 +12,18 @@ import numpy as np
 from host_emulator.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
-KEYS = ("scene", "model", "t_end_s", "wall_s", "realtime_factor", "steady", "pattern_period_cells",
-        "oscillation_period_s", "final_alpha_rad", "final_beta_rad")
+KEYS = (
+    "scene",
+    "model",
+    "t_end_s",
+    "wall_s",
+    "realtime_factor",
+    "steady",
+    "pattern_period_cells",
+    "oscillation_period_s",
+    "final_alpha_rad",
+    "final_beta_rad",
+)
 
 
 def _no_nan(v):
@@ -46,9 +56,22 @@ def test_run_writes_summary_npz_and_plots(tmp_path, capsys):
 
 def test_unstable_run_exits_nonzero_without_summary(tmp_path, capsys):
     out = tmp_path / "u"
-    rc = main(["run", "exp3_single_sigma9", "--set", "params.sigma=0.112", "--set", "params.actuator_limit=false",
-               "--set", "t_end_s=3",
-               "--out", str(out), "--quiet", "--no-plots"])
+    rc = main(
+        [
+            "run",
+            "exp3_single_sigma9",
+            "--set",
+            "params.sigma=0.112",
+            "--set",
+            "params.actuator_limit=false",
+            "--set",
+            "t_end_s=3",
+            "--out",
+            str(out),
+            "--quiet",
+            "--no-plots",
+        ]
+    )
     assert rc == 3
     assert re.search("band stretched|diverged", capsys.readouterr().err)
     assert not (out / "summary.json").exists()

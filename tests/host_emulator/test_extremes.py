@@ -21,10 +21,14 @@ def lattice_matrix(p, inertia=True):
     n = p.cells
     lap = np.zeros((n, n))
     for j in range(n - 1):
-        lap[j, j] += 1; lap[j + 1, j + 1] += 1; lap[j, j + 1] -= 1; lap[j + 1, j] -= 1
+        lap[j, j] += 1
+        lap[j + 1, j + 1] += 1
+        lap[j, j + 1] -= 1
+        lap[j + 1, j] -= 1
     K = np.block([[p.ka_eff * lap, np.zeros((n, n))], [np.zeros((n, n)), p.kb_eff * lap]])
-    J = np.block([[(-p.k_ab - p.k2) * np.eye(n), (p.k_ab - p.sigma) * np.eye(n)],
-                  [p.k_ab * np.eye(n), -p.k_ab * np.eye(n)]])
+    J = np.block(
+        [[(-p.k_ab - p.k2) * np.eye(n), (p.k_ab - p.sigma) * np.eye(n)], [p.k_ab * np.eye(n), -p.k_ab * np.eye(n)]]
+    )
     eta = np.r_[np.full(n, p.eta_alpha), np.full(n, p.eta_beta)]
     if not inertia:
         return (J - K) / eta[:, None]
@@ -50,8 +54,9 @@ def measured_growth(p, inertia, stepper="rk4", t_fit=(0.1, 0.5), dt=None):
     """Growth rate of the leading linear mode (linear bands) started at 1e-9 rad along its eigenvector: slope of
     log max|x| over t_fit (stopped early once 1e-4 rad: still linear, far below the psi' breakpoint)."""
     _, x0, v0 = leading_mode(p, inertia)
-    s = LatticeModel(p, [], ModelOptions(bands="linear", inertia=inertia, stepper=stepper, dt=dt,
-                                         dt_out=0.005)).solver(x0=1e-9 * x0, v0=None if v0 is None else 1e-9 * v0)
+    s = LatticeModel(p, [], ModelOptions(bands="linear", inertia=inertia, stepper=stepper, dt=dt, dt_out=0.005)).solver(
+        x0=1e-9 * x0, v0=None if v0 is None else 1e-9 * v0
+    )
     t, y = [], []
     while s.t < t_fit[1] - 1e-9 and np.abs(s.x).max() < 1e-4:
         s.advance()
@@ -70,7 +75,7 @@ def test_inertia_to_zero_limit_and_imex_match_overdamped(scale):
     p = Params(cells=16).with_overrides(I_a=6.39e-7 * scale, I_b=3.13e-7 * scale)
     lim_rk4, chain = LatticeModel(p, PUSH, ModelOptions(stepper="rk4")).step_limit()
     lim_1, _ = LatticeModel(Params(cells=16), PUSH, ModelOptions(stepper="rk4")).step_limit()
-    assert lim_rk4 < lim_1 * 10 * math.sqrt(scale)          # ~ I/eta: the stiff damping mode
+    assert lim_rk4 < lim_1 * 10 * math.sqrt(scale)  # ~ I/eta: the stiff damping mode
     with pytest.raises(ValueError, match=rf"exceeds the stable step limit {lim_rk4:.4g} s of stepper 'rk4'"):
         LatticeModel(p, PUSH, ModelOptions(stepper="rk4", dt=1e-3)).solver()
     imex = LatticeModel(p, PUSH, ModelOptions(stepper="imex_euler", dt=2e-4)).solver()
@@ -93,7 +98,7 @@ def test_overdamped_growth_matches_theory_with_imex_at_large_step():
     got = measured_growth(p, False, "imex_euler", t_fit=(0.1, 0.5), dt=dt)
     theory = max_growth(p, inertia=False)
     assert theory > 5
-    assert got == pytest.approx(theory, rel=0.05)          # first order: ~ dt * rate^2 / 2 bias
+    assert got == pytest.approx(theory, rel=0.05)  # first order: ~ dt * rate^2 / 2 bias
 
 
 # ---------------------------------------------------------------- eta_beta below 0.1 eta_a
@@ -201,8 +206,10 @@ def test_sigma_at_regime_boundaries(inertia, eta_scale):
     if not inertia:
         from host_emulator.analysis.stability import dispersion
 
-        regimes = [dispersion(Params(cells=16, sigma=s), inertia=False, n_cells=16)["regime"] for s in (b[0] * 0.97,
-                                                                                                         b[-1] * 1.03)]
+        regimes = [
+            dispersion(Params(cells=16, sigma=s), inertia=False, n_cells=16)["regime"]
+            for s in (b[0] * 0.97, b[-1] * 1.03)
+        ]
         assert regimes[0] != regimes[1]
 
 
@@ -238,7 +245,7 @@ def test_one_simulated_hour_hil_at_rest():
     the stable limit): rest stays exactly rest; no faults."""
     p = Params(cells=16, control_rate_hz=100.0, bemf_comp=False)
     s = HilModel(p, [], ModelOptions(dt_out=10.0)).solver()
-    assert s.substeps >= 2              # tick 10 ms > the plant's stable step: sub-stepped, not refused
+    assert s.substeps >= 2  # tick 10 ms > the plant's stable step: sub-stepped, not refused
     for _ in range(360):
         s.advance()
     assert s.t == pytest.approx(3600.0)
@@ -263,16 +270,18 @@ def test_single_cell_matches_reaction_theory():
 def test_4096_cells_runs_and_does_not_depend_on_size(model):
     """4096 cells: runs finite; 0.3 s after a push on cell 8 the first 64 cells are exactly those of a 256-cell
     lattice (the signal has not reached either far end: nothing depends on the array size). 4097 is refused."""
+
     def run(n):
         cls = LatticeModel if model == "lattice" else HilModel
         s = cls(Params(cells=n, bemf_comp=False), PUSH, ModelOptions()).solver()
         for _ in range(30):
             s.advance()
         return s.x
+
     small, big = run(256), run(4096)
     assert np.all(np.isfinite(big)) and np.abs(big[:16]).max() > 0.2
     assert np.abs(big[:64] - small[:64]).max() < 1e-12
-    assert np.abs(big[4096:4096 + 64] - small[256:256 + 64]).max() < 1e-12
+    assert np.abs(big[4096 : 4096 + 64] - small[256 : 256 + 64]).max() < 1e-12
     with pytest.raises(ValueError, match="4096"):
         LatticeModel(Params(cells=4097), [], ModelOptions())
 
@@ -317,15 +326,19 @@ def test_sigma_at_unconditional_boundary_uniform_mode(inertia, eta_scale):
         p = Params(cells=8, sigma=s, eta_scale=eta_scale)
         A2 = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab, -p.k_ab]])
         eta, I = np.array([p.eta_alpha, p.eta_beta]), np.array([p.I_a, p.I_b])
-        B = A2 / eta[:, None] if not inertia else np.block([[np.zeros((2, 2)), np.eye(2)],
-                                                           [A2 / I[:, None], -np.diag(eta / I)]])
+        B = (
+            A2 / eta[:, None]
+            if not inertia
+            else np.block([[np.zeros((2, 2)), np.eye(2)], [A2 / I[:, None], -np.diag(eta / I)]])
+        )
         w, V = np.linalg.eig(B)
         k = int(np.argmax(w.real))
         y = np.real(V[:, k]) / np.abs(np.real(V[:2, k])).max()
         x0 = 1e-6 * np.repeat(y[:2], p.cells)
         v0 = 1e-6 * np.repeat(y[2:], p.cells) if inertia else None
-        sol = LatticeModel(p, [], ModelOptions(bands="linear", inertia=inertia, stepper="rk4",
-                                               dt_out=0.05)).solver(x0=x0, v0=v0)
+        sol = LatticeModel(p, [], ModelOptions(bands="linear", inertia=inertia, stepper="rk4", dt_out=0.05)).solver(
+            x0=x0, v0=v0
+        )
         t, yy = [], []
         for _ in range(20):
             sol.advance()

@@ -23,36 +23,89 @@ from host_emulator.scene import scene_from_dict
 
 # every Params field, as literals (the defaults may move; these must not)
 PINNED_PARAMS = {
-    "k_ab": 0.02, "k1": 0.06, "k2": -0.06, "alpha_star": 3 * math.pi / 8, "sigma": 0.072,
-    "I_a": 6.39e-7, "I_b": 3.13e-7, "eta_a": 4.18e-4, "gamma": 0.1, "eta_scale": 1.0,
-    "k_a": 1.46e-2, "k_b": 4.57e-2, "band_scale": 0.5, "slack_f0": True,
-    "supply_v": 9.0, "vmax_v": 5.86, "kt": 0.09 / 12.0, "speed_const": 49.8,
-    "control_rate_hz": 2000.0, "pwm_top": 2400, "bemf_comp": False,
+    "k_ab": 0.02,
+    "k1": 0.06,
+    "k2": -0.06,
+    "alpha_star": 3 * math.pi / 8,
+    "sigma": 0.072,
+    "I_a": 6.39e-7,
+    "I_b": 3.13e-7,
+    "eta_a": 4.18e-4,
+    "gamma": 0.1,
+    "eta_scale": 1.0,
+    "k_a": 1.46e-2,
+    "k_b": 4.57e-2,
+    "band_scale": 0.5,
+    "slack_f0": True,
+    "supply_v": 9.0,
+    "vmax_v": 5.86,
+    "kt": 0.09 / 12.0,
+    "speed_const": 49.8,
+    "control_rate_hz": 2000.0,
+    "pwm_top": 2400,
+    "bemf_comp": False,
 }
-HIL_OPTIONS = {"inertia": True, "bands": "cubic", "beta_geometry": "small", "stepper": "symplectic_euler",
-               "substeps": 1, "dt_out": 0.01, "perturb_via": "plant"}
-LATTICE_OPTIONS = {"inertia": True, "bands": "cubic", "beta_geometry": "small", "stepper": "rk4",
-                   "dt": 5e-4, "dt_out": 0.01}
+HIL_OPTIONS = {
+    "inertia": True,
+    "bands": "cubic",
+    "beta_geometry": "small",
+    "stepper": "symplectic_euler",
+    "substeps": 1,
+    "dt_out": 0.01,
+    "perturb_via": "plant",
+}
+LATTICE_OPTIONS = {
+    "inertia": True,
+    "bands": "cubic",
+    "beta_geometry": "small",
+    "stepper": "rk4",
+    "dt": 5e-4,
+    "dt_out": 0.01,
+}
 PUSH = {"cell": 8, "chain": "alpha", "torque_Nm": 0.02, "start_s": 0.1, "duration_s": 0.1}
 
 
 def _scene(name, model, t_end, params=(), options=(), perturbation=(PUSH,)):
     opts = dict(HIL_OPTIONS if model == "hil" else LATTICE_OPTIONS)
     opts.update(options)
-    return scene_from_dict({"name": name, "model": model, "cells": 16, "t_end_s": t_end, "accuracy": "balanced",
-                            "params": {**PINNED_PARAMS, **dict(params)}, "model_options": opts,
-                            "perturbation": [dict(p) for p in perturbation]})
+    return scene_from_dict(
+        {
+            "name": name,
+            "model": model,
+            "cells": 16,
+            "t_end_s": t_end,
+            "accuracy": "balanced",
+            "params": {**PINNED_PARAMS, **dict(params)},
+            "model_options": opts,
+            "perturbation": [dict(p) for p in perturbation],
+        }
+    )
 
 
 CASES = {
     "hil_default": lambda: _scene("hil_default", "hil", 1.0),
-    "hil_noise": lambda: _scene("hil_noise", "hil", 1.0, options={
-        "noise": {"seed": 7, "band_spread": 0.05, "eta_spread": 0.05, "encoder_jitter_counts": 0.4,
-                  "encoder_glitch_prob": 1e-3}}),
+    "hil_noise": lambda: _scene(
+        "hil_noise",
+        "hil",
+        1.0,
+        options={
+            "noise": {
+                "seed": 7,
+                "band_spread": 0.05,
+                "eta_spread": 0.05,
+                "encoder_jitter_counts": 0.4,
+                "encoder_glitch_prob": 1e-3,
+            }
+        },
+    ),
     "hil_bemf": lambda: _scene("hil_bemf", "hil", 1.0, params={"bemf_comp": True}),
-    "hil_firmware_push": lambda: _scene("hil_firmware_push", "hil", 1.0, options={"perturb_via": "firmware"},
-                                        perturbation=(PUSH, {"cell": 3, "chain": "beta", "torque_Nm": -0.01,
-                                                             "start_s": 0.305, "duration_s": 0.0505})),
+    "hil_firmware_push": lambda: _scene(
+        "hil_firmware_push",
+        "hil",
+        1.0,
+        options={"perturb_via": "firmware"},
+        perturbation=(PUSH, {"cell": 3, "chain": "beta", "torque_Nm": -0.01, "start_s": 0.305, "duration_s": 0.0505}),
+    ),
     "lattice": lambda: _scene("lattice", "lattice", 1.0),
 }
 
@@ -123,8 +176,7 @@ def test_fast_hil_step_is_bit_identical_to_the_generic_step():
     from host_emulator.controller import run_solver
     from host_emulator.models import make_model
 
-    sc = _scene("fast_vs_generic", "hil", 0.5, options={"noise": {"seed": 2, "band_spread": 0.05,
-                                                                   "eta_spread": 0.05}})
+    sc = _scene("fast_vs_generic", "hil", 0.5, options={"noise": {"seed": 2, "band_spread": 0.05, "eta_spread": 0.05}})
     out = []
     for generic in (False, True):
         m = make_model("hil", sc.params, sc.perturbations, sc.options)

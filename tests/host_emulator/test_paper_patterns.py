@@ -41,10 +41,10 @@ def test_sigma14_lattice_is_a_bounded_uniform_limit_cycle_and_eta10_returns_to_r
     o = summary_of("exp3_single_sigma14", "model=lattice")
     assert o["oscillation_period_s"] == pytest.approx(0.029, abs=0.002)
     assert o["oscillation_period_s"] == pytest.approx(theory["uniform_mode_period_s"], rel=0.05)
-    assert o["dominant_mode"] == 0                                   # spatially uniform
+    assert o["dominant_mode"] == 0  # spatially uniform
     fa = np.array(o["final_alpha_rad"])
     assert np.ptp(fa) < 0.05 * np.abs(fa).max()
-    assert 0.05 < o["amplitude_rad"] < 3.0                           # bounded, not decayed
+    assert 0.05 < o["amplitude_rad"] < 3.0  # bounded, not decayed
     o10 = summary_of("exp3_single_sigma14", "model=lattice", "params.eta_scale=10")
     assert o10["at_rest"] and o10["oscillation_period_s"] is None
 
@@ -63,8 +63,9 @@ def test_band_law_slope_is_twice_band_scale_times_the_table_k(band_scale):
     p = Params(cells=2, band_scale=band_scale, k_ab=0.0, k1=0.0, k2=0.0, sigma=0.0, alpha_star=0.0)
     m = make_model("lattice", p, [], ModelOptions())
     eps = 1e-6
-    for ch, (k_eff, r, coef, d0) in enumerate(((p.ka_eff, P.R_ALPHA_M, P.BAND_A_COEF, P.DELTA_A0_M),
-                                               (p.kb_eff, P.R_BETA_ARM_M, P.BAND_B_COEF, P.DELTA_B0_M))):
+    for ch, (k_eff, r, coef, d0) in enumerate(
+        ((p.ka_eff, P.R_ALPHA_M, P.BAND_A_COEF, P.DELTA_A0_M), (p.kb_eff, P.R_BETA_ARM_M, P.BAND_B_COEF, P.DELTA_B0_M))
+    ):
         x = np.zeros(4)
         x[2 * ch] = eps
         F, _ = m.forces(0.0, x)
@@ -86,5 +87,6 @@ def test_dispersion_at_table_k_and_at_the_rigs_k():
         assert rig["unstable_band_cells"][0] < lam < rig["unstable_band_cells"][1]
     # the growth rate depends on stiffness only through q*k, so the same rate sits at a longer wave
     assert rig["fastest_growth_per_s"] == pytest.approx(table["fastest_growth_per_s"], rel=1e-6)
-    assert math.isclose(2 * (1 - math.cos(table["fastest_kappa"])), 2 * 2 * (1 - math.cos(rig["fastest_kappa"])),
-                        rel_tol=1e-5)
+    assert math.isclose(
+        2 * (1 - math.cos(table["fastest_kappa"])), 2 * 2 * (1 - math.cos(rig["fastest_kappa"])), rel_tol=1e-5
+    )

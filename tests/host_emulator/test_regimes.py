@@ -32,12 +32,12 @@ def test_sigma_6_forms_a_pattern():
     sc, res, obs = run("exp3_single_sigma6")
     assert obs["steady"] and obs["amplitude_rad"] > 0.5
     a = res.alpha[-1]
-    assert (np.abs(a) > 0.4).sum() >= 12          # unconditionally unstable: patterned everywhere
+    assert (np.abs(a) > 0.4).sum() >= 12  # unconditionally unstable: patterned everywhere
 
 
 def test_sigma_14_eta_x10_returns_to_rest():
     sc, res, obs = run("exp4_stable_eta10")
-    assert np.abs(res.alpha).max() > 0.1           # the push did move it
+    assert np.abs(res.alpha).max() > 0.1  # the push did move it
     assert obs["steady"]
     assert np.abs(res.alpha[-1]).max() < 0.01 and np.abs(res.beta[-1]).max() < 0.01
 

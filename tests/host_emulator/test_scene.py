@@ -10,8 +10,16 @@ BASE = {"name": "t", "model": "lattice", "cells": 8, "t_end_s": 1.0}
 
 def test_shipped_scenes_load():
     names = [n for n, _, _ in list_scenes()]
-    for n in ("default", "exp1_ccw_ccw", "exp2_ccw_cw", "exp3_single_sigma9", "exp3_single_sigma6",
-              "exp3_single_sigma14", "exp4_stable_eta10", "exp5_rest"):
+    for n in (
+        "default",
+        "exp1_ccw_ccw",
+        "exp2_ccw_cw",
+        "exp3_single_sigma9",
+        "exp3_single_sigma6",
+        "exp3_single_sigma14",
+        "exp4_stable_eta10",
+        "exp5_rest",
+    ):
         assert n in names
     for n in names:
         sc = load_scene(n)
@@ -20,27 +28,36 @@ def test_shipped_scenes_load():
     assert d.model == "hil" and d.cells == 16 and d.params.sigma == pytest.approx(9 / 125)
 
 
-@pytest.mark.parametrize("patch,key", [
-    ({"colour": 1}, "colour"),
-    ({"params": {"sigmaa": 0.1}}, "params.sigmaa"),
-    ({"params": {"sigma": "x"}}, "params.sigma"),
-    ({"params": {"cells": 4}}, "params.cells"),
-    ({"params": {"eta_scale": -1.0}}, "params.eta_scale"),
-    ({"model": "quantum"}, "model"),
-    ({"cells": 0}, "cells"),
-    ({"t_end_s": -1}, "t_end_s"),
-    ({"model_options": {"bands": "rubber"}}, "model_options.bands"),
-    ({"model_options": {"stepper": "leapfrog"}}, "model_options.stepper"),
-    ({"model_options": {"inertia": 1}}, "model_options.inertia"),
-    ({"model_options": {"noise": {"seeed": 1}}}, "model_options.noise.seeed"),
-    ({"model_options": {"noise": {"encoder_glitch_prob": 2.0}}}, "model_options.noise.encoder_glitch_prob"),
-    ({"perturbation": [{"cell": 9, "chain": "alpha", "torque_Nm": 0.1, "start_s": 0, "duration_s": 1}]},
-     "perturbation[1].cell"),
-    ({"perturbation": [{"cell": 1, "chain": "gamma", "torque_Nm": 0.1, "start_s": 0, "duration_s": 1}]},
-     "perturbation[1].chain"),
-    ({"perturbation": [{"cell": 1, "chain": "alpha", "torque": 0.1, "start_s": 0, "duration_s": 1}]},
-     "perturbation[1].torque"),
-])
+@pytest.mark.parametrize(
+    "patch,key",
+    [
+        ({"colour": 1}, "colour"),
+        ({"params": {"sigmaa": 0.1}}, "params.sigmaa"),
+        ({"params": {"sigma": "x"}}, "params.sigma"),
+        ({"params": {"cells": 4}}, "params.cells"),
+        ({"params": {"eta_scale": -1.0}}, "params.eta_scale"),
+        ({"model": "quantum"}, "model"),
+        ({"cells": 0}, "cells"),
+        ({"t_end_s": -1}, "t_end_s"),
+        ({"model_options": {"bands": "rubber"}}, "model_options.bands"),
+        ({"model_options": {"stepper": "leapfrog"}}, "model_options.stepper"),
+        ({"model_options": {"inertia": 1}}, "model_options.inertia"),
+        ({"model_options": {"noise": {"seeed": 1}}}, "model_options.noise.seeed"),
+        ({"model_options": {"noise": {"encoder_glitch_prob": 2.0}}}, "model_options.noise.encoder_glitch_prob"),
+        (
+            {"perturbation": [{"cell": 9, "chain": "alpha", "torque_Nm": 0.1, "start_s": 0, "duration_s": 1}]},
+            "perturbation[1].cell",
+        ),
+        (
+            {"perturbation": [{"cell": 1, "chain": "gamma", "torque_Nm": 0.1, "start_s": 0, "duration_s": 1}]},
+            "perturbation[1].chain",
+        ),
+        (
+            {"perturbation": [{"cell": 1, "chain": "alpha", "torque": 0.1, "start_s": 0, "duration_s": 1}]},
+            "perturbation[1].torque",
+        ),
+    ],
+)
 def test_bad_scene_names_the_key(patch, key):
     with pytest.raises(ConfigError) as e:
         scene_from_dict(BASE | patch)
@@ -53,8 +70,16 @@ def test_missing_key():
 
 
 def test_overrides():
-    sc = load_scene("default", ["params.sigma=6/125", "model_options.inertia=false", "t_end_s=2",
-                                "perturbation.1.torque_Nm=-0.01", "model_options.noise.seed=4"])
+    sc = load_scene(
+        "default",
+        [
+            "params.sigma=6/125",
+            "model_options.inertia=false",
+            "t_end_s=2",
+            "perturbation.1.torque_Nm=-0.01",
+            "model_options.noise.seed=4",
+        ],
+    )
     assert sc.params.sigma == pytest.approx(0.048)
     assert sc.options.inertia is False and sc.t_end_s == 2.0
     assert sc.perturbations[0].torque_Nm == -0.01 and sc.options.noise.seed == 4
@@ -84,14 +109,17 @@ _ident = st.text(alphabet="abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=12
 @settings(max_examples=60, deadline=None)
 @given(_ident, st.sampled_from(["", "params", "model_options", "model_options.noise"]))
 def test_any_unknown_key_is_named(key, table):
-    from host_emulator.models.options import ModelOptions, NoiseOptions
-    from host_emulator.params import Params
     import dataclasses
 
-    known = {"": {"name", "description", "model", "cells", "t_end_s", "params", "model_options", "perturbation"},
-             "params": {f.name for f in dataclasses.fields(Params)},
-             "model_options": {f.name for f in dataclasses.fields(ModelOptions)},
-             "model_options.noise": {f.name for f in dataclasses.fields(NoiseOptions)}}[table]
+    from host_emulator.models.options import ModelOptions, NoiseOptions
+    from host_emulator.params import Params
+
+    known = {
+        "": {"name", "description", "model", "cells", "t_end_s", "params", "model_options", "perturbation"},
+        "params": {f.name for f in dataclasses.fields(Params)},
+        "model_options": {f.name for f in dataclasses.fields(ModelOptions)},
+        "model_options.noise": {f.name for f in dataclasses.fields(NoiseOptions)},
+    }[table]
     if key in known:
         return
     d = dict(BASE)

@@ -30,9 +30,15 @@ def rel_error(stepper, dt, inertia=True, t_end=0.2, eta_scale=10):
     return np.abs(s.x - exact[: 2 * N]).max() / np.abs(x0).max()
 
 
-@pytest.mark.parametrize("stepper,order,dt,inertia", [
-    ("noh_bathe", 2, 2.5e-5, True), ("noh_bathe", 2, 2e-4, False),
-    ("imex_euler", 1, 1e-4, True), ("imex_euler", 1, 2e-4, False)])
+@pytest.mark.parametrize(
+    "stepper,order,dt,inertia",
+    [
+        ("noh_bathe", 2, 2.5e-5, True),
+        ("noh_bathe", 2, 2e-4, False),
+        ("imex_euler", 1, 1e-4, True),
+        ("imex_euler", 1, 2e-4, False),
+    ],
+)
 def test_convergence_order(stepper, order, dt, inertia):
     e1, e2 = rel_error(stepper, dt, inertia), rel_error(stepper, dt / 2, inertia)
     assert abs(np.log2(e1 / e2) - order) < 0.25, (e1, e2)
@@ -62,7 +68,7 @@ def nb_amplification(c, w2, h, p=P_NB):
 def test_noh_bathe_radius_matches_eigenvalues(ch, omega):
     """The C spectral radius (repeated squaring) equals numpy's eigenvalues of the amplification matrix."""
     _, lib = firmware.load()
-    w2, h = 1.0, omega            # units with w = 1: Omega = w h, damping c h
+    w2, h = 1.0, omega  # units with w = 1: Omega = w h, damping c h
     A = nb_amplification(ch / h, w2, h)
     rho = np.abs(np.linalg.eigvals(A)).max()
     assert lib.he_noh_bathe_radius(ch / h, w2, h) == pytest.approx(rho, rel=1e-6, abs=1e-9)
@@ -73,13 +79,21 @@ def test_noh_bathe_undamped_critical_step():
     lo, hi = 1.0, 5.0
     for _ in range(60):
         mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if np.abs(np.linalg.eigvals(nb_amplification(0.0, 1.0, mid))).max() <= 1 + 1e-9 else (lo, mid)
-    assert 2.0 < lo < 4.0      # Noh-Bathe's undamped limit exceeds central differences' 2 (per step)
+        lo, hi = (
+            (mid, hi) if np.abs(np.linalg.eigvals(nb_amplification(0.0, 1.0, mid))).max() <= 1 + 1e-9 else (lo, mid)
+        )
+    assert 2.0 < lo < 4.0  # Noh-Bathe's undamped limit exceeds central differences' 2 (per step)
     # a two-cell lattice, linear bands, no reaction, no damping: w2 bound = 4 k_a / I_a (Gershgorin), one chain
     ffi, lib = firmware.load()
-    m = LatticeModel(Params(cells=2, eta_a=1e-30, k_ab=0.0, k1=0.0, k2=0.0, sigma=0.0, alpha_star=0.0),
-                     [], ModelOptions(bands="linear", stepper="noh_bathe"))
-    w2 = ffi.new("double[2]"); cmn = ffi.new("double[2]"); cmx = ffi.new("double[2]"); r = ffi.new("double[2]")
+    m = LatticeModel(
+        Params(cells=2, eta_a=1e-30, k_ab=0.0, k1=0.0, k2=0.0, sigma=0.0, alpha_star=0.0),
+        [],
+        ModelOptions(bands="linear", stepper="noh_bathe"),
+    )
+    w2 = ffi.new("double[2]")
+    cmn = ffi.new("double[2]")
+    cmx = ffi.new("double[2]")
+    r = ffi.new("double[2]")
     lib.he_plant_bounds(m.plant, w2, cmn, cmx, r)
     h, _ = m.step_limit()
     assert h * np.sqrt(max(w2[0], w2[1])) == pytest.approx(lo, rel=1e-5)
@@ -90,7 +104,7 @@ def test_noh_bathe_undamped_critical_step():
 def test_limit_is_stable_and_beyond_blows_up(stepper, inertia):
     """0.9x the computed limit is stable on the stiffest linear lattice; 3x (5x for the IMEX, whose limit
     comes from a Gershgorin bound of the explicit reaction only) is not."""
-    p = Params(cells=16, sigma=14 / 125, eta_scale=10, actuator_limit=False)   # the linear system, unclipped
+    p = Params(cells=16, sigma=14 / 125, eta_scale=10, actuator_limit=False)  # the linear system, unclipped
     m = LatticeModel(p, [], ModelOptions(bands="linear", stepper=stepper, inertia=inertia))
     h, _ = m.step_limit()
     x0 = 1e-3 * np.cos(np.pi * np.arange(32))
@@ -106,12 +120,15 @@ def test_limit_is_stable_and_beyond_blows_up(stepper, inertia):
 def numpy_noh_bathe(ref, h, nsteps, x, v):
     """Noh-Bathe (inertia) on the numpy reference plant, from the equations in he_step_more.h."""
     p = P_NB
-    q1 = (1 - 2 * p) / (2 * p * (1 - p)); q2 = 0.5 - p * q1; q0 = -q1 - q2 + 0.5
+    q1 = (1 - 2 * p) / (2 * p * (1 - p))
+    q2 = 0.5 - p * q1
+    q0 = -q1 - q2 + 0.5
     s, ph, E = (1 - p) * h, p * h, STAGE_EDGE
 
     def acc(t, xx, vv):
         F, C = ref.forces(t, xx)
         return (F - C * vv) / ref.I
+
     a0 = acc(E * h, x, v)
     for k in range(nsteps):
         t = k * h
@@ -136,7 +153,8 @@ def numpy_imex(ref, h, nsteps, x, v, inertia):
         Kb = np.zeros((2 * n, 2 * n))
         eps = 1e-7
         for i in range(2 * n):
-            d = np.zeros(2 * n); d[i] = eps
+            d = np.zeros(2 * n)
+            d[i] = eps
             Kb[:, i] = -(ref.band_torques(x + d) - ref.band_torques(x - d)) / (2 * eps)
         if inertia:
             A = np.diag(ref.I + h * C) + h * h * Kb
@@ -159,9 +177,12 @@ def test_trajectory_matches_numpy_transcription(stepper, inertia):
     s = m.solver()
     s.advance()
     h = s.h
-    x, v = (numpy_noh_bathe(ref, h, s.nsub, np.zeros(12), np.zeros(12)) if stepper == "noh_bathe"
-            else numpy_imex(ref, h, s.nsub, np.zeros(12), np.zeros(12), inertia))
-    assert np.abs(x).max() > 0.05                  # something happened
+    x, v = (
+        numpy_noh_bathe(ref, h, s.nsub, np.zeros(12), np.zeros(12))
+        if stepper == "noh_bathe"
+        else numpy_imex(ref, h, s.nsub, np.zeros(12), np.zeros(12), inertia)
+    )
+    assert np.abs(x).max() > 0.05  # something happened
     assert np.abs(s.x - x).max() < (1e-10 if stepper == "noh_bathe" else 1e-7)
 
 
@@ -188,6 +209,7 @@ def test_hil_loop_runs_the_new_steppers(stepper):
         for _ in range(50):
             s.advance()
         return s.x.copy()
+
     ref = run("rk4", 8)
     got = run(stepper, 2)
     assert np.abs(ref).max() > 0.3

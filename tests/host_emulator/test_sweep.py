@@ -24,8 +24,10 @@ def test_parse_grid():
     k, v = parse_grid("params.sigma=0.04:0.12:41")
     assert k == "params.sigma" and len(v) == 41 and v[0] == 0.04 and v[-1] == pytest.approx(0.12)
     assert np.allclose(np.diff(v), 0.002)
-    assert parse_grid("perturbation.1.torque_Nm=0.005,0.01,0.02,0.04") == \
-        ("perturbation.1.torque_Nm", [0.005, 0.01, 0.02, 0.04])
+    assert parse_grid("perturbation.1.torque_Nm=0.005,0.01,0.02,0.04") == (
+        "perturbation.1.torque_Nm",
+        [0.005, 0.01, 0.02, 0.04],
+    )
     assert parse_grid("params.sigma=9/125,6/125")[1] == [9 / 125, 6 / 125]
     for bad in ("params.sigma", "params.sigma=", "params.sigma=1:2:x", "params.sigma=1:2:0", "a=1,1"):
         with pytest.raises(SweepError):
@@ -49,11 +51,14 @@ def test_local_cluster_sweep_dataset_resume_and_failures(tmp_path):
     ds = sweep("default", grid, seeds=2, out=out, fixed=["t_end_s=0.5"], workers=2, progress=False)
     assert ds["pattern_wavelength_cells"].dims == ("params.sigma", "params.eta_a", "seed")
     st = ds["status"].values.astype(str)
-    assert (st[:, 0] == "ok").all() and (st[:, 1] == "failed").all()        # failed points kept, with reasons
+    assert (st[:, 0] == "ok").all() and (st[:, 1] == "failed").all()  # failed points kept, with reasons
     assert all("eta_a" in e for e in ds["error"].values[:, 1].ravel().astype(str))
     assert ds.attrs["sweep.failed"] == 4 and ds.attrs["provenance.git_describe"]
-    assert set(ds["regime"].values[:, 0].ravel().astype(str)) <= {"conditionally_unstable",
-                                                                "unconditionally_unstable", "stable"}
+    assert set(ds["regime"].values[:, 0].ravel().astype(str)) <= {
+        "conditionally_unstable",
+        "unconditionally_unstable",
+        "stable",
+    }
     back = xr.open_dataset(out / "sweep.nc", engine="scipy")
     np.testing.assert_array_equal(back["amplitude_rad"].values, ds["amplitude_rad"].values)
     assert back.attrs["provenance.firmware_build"] == ds.attrs["provenance.firmware_build"]
@@ -82,7 +87,7 @@ def test_resume_after_a_partial_run(tmp_path):
     specs, _ = point_specs("default", grid, None, ["t_end_s=0.3"])
     out.mkdir()
     first = evaluate_points(specs[:1])
-    first[0]["amplitude_rad"] = 123.0                       # a marker: must survive the resume untouched
+    first[0]["amplitude_rad"] = 123.0  # a marker: must survive the resume untouched
     (out / "points.jsonl").write_text(json.dumps(first[0]) + "\n" + '{"index": 1, "sta')
     ds = sweep("default", grid, out=out, fixed=["t_end_s=0.3"], workers=1, progress=False, plots=False)
     assert ds["amplitude_rad"].values[0] == 123.0
@@ -100,17 +105,27 @@ def test_cli_sweep_bad_grid_is_exit_2(capsys):
 def _start_cluster(tmp_path, n_workers=2):
     sf = tmp_path / "scheduler.json"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
-    procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard",
-                               "--scheduler-file", str(sf)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                              env=env)]
+    procs = [
+        subprocess.Popen(
+            [str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard", "--scheduler-file", str(sf)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+    ]
     t0 = time.time()
     while not sf.exists() and time.time() - t0 < 30:
         time.sleep(0.1)
     addr = json.loads(sf.read_text())["address"]
     for _ in range(n_workers):
-        procs.append(subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nthreads", "1", "--no-nanny",
-                                       "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                      env=env))
+        procs.append(
+            subprocess.Popen(
+                [str(BIN / "dask"), "worker", addr, "--nthreads", "1", "--no-nanny", "--no-dashboard"],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                env=env,
+            )
+        )
     from distributed import Client
 
     with Client(addr, timeout="30s") as c:
@@ -135,9 +150,27 @@ def test_external_scheduler_and_a_worker_killed_mid_sweep(tmp_path):
     addr, procs = _start_cluster(tmp_path)
     try:
         out = tmp_path / "ext"
-        cmd = [sys.executable, "-m", "host_emulator", "sweep", "default", "--grid", "params.sigma=0.05:0.09:12",
-               "--seeds", "2", "--set", "t_end_s=8", "--chunk", "1", "--scheduler", addr, "--out", str(out),
-               "--no-plots", "--quiet"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "host_emulator",
+            "sweep",
+            "default",
+            "--grid",
+            "params.sigma=0.05:0.09:12",
+            "--seeds",
+            "2",
+            "--set",
+            "t_end_s=8",
+            "--chunk",
+            "1",
+            "--scheduler",
+            addr,
+            "--out",
+            str(out),
+            "--no-plots",
+            "--quiet",
+        ]
         sw = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         t0 = time.time()
         pts = out / "points.jsonl"
@@ -153,7 +186,7 @@ def test_external_scheduler_and_a_worker_killed_mid_sweep(tmp_path):
         assert st.size == 24 and "pending" not in st
         err = ds["error"].values.astype(str).ravel()
         assert all(e for s, e in zip(st, err) if s == "failed")
-        assert killed_at < 24                  # the kill did land mid-sweep
+        assert killed_at < 24  # the kill did land mid-sweep
         assert ds.attrs["provenance.command"].find("sweep") >= 0
     finally:
         _stop(procs)

@@ -28,7 +28,7 @@ def test_trackers_see_every_sample():
     res = run_solver(m.solver(), 1.0, [c, LiveTracker(0.5, file=buf), ProgressTracker(file=io.StringIO())])
     assert c.done and len(c.t) == c.n == 21 and np.all(np.diff(c.t) > 0)
     np.testing.assert_allclose(res.t, c.t)
-    assert buf.getvalue().count("max|alpha|") == 3        # t = 0, 0.5, 1.0
+    assert buf.getvalue().count("max|alpha|") == 3  # t = 0, 0.5, 1.0
 
 
 def test_bad_t_end():

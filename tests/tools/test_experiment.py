@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host_emulator.analysis.observables import domain_walls
-from host_emulator.scene import load_scene, list_scenes
+from host_emulator.scene import list_scenes, load_scene
 from tools.experiment import cli
 from tools.experiment.compare import CompareError, compare
 from tools.experiment.plan import PlanError, make_plan, perturb_payload, pwm_limit_ticks, wire_param
@@ -26,13 +26,15 @@ from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
 ROOT = proto.ROOT
 ENABLED = 1 << proto.CELL_FLAGS["ENABLED"]
-SHORT = ["--open-wait", "0.1", "--timeout", "3"]     # generous command timeout: the suite runs on a loaded machine
+SHORT = ["--open-wait", "0.1", "--timeout", "3"]  # generous command timeout: the suite runs on a loaded machine
 
 
 def strict_json(path):
     """summary.json parsed with NaN/Infinity refused."""
+
     def bad(c):
         raise ValueError(f"non-finite constant {c} in {path}")
+
     return json.loads(path.read_text(), parse_constant=bad)
 
 
@@ -40,10 +42,10 @@ def strict_json(path):
 @given(st.floats(-0.131, 0.131), st.floats(0.0005, 30.0), st.sampled_from(["alpha", "beta"]))
 def test_perturb_payload_round_trips_within_half_lsb(torque, duration, chain):
     p = perturb_payload(chain, torque, duration, 2000, "perturbation[1]")
-    assert abs(p["torque"] * 4e-6 - torque) <= 2e-6 + 1e-12          # 4 uN*m LSB
+    assert abs(p["torque"] * 4e-6 - torque) <= 2e-6 + 1e-12  # 4 uN*m LSB
     assert abs(p["ticks"] / 2000 - duration) <= 0.25e-3 + 1e-12 or p["ticks"] == 1
     assert p["chain"] == (0 if chain == "alpha" else 1)
-    proto.pack_payload("PERTURB", **p)                                 # fits the wire layout
+    proto.pack_payload("PERTURB", **p)  # fits the wire layout
 
 
 @given(st.one_of(st.floats(0.1311, 10), st.floats(-10, -0.1311)))
@@ -72,7 +74,7 @@ def test_every_shipped_scene_has_a_rig_plan(name):
     sc = load_scene(name)
     plan = make_plan(sc)
     regs = [c.reg for c in plan.setup]
-    assert regs[0] == "ENABLE" and plan.setup[0].values == {"on": 0}      # drive off before anything else
+    assert regs[0] == "ENABLE" and plan.setup[0].values == {"on": 0}  # drive off before anything else
     assert {"K_AB", "SIGMA", "K1", "K2", "ASTAR", "PWM_LIMIT", "BEMF"} <= set(regs)
     assert next(c for c in plan.setup if c.reg == "SIGMA").values["value"] == round(sc.params.sigma * 1e6)
     assert len(plan.perturbations) == len(sc.perturbations)
@@ -99,7 +101,7 @@ def test_serve_overrides_strip_pushes_and_reset_firmware_params():
     assert "perturbation.1.torque_Nm=0" in o and "perturbation.2.torque_Nm=0" in o and "model=hil" in o
     served = load_scene("exp1_ccw_ccw", o)
     assert all(q.torque_Nm == 0 for q in served.perturbations)
-    assert served.params.sigma == pytest.approx(9 / 125)       # the runner must set sigma itself
+    assert served.params.sigma == pytest.approx(9 / 125)  # the runner must set sigma itself
 
 
 def test_cells_text():
@@ -112,22 +114,22 @@ def test_series_on_the_primary_clock_holds_and_flags_missing_cells():
     dec = SampleDecoder(n_cells=4, report=lambda t: None)
     truth = {}
     for k in range(20):
-        t128 = k * 78                      # 9.984 ms per cycle on the primary clock
-        for j in (1, 2, 4):                # cell 3 never answers
-            if j == 2 and k == 7:          # one lost sample
+        t128 = k * 78  # 9.984 ms per cycle on the primary clock
+        for j in (1, 2, 4):  # cell 3 never answers
+            if j == 2 and k == 7:  # one lost sample
                 continue
             a = k * j
             truth[(k, j)] = a
-            dec.sample(j, k % 256, a, -a, t128 + j, 1, 1000.0 + 0.5 * k)   # host clock: irrelevant
+            dec.sample(j, k % 256, a, -a, t128 + j, 1, 1000.0 + 0.5 * k)  # host clock: irrelevant
     t0 = 5 * 78 * 128e-6
     s = series(dec.arrays(), t0, 0.0)
     # row time: mean primary clock of the row's samples minus t0 (cell offsets (j - 1) * 128 us: mean of 0, 1, 3)
-    assert s.t[0] == pytest.approx(4 / 3 * 128e-6, abs=1e-9)    # t_s counts from the first sample (cell 1)
+    assert s.t[0] == pytest.approx(4 / 3 * 128e-6, abs=1e-9)  # t_s counts from the first sample (cell 1)
     assert s.t.size == 15 and np.all(np.diff(s.t) > 0)
     assert list(s.present) == [True, True, False, True]
     assert s.held[1] == 1 and s.held[0] == 0
-    k7 = 2                                 # cycle 7 is row 2 after t0 (cycle 5)
-    assert s.alpha[k7, 1] == pytest.approx(truth[(6, 2)] * RAD_PER_COUNT)       # held from cycle 6
+    k7 = 2  # cycle 7 is row 2 after t0 (cycle 5)
+    assert s.alpha[k7, 1] == pytest.approx(truth[(6, 2)] * RAD_PER_COUNT)  # held from cycle 6
     assert s.alpha[-1, 3] == pytest.approx(19 * 4 * RAD_PER_COUNT)
     assert np.all(np.isfinite(s.alpha)) and np.all(s.alpha[:, 2] == 0)
     assert series(dec.arrays(), t0, 0.0, 0.02).t[-1] <= 0.02
@@ -139,21 +141,36 @@ def test_series_on_the_primary_clock_holds_and_flags_missing_cells():
 # ---- compare ---------------------------------------------------------------------------------
 def _summary(d, scene, alpha, beta, **kw):
     d.mkdir(parents=True, exist_ok=True)
-    s = {"scene": scene, "model": kw.pop("model", "hil"), "final_alpha_rad": alpha, "final_beta_rad": beta,
-         "pattern_period_cells": 5.0, "oscillation_period_s": None, **kw}
+    s = {
+        "scene": scene,
+        "model": kw.pop("model", "hil"),
+        "final_alpha_rad": alpha,
+        "final_beta_rad": beta,
+        "pattern_period_cells": 5.0,
+        "oscillation_period_s": None,
+        **kw,
+    }
     (d / "summary.json").write_text(json.dumps(s))
     return d
 
 
 def test_compare_table_and_plot(tmp_path):
     emu = _summary(tmp_path / "emu", "x", [0.5, -0.5, 0.1], [0.1, 0.0, -0.1])
-    rig = _summary(tmp_path / "rig", "x", [0.4, None, 0.1], [0.1, None, -0.2], model="rig", repeats=3,
-                   final_alpha_min_rad=[0.3, None, 0.0], final_alpha_max_rad=[0.6, None, 0.2])
+    rig = _summary(
+        tmp_path / "rig",
+        "x",
+        [0.4, None, 0.1],
+        [0.1, None, -0.2],
+        model="rig",
+        repeats=3,
+        final_alpha_min_rad=[0.3, None, 0.0],
+        final_alpha_max_rad=[0.6, None, 0.2],
+    )
     text, png = compare(rig, emu, tmp_path / "c.png")
     assert png.stat().st_size > 1000
     rows = [ln for ln in text.splitlines() if re.match(r"\s+\d+\s", ln)]
     assert "-0.100" in rows[0] and "n/a" in rows[1]
-    assert "rms difference: alpha 0.071 rad" in text          # sqrt((0.1^2 + 0^2) / 2)
+    assert "rms difference: alpha 0.071 rad" in text  # sqrt((0.1^2 + 0^2) / 2)
     with pytest.raises(CompareError, match="different scenes"):
         compare(_summary(tmp_path / "other", "y", [0, 0, 0], [0, 0, 0]), emu)
     with pytest.raises(CompareError, match="not found"):
@@ -171,7 +188,8 @@ def cells_enabled(channel, seconds=0.6):
             m = bus.recv(timeout=0.1)
             if m is not None and proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE":
                 state[proto.frame_kind(m.arbitration_id)[1]] = bool(
-                    db.decode_message(m.arbitration_id, bytes(m.data), decode_choices=False)["flags"] & ENABLED)
+                    db.decode_message(m.arbitration_id, bytes(m.data), decode_choices=False)["flags"] & ENABLED
+                )
     return state
 
 
@@ -184,13 +202,39 @@ def served():
 
 def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_path, capsys):
     out = tmp_path / "rig"
-    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--set", "t_end_s=4", "--repeats", "2", "--relax", "1",
-                   "--timeout", "3", "--out", str(out)])
+    rc = cli.main(
+        [
+            "rehearse",
+            "exp1_ccw_ccw",
+            "--set",
+            "t_end_s=4",
+            "--repeats",
+            "2",
+            "--relax",
+            "1",
+            "--timeout",
+            "3",
+            "--out",
+            str(out),
+        ]
+    )
     s = strict_json(out / "summary.json")
     # 0 = clean; 1 is allowed only for samples lost on a loaded machine, and then they are counted
     assert rc == 0 or (rc == cli.EXIT_PROBLEMS and s["samples_lost"] > 0 and s["gaps"] > 0), capsys.readouterr().err
-    for k in ("scene", "model", "t_end_s", "wall_s", "realtime_factor", "steady", "pattern_period_cells",
-              "oscillation_period_s", "final_alpha_rad", "final_beta_rad", "repeats", "per_repeat"):
+    for k in (
+        "scene",
+        "model",
+        "t_end_s",
+        "wall_s",
+        "realtime_factor",
+        "steady",
+        "pattern_period_cells",
+        "oscillation_period_s",
+        "final_alpha_rad",
+        "final_beta_rad",
+        "repeats",
+        "per_repeat",
+    ):
         assert k in s, k
     assert s["model"] == "rig" and s["scene"] == "exp1_ccw_ccw" and s["repeats"] == 2
     assert len(s["per_repeat"]) == 2 and all(len(r["final_alpha_rad"]) == 16 for r in s["per_repeat"])
@@ -201,9 +245,27 @@ def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_pa
         assert (out / f).stat().st_size > 0
     # the emulator run of the same scene (pushes through the firmware too) against the rehearsal
     emu = tmp_path / "emu"
-    r = subprocess.run([sys.executable, "-m", "host_emulator", "run", "exp1_ccw_ccw", "--set", "t_end_s=4",
-                        "--set", "model_options.perturb_via=firmware", "--out", str(emu), "--quiet", "--no-plots"],
-                       cwd=ROOT, capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "host_emulator",
+            "run",
+            "exp1_ccw_ccw",
+            "--set",
+            "t_end_s=4",
+            "--set",
+            "model_options.perturb_via=firmware",
+            "--out",
+            str(emu),
+            "--quiet",
+            "--no-plots",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     e = strict_json(emu / "summary.json")
     rc = cli.main(["compare", str(out), str(emu), "--out", str(tmp_path / "overlay.png")])
@@ -228,8 +290,21 @@ def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_pa
 
 def test_rejected_parameter_aborts_before_enabling_and_leaves_drive_off(served, tmp_path):
     out = tmp_path / "rej"
-    rc = cli.main(["run", "exp1_ccw_ccw", "--channel", served.channel, *SHORT, "--set", "params.sigma=0.3",
-                   "--set", "t_end_s=2", "--out", str(out)])
+    rc = cli.main(
+        [
+            "run",
+            "exp1_ccw_ccw",
+            "--channel",
+            served.channel,
+            *SHORT,
+            "--set",
+            "params.sigma=0.3",
+            "--set",
+            "t_end_s=2",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == cli.EXIT_ABORTED
     s = strict_json(out / "summary.json")
     assert "setup failed" in s["aborted"]
@@ -245,10 +320,20 @@ def test_exception_mid_run_leaves_drive_off(served, tmp_path):
     def hook(event, **kw):
         if event == "enabled":
             raise RuntimeError("injected failure")
+
     sc = load_scene("exp1_ccw_ccw", ["t_end_s=3"])
-    rc, s = cli.execute(sc, make_plan(sc), served.channel, "slcan", tmp_path / "x", Options(cmd_timeout_s=3),
-                        open_wait=0.1,
-                        plots=False, hook=hook, report=lambda t: None)
+    rc, s = cli.execute(
+        sc,
+        make_plan(sc),
+        served.channel,
+        "slcan",
+        tmp_path / "x",
+        Options(cmd_timeout_s=3),
+        open_wait=0.1,
+        plots=False,
+        hook=hook,
+        report=lambda t: None,
+    )
     assert rc == cli.EXIT_ABORTED and "RuntimeError: injected failure" in s["aborted"]
     assert s["drive_off_confirmed"] and s["per_repeat"][0]["stopped"].startswith("aborted")
     st = cells_enabled(served.channel)
@@ -256,9 +341,27 @@ def test_exception_mid_run_leaves_drive_off(served, tmp_path):
 
 
 def test_ctrl_c_switches_the_drive_off(served, tmp_path):
-    p = subprocess.Popen([sys.executable, "-m", "tools.experiment", "run", "exp1_ccw_ccw", "--channel",
-                          served.channel, *SHORT, "--set", "t_end_s=20", "--no-early-stop", "--out",
-                          str(tmp_path / "c")], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "tools.experiment",
+            "run",
+            "exp1_ccw_ccw",
+            "--channel",
+            served.channel,
+            *SHORT,
+            "--set",
+            "t_end_s=20",
+            "--no-early-stop",
+            "--out",
+            str(tmp_path / "c"),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         end = time.monotonic() + 30
         line = ""
@@ -281,8 +384,21 @@ def test_ctrl_c_switches_the_drive_off(served, tmp_path):
 
 def test_missing_cell_is_reported(tmp_path, capsys):
     out = tmp_path / "m"
-    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--absent", "3", "--keep-going", "--set", "t_end_s=2",
-                   "--timeout", "3", "--out", str(out)])
+    rc = cli.main(
+        [
+            "rehearse",
+            "exp1_ccw_ccw",
+            "--absent",
+            "3",
+            "--keep-going",
+            "--set",
+            "t_end_s=2",
+            "--timeout",
+            "3",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == cli.EXIT_PROBLEMS
     s = strict_json(out / "summary.json")
     assert s["missing_cells"] == [3] and s["final_alpha_rad"][2] is None
@@ -300,8 +416,19 @@ def test_missing_cell_is_reported(tmp_path, capsys):
 
 def test_server_dying_mid_run_is_a_clear_error_not_a_hang(tmp_path, capsys):
     t0 = time.monotonic()
-    rc = cli.main(["rehearse", "exp1_ccw_ccw", "--set", "t_end_s=30", "--no-early-stop", "--serve-duration", "2",
-                   "--out", str(tmp_path / "d")])
+    rc = cli.main(
+        [
+            "rehearse",
+            "exp1_ccw_ccw",
+            "--set",
+            "t_end_s=30",
+            "--no-early-stop",
+            "--serve-duration",
+            "2",
+            "--out",
+            str(tmp_path / "d"),
+        ]
+    )
     assert time.monotonic() - t0 < 20
     assert rc == cli.EXIT_ABORTED
     err = capsys.readouterr().err
@@ -314,14 +441,25 @@ def test_server_dying_mid_run_is_a_clear_error_not_a_hang(tmp_path, capsys):
 
 def test_bad_scene_key_fails_before_touching_the_rig(tmp_path, capsys):
     out = tmp_path / "b"
-    rc = cli.main(["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--set", "params.bogus=1",
-                   "--out", str(out)])
+    rc = cli.main(
+        ["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--set", "params.bogus=1", "--out", str(out)]
+    )
     assert rc == cli.EXIT_USAGE
     err = capsys.readouterr().err
     assert "params.bogus" in err and "cannot open" not in err
     assert not out.exists()
-    rc = cli.main(["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--set",
-                   "perturbation.1.torque_Nm=0.5", "--out", str(out)])
+    rc = cli.main(
+        [
+            "run",
+            "exp1_ccw_ccw",
+            "--channel",
+            "/nonexistent/port@115200",
+            "--set",
+            "perturbation.1.torque_Nm=0.5",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == cli.EXIT_USAGE and "torque_Nm" in capsys.readouterr().err and not out.exists()
 
 
@@ -366,7 +504,7 @@ def _experiment(tmp_path, scene_sets, cells, **opts):
 
 
 def test_k1_below_the_old_k2_is_set_after_k2(tmp_path):
-    cells = FakeCells(k1=80000, k2=40000)            # left by an earlier scene with k2 > 0
+    cells = FakeCells(k1=80000, k2=40000)  # left by an earlier scene with k2 > 0
     exp = _experiment(tmp_path, ["params.k1=0.03", "params.k2=-0.06"], cells)
     ok = exp._setup("repeat 1")
     assert ok == list(range(1, 17)) and exp.failures == []
@@ -376,11 +514,11 @@ def test_k1_below_the_old_k2_is_set_after_k2(tmp_path):
 
 def test_setup_reports_a_genuine_shape_error_and_the_failing_cells(tmp_path):
     cells = FakeCells(absent=[5])
-    exp = _experiment(tmp_path, ["params.k1=0.01", "params.k2=0.02"], cells)   # k1 <= k2: no order helps
+    exp = _experiment(tmp_path, ["params.k1=0.01", "params.k2=0.02"], cells)  # k1 <= k2: no order helps
     ok = exp._setup("repeat 1")
     assert ok == []
     got = {(f["reg"], f["result"]) for f in exp.failures if f["cell"] != 5}
-    assert got == {("K2", "SHAPE")}             # k1 = 0.01 is accepted against the old k2, k2 = 0.02 is not
+    assert got == {("K2", "SHAPE")}  # k1 = 0.01 is accepted against the old k2, k2 = 0.02 is not
     assert {f["result"] for f in exp.failures if f["cell"] == 5} == {"NACK"}
     exp.finish()
 
@@ -393,7 +531,7 @@ def test_summary_counts_sequence_gaps(tmp_path):
     for k in range(40):
         for j in range(1, 17):
             if j == 9 and k in (10, 11, 12):
-                continue                                   # three polls of cell 9 lost
+                continue  # three polls of cell 9 lost
             dec.sample(j, k % 256, 0, 0, k * 70, 1, 500.0 + k * 70 * 128e-6)
     rep = Repeat(1, dec, t0=0.0, t_stop=1.0, stopped="t_end")
     rec, s = repeat_result(rep, 16)
@@ -403,10 +541,18 @@ def test_summary_counts_sequence_gaps(tmp_path):
 
 
 def test_compare_error_bars_tolerate_rounding_of_the_mean(tmp_path):
-    v = float(np.mean([0.1, 0.1, 0.1]))                # 0.10000000000000002 > min = 0.1
+    v = float(np.mean([0.1, 0.1, 0.1]))  # 0.10000000000000002 > min = 0.1
     emu = _summary(tmp_path / "emu", "x", [0.1, 0.2], [0.0, 0.0])
-    rig = _summary(tmp_path / "rig", "x", [v, v], [0.0, 0.0], model="rig", repeats=3,
-                   final_alpha_min_rad=[0.1, 0.1], final_alpha_max_rad=[0.1, 0.1])
+    rig = _summary(
+        tmp_path / "rig",
+        "x",
+        [v, v],
+        [0.0, 0.0],
+        model="rig",
+        repeats=3,
+        final_alpha_min_rad=[0.1, 0.1],
+        final_alpha_max_rad=[0.1, 0.1],
+    )
     text, png = compare(rig, emu)
     assert png.exists() and "+0.100" in text
 
@@ -414,15 +560,26 @@ def test_compare_error_bars_tolerate_rounding_of_the_mean(tmp_path):
 def test_frozen_server_is_detected_by_silence_not_a_hang(tmp_path, capsys):
     sc = load_scene("exp1_ccw_ccw")
     with Serve("exp1_ccw_ccw", serve_overrides(sc, []), duration_s=120) as srv:
+
         def hook(event, **kw):
             if event == "enabled":
-                srv.proc.send_signal(signal.SIGSTOP)          # the primary stops talking, port stays open
+                srv.proc.send_signal(signal.SIGSTOP)  # the primary stops talking, port stays open
+
         sc3 = load_scene("exp1_ccw_ccw", ["t_end_s=20"])
         t0 = time.monotonic()
         try:
-            rc, s = cli.execute(sc3, make_plan(sc3), srv.channel, "slcan", tmp_path / "f",
-                                Options(silence_s=1.0, cmd_timeout_s=0.3, early_stop=False), open_wait=0.1,
-                                plots=False, hook=hook, report=lambda t: print(t, file=sys.stderr))
+            rc, s = cli.execute(
+                sc3,
+                make_plan(sc3),
+                srv.channel,
+                "slcan",
+                tmp_path / "f",
+                Options(silence_s=1.0, cmd_timeout_s=0.3, early_stop=False),
+                open_wait=0.1,
+                plots=False,
+                hook=hook,
+                report=lambda t: print(t, file=sys.stderr),
+            )
         finally:
             srv.proc.send_signal(signal.SIGCONT)
         assert time.monotonic() - t0 < 15
@@ -436,19 +593,19 @@ def _read_all(bus_cls, master, path, payload, chunks):
 
     bus = bus_cls(channel=f"{path}@115200", sleep_after_open=0)
     try:
-        while True:                                  # drop what the bus sent on open (C, S, O)
+        while True:  # drop what the bus sent on open (C, S, O)
             try:
                 if not os.read(master, 4096):
                     break
             except BlockingIOError:
                 break
-        for k in range(0, len(payload), chunks):     # arrives in pieces, lines split anywhere
-            os.write(master, payload[k:k + chunks])
+        for k in range(0, len(payload), chunks):  # arrives in pieces, lines split anywhere
+            os.write(master, payload[k : k + chunks])
         out = []
         while True:
             try:
                 m = bus.recv(timeout=0.1)
-            except ValueError as e:                  # python-can's parse error, counted by the runner
+            except ValueError as e:  # python-can's parse error, counted by the runner
                 out.append(("ValueError", str(e)[:20]))
                 continue
             if m is None:
@@ -459,17 +616,17 @@ def _read_all(bus_cls, master, path, payload, chunks):
 
 
 @settings(max_examples=15, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 0x7FF), st.binary(max_size=8)), min_size=1, max_size=30),
-       st.integers(1, 40))
+@given(st.lists(st.tuples(st.integers(0, 0x7FF), st.binary(max_size=8)), min_size=1, max_size=30), st.integers(1, 40))
 def test_buffered_slcan_reads_what_python_can_reads(frames, chunks):
     import os
 
     from can.interfaces.slcan import slcanBus
-    from tools.experiment.fastslcan import BufferedSlcanBus
+
     from host_emulator.bus.serve import open_pty
+    from tools.experiment.fastslcan import BufferedSlcanBus
 
     lines = b"".join(b"t%03X%d%s\r" % (i, len(d), d.hex().upper().encode()) for i, d in frames)
-    lines += b"\a" + b"T1234567821ABCD\r" + b"r1230\r" + b"z\r"      # error BEL, extended, remote, unknown
+    lines += b"\a" + b"T1234567821ABCD\r" + b"r1230\r" + b"z\r"  # error BEL, extended, remote, unknown
     master, slave, path = open_pty()
     try:
         ref = _read_all(slcanBus, master, path, lines, chunks)
@@ -482,8 +639,12 @@ def test_buffered_slcan_reads_what_python_can_reads(frames, chunks):
 
 def test_bad_options_fail_before_touching_the_rig(tmp_path, capsys):
     out = tmp_path / "o"
-    for args, word in ((["--formats", "asc,xyz"], "--formats"), (["--repeats", "0"], "--repeats"),
-                       (["--t-end", "-1"], "--t-end"), (["--settle", "0"], "--settle")):
+    for args, word in (
+        (["--formats", "asc,xyz"], "--formats"),
+        (["--repeats", "0"], "--repeats"),
+        (["--t-end", "-1"], "--t-end"),
+        (["--settle", "0"], "--settle"),
+    ):
         rc = cli.main(["run", "exp1_ccw_ccw", "--channel", "/nonexistent/port@115200", "--out", str(out), *args])
         err = capsys.readouterr().err
         assert rc == cli.EXIT_USAGE and word in err and "cannot open" not in err, (args, err)

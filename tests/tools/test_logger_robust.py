@@ -1,6 +1,5 @@
 """Rig logger under stalls, signals, write errors and bad input: time and cycles never go backwards or overwrite, files stay readable."""
 
-import os
 import resource
 import signal
 import struct
@@ -27,7 +26,7 @@ def primary_stream(n_cycles, period_us, drop, n_cells=3, slot_us=500, hb_every_u
     stalled reader reads only when it resumes (with the first frames after the gap)."""
     out, truth = [], []
     k0 = min(drop) if drop else n_cycles
-    backlog = min(backlog, k0 // 2)   # the segment's first frames are read promptly
+    backlog = min(backlog, k0 // 2)  # the segment's first frames are read promptly
     resume = (max(drop) + 1) * period_us * 1e-6 if drop else 0.0
     next_hb = hb_every_us
 
@@ -37,22 +36,39 @@ def primary_stream(n_cycles, period_us, drop, n_cells=3, slot_us=500, hb_every_u
     for k in range(n_cycles):
         for j in range(1, n_cells + 1):
             t = k * period_us + j * slot_us
-            while t >= next_hb:          # a heartbeat in a lost cycle is lost with it
+            while t >= next_hb:  # a heartbeat in a lost cycle is lost with it
                 if k not in drop and t - next_hb < period_us:
-                    out.append(can.Message(arbitration_id=HB, is_extended_id=False, timestamp=host(k, t),
-                                           data=struct.pack("<IHBB", next_hb // 1000, 100, 0, 0)))
+                    out.append(
+                        can.Message(
+                            arbitration_id=HB,
+                            is_extended_id=False,
+                            timestamp=host(k, t),
+                            data=struct.pack("<IHBB", next_hb // 1000, 100, 0, 0),
+                        )
+                    )
                 next_hb += hb_every_us
             if k in drop:
                 continue
-            out.append(can.Message(arbitration_id=SAMPLE + j, is_extended_id=False, timestamp=host(k, t),
-                                   data=struct.pack("<BhhHB", k & 0xFF, k % 1000, -j, (t >> 7) & 0xFFFF, 0)))
+            out.append(
+                can.Message(
+                    arbitration_id=SAMPLE + j,
+                    is_extended_id=False,
+                    timestamp=host(k, t),
+                    data=struct.pack("<BhhHB", k & 0xFF, k % 1000, -j, (t >> 7) & 0xFFFF, 0),
+                )
+            )
             truth.append((k, j, t))
     return out, truth
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.integers(5, 400), st.integers(1, 9000), st.integers(50, 400), st.sampled_from([2000, 9000, 12345]),
-       st.integers(0, 300))
+@given(
+    st.integers(5, 400),
+    st.integers(1, 9000),
+    st.integers(50, 400),
+    st.sampled_from([2000, 9000, 12345]),
+    st.integers(0, 300),
+)
 def test_any_stall_length_keeps_time_and_cycles_in_order(k0, length, after, period_us, backlog):
     """Frames lost for 0.002..110 s (far beyond the 8-bit cycle and 16-bit time wraps): every sample keeps
     its true cycle and time, gaps report exactly the lost cycles, nothing is overwritten."""
@@ -81,17 +97,25 @@ def test_truncate_to_last_line(tmp_path):
 
 
 def run_logger(args, timeout=60, **kw):
-    return subprocess.run([sys.executable, "-m", "tools.rigtools.logger", *args], cwd=ROOT, capture_output=True,
-                          text=True, timeout=timeout, **kw)
+    return subprocess.run(
+        [sys.executable, "-m", "tools.rigtools.logger", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        **kw,
+    )
 
 
 def test_logger_bad_input_is_a_one_line_error(tmp_path):
-    cases = [(["-c", "x", "-o", str(tmp_path / "a"), "--duration", "nan"], 2),
-             (["-c", "x", "-o", str(tmp_path / "a"), "--duration", "-1"], 2),
-             (["-c", "x", "-o", str(tmp_path / "a"), "--do", "1:perturb 8 --torque inf --duration 0.1"], 2),
-             (["-c", "x", "-o", str(tmp_path / "a"), "--formats", "xyz"], 2),
-             (["-c", "x", "-o", "/proc/nope/run"], 2),
-             (["-c", "/dev/nonexistent-port@115200", "-o", str(tmp_path / "a"), "--duration", "1"], 3)]
+    cases = [
+        (["-c", "x", "-o", str(tmp_path / "a"), "--duration", "nan"], 2),
+        (["-c", "x", "-o", str(tmp_path / "a"), "--duration", "-1"], 2),
+        (["-c", "x", "-o", str(tmp_path / "a"), "--do", "1:perturb 8 --torque inf --duration 0.1"], 2),
+        (["-c", "x", "-o", str(tmp_path / "a"), "--formats", "xyz"], 2),
+        (["-c", "x", "-o", "/proc/nope/run"], 2),
+        (["-c", "/dev/nonexistent-port@115200", "-o", str(tmp_path / "a"), "--duration", "1"], 3),
+    ]
     (tmp_path / "f").write_text("")
     cases.append((["-c", "x", "-o", str(tmp_path / "f" / "run")], 2))
     for args, code in cases:
@@ -105,8 +129,13 @@ def test_command_tool_bad_values_and_missing_port():
 
     assert command.main(["-c", "x", "perturb", "8", "--torque", "inf", "--duration", "0.1"]) == 2
     assert command.main(["-c", "x", "set", "3", "sigma", "1e9"]) == 2
-    r = subprocess.run([sys.executable, "-m", "tools.rigtools.command", "-c", "/dev/nonexistent-port@115200",
-                        "enable", "3", "on"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [sys.executable, "-m", "tools.rigtools.command", "-c", "/dev/nonexistent-port@115200", "enable", "3", "on"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 3 and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
@@ -116,8 +145,24 @@ def test_full_disk_ends_with_one_line_and_readable_files(tmp_path):
     import time
 
     link = tmp_path / "rig"
-    srv = subprocess.Popen([sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "60",
-                            "--link", str(link)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    srv = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "host_emulator",
+            "serve",
+            "exp5_rest",
+            "--slcan",
+            "--duration",
+            "60",
+            "--link",
+            str(link),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert re.match(r"slcan pty: (\S+)", srv.stdout.readline())
 
@@ -126,9 +171,26 @@ def test_full_disk_ends_with_one_line_and_readable_files(tmp_path):
             resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, 300_000))
 
         t0 = time.monotonic()
-        r = subprocess.run([sys.executable, "-m", "tools.rigtools.logger", "-c", f"{link}@115200", "-o",
-                            str(tmp_path / "full"), "--formats", "asc", "--duration", "60"], cwd=ROOT,
-                           capture_output=True, text=True, timeout=90, preexec_fn=limit)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "tools.rigtools.logger",
+                "-c",
+                f"{link}@115200",
+                "-o",
+                str(tmp_path / "full"),
+                "--formats",
+                "asc",
+                "--duration",
+                "60",
+            ],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=90,
+            preexec_fn=limit,
+        )
         assert time.monotonic() - t0 < 60
     finally:
         srv.terminate()

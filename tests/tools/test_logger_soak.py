@@ -21,8 +21,24 @@ LOGGER_STALL_S = float(os.environ.get("MC_SOAK_STALL_S", "3"))
 
 
 def start_server(link):
-    p = subprocess.Popen([sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "120",
-                          "--link", str(link)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "host_emulator",
+            "serve",
+            "exp5_rest",
+            "--slcan",
+            "--duration",
+            "120",
+            "--link",
+            str(link),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     first = p.stdout.readline()
     assert re.match(r"slcan pty: (\S+)", first), (first, p.stderr.read() if p.poll() is not None else "")
     return p
@@ -44,23 +60,40 @@ def test_logger_soak_stalls_kill_restart(tmp_path):
     srv = start_server(link)
     log = None
     try:
-        log = subprocess.Popen([sys.executable, "-m", "tools.rigtools.logger", "-c", f"{link}@115200", "-o", str(out),
-                                "--formats", "asc,blf", "--first-frame", "30"],
-                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        log = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "tools.rigtools.logger",
+                "-c",
+                f"{link}@115200",
+                "-o",
+                str(out),
+                "--formats",
+                "asc,blf",
+                "--first-frame",
+                "30",
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and (not out.with_suffix(".csv").exists()
-                                               or out.with_suffix(".csv").stat().st_size < 10_000):
+        while time.monotonic() < deadline and (
+            not out.with_suffix(".csv").exists() or out.with_suffix(".csv").stat().st_size < 10_000
+        ):
             time.sleep(0.2)
         time.sleep(1.0)
-        log.send_signal(signal.SIGSTOP)          # the logger stalls; the server keeps producing
+        log.send_signal(signal.SIGSTOP)  # the logger stalls; the server keeps producing
         time.sleep(LOGGER_STALL_S)
         log.send_signal(signal.SIGCONT)
         time.sleep(2.0)
-        srv.send_signal(signal.SIGSTOP)          # the server stalls: the link goes silent
+        srv.send_signal(signal.SIGSTOP)  # the server stalls: the link goes silent
         time.sleep(1.5)
         srv.send_signal(signal.SIGCONT)
         time.sleep(1.5)
-        srv.kill()                               # the server dies and comes back on the same link
+        srv.kill()  # the server dies and comes back on the same link
         srv.wait(5)
         time.sleep(0.5)
         srv = start_server(link)
@@ -80,8 +113,9 @@ def test_logger_soak_stalls_kill_restart(tmp_path):
     assert re.search(r"gap: cell \d+ lost \d+ sample", e), e
     # the same samples in ASC, CSV and NPZ
     asc = out.with_suffix(".asc").read_text()
-    n_asc = sum(1 for x in re.findall(r"^\s*\d+\.\d+\s+1\s+([0-9A-F]{3})\s+Rx", asc, re.M)
-                if SAMPLE < int(x, 16) <= SAMPLE + 16)
+    n_asc = sum(
+        1 for x in re.findall(r"^\s*\d+\.\d+\s+1\s+([0-9A-F]{3})\s+Rx", asc, re.M) if SAMPLE < int(x, 16) <= SAMPLE + 16
+    )
     lines = out.with_suffix(".csv").read_text().splitlines()
     rows = np.loadtxt(out.with_suffix(".csv"), delimiter=",", skiprows=1, ndmin=2)
     d = np.load(out.with_suffix(".npz"))
@@ -94,10 +128,11 @@ def test_logger_soak_stalls_kill_restart(tmp_path):
     for j in range(1, 17):
         for seg in (0, 1):
             k = rows[(rows[:, 2] == j) & (rows[:, 0] == seg), 1]
-            assert np.all(np.diff(k) > 0)            # no cycle repeats: nothing overwritten
+            assert np.all(np.diff(k) > 0)  # no cycle repeats: nothing overwritten
     t = d["t_s"]
     tt = np.nanmax(t, axis=1)
     assert np.all(np.diff(tt) >= 0)
     import can
+
     n_blf = sum(1 for m in can.BLFReader(str(out.with_suffix(".blf"))) if SAMPLE < m.arbitration_id <= SAMPLE + 16)
     assert n_blf == n_asc

@@ -18,8 +18,12 @@ BASE = proto.FRAMES["CELL_SAMPLE"]["base"]
 
 
 def sample_msg(j, seq, a, b, t128=0, flags=0, ts=0.0):
-    return can.Message(arbitration_id=BASE + j, data=struct.pack("<BhhHB", seq & 0xFF, a, b, t128 & 0xFFFF, flags),
-                       is_extended_id=False, timestamp=ts)
+    return can.Message(
+        arbitration_id=BASE + j,
+        data=struct.pack("<BhhHB", seq & 0xFF, a, b, t128 & 0xFFFF, flags),
+        is_extended_id=False,
+        timestamp=ts,
+    )
 
 
 @settings(max_examples=60, deadline=None)
@@ -31,7 +35,7 @@ def test_gaps_match_the_dropped_samples(seq0, keep):
         dec.feed(sample_msg(1, seq0 + k, k, -k, t128=k * 70))
         if kept or k == len(keep) - 1:
             dec.feed(sample_msg(2, seq0 + k, 2 * k, 0, t128=k * 70 + 3))
-    dec.flush()   # rows wait for the next heartbeat (there is none here)
+    dec.flush()  # rows wait for the next heartbeat (there is none here)
     got = [(g[1], g[2], g[3]) for g in dec.gaps]
     # reference: consecutive missing cycles of cell 2 between two kept samples
     present = [k for k, kept in enumerate(keep) if kept or k == len(keep) - 1]
@@ -95,14 +99,17 @@ def test_logger_survives_a_disconnect(tmp_path):
     def open_bus():
         if opened and next(fails):
             raise can.CanInitializationError("port not there yet")
-        bus = FlakyBus(frames if not opened else [sample_msg(j, k, k, k) for k in range(100, 110) for j in (1, 2)],
-                       fail_at=25 if not opened else -1)
+        bus = FlakyBus(
+            frames if not opened else [sample_msg(j, k, k, k) for k in range(100, 110) for j in (1, 2)],
+            fail_at=25 if not opened else -1,
+        )
         opened.append(bus)
         return bus
 
     msgs = []
-    log = RigLogger("virtual", "x", tmp_path / "r", formats=("asc",), reconnect_s=0.01, open_bus=open_bus,
-                    report=msgs.append)
+    log = RigLogger(
+        "virtual", "x", tmp_path / "r", formats=("asc",), reconnect_s=0.01, open_bus=open_bus, report=msgs.append
+    )
     log.run(duration=0.5)
     assert log.reconnects == 1 and len(opened) == 2
     assert any("connection lost" in m for m in msgs) and any("cannot open" in m for m in msgs)
@@ -149,8 +156,11 @@ def test_command_tool_rejects_bad_input():
     assert command.main(["-c", "x", "set", "3", "sigma", "nan"]) == 2
     with pytest.raises(SystemExit):
         command.main(["-c", "x", "enable", "17", "on"])
-    reg, vals = command.build(command.parser().parse_args(["-c", "x", "perturb", "2", "--torque", "0.02",
-                                                           "--duration", "0.1", "--chain", "beta"]))
+    reg, vals = command.build(
+        command.parser().parse_args(
+            ["-c", "x", "perturb", "2", "--torque", "0.02", "--duration", "0.1", "--chain", "beta"]
+        )
+    )
     assert (reg, vals) == ("PERTURB", {"chain": 1, "torque": 5000, "ticks": 200})
 
 
@@ -174,7 +184,7 @@ def test_command_tool_info_reads_identity_and_parameters(fw):
     th.start()
     try:
         with can.Bus(interface="virtual", channel=chan) as bus:
-            assert bus.recv(timeout=5) is not None   # the primary side is up
+            assert bus.recv(timeout=5) is not None  # the primary side is up
             client = command.RigClient(bus, timeout=2.0)
             assert client.command([7], "K_AB", value=31000) == {7: "OK"}
             info = client.info([7, 8])
@@ -208,12 +218,19 @@ def test_duration_counts_from_the_first_frame_and_sighup_stops_in_order(tmp_path
     import signal
 
     frames = [sample_msg(j, k, k, k, t128=k * 70) for k in range(200) for j in (1, 2)]
-    log = RigLogger("virtual", "x", tmp_path / "late", formats=("asc",), open_bus=lambda: LateBus(frames, 0.6),
-                    report=lambda t: None)
-    log.run(duration=0.3)                    # the 0.6 s of silence before the first frame do not count
+    log = RigLogger(
+        "virtual",
+        "x",
+        tmp_path / "late",
+        formats=("asc",),
+        open_bus=lambda: LateBus(frames, 0.6),
+        report=lambda t: None,
+    )
+    log.run(duration=0.3)  # the 0.6 s of silence before the first frame do not count
     assert np.sum(~np.isnan(log.arrays["alpha_counts"])) == 400
-    log2 = RigLogger("virtual", "x", tmp_path / "hup", formats=("asc",), open_bus=lambda: LateBus(frames, 0.0),
-                     report=lambda t: None)
+    log2 = RigLogger(
+        "virtual", "x", tmp_path / "hup", formats=("asc",), open_bus=lambda: LateBus(frames, 0.0), report=lambda t: None
+    )
     threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGHUP)).start()
     t0 = time.monotonic()
     log2.run(duration=30)

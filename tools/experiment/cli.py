@@ -24,28 +24,61 @@ EXIT_OK, EXIT_PROBLEMS, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 1, 2, 3,
 
 def _common(p: argparse.ArgumentParser):
     p.add_argument("scene", help="shipped scene name or .toml path (as for python -m host_emulator run)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="scene override, e.g. params.sigma=9/125, perturbation.1.torque_Nm=0.03, t_end_s=5")
-    p.add_argument("--t-end", type=float, default=None, metavar="S", help="time limit per repeat (default: the scene's t_end_s)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scene override, e.g. params.sigma=9/125, perturbation.1.torque_Nm=0.03, t_end_s=5",
+    )
+    p.add_argument(
+        "--t-end", type=float, default=None, metavar="S", help="time limit per repeat (default: the scene's t_end_s)"
+    )
     p.add_argument("--repeats", type=int, default=1, help="repeats, re-zeroed in between (default 1)")
     p.add_argument("--out", default=None, help="output directory (default out/rig/<scene>)")
-    p.add_argument("--settle", type=float, default=1.0, metavar="S",
-                   help="stop a repeat once every cell moved < 2 counts for S seconds after the last push (default 1)")
+    p.add_argument(
+        "--settle",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="stop a repeat once every cell moved < 2 counts for S seconds after the last push (default 1)",
+    )
     p.add_argument("--no-early-stop", action="store_true", help="always run to the time limit")
-    p.add_argument("--relax", type=float, default=3.0, metavar="S",
-                   help="drive off this long between repeats before waiting for rest and zeroing (default 3)")
-    p.add_argument("--rest-timeout", type=float, default=10.0, metavar="S",
-                   help="longest wait for the lattice to be still before zeroing (default 10)")
-    p.add_argument("--keep-going", action="store_true",
-                   help="run on when a setup command fails on some cells (they stay disabled; all reported)")
+    p.add_argument(
+        "--relax",
+        type=float,
+        default=3.0,
+        metavar="S",
+        help="drive off this long between repeats before waiting for rest and zeroing (default 3)",
+    )
+    p.add_argument(
+        "--rest-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="longest wait for the lattice to be still before zeroing (default 10)",
+    )
+    p.add_argument(
+        "--keep-going",
+        action="store_true",
+        help="run on when a setup command fails on some cells (they stay disabled; all reported)",
+    )
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for a command result (default 1)")
     p.add_argument("--silence", type=float, default=2.0, help="no frame for this long = link lost (default 2 s)")
-    p.add_argument("--pwm-limit", type=int, default=None, metavar="TICKS",
-                   help="PWM duty limit sent to the cells (default: from params.vmax_v; cells cap it at 5.86 V)")
+    p.add_argument(
+        "--pwm-limit",
+        type=int,
+        default=None,
+        metavar="TICKS",
+        help="PWM duty limit sent to the cells (default: from params.vmax_v; cells cap it at 5.86 V)",
+    )
     p.add_argument("--formats", default="asc", help="python-can log formats, comma separated (default asc)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--plain-slcan", action="store_true",
-                   help="python-can's own slcan reader (one system call per byte) instead of the buffered one")
+    p.add_argument(
+        "--plain-slcan",
+        action="store_true",
+        help="python-can's own slcan reader (one system call per byte) instead of the buffered one",
+    )
 
 
 def parser() -> argparse.ArgumentParser:
@@ -55,14 +88,24 @@ def parser() -> argparse.ArgumentParser:
     _common(r)
     r.add_argument("--channel", "-c", required=True, help="e.g. /dev/ttyACM0@115200")
     r.add_argument("--interface", "-i", default="slcan", help="python-can interface (default slcan)")
-    r.add_argument("--open-wait", type=float, default=None, metavar="S",
-                   help="slcan: seconds python-can waits after opening the port (its default: 2)")
+    r.add_argument(
+        "--open-wait",
+        type=float,
+        default=None,
+        metavar="S",
+        help="slcan: seconds python-can waits after opening the port (its default: 2)",
+    )
     h = sub.add_parser("rehearse", help="the same run against `python -m host_emulator serve` on a pty")
     _common(h)
     for name in ("absent", "stuck", "babble"):
         h.add_argument(f"--{name}", default=None, metavar="CELLS", help=f"serve: {name} cells, e.g. 3,7")
-    h.add_argument("--serve-duration", type=float, default=None, metavar="S",
-                   help="serve stops after S simulated seconds (default: long enough for the run)")
+    h.add_argument(
+        "--serve-duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="serve stops after S simulated seconds (default: long enough for the run)",
+    )
     c = sub.add_parser("compare", help="overlay a rig (or rehearsal) run and an emulator run of the same scene")
     c.add_argument("rig_dir")
     c.add_argument("emu_dir")
@@ -96,14 +139,33 @@ def _prepare(args):
 def _options(args):
     from .runner import Options
 
-    return Options(repeats=args.repeats, settle_s=args.settle, early_stop=not args.no_early_stop,
-                   relax_s=args.relax, rest_timeout_s=args.rest_timeout, keep_going=args.keep_going,
-                   silence_s=args.silence, cmd_timeout_s=args.timeout,
-                   formats=tuple(f.strip().lstrip(".") for f in args.formats.split(",") if f.strip()))
+    return Options(
+        repeats=args.repeats,
+        settle_s=args.settle,
+        early_stop=not args.no_early_stop,
+        relax_s=args.relax,
+        rest_timeout_s=args.rest_timeout,
+        keep_going=args.keep_going,
+        silence_s=args.silence,
+        cmd_timeout_s=args.timeout,
+        formats=tuple(f.strip().lstrip(".") for f in args.formats.split(",") if f.strip()),
+    )
 
 
-def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_wait=None, plots=True,
-            hook=None, report=None, plain_slcan=False) -> tuple[int, dict]:
+def execute(
+    scene,
+    plan,
+    channel: str,
+    interface: str,
+    out: Path,
+    opts,
+    *,
+    open_wait=None,
+    plots=True,
+    hook=None,
+    report=None,
+    plain_slcan=False,
+) -> tuple[int, dict]:
     """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary)."""
     from . import summary as S
     from .fastslcan import open_bus
@@ -119,7 +181,7 @@ def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_
     except Exception as e:
         report(f"error: cannot open {interface} channel {channel}: {e}")
         return EXIT_ABORTED, {}
-    port = getattr(bus, "serialPortOrig", None)   # slcan: a device that stops reading must not block a write forever
+    port = getattr(bus, "serialPortOrig", None)  # slcan: a device that stops reading must not block a write forever
     if port is not None and getattr(port, "write_timeout", 0) is None:
         port.write_timeout = 2.0
     rc, error = EXIT_OK, None
@@ -131,7 +193,7 @@ def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_
         rc, error = EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
     except (LinkError, CommandFailed) as e:
         rc, error = EXIT_ABORTED, str(e)
-    except Exception as e:   # any bug or library error: still switch the drive off below, then say what it was
+    except Exception as e:  # any bug or library error: still switch the drive off below, then say what it was
         rc, error = EXIT_ABORTED, f"{type(e).__name__}: {e}"
     finally:
         old = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
@@ -162,13 +224,26 @@ def execute(scene, plan, channel: str, interface: str, out: Path, opts, *, open_
             miss = summary["missing_cells"]
             name = f"{sc.name}, repeat {res.info['repeat']}" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")
             inertia = bool(summary["dispersion"] and summary["dispersion"].get("inertia"))
-            files += [f.name for f in plot_run(res, dataclasses.replace(sc, name=name, model="rig"), out,
-                                               inertia=inertia)]
-    summary["files"] = ["summary.json"] + files + [f for f in summary["log_files"] if (out / f).exists()] + \
-        [f"repeat_{r['repeat']:02d}.npz" for r in summary["per_repeat"] if (out / f"repeat_{r['repeat']:02d}.npz").exists()]
+            files += [
+                f.name for f in plot_run(res, dataclasses.replace(sc, name=name, model="rig"), out, inertia=inertia)
+            ]
+    summary["files"] = (
+        ["summary.json"]
+        + files
+        + [f for f in summary["log_files"] if (out / f).exists()]
+        + [
+            f"repeat_{r['repeat']:02d}.npz"
+            for r in summary["per_repeat"]
+            if (out / f"repeat_{r['repeat']:02d}.npz").exists()
+        ]
+    )
     S.write(out, summary)
-    if rc == EXIT_OK and (summary["failed_commands"] or summary["missing_cells"] or summary["samples_lost"]
-                          or not summary["drive_off_confirmed"]):
+    if rc == EXIT_OK and (
+        summary["failed_commands"]
+        or summary["missing_cells"]
+        or summary["samples_lost"]
+        or not summary["drive_off_confirmed"]
+    ):
         rc = EXIT_PROBLEMS
     return rc, summary
 
@@ -180,21 +255,29 @@ def _main_thread() -> bool:
 
 
 def print_summary(s: dict, out: Path):
-    print(f"scene {s['scene']} (rig): {s['repeats_completed']}/{s['repeats']} repeat(s) completed, "
-          f"{s['wall_s']:.1f} s wall" + (f"; ABORTED: {s['aborted']}" if s["aborted"] else ""))
+    print(
+        f"scene {s['scene']} (rig): {s['repeats_completed']}/{s['repeats']} repeat(s) completed, "
+        f"{s['wall_s']:.1f} s wall" + (f"; ABORTED: {s['aborted']}" if s["aborted"] else "")
+    )
 
     def f(v, unit=""):
         return "none" if v is None else (f"{v:.4g}{unit}" if isinstance(v, float) else f"{v}{unit}")
 
-    print(f"  steady: {s['steady']}   pattern period: {f(s['pattern_period_cells'], ' cells')} "
-          f"(repeats: {', '.join(f(v) for v in s['pattern_period_cells_repeats'])})   "
-          f"oscillation period: {f(s['oscillation_period_s'], ' s')}")
+    print(
+        f"  steady: {s['steady']}   pattern period: {f(s['pattern_period_cells'], ' cells')} "
+        f"(repeats: {', '.join(f(v) for v in s['pattern_period_cells_repeats'])})   "
+        f"oscillation period: {f(s['oscillation_period_s'], ' s')}"
+    )
     print("  final alpha (rad, mean): " + " ".join("  n/a" if v is None else f"{v:+.2f}" for v in s["final_alpha_rad"]))
     if s["repeats"] > 1:
-        print("  spread (std, rad):       " + " ".join("  n/a" if v is None else f"{v:5.2f}"
-                                                        for v in s["final_alpha_std_rad"]))
-    print(f"  missing cells: {s['missing_cells'] or 'none'}; failed commands: {len(s['failed_commands'])}; "
-          f"gaps: {s['gaps']} ({s['samples_lost']} samples lost); drive off confirmed: {s['drive_off_confirmed']}")
+        print(
+            "  spread (std, rad):       "
+            + " ".join("  n/a" if v is None else f"{v:5.2f}" for v in s["final_alpha_std_rad"])
+        )
+    print(
+        f"  missing cells: {s['missing_cells'] or 'none'}; failed commands: {len(s['failed_commands'])}; "
+        f"gaps: {s['gaps']} ({s['samples_lost']} samples lost); drive off confirmed: {s['drive_off_confirmed']}"
+    )
     print(f"  wrote {out}/summary.json, " + ", ".join(s["files"][1:]))
 
 
@@ -208,9 +291,17 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
     out = Path(args.out or Path("out") / "rig" / scene.name)
-    rc, summary = execute(scene, plan, channel or args.channel, interface or args.interface, out, opts,
-                          open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
-                          plots=not args.no_plots, plain_slcan=args.plain_slcan)
+    rc, summary = execute(
+        scene,
+        plan,
+        channel or args.channel,
+        interface or args.interface,
+        out,
+        opts,
+        open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
+        plots=not args.no_plots,
+        plain_slcan=args.plain_slcan,
+    )
     if summary:
         print_summary(summary, out)
     return rc

@@ -24,7 +24,9 @@ def load(d: Path) -> dict:
     try:
         s = json.loads(f.read_text())
     except FileNotFoundError:
-        raise CompareError(f"{f}: not found (run `python -m tools.experiment run` or `python -m host_emulator run` first)") from None
+        raise CompareError(
+            f"{f}: not found (run `python -m tools.experiment run` or `python -m host_emulator run` first)"
+        ) from None
     except json.JSONDecodeError as e:
         raise CompareError(f"{f}: not valid JSON: {e}") from None
     for k in ("scene", "final_alpha_rad", "final_beta_rad"):
@@ -49,14 +51,20 @@ def table(rig: dict, emu: dict) -> str:
     ra, ra_lo, ra_hi = finals(rig, "alpha")
     rb = finals(rig, "beta")[0]
     ea, eb = finals(emu, "alpha")[0], finals(emu, "beta")[0]
-    lines = [f"scene {rig['scene']}: rig/rehearsal ({rig.get('model')}, {rig.get('repeats', 1)} repeat(s)) "
-             f"vs emulator ({emu.get('model')})",
-             " cell  alpha_rig  (min..max)        alpha_emu  d_alpha  |  beta_rig  beta_emu  d_beta"]
+    lines = [
+        f"scene {rig['scene']}: rig/rehearsal ({rig.get('model')}, {rig.get('repeats', 1)} repeat(s)) "
+        f"vs emulator ({emu.get('model')})",
+        " cell  alpha_rig  (min..max)        alpha_emu  d_alpha  |  beta_rig  beta_emu  d_beta",
+    ]
     for j in range(len(ra)):
+
         def f(v, w=8):
             return f"{'n/a':>{w}}" if not math.isfinite(v) else f"{v:+{w}.3f}"
-        lines.append(f" {j + 1:4d}  {f(ra[j], 9)}  ({f(ra_lo[j], 6)}..{f(ra_hi[j], 6)})  {f(ea[j], 9)}  "
-                     f"{f(ra[j] - ea[j])}  |  {f(rb[j])}  {f(eb[j])}  {f(rb[j] - eb[j])}")
+
+        lines.append(
+            f" {j + 1:4d}  {f(ra[j], 9)}  ({f(ra_lo[j], 6)}..{f(ra_hi[j], 6)})  {f(ea[j], 9)}  "
+            f"{f(ra[j] - ea[j])}  |  {f(rb[j])}  {f(eb[j])}  {f(rb[j] - eb[j])}"
+        )
     da, db = ra - ea, rb - eb
     ok = np.isfinite(da)
     rms = lambda x: float(np.sqrt(np.mean(x[np.isfinite(x)] ** 2))) if np.isfinite(x).any() else float("nan")
@@ -66,9 +74,11 @@ def table(rig: dict, emu: dict) -> str:
         v = s.get(k)
         return "none" if v is None else f"{v:.3g} {unit}"
 
-    lines.append(f" pattern period: rig {p(rig, 'pattern_period_cells', 'cells')}, emulator "
-                 f"{p(emu, 'pattern_period_cells', 'cells')}; oscillation period: rig "
-                 f"{p(rig, 'oscillation_period_s', 's')}, emulator {p(emu, 'oscillation_period_s', 's')}")
+    lines.append(
+        f" pattern period: rig {p(rig, 'pattern_period_cells', 'cells')}, emulator "
+        f"{p(emu, 'pattern_period_cells', 'cells')}; oscillation period: rig "
+        f"{p(rig, 'oscillation_period_s', 's')}, emulator {p(emu, 'oscillation_period_s', 's')}"
+    )
     return "\n".join(lines)
 
 
@@ -84,16 +94,27 @@ def plot(rig: dict, emu: dict, path: Path) -> Path:
         ax.plot(np.arange(1, len(em) + 1), em, "-", color=colour, lw=1.5, label=f"emulator ({emu.get('model')})")
         # min <= mean <= max up to rounding of the mean: clip the last-bit negatives matplotlib refuses
         yerr = np.clip(np.vstack([np.where(np.isfinite(lo), m - lo, 0), np.where(np.isfinite(hi), hi - m, 0)]), 0, None)
-        ax.errorbar(j, m, yerr=yerr, fmt="o", color="k", mfc="white", ms=6, capsize=3,
-                    label=f"{'rig' if rig.get('model') == 'rig' else rig.get('model')}: mean, min..max over "
-                          f"{rig.get('repeats', 1)} repeat(s)")
+        ax.errorbar(
+            j,
+            m,
+            yerr=yerr,
+            fmt="o",
+            color="k",
+            mfc="white",
+            ms=6,
+            capsize=3,
+            label=f"{'rig' if rig.get('model') == 'rig' else rig.get('model')}: mean, min..max over "
+            f"{rig.get('repeats', 1)} repeat(s)",
+        )
         ax.axhline(0, color="0.6", lw=0.8)
         ax.set_ylabel(f"{chain} at steady state (rad)")
         ax.legend(fontsize=8)
     axes[1].set_xlabel("cell j")
     axes[1].set_xticks(np.arange(1, len(finals(rig, "alpha")[0]) + 1))
-    axes[0].set_title(f"{rig['scene']}: rig vs emulator (pattern period {rig.get('pattern_period_cells') or 0:.3g} vs "
-                      f"{emu.get('pattern_period_cells') or 0:.3g} cells)")
+    axes[0].set_title(
+        f"{rig['scene']}: rig vs emulator (pattern period {rig.get('pattern_period_cells') or 0:.3g} vs "
+        f"{emu.get('pattern_period_cells') or 0:.3g} cells)"
+    )
     fig.savefig(path, dpi=110)
     return path
 

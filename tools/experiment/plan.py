@@ -15,8 +15,8 @@ from host_emulator.params import Params
 from tools.rigtools import proto
 from tools.rigtools.command import CTRL_RATE_HZ
 
-RIG_PWM_TOP = 2400          # TCC0 period of the cell build (docs/hardware.md, MC_PWM_TOP)
-TORQUE_LSB_UNM = 4          # PERTURB torque unit on the wire: 4 uN*m
+RIG_PWM_TOP = 2400  # TCC0 period of the cell build (docs/hardware.md, MC_PWM_TOP)
+TORQUE_LSB_UNM = 4  # PERTURB torque unit on the wire: 4 uN*m
 # scene params the runner sends to every cell: Params field -> register (values SI: N*m/rad, rad)
 FIRMWARE_PARAMS = (("k_ab", "K_AB"), ("sigma", "SIGMA"), ("alpha_star", "ASTAR"), ("k1", "K1"), ("k2", "K2"))
 # set through PWM_LIMIT / BEMF; everything else in Params is the plant or the build, not settable at run time
@@ -36,9 +36,9 @@ class Command:
 
 @dataclass(frozen=True)
 class PerturbCommand:
-    start_s: float          # after the drive is enabled
+    start_s: float  # after the drive is enabled
     cell: int
-    values: dict            # PERTURB payload: chain, torque (4 uN*m), ticks
+    values: dict  # PERTURB payload: chain, torque (4 uN*m), ticks
     label: str
 
 
@@ -50,14 +50,19 @@ class ExperimentPlan:
     t_end_s: float
     ctrl_rate_hz: int
     last_perturbation_end_s: float
-    not_settable: dict = field(default_factory=dict)   # param -> scene value differing from the rig build's default
+    not_settable: dict = field(default_factory=dict)  # param -> scene value differing from the rig build's default
 
     def as_dict(self) -> dict:
-        return {"cells": self.cells, "ctrl_rate_hz": self.ctrl_rate_hz, "t_end_s": self.t_end_s,
-                "setup": [{"reg": c.reg, **c.values, "label": c.label} for c in self.setup],
-                "perturbations": [{"start_s": p.start_s, "cell": p.cell, **p.values, "label": p.label}
-                                  for p in self.perturbations],
-                "not_settable": self.not_settable}
+        return {
+            "cells": self.cells,
+            "ctrl_rate_hz": self.ctrl_rate_hz,
+            "t_end_s": self.t_end_s,
+            "setup": [{"reg": c.reg, **c.values, "label": c.label} for c in self.setup],
+            "perturbations": [
+                {"start_s": p.start_s, "cell": p.cell, **p.values, "label": p.label} for p in self.perturbations
+            ],
+            "not_settable": self.not_settable,
+        }
 
 
 def wire_param(name: str, value: float) -> int:
@@ -84,13 +89,20 @@ def perturb_payload(chain: str, torque_Nm: float, duration_s: float, rate_hz: in
         raise PlanError(f"{where}.torque_Nm = {torque_Nm}: the firmware accepts |torque| <= 0.131 N*m")
     ticks = max(1, round(duration_s * rate_hz))
     if ticks > 65535:
-        raise PlanError(f"{where}.duration_s = {duration_s}: at most {65535 / rate_hz:.3f} s "
-                        f"({65535} ticks at {rate_hz} Hz)")
+        raise PlanError(
+            f"{where}.duration_s = {duration_s}: at most {65535 / rate_hz:.3f} s ({65535} ticks at {rate_hz} Hz)"
+        )
     return {"chain": 0 if chain == "alpha" else 1, "torque": t4, "ticks": ticks}
 
 
-def make_plan(scene, *, t_end_s: float | None = None, ctrl_rate_hz: int = CTRL_RATE_HZ,
-              pwm_top: int = RIG_PWM_TOP, pwm_limit: int | None = None) -> ExperimentPlan:
+def make_plan(
+    scene,
+    *,
+    t_end_s: float | None = None,
+    ctrl_rate_hz: int = CTRL_RATE_HZ,
+    pwm_top: int = RIG_PWM_TOP,
+    pwm_limit: int | None = None,
+) -> ExperimentPlan:
     """The commands that run `scene` on the rig (PlanError if the scene cannot be expressed)."""
     if not 1 <= scene.cells <= proto.N_CELLS:
         raise PlanError(f"cells = {scene.cells}: the rig has {proto.N_CELLS} cells")
@@ -105,23 +117,32 @@ def make_plan(scene, *, t_end_s: float | None = None, ctrl_rate_hz: int = CTRL_R
     if not 0 <= lim <= pwm_top:
         raise PlanError(f"PWM limit {lim} ticks: expected 0..{pwm_top}")
     setup.append(Command("PWM_LIMIT", {"ticks": lim}, f"PWM limit {lim}/{pwm_top} ticks"))
-    setup.append(Command("BEMF", {"on": int(bool(p.bemf_comp))}, f"back-EMF compensation {'on' if p.bemf_comp else 'off'}"))
+    setup.append(
+        Command("BEMF", {"on": int(bool(p.bemf_comp))}, f"back-EMF compensation {'on' if p.bemf_comp else 'off'}")
+    )
     setup.append(Command("CLEAR_FAULTS", {}, "clear latched faults"))
     perts = []
     for i, q in enumerate(scene.perturbations):
         where = f"perturbation[{i + 1}]"
-        perts.append(PerturbCommand(float(q.start_s), int(q.cell),
-                                    perturb_payload(q.chain, q.torque_Nm, q.duration_s, ctrl_rate_hz, where),
-                                    f"{q.chain}_{q.cell} {q.torque_Nm * 1e3:+.1f} mN*m for {q.duration_s:g} s"))
+        perts.append(
+            PerturbCommand(
+                float(q.start_s),
+                int(q.cell),
+                perturb_payload(q.chain, q.torque_Nm, q.duration_s, ctrl_rate_hz, where),
+                f"{q.chain}_{q.cell} {q.torque_Nm * 1e3:+.1f} mN*m for {q.duration_s:g} s",
+            )
+        )
     perts.sort(key=lambda c: (c.start_s, c.cell))
     last = max([q.start_s + q.duration_s for q in scene.perturbations], default=0.0)
     base = Params(cells=scene.cells)
     skip = {n for n, _ in FIRMWARE_PARAMS} | set(CONTROL_PARAMS) | {"cells"}
-    not_settable = {f.name: getattr(p, f.name) for f in dataclasses.fields(Params)
-                    if f.name not in skip and getattr(p, f.name) != getattr(base, f.name)}
+    not_settable = {
+        f.name: getattr(p, f.name)
+        for f in dataclasses.fields(Params)
+        if f.name not in skip and getattr(p, f.name) != getattr(base, f.name)
+    }
     if round(p.control_rate_hz) != ctrl_rate_hz:
         not_settable["control_rate_hz"] = p.control_rate_hz
     if p.pwm_top != pwm_top:
         not_settable["pwm_top"] = p.pwm_top
-    return ExperimentPlan(list(range(1, scene.cells + 1)), setup, perts, t_end, ctrl_rate_hz, float(last),
-                          not_settable)
+    return ExperimentPlan(list(range(1, scene.cells + 1)), setup, perts, t_end, ctrl_rate_hz, float(last), not_settable)

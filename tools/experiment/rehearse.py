@@ -31,17 +31,23 @@ def serve_overrides(scene, sets) -> list[str]:
     """--set items for serve: the experiment's own, then model = hil, perturbation torques 0, and the
     firmware parameters at their defaults (the cells boot with them; the runner must set the scene's)."""
     base = Params()
-    fw = [f"params.{name}={getattr(base, name)!r}" for name, _ in FIRMWARE_PARAMS] + \
-         [f"params.{name}={str(getattr(base, name)).lower()}" for name in CONTROL_PARAMS]
-    return list(sets) + ["model=hil"] + [f"perturbation.{i + 1}.torque_Nm=0" for i in range(len(scene.perturbations))] + fw
+    fw = [f"params.{name}={getattr(base, name)!r}" for name, _ in FIRMWARE_PARAMS] + [
+        f"params.{name}={str(getattr(base, name)).lower()}" for name in CONTROL_PARAMS
+    ]
+    return (
+        list(sets) + ["model=hil"] + [f"perturbation.{i + 1}.torque_Nm=0" for i in range(len(scene.perturbations))] + fw
+    )
 
 
 class Serve:
     """Context manager around one `python -m host_emulator serve` process; `.channel` is '<pty>@115200'."""
 
     def __init__(self, scene_arg: str, overrides, extra=(), duration_s: float = 600.0, startup_timeout_s: float = 60.0):
-        self.cmd = [sys.executable, "-m", "host_emulator", "serve", scene_arg, "--slcan",
-                    "--duration", f"{duration_s:g}"] + [x for s in overrides for x in ("--set", s)] + list(extra)
+        self.cmd = (
+            [sys.executable, "-m", "host_emulator", "serve", scene_arg, "--slcan", "--duration", f"{duration_s:g}"]
+            + [x for s in overrides for x in ("--set", s)]
+            + list(extra)
+        )
         self.startup_timeout_s = startup_timeout_s
         self.proc = None
         self.channel = None
@@ -49,8 +55,9 @@ class Serve:
 
     def __enter__(self):
         self.err = tempfile.TemporaryFile(mode="w+")
-        self.proc = subprocess.Popen(self.cmd, cwd=proto.ROOT, stdout=subprocess.PIPE, stderr=self.err,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            self.cmd, cwd=proto.ROOT, stdout=subprocess.PIPE, stderr=self.err, start_new_session=True
+        )
         sel = selectors.DefaultSelector()
         sel.register(self.proc.stdout, selectors.EVENT_READ)
         deadline = time.monotonic() + self.startup_timeout_s

@@ -56,52 +56,51 @@ class CommandFailed(RuntimeError):
 @dataclass
 class Options:
     repeats: int = 1
-    settle_s: float = 1.0          # steady window: stop once every cell moved < 2 counts over this long
-    early_stop: bool = True        # stop a repeat when steady (after the last perturbation ended)
-    relax_s: float = 3.0           # drive off between repeats: the bands bring the chains to a uniform rest
-    rest_timeout_s: float = 10.0   # longest wait for the lattice to be still before zeroing
-    keep_going: bool = False       # continue past failed setup commands (those cells stay disabled)
-    silence_s: float = 2.0         # no frame for this long = link lost
-    cmd_timeout_s: float = 1.0     # per command, plus 0.1 s per addressed cell (RigClient)
-    formats: tuple = ("asc",)      # python-can log formats
+    settle_s: float = 1.0  # steady window: stop once every cell moved < 2 counts over this long
+    early_stop: bool = True  # stop a repeat when steady (after the last perturbation ended)
+    relax_s: float = 3.0  # drive off between repeats: the bands bring the chains to a uniform rest
+    rest_timeout_s: float = 10.0  # longest wait for the lattice to be still before zeroing
+    keep_going: bool = False  # continue past failed setup commands (those cells stay disabled)
+    silence_s: float = 2.0  # no frame for this long = link lost
+    cmd_timeout_s: float = 1.0  # per command, plus 0.1 s per addressed cell (RigClient)
+    formats: tuple = ("asc",)  # python-can log formats
 
 
 @dataclass
 class Repeat:
     index: int
     decoder: SampleDecoder
-    t0: float | None = None                 # primary clock (decoder t_s) when every cell acknowledged ENABLE on
-    t_stop: float | None = None             # primary clock when the run was stopped
-    stopped: str = "not started"            # steady | t_end | aborted: <why>
+    t0: float | None = None  # primary clock (decoder t_s) when every cell acknowledged ENABLE on
+    t_stop: float | None = None  # primary clock when the run was stopped
+    stopped: str = "not started"  # steady | t_end | aborted: <why>
     perturbations: list = field(default_factory=list)
-    rest_counts: dict | None = None         # angles before ZERO: what the previous run left (counts)
+    rest_counts: dict | None = None  # angles before ZERO: what the previous run left (counts)
     enabled_cells: list = field(default_factory=list)
 
 
 class Experiment:
     """A session on one open python-can bus."""
 
-    def __init__(self, bus, plan: ExperimentPlan, out: Path, opts: Options | None = None, report=None,
-                 hook=None):
+    def __init__(self, bus, plan: ExperimentPlan, out: Path, opts: Options | None = None, report=None, hook=None):
         import can
 
         self.bus, self.plan, self.out = bus, plan, Path(out)
         self.opts = opts or Options()
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
-        self.hook = hook or (lambda event, **kw: None)   # test and instrumentation point: hook(event, ...)
+        self.hook = hook or (lambda event, **kw: None)  # test and instrumentation point: hook(event, ...)
         self.out.mkdir(parents=True, exist_ok=True)
         self.log_files = [self.out / f"rig.{f}" for f in self.opts.formats]
         self.writers = [can.Logger(str(p)) for p in self.log_files]
         self.client = RigClient(bus, self.opts.cmd_timeout_s, on_message=self._take)
-        self.idle = SampleDecoder(report=lambda text: None)   # frames outside a repeat (rest checks)
+        self.idle = SampleDecoder(report=lambda text: None)  # frames outside a repeat (rest checks)
         self.decoder = self.idle
         self.frames = 0
-        self.corrupt = 0         # SLCAN lines python-can could not parse
+        self.corrupt = 0  # SLCAN lines python-can could not parse
         self.last_frame = time.monotonic()
-        self.commands = []       # every command: {phase, reg, label, results}
-        self.failures = []       # (phase, reg, cell, result) of every non-OK answer
+        self.commands = []  # every command: {phase, reg, label, results}
+        self.failures = []  # (phase, reg, cell, result) of every non-OK answer
         self.repeats: list[Repeat] = []
-        self.safe = None         # result of the final ENABLE off
+        self.safe = None  # result of the final ENABLE off
         self.t_session = time.time()
 
     # ---- frames --------------------------------------------------------------
@@ -115,8 +114,10 @@ class Experiment:
     def _check_silence(self):
         quiet = time.monotonic() - self.last_frame
         if quiet > self.opts.silence_s:
-            raise LinkError(f"no frames from the primary for {quiet:.1f} s (limit {self.opts.silence_s} s): "
-                            "port closed, primary reset or USB lost")
+            raise LinkError(
+                f"no frames from the primary for {quiet:.1f} s (limit {self.opts.silence_s} s): "
+                "port closed, primary reset or USB lost"
+            )
 
     def pump(self, until_host: float):
         """Receive and log frames until host time `until_host` (never longer: recv has a timeout)."""
@@ -126,7 +127,7 @@ class Experiment:
                 return
             try:
                 msg = self.bus.recv(timeout=min(0.05, left))
-            except ValueError as e:      # python-can could not parse a line: counted (summary), keep going
+            except ValueError as e:  # python-can could not parse a line: counted (summary), keep going
                 self.corrupt += 1
                 self.report(f"corrupt SLCAN line skipped: {e}")
                 continue
@@ -144,8 +145,16 @@ class Experiment:
             res = self.client.command(list(cells), reg, **values)
         except Exception as e:
             raise LinkError(f"connection to the primary lost during {reg}: {type(e).__name__}: {e}") from e
-        self.commands.append({"phase": phase, "t_host": time.time(), "reg": reg, "values": dict(values),
-                              "label": label, "results": {int(j): r for j, r in sorted(res.items())}})
+        self.commands.append(
+            {
+                "phase": phase,
+                "t_host": time.time(),
+                "reg": reg,
+                "values": dict(values),
+                "label": label,
+                "results": {int(j): r for j, r in sorted(res.items())},
+            }
+        )
         bad = {j: r for j, r in res.items() if r != "OK"}
         for j, r in sorted(bad.items()):
             self.failures.append({"phase": phase, "reg": reg, "label": label, "cell": int(j), "result": r})
@@ -153,8 +162,10 @@ class Experiment:
             by = {}
             for j, r in sorted(bad.items()):
                 by.setdefault(r, []).append(j)
-            self.report(f"{phase}: {reg} ({label}) failed: " +
-                        "; ".join(f"{r} from cell(s) {cells_text(js)}" for r, js in by.items()))
+            self.report(
+                f"{phase}: {reg} ({label}) failed: "
+                + "; ".join(f"{r} from cell(s) {cells_text(js)}" for r, js in by.items())
+            )
         self._check_silence()
         self.hook("command", reg=reg, phase=phase, results=res)
         return res
@@ -174,8 +185,11 @@ class Experiment:
                 k1 = next(x for x in self.plan.setup if x.reg == "K1")
                 again = self.command(k1_shape, "K1", k1.values, k1.label + " (after k2)", phase)
                 fixed = {j for j, r in again.items() if r == "OK"}
-                self.failures = [f for f in self.failures if not (f["phase"] == phase and f["reg"] == "K1" and
-                                                                  f["result"] == "SHAPE" and f["cell"] in fixed)]
+                self.failures = [
+                    f
+                    for f in self.failures
+                    if not (f["phase"] == phase and f["reg"] == "K1" and f["result"] == "SHAPE" and f["cell"] in fixed)
+                ]
                 res = {**res, **again}
             ok -= {j for j, r in res.items() if r != "OK"}
         return sorted(ok)
@@ -227,14 +241,18 @@ class Experiment:
         s = series(tail_arrays(dec, 1.0), 0.0, None)
         if s is not None:
             last = np.round(s.alpha[-1] / RAD_PER_COUNT), np.round(s.beta[-1] / RAD_PER_COUNT)
-            repeat.rest_counts = {"still": still,
-                                  "alpha": [int(v) if p else None for v, p in zip(last[0], s.present)],
-                                  "beta": [int(v) if p else None for v, p in zip(last[1], s.present)]}
+            repeat.rest_counts = {
+                "still": still,
+                "alpha": [int(v) if p else None for v, p in zip(last[0], s.present)],
+                "beta": [int(v) if p else None for v, p in zip(last[1], s.present)],
+            }
         else:
             repeat.rest_counts = {"still": False, "alpha": None, "beta": None}
         if not still:
-            self.report(f"repeat {repeat.index}: lattice not still after {self.opts.rest_timeout_s} s; zeroing anyway "
-                        "(angles before zero kept in the summary)")
+            self.report(
+                f"repeat {repeat.index}: lattice not still after {self.opts.rest_timeout_s} s; zeroing anyway "
+                "(angles before zero kept in the summary)"
+            )
 
     # ---- one repeat ------------------------------------------------------------
     def run_repeat(self, index: int) -> Repeat:
@@ -250,8 +268,10 @@ class Experiment:
         if len(ok) < len(self.plan.cells) and not self.opts.keep_going:
             missing = sorted(set(self.plan.cells) - set(ok))
             rep.stopped = f"aborted: setup failed on cells {missing}"
-            raise CommandFailed(f"{phase}: setup failed on cell(s) {cells_text(missing)} "
-                                "(see the failures in the summary; --keep-going runs without them)")
+            raise CommandFailed(
+                f"{phase}: setup failed on cell(s) {cells_text(missing)} "
+                "(see the failures in the summary; --keep-going runs without them)"
+            )
         zero = self.command(ok, "ZERO", {}, "zero encoders", phase)
         ok = [j for j in ok if zero.get(j) == "OK"]
         en = self.command(ok, "ENABLE", {"on": 1}, "drive on", phase)
@@ -260,7 +280,9 @@ class Experiment:
         if rep.t0 is None:
             raise LinkError(f"{phase}: no sample from any cell during the setup")
         wall_limit = time.time() + 3 * self.plan.t_end_s + 30
-        self.report(f"{phase}: drive enabled on {len(rep.enabled_cells)} cell(s); running up to {self.plan.t_end_s:g} s")
+        self.report(
+            f"{phase}: drive enabled on {len(rep.enabled_cells)} cell(s); running up to {self.plan.t_end_s:g} s"
+        )
         self.hook("enabled", repeat=index)
         pending = list(self.plan.perturbations)
         next_check = self.plan.last_perturbation_end_s + self.opts.settle_s
@@ -269,7 +291,7 @@ class Experiment:
             now = self.clock(rep.decoder) - rep.t0
             if now >= self.plan.t_end_s:
                 break
-            if time.time() > wall_limit:   # frames arrive but the primary's clock hardly moves
+            if time.time() > wall_limit:  # frames arrive but the primary's clock hardly moves
                 rep.stopped = "wall-time limit (primary clock too slow)"
                 break
             due = [p for p in pending if p.start_s <= now]
@@ -281,30 +303,46 @@ class Experiment:
                     groups.setdefault(tuple(sorted(p.values.items())), []).append(p)
                 for _, ps in groups.items():
                     sent = self.clock(rep.decoder) - rep.t0
-                    res = self.command([p.cell for p in ps], "PERTURB", ps[0].values,
-                                       "; ".join(p.label for p in ps), phase)
+                    res = self.command(
+                        [p.cell for p in ps], "PERTURB", ps[0].values, "; ".join(p.label for p in ps), phase
+                    )
                     for p in ps:
-                        rep.perturbations.append({"label": p.label, "cell": p.cell, "planned_s": p.start_s,
-                                                  "sent_s": sent, "result": res.get(p.cell)})
+                        rep.perturbations.append(
+                            {
+                                "label": p.label,
+                                "cell": p.cell,
+                                "planned_s": p.start_s,
+                                "sent_s": sent,
+                                "result": res.get(p.cell),
+                            }
+                        )
                 continue
             if self.opts.early_stop and now >= next_check:
                 next_check = now + 0.5
                 s = series(tail_arrays(rep.decoder, self.opts.settle_s + 0.05), rep.t0)
                 if s is not None and s.present.any():
                     w = s.t >= s.t[-1] - self.opts.settle_s
-                    if s.t[-1] - s.t[0] >= 0.95 * self.opts.settle_s and w.sum() >= 3 and \
-                            is_steady(s.t[w], s.alpha[w][:, s.present], s.beta[w][:, s.present],
-                                      settle_window_s=self.opts.settle_s):
+                    if (
+                        s.t[-1] - s.t[0] >= 0.95 * self.opts.settle_s
+                        and w.sum() >= 3
+                        and is_steady(
+                            s.t[w],
+                            s.alpha[w][:, s.present],
+                            s.beta[w][:, s.present],
+                            settle_window_s=self.opts.settle_s,
+                        )
+                    ):
                         rep.stopped = "steady"
                         break
-            nxt = min([self.plan.t_end_s] + [p.start_s for p in pending] +
-                      ([next_check] if self.opts.early_stop else []))
+            nxt = min(
+                [self.plan.t_end_s] + [p.start_s for p in pending] + ([next_check] if self.opts.early_stop else [])
+            )
             self.pump(time.time() + min(0.05, max(0.005, nxt - now)))
         rep.t_stop = self.clock(rep.decoder)
         self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop - rep.t0:.2f} s")
         left = self.disable_all(phase)
         driving = [j for j in left if j in rep.enabled_cells]
-        if driving:   # we switched these on and cannot switch them off: stop everything
+        if driving:  # we switched these on and cannot switch them off: stop everything
             raise CommandFailed(f"{phase}: drive off not confirmed by cell(s) {cells_text(driving)} that were enabled")
         self.decoder = self.idle
         rep.decoder.save(self.out / f"repeat_{index:02d}")
@@ -320,8 +358,10 @@ class Experiment:
         try:
             left = self.disable_all("final drive off")
         except LinkError as e:
-            self.report(f"SAFETY: could not send drive-off ({e}); the cells keep running their control loops: "
-                        "switch the 9 V motor supply off")
+            self.report(
+                f"SAFETY: could not send drive-off ({e}); the cells keep running their control loops: "
+                "switch the 9 V motor supply off"
+            )
             left = None
         else:
             if left:
@@ -358,11 +398,11 @@ def tail_arrays(dec: SampleDecoder, seconds: float) -> dict:
 
 @dataclass
 class Series:
-    t: np.ndarray            # (T,) s after the drive was enabled
-    alpha: np.ndarray        # (T, N) rad, held over missing samples
+    t: np.ndarray  # (T,) s after the drive was enabled
+    alpha: np.ndarray  # (T, N) rad, held over missing samples
     beta: np.ndarray
-    present: np.ndarray      # (N,) bool: cell has at least one sample
-    held: np.ndarray         # (N,) samples filled by holding the previous value
+    present: np.ndarray  # (N,) bool: cell has at least one sample
+    held: np.ndarray  # (N,) samples filled by holding the previous value
 
 
 def series(arr: dict, t0: float, t_min: float | None = 0.0, t_max: float | None = None) -> Series | None:
@@ -378,7 +418,9 @@ def series(arr: dict, t0: float, t_min: float | None = 0.0, t_max: float | None 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         t = np.nanmean(ts, axis=1) - t0
-    keep = np.isfinite(t) & (t >= (-math.inf if t_min is None else t_min)) & (t <= (math.inf if t_max is None else t_max))
+    keep = (
+        np.isfinite(t) & (t >= (-math.inf if t_min is None else t_min)) & (t <= (math.inf if t_max is None else t_max))
+    )
     t = t[keep]
     a, b = arr["alpha_counts"][keep], arr["beta_counts"][keep]
     if t.size == 0:

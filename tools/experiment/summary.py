@@ -54,8 +54,13 @@ def _longest_run(mask) -> slice:
 def repeat_result(rep, n_cells: int):
     """(per-repeat record, Series or None) of one repeat."""
     arr = rep.decoder.arrays()
-    rec = {"repeat": rep.index, "stopped": rep.stopped, "perturbations": rep.perturbations,
-           "rest_before_zero_counts": rep.rest_counts, "enabled_cells": rep.enabled_cells}
+    rec = {
+        "repeat": rep.index,
+        "stopped": rep.stopped,
+        "perturbations": rep.perturbations,
+        "rest_before_zero_counts": rep.rest_counts,
+        "enabled_cells": rep.enabled_cells,
+    }
     per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0) if arr["alpha_counts"].size else np.zeros(n_cells, int)
     gaps = arr["gaps"]
     rec["samples_per_cell"] = per_cell[:n_cells]
@@ -66,21 +71,31 @@ def repeat_result(rep, n_cells: int):
     # the run is [enable acknowledged, stop decided]; frames after it (drive switching off) are logged, not analysed
     s = series(arr, rep.t0, 0.0, rep.t_stop - rep.t0) if rep.t0 is not None else None
     if s is None or s.t.size < 2:
-        rec.update(t_end_s=0.0, steady=False, pattern_period_cells=None, oscillation_period_s=None,
-                   final_alpha_rad=[None] * n_cells, final_beta_rad=[None] * n_cells)
+        rec.update(
+            t_end_s=0.0,
+            steady=False,
+            pattern_period_cells=None,
+            oscillation_period_s=None,
+            final_alpha_rad=[None] * n_cells,
+            final_beta_rad=[None] * n_cells,
+        )
         return rec, None
-    s = dataclasses.replace(s, alpha=s.alpha[:, :n_cells], beta=s.beta[:, :n_cells], present=s.present[:n_cells],
-                            held=s.held[:n_cells])
+    s = dataclasses.replace(
+        s, alpha=s.alpha[:, :n_cells], beta=s.beta[:, :n_cells], present=s.present[:n_cells], held=s.held[:n_cells]
+    )
     pres = s.present
     obs = observables(s.t, s.alpha[:, pres], s.beta[:, pres]) if pres.any() else {}
     run = _longest_run(pres)
-    rec.update(t_end_s=float(s.t[-1]), steady=obs.get("steady", False),
-               oscillation_period_s=obs.get("oscillation_period_s"),
-               pattern_period_cells=spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 else None,
-               final_alpha_rad=[float(v) if p else None for v, p in zip(s.alpha[-1], pres)],
-               final_beta_rad=[float(v) if p else None for v, p in zip(s.beta[-1], pres)],
-               cells_without_data=[j + 1 for j in range(n_cells) if not pres[j]],
-               samples_held=s.held)
+    rec.update(
+        t_end_s=float(s.t[-1]),
+        steady=obs.get("steady", False),
+        oscillation_period_s=obs.get("oscillation_period_s"),
+        pattern_period_cells=spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 else None,
+        final_alpha_rad=[float(v) if p else None for v, p in zip(s.alpha[-1], pres)],
+        final_beta_rad=[float(v) if p else None for v, p in zip(s.beta[-1], pres)],
+        cells_without_data=[j + 1 for j in range(n_cells) if not pres[j]],
+        samples_held=s.held,
+    )
     if not pres.all():
         rec["pattern_period_note"] = f"from the longest run of cells with data: {run.start + 1}..{run.stop}"
     return rec, s
@@ -101,11 +116,22 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
         base = summarize(scene, res)
     else:
         res = None
-        base = {"scene": scene.name, "t_end_s": 0.0, "wall_s": wall_s, "realtime_factor": 0.0,
-                "steady": False, "pattern_period_cells": None, "oscillation_period_s": None, "amplitude_rad": None,
-                "final_alpha_rad": [None] * n, "final_beta_rad": [None] * n, "growth_rate_per_s": None,
-                "dispersion": None, "params": dataclasses.asdict(scene.params),
-                "perturbation": [p.as_dict() for p in scene.perturbations]}
+        base = {
+            "scene": scene.name,
+            "t_end_s": 0.0,
+            "wall_s": wall_s,
+            "realtime_factor": 0.0,
+            "steady": False,
+            "pattern_period_cells": None,
+            "oscillation_period_s": None,
+            "amplitude_rad": None,
+            "final_alpha_rad": [None] * n,
+            "final_beta_rad": [None] * n,
+            "growth_rate_per_s": None,
+            "dispersion": None,
+            "params": dataclasses.asdict(scene.params),
+            "perturbation": [p.as_dict() for p in scene.perturbations],
+        }
     done = [r for r in recs if r["t_end_s"] > 0]
     fa = np.array([[np.nan if v is None else v for v in r["final_alpha_rad"]] for r in done]).reshape(-1, n)
     fb = np.array([[np.nan if v is None else v for v in r["final_beta_rad"]] for r in done]).reshape(-1, n)
@@ -124,38 +150,41 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
     missing = sorted({j for r in recs for j in r.get("missing_cells", [])})
     total_t = sum(r["t_end_s"] for r in done)
     out = dict(base)
-    out.update({
-        "model": "rig",
-        "t_end_s": max((r["t_end_s"] for r in done), default=0.0),
-        "wall_s": wall_s,
-        "realtime_factor": total_t / wall_s if wall_s > 0 else 0.0,
-        "steady": bool(done) and all(r["steady"] for r in done),
-        "pattern_period_cells": median("pattern_period_cells"),
-        "oscillation_period_s": median("oscillation_period_s"),
-        **stats,
-        "amplitude_rad": float(np.nanmax(np.abs(stats["final_alpha_rad"]))) if len(fa) and
-        np.isfinite(np.asarray(stats["final_alpha_rad"], float)).any() else None,
-        "repeats": len(exp.repeats),
-        "repeats_completed": len([r for r in recs if r["stopped"] in ("steady", "t_end")]),
-        "per_repeat": recs,
-        "pattern_period_cells_repeats": [r["pattern_period_cells"] for r in done],
-        "missing_cells": missing,
-        "failed_commands": exp.failures,
-        "gaps": sum(len(r["gaps"]) for r in recs),
-        "samples_lost": sum(r["samples_lost"] for r in recs),
-        "drive_off_confirmed": exp.safe == [],
-        "drive_off_unconfirmed_cells": exp.safe if exp.safe is not None else "link lost: none confirmed",
-        "aborted": error,
-        "plan": exp.plan.as_dict(),
-        "commands": exp.commands,
-        "frames": exp.frames,
-        "corrupt_lines": exp.corrupt,
-        "log_files": [p.name for p in exp.log_files],
-    })
+    out.update(
+        {
+            "model": "rig",
+            "t_end_s": max((r["t_end_s"] for r in done), default=0.0),
+            "wall_s": wall_s,
+            "realtime_factor": total_t / wall_s if wall_s > 0 else 0.0,
+            "steady": bool(done) and all(r["steady"] for r in done),
+            "pattern_period_cells": median("pattern_period_cells"),
+            "oscillation_period_s": median("oscillation_period_s"),
+            **stats,
+            "amplitude_rad": float(np.nanmax(np.abs(stats["final_alpha_rad"])))
+            if len(fa) and np.isfinite(np.asarray(stats["final_alpha_rad"], float)).any()
+            else None,
+            "repeats": len(exp.repeats),
+            "repeats_completed": len([r for r in recs if r["stopped"] in ("steady", "t_end")]),
+            "per_repeat": recs,
+            "pattern_period_cells_repeats": [r["pattern_period_cells"] for r in done],
+            "missing_cells": missing,
+            "failed_commands": exp.failures,
+            "gaps": sum(len(r["gaps"]) for r in recs),
+            "samples_lost": sum(r["samples_lost"] for r in recs),
+            "drive_off_confirmed": exp.safe == [],
+            "drive_off_unconfirmed_cells": exp.safe if exp.safe is not None else "link lost: none confirmed",
+            "aborted": error,
+            "plan": exp.plan.as_dict(),
+            "commands": exp.commands,
+            "frames": exp.frames,
+            "corrupt_lines": exp.corrupt,
+            "log_files": [p.name for p in exp.log_files],
+        }
+    )
     out.pop("solver", None)
     from host_emulator.provenance import provenance
 
-    out["provenance"] = provenance()       # code version, library versions, UTC time, command line
+    out["provenance"] = provenance()  # code version, library versions, UTC time, command line
     return json_ready(out), (None if res is None else (scene, res))
 
 

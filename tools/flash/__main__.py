@@ -30,35 +30,47 @@ def default_pio() -> str:
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m tools.flash", description=__doc__)
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--inventory", default=str(inv.DEFAULT_PATH),
-                        help="board inventory JSON (default: %(default)s)")
-    common.add_argument("--ports-json", metavar="FILE",
-                        help="use this JSON list of ports instead of the USB ports (no hardware)")
+    common.add_argument(
+        "--inventory", default=str(inv.DEFAULT_PATH), help="board inventory JSON (default: %(default)s)"
+    )
+    common.add_argument(
+        "--ports-json", metavar="FILE", help="use this JSON list of ports instead of the USB ports (no hardware)"
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
 
-    p = sub.add_parser("inventory", parents=[common],
-                       help="show connected boards; --assign one to a cell or the primary")
+    p = sub.add_parser(
+        "inventory", parents=[common], help="show connected boards; --assign one to a cell or the primary"
+    )
     p.add_argument("--assign", metavar="N|primary", help="record a board as cell N or the primary")
     p.add_argument("--serial", help="which board to assign (default: the only unassigned one connected)")
     p.add_argument("--replace", action="store_true", help="take the slot from the board holding it")
 
-    for name, helptext in (("plan", "print what flash would do, touching nothing"),
-                           ("flash", "build, upload and verify every board")):
+    for name, helptext in (
+        ("plan", "print what flash would do, touching nothing"),
+        ("flash", "build, upload and verify every board"),
+    ):
         p = sub.add_parser(name, parents=[common], help=helptext)
         p.add_argument("--only", help="boards to include, e.g. '1-4,7,primary' (default: all)")
-        p.add_argument("--skip-missing", action="store_true",
-                       help="flash the connected boards even if some inventory boards are absent")
+        p.add_argument(
+            "--skip-missing",
+            action="store_true",
+            help="flash the connected boards even if some inventory boards are absent",
+        )
         p.add_argument("--pio", default=None, help="PlatformIO executable (default: pio on PATH)")
         p.add_argument("--project", default=str(ROOT), help="PlatformIO project dir")
         if name == "flash":
-            p.add_argument("--stop-on-error", action="store_true",
-                           help="stop at the first failed board (default: continue with the rest)")
+            p.add_argument(
+                "--stop-on-error",
+                action="store_true",
+                help="stop at the first failed board (default: continue with the rest)",
+            )
             p.add_argument("--log-dir", default=str(Path(".pio") / "flash-logs"))
             p.add_argument("--upload-timeout", type=float, default=600.0)
             p.add_argument("--reappear-timeout", type=float, default=20.0)
 
-    sub.add_parser("identify", parents=[common],
-                   help="ask every connected XIAO for its identity; flag duplicate addresses")
+    sub.add_parser(
+        "identify", parents=[common], help="ask every connected XIAO for its identity; flag duplicate addresses"
+    )
     return ap
 
 
@@ -73,8 +85,11 @@ def cmd_inventory(args, lister, out) -> int:
         else:
             free = [p for p in ports if p.serial_number and p.serial_number not in by_serial]
             if len(free) != 1:
-                out(f"error: {len(free)} unassigned XIAO boards connected; connect exactly one "
-                    f"new board or name it with --serial", err=True)
+                out(
+                    f"error: {len(free)} unassigned XIAO boards connected; connect exactly one "
+                    f"new board or name it with --serial",
+                    err=True,
+                )
                 return EXIT_USAGE
             serial = free[0].serial_number
         boards = inv.assign(boards, serial, args.assign, replace=args.replace)
@@ -95,14 +110,25 @@ def cmd_inventory(args, lister, out) -> int:
 
 def cmd_plan_or_flash(args, lister, out) -> int:
     boards = inv.load(args.inventory)
-    plan = make_plan(boards, lister(), pio=args.pio or default_pio(), project=Path(args.project),
-                     only=parse_only(args.only), skip_missing=args.skip_missing)
+    plan = make_plan(
+        boards,
+        lister(),
+        pio=args.pio or default_pio(),
+        project=Path(args.project),
+        only=parse_only(args.only),
+        skip_missing=args.skip_missing,
+    )
     out(describe(plan))
     if args.cmd == "plan":
         return EXIT_OK
-    flasher = Flasher(lister, expected_fw=expected_fw_version(), log_dir=args.log_dir,
-                      upload_timeout=args.upload_timeout, reappear_timeout=args.reappear_timeout,
-                      out=out)
+    flasher = Flasher(
+        lister,
+        expected_fw=expected_fw_version(),
+        log_dir=args.log_dir,
+        upload_timeout=args.upload_timeout,
+        reappear_timeout=args.reappear_timeout,
+        out=out,
+    )
     outcomes = flasher.flash(plan, stop_on_error=args.stop_on_error)
     out(summary(outcomes))
     for b in plan.missing:
@@ -133,8 +159,7 @@ def cmd_identify(args, lister, out, query=query_identity) -> int:
             problems += 1
             continue
         note = ""
-        if b is not None and (b.role, b.cell, b.addr) != (q.identity.role, q.identity.cell,
-                                                          q.identity.addr):
+        if b is not None and (b.role, b.cell, b.addr) != (q.identity.role, q.identity.cell, q.identity.addr):
             note = f"  MISMATCH: inventory says {b.name}"
             problems += 1
         if q.errors:

@@ -21,8 +21,9 @@ def address_cell(addr: int) -> int:
         raise ValueError(f"address must be an integer, got {addr!r}")
     cell = addr - ADDR_BASE + 1
     if not 1 <= cell <= CELL_COUNT:
-        raise ValueError(f"address 0x{addr:02x} belongs to no cell "
-                         f"(cells use 0x{ADDR_BASE:02x}..0x{ADDR_BASE + CELL_COUNT - 1:02x})")
+        raise ValueError(
+            f"address 0x{addr:02x} belongs to no cell (cells use 0x{ADDR_BASE:02x}..0x{ADDR_BASE + CELL_COUNT - 1:02x})"
+        )
     return cell
 
 

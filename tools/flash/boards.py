@@ -21,7 +21,7 @@ class PortListError(ValueError):
 
 @dataclass(frozen=True)
 class Port:
-    device: str                 # e.g. /dev/ttyACM3
+    device: str  # e.g. /dev/ttyACM3
     vid: int | None
     pid: int | None
     serial_number: str | None
@@ -69,9 +69,16 @@ def ports_from_json(path: str | Path) -> list[Port]:
         sn = entry.get("serial_number")
         if sn is not None and not isinstance(sn, str):
             raise PortListError(f"{where}: serial_number must be a string")
-        ports.append(Port(entry["device"], _int_field(entry, "vid", where),
-                          _int_field(entry, "pid", where), sn,
-                          str(entry.get("location") or ""), str(entry.get("description") or "")))
+        ports.append(
+            Port(
+                entry["device"],
+                _int_field(entry, "vid", where),
+                _int_field(entry, "pid", where),
+                sn,
+                str(entry.get("location") or ""),
+                str(entry.get("description") or ""),
+            )
+        )
     return ports
 
 
@@ -79,8 +86,10 @@ def system_ports() -> list[Port]:
     """The serial ports the OS sees now."""
     from serial.tools import list_ports
 
-    return [Port(p.device, p.vid, p.pid, p.serial_number, p.location or "", p.description or "")
-            for p in list_ports.comports()]
+    return [
+        Port(p.device, p.vid, p.pid, p.serial_number, p.location or "", p.description or "")
+        for p in list_ports.comports()
+    ]
 
 
 def port_lister(ports_json: str | Path | None = None):

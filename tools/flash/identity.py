@@ -11,7 +11,7 @@ from .addresses import CELL_COUNT, RESERVED
 
 ROOT = Path(__file__).resolve().parents[2]
 REQUEST = b"ID?\r\n"
-SAFE_BAUD = 115200   # USB CDC ignores it; 1200 would reset the XIAO into its bootloader
+SAFE_BAUD = 115200  # USB CDC ignores it; 1200 would reset the XIAO into its bootloader
 ROLES = ("cell", "primary")
 
 
@@ -21,11 +21,11 @@ class IdentityError(ValueError):
 
 @dataclass(frozen=True)
 class Identity:
-    role: str                  # "cell" or "primary"
-    fw: str                    # "major.minor"
-    cell: int | None = None    # 0 (unaddressed image) or 1..16 for a cell
-    addr: int | None = None    # 7-bit I2C address, None when unaddressed / primary
-    extra: tuple = field(default=(), compare=False)   # unknown key=value pairs, kept
+    role: str  # "cell" or "primary"
+    fw: str  # "major.minor"
+    cell: int | None = None  # 0 (unaddressed image) or 1..16 for a cell
+    addr: int | None = None  # 7-bit I2C address, None when unaddressed / primary
+    extra: tuple = field(default=(), compare=False)  # unknown key=value pairs, kept
 
     def describe(self) -> str:
         if self.role == "primary":
@@ -34,7 +34,7 @@ class Identity:
         return f"cell {self.cell} addr={a} fw={self.fw}"
 
 
-_NUM = r"(0|[1-9]\d{0,2})"   # decimal, no leading zeros (the C formatter never writes them)
+_NUM = r"(0|[1-9]\d{0,2})"  # decimal, no leading zeros (the C formatter never writes them)
 _FW_RE = re.compile(rf"^{_NUM}\.{_NUM}$")
 _ADDR_RE = re.compile(r"^0x[0-9a-fA-F]{2}$")
 _DEC_RE = re.compile(rf"^{_NUM}$")
@@ -99,7 +99,7 @@ def expected_fw_version(header: Path | None = None) -> str:
 
 def open_serial(device: str, timeout: float = 0.2):
     """Open a board's USB CDC port for data (never at 1200 baud)."""
-    import serial   # pyserial
+    import serial  # pyserial
 
     return serial.Serial(device, baudrate=SAFE_BAUD, timeout=timeout)
 
@@ -111,8 +111,9 @@ class QueryResult:
         self.identity, self.errors, self.raw = identity, errors, raw
 
 
-def query_identity(device: str, opener=open_serial, timeout: float = 3.0,
-                   retry_every: float = 0.5, clock=time.monotonic) -> QueryResult:
+def query_identity(
+    device: str, opener=open_serial, timeout: float = 3.0, retry_every: float = 0.5, clock=time.monotonic
+) -> QueryResult:
     """Send `ID?` (again every retry_every s) until an identity line arrives or timeout.
 
     Lines that are not identity replies (e.g. SLCAN traffic of the primary) are kept in
@@ -142,7 +143,7 @@ def query_identity(device: str, opener=open_serial, timeout: float = 3.0,
                     continue
                 raw.append(line)
                 if line.startswith("MC error="):
-                    errors.append(line[len("MC error="):])
+                    errors.append(line[len("MC error=") :])
                 elif is_identity_line(line):
                     return QueryResult(parse_identity(line), errors, raw)
             buf = b""

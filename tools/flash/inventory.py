@@ -19,7 +19,7 @@ class InventoryError(ValueError):
 @dataclass(frozen=True)
 class Board:
     serial: str
-    role: str               # "cell" or "primary"
+    role: str  # "cell" or "primary"
     cell: int | None = None
 
     @property
@@ -59,8 +59,10 @@ def validate(boards: list[Board]) -> list[Board]:
             errors.append(f"board {b.serial}: role must be 'cell' or 'primary', got {b.role!r}")
     for cell, owners in sorted(by_cell.items()):
         if len(owners) > 1:
-            errors.append(f"two boards claim cell {cell} (address 0x{cell_address(cell):02x}): "
-                          + ", ".join(o.serial for o in owners))
+            errors.append(
+                f"two boards claim cell {cell} (address 0x{cell_address(cell):02x}): "
+                + ", ".join(o.serial for o in owners)
+            )
     if len(primaries) > 1:
         errors.append("more than one primary: " + ", ".join(p.serial for p in primaries))
     if errors:
@@ -73,8 +75,9 @@ def load(path: str | Path) -> list[Board]:
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError as exc:
-        raise InventoryError(f"no inventory at {path}: create it with "
-                             f"`python -m tools.flash inventory --assign ...`") from exc
+        raise InventoryError(
+            f"no inventory at {path}: create it with `python -m tools.flash inventory --assign ...`"
+        ) from exc
     except (OSError, json.JSONDecodeError) as exc:
         raise InventoryError(f"cannot read inventory {path}: {exc}") from exc
     if not isinstance(data, dict) or data.get("format") != FORMAT:
@@ -122,9 +125,15 @@ def assign(boards: list[Board], serial: str, target: str, replace: bool = False)
         if not 1 <= cell <= CELL_COUNT:
             raise InventoryError(f"cell must be 1..{CELL_COUNT}, got {cell}")
         new = Board(serial, "cell", cell)
-    holders = [b for b in boards if b.serial != serial and
-               ((new.role == "primary" and b.role == "primary") or
-                (new.role == "cell" and b.role == "cell" and b.cell == new.cell))]
+    holders = [
+        b
+        for b in boards
+        if b.serial != serial
+        and (
+            (new.role == "primary" and b.role == "primary")
+            or (new.role == "cell" and b.role == "cell" and b.cell == new.cell)
+        )
+    ]
     if holders and not replace:
         raise InventoryError(f"{new.name} is already board {holders[0].serial}; use --replace to swap it out")
     kept = [b for b in boards if b.serial != serial and b not in holders]

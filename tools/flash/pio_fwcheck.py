@@ -1,4 +1,5 @@
 """PlatformIO post-build hook (extra_scripts): `python -m tools.fwcheck lint --elf <firmware.elf>`."""
+
 # Klipper-style build-time guard: the project's own checker looks for soft-float and
 # division helpers in the control path of the linked image. The hook is fatal when the
 # checker runs and fails, and a warning (build continues) when the checker, or its
@@ -24,11 +25,12 @@ def _fwcheck(source, target, env):
         print("fwcheck: skipped (MC_FWCHECK=skip)")
         return 0
     python = _python(project)
-    probe = subprocess.run([python, "-m", "tools.fwcheck", "--help"], cwd=project,
-                           capture_output=True, text=True)
+    probe = subprocess.run([python, "-m", "tools.fwcheck", "--help"], cwd=project, capture_output=True, text=True)
     if probe.returncode != 0 or "lint" not in probe.stdout:
-        print("fwcheck: WARNING `python -m tools.fwcheck lint` is not available; "
-              "soft-float/division check of the image NOT run")
+        print(
+            "fwcheck: WARNING `python -m tools.fwcheck lint` is not available; "
+            "soft-float/division check of the image NOT run"
+        )
         return 0
     elf = str(target[0])
     # the primary image holds no control law: check its own steady path (poll scheduler, SLCAN)
@@ -37,8 +39,7 @@ def _fwcheck(source, target, env):
     if role == "cell":
         for r in GLUE_ROOTS:
             roots += ["--root", r]
-    rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots,
-                         cwd=project)
+    rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots, cwd=project)
     if rc != 0:
         print("fwcheck: FAILED on %s (exit %d)" % (elf, rc))
     return rc

@@ -21,8 +21,8 @@ class PlanError(ValueError):
 class Step:
     board: Board
     port: Port
-    env_name: str                       # PlatformIO environment: "cell" or "primary"
-    env_vars: tuple[tuple[str, str], ...]   # set for this pio run (override the caller's)
+    env_name: str  # PlatformIO environment: "cell" or "primary"
+    env_vars: tuple[tuple[str, str], ...]  # set for this pio run (override the caller's)
     argv: tuple[str, ...]
 
     def shell(self) -> str:
@@ -34,9 +34,9 @@ class Step:
 @dataclass
 class Plan:
     steps: list[Step]
-    missing: list[Board] = field(default_factory=list)     # skipped: not connected
+    missing: list[Board] = field(default_factory=list)  # skipped: not connected
     unselected: list[Board] = field(default_factory=list)  # skipped: not in --only
-    unknown: list[Port] = field(default_factory=list)      # XIAO boards not in the inventory
+    unknown: list[Port] = field(default_factory=list)  # XIAO boards not in the inventory
 
 
 def parse_only(text: str | None) -> set | None:
@@ -71,30 +71,33 @@ def upload_step(board: Board, port: Port, pio: str = "pio", project: Path = ROOT
         env_name = "cell"
         env_vars = (
             ("PLATFORMIO_BUILD_DIR", str(project / ".pio" / f"build-cell{board.cell:02d}")),
-            ("PLATFORMIO_BUILD_SRC_FLAGS",
-             f"-DMC_CELL_INDEX={board.cell} -DMC_CELL_ADDR=0x{board.addr:02x}"),
+            ("PLATFORMIO_BUILD_SRC_FLAGS", f"-DMC_CELL_INDEX={board.cell} -DMC_CELL_ADDR=0x{board.addr:02x}"),
         )
     else:
         env_name = "primary"
         env_vars = (
             ("PLATFORMIO_BUILD_DIR", str(project / ".pio" / "build-primary")),
-            ("PLATFORMIO_BUILD_SRC_FLAGS", ""),   # cancel any inherited cell flags
+            ("PLATFORMIO_BUILD_SRC_FLAGS", ""),  # cancel any inherited cell flags
         )
-    argv = (pio, "run", "-d", str(project), "-e", env_name, "-t", "upload",
-            "--upload-port", port.device)
+    argv = (pio, "run", "-d", str(project), "-e", env_name, "-t", "upload", "--upload-port", port.device)
     return Step(board, port, env_name, env_vars, argv)
 
 
-def make_plan(boards: list[Board], ports: list[Port], pio: str = "pio", project: Path = ROOT,
-              only: set | None = None, skip_missing: bool = False) -> Plan:
+def make_plan(
+    boards: list[Board],
+    ports: list[Port],
+    pio: str = "pio",
+    project: Path = ROOT,
+    only: set | None = None,
+    skip_missing: bool = False,
+) -> Plan:
     xiao = xiao_ports(ports)
     by_serial: dict[str, Port] = {}
     clash = []
     for p in xiao:
         if p.serial_number:
             if p.serial_number in by_serial:
-                clash.append(f"serial {p.serial_number} on both {by_serial[p.serial_number].device} "
-                             f"and {p.device}")
+                clash.append(f"serial {p.serial_number} on both {by_serial[p.serial_number].device} and {p.device}")
             by_serial[p.serial_number] = p
     if clash:
         raise PlanError("; ".join(clash))
@@ -114,12 +117,13 @@ def make_plan(boards: list[Board], ports: list[Port], pio: str = "pio", project:
         listed = {"primary" if b.role == "primary" else b.cell for b in boards}
         absent = sorted(only - listed, key=str)
         if absent:
-            raise PlanError("--only names boards the inventory does not have: "
-                            + ", ".join(map(str, absent)))
+            raise PlanError("--only names boards the inventory does not have: " + ", ".join(map(str, absent)))
     if plan.missing and not skip_missing:
-        raise PlanError("missing board(s): " + "; ".join(
-            f"{b.name} serial {b.serial} is not connected" for b in plan.missing)
-            + " (connect them, or pass --skip-missing / --only)")
+        raise PlanError(
+            "missing board(s): "
+            + "; ".join(f"{b.name} serial {b.serial} is not connected" for b in plan.missing)
+            + " (connect them, or pass --skip-missing / --only)"
+        )
     if not plan.steps:
         raise PlanError("nothing to flash")
     return plan

@@ -25,8 +25,10 @@ def _softfloat(objs) -> bool:
 
 def _division(objs) -> bool:
     rep = armbuild.division_check(objs)
-    print(f"division helpers reachable from {', '.join(armbuild.CONTROL_ROOTS)}: "
-          + ("none" if not rep.violations else ""))
+    print(
+        f"division helpers reachable from {', '.join(armbuild.CONTROL_ROOTS)}: "
+        + ("none" if not rep.violations else "")
+    )
     for chain in rep.violations:
         print("  " + " -> ".join(chain))
     if rep.indirect:
@@ -42,10 +44,13 @@ def _size(objs) -> None:
 
 def _vectors(seed: int) -> bool:
     from . import qemu
+
     c = qemu.golden_compare(seed)
-    print(f"QEMU golden vectors (seed {seed:#x}): {c.identical}/{c.n_host} bit-identical, "
-          f"target reported {c.n_target}, checksum host {c.fnv_host:#010x} "
-          f"target {c.fnv_target:#010x}")
+    print(
+        f"QEMU golden vectors (seed {seed:#x}): {c.identical}/{c.n_host} bit-identical, "
+        f"target reported {c.n_target}, checksum host {c.fnv_host:#010x} "
+        f"target {c.fnv_target:#010x}"
+    )
     if c.first_mismatch:
         print(c.first_mismatch)
     return c.ok
@@ -54,7 +59,9 @@ def _vectors(seed: int) -> bool:
 def _variant(lib_src, cflags):
     """(objects, bench ELF or None) for a variant library / flags, or the real one."""
     from pathlib import Path
+
     from . import qemu
+
     if not lib_src and not cflags:
         return armbuild.library_objects(), None
     src = Path(lib_src).resolve() if lib_src else armbuild.LIB_SRC
@@ -65,6 +72,7 @@ def _variant(lib_src, cflags):
 
 def _profile(elf, verbose: bool) -> None:
     from . import qemu
+
     total, per, lines = qemu.tick_profile(elf)
     print(f"one enabled, fault-free tick with a perturbation: {total} instructions")
     for name, n in per:
@@ -75,26 +83,35 @@ def _profile(elf, verbose: bool) -> None:
 
 def _ticks(elf=None) -> bool:
     from . import qemu
+
     s = qemu.tick_stats(elf)
     calib_ok = s.calibration == s.expected
-    print(f"instruction counter calibration: {s.calibration} expected {s.expected} "
-          + ("ok" if calib_ok else "MISMATCH"))
+    print(
+        f"instruction counter calibration: {s.calibration} expected {s.expected} " + ("ok" if calib_ok else "MISMATCH")
+    )
     print("instructions per mc_cell_tick (both motors), Cortex-M0 under QEMU:")
     for name, (med, mx, n) in s.summary().items():
         print(f"  {name:<50} median {med:>6g}  max {mx:>5}  ({n} ticks)")
-    print(f"  mc_quad_update (per edge, ISR): median {sorted(s.quad_update)[len(s.quad_update) // 2]}"
-          f", max {max(s.quad_update)}; mc_quad_snapshot: {max(s.snapshot)}")
+    print(
+        f"  mc_quad_update (per edge, ISR): median {sorted(s.quad_update)[len(s.quad_update) // 2]}"
+        f", max {max(s.quad_update)}; mc_quad_snapshot: {max(s.snapshot)}"
+    )
     worst = max(s.select(**qemu.BUDGET_CASE))
-    print(f"  budget {qemu.BUDGET} (every tick of the default configuration, worst {worst}): "
-          + ("within" if worst <= qemu.BUDGET else "OVER"))
+    print(
+        f"  budget {qemu.BUDGET} (every tick of the default configuration, worst {worst}): "
+        + ("within" if worst <= qemu.BUDGET else "OVER")
+    )
     worst_b = max(s.select(**qemu.BUDGET_BEMF_CASE))
-    print(f"  budget {qemu.BUDGET_BEMF} (every tick with back-EMF compensation on, worst {worst_b}): "
-          + ("within" if worst_b <= qemu.BUDGET_BEMF else "OVER"))
+    print(
+        f"  budget {qemu.BUDGET_BEMF} (every tick with back-EMF compensation on, worst {worst_b}): "
+        + ("within" if worst_b <= qemu.BUDGET_BEMF else "OVER")
+    )
     return calib_ok and worst <= qemu.BUDGET and worst_b <= qemu.BUDGET_BEMF
 
 
 def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
     from pathlib import Path
+
     if not elf or not Path(elf).is_file():
         print(f"fwcheck lint: --elf must name a linked image (got {elf!r})", file=sys.stderr)
         return 2
@@ -114,23 +131,33 @@ def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.fwcheck", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("command", nargs="?", default="report",
-                    choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile"])
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.fwcheck", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "command",
+        nargs="?",
+        default="report",
+        choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile"],
+    )
     ap.add_argument("--lib-src", help="ticks/profile/size: measure a variant copy of lib/metacell/src")
     ap.add_argument("--cflags", help="ticks/profile/size: optimisation flags instead of -Os")
     ap.add_argument("-v", "--verbose", action="store_true", help="profile: print the trace")
     ap.add_argument("--elf", help="lint: linked image to check")
     ap.add_argument("--root", action="append", help="lint: extra control-path entry point")
-    ap.add_argument("--role", choices=("cell", "primary"), default="cell",
-                    help="lint: which image's entry points to check (cell: the control path; primary: poll and SLCAN)")
+    ap.add_argument(
+        "--role",
+        choices=("cell", "primary"),
+        default="cell",
+        help="lint: which image's entry points to check (cell: the control path; primary: poll and SLCAN)",
+    )
     ap.add_argument("--seed", type=lambda s: int(s, 0), default=None)
     ap.add_argument("--out", help="golden-header: output path")
     a = ap.parse_args(argv)
     try:
         if a.command == "golden-header":
             from . import golden
+
             path = golden.write_header(a.out)
             print(f"wrote {path}")
             return 0
@@ -148,6 +175,7 @@ def main(argv: list[str] | None = None) -> int:
             _size(objs)
         if a.command in ("report", "vectors"):
             from .qemu import DEFAULT_SEED
+
             ok &= _vectors(a.seed if a.seed is not None else DEFAULT_SEED)
         if a.command in ("report", "ticks"):
             ok &= _ticks(bench_elf)

@@ -29,27 +29,42 @@ BUILD_ROOT = Path(os.environ.get("FWCHECK_BUILD_DIR", ROOT / "build" / "fwcheck"
 
 CC = "arm-none-eabi-gcc"
 CPU_FLAGS = ["-mcpu=cortex-m0plus", "-mthumb"]
-CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffunction-sections", "-fdata-sections",
-                      "-Wall", "-Wextra", "-Werror"]
+CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffunction-sections", "-fdata-sections", "-Wall", "-Wextra", "-Werror"]
 
 #: Control-path entry points: the tick and the decoder ISR/snapshot.
 # The tick inlines the law, velocity and drive; their public wrappers are control
 # path too (the emulator and tests call them), so they are roots of their own.
 # The primary's steady path (poll scheduler, bus results, SLCAN in and out): no control law, but it runs
 # every cycle on the same divider-less core, so it is held to the same rule.
-PRIMARY_ROOTS = ("mc_primary_next", "mc_primary_complete", "mc_primary_can_rx", "mc_primary_pop", "mc_primary_ms",
-                 "mc_slcan_rx", "mc_slcan_encode")
-CONTROL_ROOTS = ("mc_cell_tick", "mc_quad_update", "mc_quad_snapshot", "mc_reaction_eval",
-                 "mc_psi_prime", "mc_drive_command", "mc_vel_update")
+PRIMARY_ROOTS = (
+    "mc_primary_next",
+    "mc_primary_complete",
+    "mc_primary_can_rx",
+    "mc_primary_pop",
+    "mc_primary_ms",
+    "mc_slcan_rx",
+    "mc_slcan_encode",
+)
+CONTROL_ROOTS = (
+    "mc_cell_tick",
+    "mc_quad_update",
+    "mc_quad_snapshot",
+    "mc_reaction_eval",
+    "mc_psi_prime",
+    "mc_drive_command",
+    "mc_vel_update",
+)
 
 SOFTFLOAT_RE = re.compile(
     r"^(__aeabi_(f|d|cf|cd|[iu]?l?2[fd]|ul2[fd])\w*"
     r"|__(add|sub|mul|div|neg|pow)[sdtx]f3"
     r"|__(fix|fixuns)[sdtx]f[sdt]i|__float(un)?[sdt]i[sdtx]f"
-    r"|__(extend|trunc)[sdtx]f[sdtx]f2|__(eq|ne|lt|le|gt|ge|unord|cmp)[sdtx]f2)$")
+    r"|__(extend|trunc)[sdtx]f[sdtx]f2|__(eq|ne|lt|le|gt|ge|unord|cmp)[sdtx]f2)$"
+)
 DIVISION_RE = re.compile(
     r"^(__aeabi_u?idiv(mod)?|__aeabi_u?ldivmod|__u?(div|mod)[sdt]i3|__udivmod[sdt]i4"
-    r"|__divmod[sdt]i4|__gnu_u?ldivmod_helper)$")
+    r"|__divmod[sdt]i4|__gnu_u?ldivmod_helper)$"
+)
 
 
 class ToolError(RuntimeError):
@@ -78,8 +93,9 @@ def _digest(paths: list[Path], extra: list[str]) -> str:
     return h.hexdigest()[:16]
 
 
-def compile_objects(sources: list[Path], outdir: Path, flags: list[str] | None = None,
-                    include_dirs: list[Path] | None = None) -> list[Path]:
+def compile_objects(
+    sources: list[Path], outdir: Path, flags: list[str] | None = None, include_dirs: list[Path] | None = None
+) -> list[Path]:
     """Compile each source to outdir/<stem>.o; returns the object paths."""
     outdir.mkdir(parents=True, exist_ok=True)
     incs = [f"-I{d}" for d in (include_dirs or [LIB_SRC])]
@@ -133,6 +149,7 @@ def library_objects(src_dir: Path = LIB_SRC, cflags: list[str] | None = None) ->
 
 # --------------------------------------------------------------------------- soft float
 
+
 def undefined_symbols(obj: Path) -> list[str]:
     out = _run(["arm-none-eabi-nm", "-u", str(obj)])
     return [ln.split()[-1] for ln in out.splitlines() if ln.strip()]
@@ -154,17 +171,26 @@ _SECTION = re.compile(r"^Disassembly of section (\S+):$")
 _LABEL = re.compile(r"^([0-9a-f]+) <(.+)>:$")
 _RELOC = re.compile(r"^\s+[0-9a-f]+:\s+(R_ARM_\w+)\s+(\S+?)(?:\+0x[0-9a-f]+)?$")
 _INDIRECT = re.compile(r"^\s+[0-9a-f]+:\s+[0-9a-f ]+\s+(blx|bx)\s+(r\d+|ip|sl|fp)\b")
-_CODE_RELOCS = {"R_ARM_THM_CALL", "R_ARM_THM_JUMP24", "R_ARM_THM_JUMP11", "R_ARM_THM_JUMP8",
-                "R_ARM_THM_JUMP19", "R_ARM_CALL", "R_ARM_JUMP24", "R_ARM_ABS32",
-                "R_ARM_THM_PC22"}
+_CODE_RELOCS = {
+    "R_ARM_THM_CALL",
+    "R_ARM_THM_JUMP24",
+    "R_ARM_THM_JUMP11",
+    "R_ARM_THM_JUMP8",
+    "R_ARM_THM_JUMP19",
+    "R_ARM_CALL",
+    "R_ARM_JUMP24",
+    "R_ARM_ABS32",
+    "R_ARM_THM_PC22",
+}
 
 
 @dataclass
 class CallGraph:
     """Functions of a set of objects and what each one references."""
-    edges: dict[str, set[str]] = field(default_factory=dict)     # node -> callees
-    indirect: dict[str, int] = field(default_factory=dict)       # node -> indirect calls
-    defined: dict[str, str] = field(default_factory=dict)        # node -> object name
+
+    edges: dict[str, set[str]] = field(default_factory=dict)  # node -> callees
+    indirect: dict[str, int] = field(default_factory=dict)  # node -> indirect calls
+    defined: dict[str, str] = field(default_factory=dict)  # node -> object name
 
     def reachable(self, roots: list[str] | tuple[str, ...]) -> dict[str, list[str]]:
         """Every node reachable from the roots, with one call chain leading to it."""
@@ -204,7 +230,7 @@ def call_graph(objs: list[Path]) -> CallGraph:
 
     for o, glob, local, dis in per_obj:
         sec_first: dict[str, str] = {}
-        raw: list[tuple[str, str]] = []   # (function, reloc target) in this object
+        raw: list[tuple[str, str]] = []  # (function, reloc target) in this object
         indirect: dict[str, int] = {}
         section = None
         func = None
@@ -239,18 +265,18 @@ def call_graph(objs: list[Path]) -> CallGraph:
         for fn, cnt in indirect.items():
             g.indirect[node(fn)] = cnt
         for fn, target in raw:
-            if target in sec_first:                # section symbol: .text.<fn>
+            if target in sec_first:  # section symbol: .text.<fn>
                 target = sec_first[target]
             elif target.startswith("."):
-                continue                           # data section (tables, constants)
+                continue  # data section (tables, constants)
             if target in local or target in glob:
                 tnode = node(target)
             elif target in global_defs:
                 tnode = target
             elif target.startswith("__") or target in ("memset", "memcpy", "memmove"):
-                tnode = target                     # external helper (libgcc/libc)
+                tnode = target  # external helper (libgcc/libc)
             else:
-                tnode = target                     # other external symbol (data or code)
+                tnode = target  # other external symbol (data or code)
             if tnode != node(fn):
                 g.edges.setdefault(node(fn), set()).add(tnode)
     return g
@@ -259,8 +285,8 @@ def call_graph(objs: list[Path]) -> CallGraph:
 @dataclass
 class DivisionReport:
     reachable: list[str]
-    violations: list[list[str]]       # call chains ending in a division helper
-    indirect: list[str]               # reachable functions with unresolved indirect calls
+    violations: list[list[str]]  # call chains ending in a division helper
+    indirect: list[str]  # reachable functions with unresolved indirect calls
 
     @property
     def ok(self) -> bool:
@@ -277,6 +303,7 @@ def division_check(objs: list[Path], roots=CONTROL_ROOTS) -> DivisionReport:
 
 
 # --------------------------------------------------------------------------- size
+
 
 @dataclass
 class SizeRow:

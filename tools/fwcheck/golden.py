@@ -30,10 +30,11 @@ def header_text(seed: int = DEFAULT_SEED) -> str:
         "",
         "/* per family (index = MCV_FAM_*): record count and FNV-1a of the records */",
         "static const uint32_t golden_fam_count[8] = {"
-        + ", ".join(f"{hv.fam_count.get(f, 0)}u" for f in range(8)) + "};",
+        + ", ".join(f"{hv.fam_count.get(f, 0)}u" for f in range(8))
+        + "};",
         "static const uint32_t golden_fam_fnv[8] = {"
-        + ", ".join(f"{hv.fam_fnv[f]:#010x}u" if f in hv.fam_fnv else "0x811c9dc5u"
-                    for f in range(8)) + "};",
+        + ", ".join(f"{hv.fam_fnv[f]:#010x}u" if f in hv.fam_fnv else "0x811c9dc5u" for f in range(8))
+        + "};",
         "",
         f"#define GOLDEN_N_SAMPLES {len(SAMPLE_INDEX)}",
         "/* sample records: { record index, 16 words } */",

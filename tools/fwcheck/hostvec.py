@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .armbuild import BUILD_ROOT, LIB_SRC, _digest, _publish
+from .armbuild import LIB_SRC, _digest, _publish
 
 CSRC = Path(__file__).resolve().parent / "csrc"
 HEADER = CSRC / "mc_vectors.h"
@@ -84,8 +84,13 @@ def module():
     def build(tmp: Path) -> None:
         ffi = cffi.FFI()
         ffi.cdef(_cdef())
-        ffi.set_source(name, '#include "mc_vectors.h"\n', sources=[str(CSRC / "mc_vectors.c")],
-                       include_dirs=[str(CSRC), str(LIB_SRC)], extra_compile_args=HOST_CFLAGS)
+        ffi.set_source(
+            name,
+            '#include "mc_vectors.h"\n',
+            sources=[str(CSRC / "mc_vectors.c")],
+            include_dirs=[str(CSRC), str(LIB_SRC)],
+            extra_compile_args=HOST_CFLAGS,
+        )
         work = tmp / "work"
         built = Path(ffi.compile(tmpdir=str(work), verbose=False))
         os.replace(built, tmp / built.name)
@@ -108,9 +113,9 @@ def xorshift32(state: int) -> int:
 
 @dataclass
 class HostVectors:
-    records: np.ndarray   # (N, WORDS) uint32
+    records: np.ndarray  # (N, WORDS) uint32
     fnv: int
-    fam_fnv: dict[int, int]     # family -> FNV-1a of its records
+    fam_fnv: dict[int, int]  # family -> FNV-1a of its records
     fam_count: dict[int, int]
 
 
@@ -130,9 +135,12 @@ def host_vectors(seed: int) -> HostVectors:
     n = lib.mcv_run(api, seed & 0xFFFFFFFF, sink)
     if sink.overflow or n != N_TOTAL:
         raise RuntimeError(f"host vector run produced {n} records (overflow={sink.overflow})")
-    return HostVectors(buf.reshape(-1, WORDS), int(sink.fnv),
-                       {f: int(sink.fam_fnv[f]) for f in FAMILIES},
-                       {f: int(sink.fam_count[f]) for f in FAMILIES})
+    return HostVectors(
+        buf.reshape(-1, WORDS),
+        int(sink.fnv),
+        {f: int(sink.fam_fnv[f]) for f in FAMILIES},
+        {f: int(sink.fam_count[f]) for f in FAMILIES},
+    )
 
 
 def _signed(w: int) -> int:
@@ -144,9 +152,11 @@ def describe_mismatch(i: int, host: np.ndarray, target: np.ndarray) -> str:
     fam = tag >> 24
     names = FIELDS.get(fam, "").replace("|", "").split()
     diff = [k for k in range(WORDS) if host[k] != target[k]]
-    lines = [f"first mismatch: record {i}, family {FAMILIES.get(fam, fam)} "
-             f"(sub {(tag >> 16) & 0xFF}, index {tag & 0xFFFF}); differing words {diff}",
-             f"  {'word':<14}{'host':>14}{'target':>14}"]
+    lines = [
+        f"first mismatch: record {i}, family {FAMILIES.get(fam, fam)} "
+        f"(sub {(tag >> 16) & 0xFF}, index {tag & 0xFFFF}); differing words {diff}",
+        f"  {'word':<14}{'host':>14}{'target':>14}",
+    ]
     for k in range(1, WORDS):
         label = names[k - 1] if k - 1 < len(names) else f"w{k}"
         mark = "  <--" if k in diff else ""

@@ -15,7 +15,6 @@ Two bare-metal programs are linked with the cross-compiled library objects:
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import statistics
@@ -26,9 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import armbuild
+from . import armbuild, hostvec
 from .armbuild import CC, CPU_FLAGS, LIB_SRC, ToolError, _digest, _publish, _run
-from . import hostvec
 
 HERE = Path(__file__).resolve().parent
 TARGET = HERE / "target"
@@ -38,19 +36,43 @@ DEFAULT_SEED = 0x2545F491
 TRAILER_MAGIC = 0x4D435654
 QEMU_TIMEOUT_S = 120
 
-HARNESS_CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffreestanding", "-fno-builtin",
-                              "-fno-tree-loop-distribute-patterns", "-ffunction-sections",
-                              "-fdata-sections", "-Wall", "-Wextra", "-Werror"]
+HARNESS_CFLAGS = CPU_FLAGS + [
+    "-Os",
+    "-std=c99",
+    "-ffreestanding",
+    "-fno-builtin",
+    "-fno-tree-loop-distribute-patterns",
+    "-ffunction-sections",
+    "-fdata-sections",
+    "-Wall",
+    "-Wextra",
+    "-Werror",
+]
 LDFLAGS = CPU_FLAGS + ["-nostdlib", "-nostartfiles", "-Wl,--gc-sections"]
 
 
 def qemu_cmd(elf: Path, extra: list[str] | None = None) -> list[str]:
-    return [QEMU, "-M", "microbit", "-display", "none", "-monitor", "none", "-serial", "none",
-            "-semihosting-config", "enable=on,target=native", "-kernel", str(elf), *(extra or [])]
+    return [
+        QEMU,
+        "-M",
+        "microbit",
+        "-display",
+        "none",
+        "-monitor",
+        "none",
+        "-serial",
+        "none",
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-kernel",
+        str(elf),
+        *(extra or []),
+    ]
 
 
-def build_image(kind: str, seed: int = DEFAULT_SEED, lib_objs: list[Path] | None = None,
-                lib_src: Path = LIB_SRC) -> Path:
+def build_image(
+    kind: str, seed: int = DEFAULT_SEED, lib_objs: list[Path] | None = None, lib_src: Path = LIB_SRC
+) -> Path:
     """Link target/main_<kind>.c with the library objects; returns the ELF path (cached)."""
     lib_objs = armbuild.library_objects() if lib_objs is None else lib_objs
     extra = {"vectors": [CSRC / "mc_vectors.c"], "bench": [TARGET / "known.S"]}[kind]
@@ -61,19 +83,30 @@ def build_image(kind: str, seed: int = DEFAULT_SEED, lib_objs: list[Path] | None
 
     def build(tmp: Path) -> None:
         objs = armbuild.compile_objects(srcs, tmp, flags, [lib_src, CSRC, TARGET])
-        _run([CC, *LDFLAGS, "-T", str(TARGET / "link.ld"), "-o", str(tmp / f"{kind}.elf"),
-              *map(str, objs), *map(str, lib_objs), "-lgcc"])
+        _run(
+            [
+                CC,
+                *LDFLAGS,
+                "-T",
+                str(TARGET / "link.ld"),
+                "-o",
+                str(tmp / f"{kind}.elf"),
+                *map(str, objs),
+                *map(str, lib_objs),
+                "-lgcc",
+            ]
+        )
 
     return _publish(build, key, kind) / f"{kind}.elf"
 
 
-def run_qemu(elf: Path, cwd: Path, extra: list[str] | None = None,
-             timeout: float = QEMU_TIMEOUT_S) -> subprocess.CompletedProcess:
+def run_qemu(
+    elf: Path, cwd: Path, extra: list[str] | None = None, timeout: float = QEMU_TIMEOUT_S
+) -> subprocess.CompletedProcess:
     if shutil.which(QEMU) is None:
         raise ToolError(f"{QEMU} not found: run tools/setup.sh (Debian qemu-system-arm)")
     try:
-        p = subprocess.run(qemu_cmd(elf, extra), cwd=cwd, capture_output=True, text=True,
-                           timeout=timeout)
+        p = subprocess.run(qemu_cmd(elf, extra), cwd=cwd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as e:
         raise ToolError(f"QEMU did not finish within {timeout} s ({elf.name})") from e
     if p.returncode != 0:
@@ -83,11 +116,12 @@ def run_qemu(elf: Path, cwd: Path, extra: list[str] | None = None,
 
 # --------------------------------------------------------------------------- golden vectors
 
+
 @dataclass
 class TargetVectors:
-    records: np.ndarray   # (N, MCV_WORDS) uint32
-    count: int            # record count the target reported
-    fnv: int              # target checksum
+    records: np.ndarray  # (N, MCV_WORDS) uint32
+    count: int  # record count the target reported
+    fnv: int  # target checksum
 
 
 def target_vectors(seed: int = DEFAULT_SEED) -> TargetVectors:
@@ -107,15 +141,14 @@ def target_vectors(seed: int = DEFAULT_SEED) -> TargetVectors:
 class Comparison:
     n_host: int
     n_target: int
-    identical: int           # records equal word for word
+    identical: int  # records equal word for word
     first_mismatch: str | None
     fnv_host: int
     fnv_target: int
 
     @property
     def ok(self) -> bool:
-        return (self.first_mismatch is None and self.n_host == self.n_target
-                and self.fnv_host == self.fnv_target)
+        return self.first_mismatch is None and self.n_host == self.n_target and self.fnv_host == self.fnv_target
 
 
 def compare_records(host: np.ndarray, target: np.ndarray) -> tuple[int, str | None]:
@@ -193,7 +226,7 @@ def count_calls(pcs: np.ndarray, func: tuple[int, int], caller: tuple[int, int])
     back = np.nonzero(in_caller)[0]
     for s in starts:
         if s == 0 or not in_caller[s - 1]:
-            continue                     # entered from elsewhere (not a call from caller)
+            continue  # entered from elsewhere (not a call from caller)
         k = np.searchsorted(back, s)
         if k == len(back):
             raise ToolError("trace ended inside the measured function")
@@ -203,10 +236,10 @@ def count_calls(pcs: np.ndarray, func: tuple[int, int], caller: tuple[int, int])
 
 @dataclass
 class TickStats:
-    calibration: dict[str, list[int]]      # name -> measured counts
+    calibration: dict[str, list[int]]  # name -> measured counts
     expected: dict[str, list[int]]
-    ticks: list[int]                       # per tick, in order
-    tags: list[int]                        # per tick: enabled|bemf<<1|pert<<2|faults<<16
+    ticks: list[int]  # per tick, in order
+    tags: list[int]  # per tick: enabled|bemf<<1|pert<<2|faults<<16
     quad_update: list[int]
     snapshot: list[int]
 
@@ -261,17 +294,24 @@ def _bench_trace(elf: Path | None):
 
 def tick_stats(elf: Path | None = None) -> TickStats:
     elf, syms, pcs, tags, main = _bench_trace(elf)
-    calib = {"known_seq17": count_calls(pcs, syms["known_seq17"], main),
-             "known_loop": count_calls(pcs, syms["known_loop"], main)}
+    calib = {
+        "known_seq17": count_calls(pcs, syms["known_seq17"], main),
+        "known_loop": count_calls(pcs, syms["known_loop"], main),
+    }
     expected = {"known_seq17": [17], "known_loop": [3 * 5 + 2, 3 * 100 + 2]}
     ticks = count_calls(pcs, syms["mc_cell_tick"], main)
     if len(ticks) != len(tags):
         raise ToolError(f"counted {len(ticks)} ticks but the target logged {len(tags)}")
     # the decoder ISR is called from the static helper move_to (inlined into main or not)
     qcaller = syms.get("move_to", main)
-    return TickStats(calib, expected, ticks, tags,
-                     count_calls(pcs, syms["mc_quad_update"], qcaller),
-                     count_calls(pcs, syms["mc_quad_snapshot"], main))
+    return TickStats(
+        calib,
+        expected,
+        ticks,
+        tags,
+        count_calls(pcs, syms["mc_quad_update"], qcaller),
+        count_calls(pcs, syms["mc_quad_snapshot"], main),
+    )
 
 
 def tick_profile(elf: Path | None = None) -> tuple[int, list[tuple[str, int]], list[str]]:

@@ -21,7 +21,7 @@ import time
 from . import proto
 
 PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_star": "ASTAR", "astar": "ASTAR"}
-CTRL_RATE_HZ = 2000   # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
+CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
 
 
 def physical_to_wire(name: str, value: float) -> int:
@@ -29,7 +29,7 @@ def physical_to_wire(name: str, value: float) -> int:
     if not math.isfinite(value):
         raise ValueError(f"{name}: not a finite number: {value}")
     w = round(value * 1e6)
-    if not -(2 ** 31) <= w < 2 ** 31:
+    if not -(2**31) <= w < 2**31:
         raise ValueError(f"{name}: {value} does not fit the register (|value| < 2147 in SI units)")
     return w
 
@@ -40,8 +40,8 @@ class RigClient:
     def __init__(self, bus, timeout: float = 1.0, on_message=None):
         self.bus = bus
         self.timeout = timeout
-        self.on_message = on_message   # gets every frame received while waiting
-        self.chunks = {}               # cell -> BLOCK_DATA payloads received
+        self.on_message = on_message  # gets every frame received while waiting
+        self.chunks = {}  # cell -> BLOCK_DATA payloads received
         self.seq = int(time.time()) & 0xFF
 
     def command(self, cells, reg: str, **values) -> dict:
@@ -70,9 +70,11 @@ class RigClient:
                 del pending[(j, msg.data[1])]
                 out[j] = proto.RESULT_NAMES.get(msg.data[2], f"0x{msg.data[2]:02X}")
             elif kind == "PRIMARY_REJECT":
-                print(f"primary rejected a frame: {proto.database().decode_message(msg.arbitration_id, msg.data)}",
-                      file=sys.stderr)
-        for (j, _) in pending:
+                print(
+                    f"primary rejected a frame: {proto.database().decode_message(msg.arbitration_id, msg.data)}",
+                    file=sys.stderr,
+                )
+        for j, _ in pending:
             out[j] = "NO_ANSWER"
         return out
 
@@ -96,7 +98,7 @@ def _cells(text: str) -> list[int]:
     try:
         cells = []
         for part in (p.strip() for p in text.split(",")):
-            lo, sep, hi = part.partition("-")          # "1-16" is cells 1..16
+            lo, sep, hi = part.partition("-")  # "1-16" is cells 1..16
             a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
             if a > b:
                 raise ValueError(f"range {part!r} runs backwards")
@@ -188,7 +190,7 @@ def main(argv=None) -> int:
 
     try:
         bus = open_bus(args.interface, args.channel)
-    except Exception as e:   # python-can and pyserial raise several types
+    except Exception as e:  # python-can and pyserial raise several types
         text = str(e).splitlines()[0] if str(e) else type(e).__name__
         print(f"error: cannot open {args.channel}: {text}", file=sys.stderr)
         return 3
@@ -203,10 +205,12 @@ def main(argv=None) -> int:
                 ok = False
                 continue
             i, p = d["IDENT"], d["PARAMS"]
-            print(f"cell {j:2d}: addr 0x{i['addr']:02X} fw {i['fw_version'] >> 8}.{i['fw_version'] & 255} "
-                  f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
-                  f" | k_ab {p['k_ab'] * 1e-6:g} sigma {p['sigma'] * 1e-6:g} k1 {p['k1'] * 1e-6:g} k2 {p['k2'] * 1e-6:g} "
-                  f"N*m/rad, alpha* {p['astar'] * 1e-6:g} rad, pwm limit {p['pwm_limit']}")
+            print(
+                f"cell {j:2d}: addr 0x{i['addr']:02X} fw {i['fw_version'] >> 8}.{i['fw_version'] & 255} "
+                f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
+                f" | k_ab {p['k_ab'] * 1e-6:g} sigma {p['sigma'] * 1e-6:g} k1 {p['k1'] * 1e-6:g} k2 {p['k2'] * 1e-6:g} "
+                f"N*m/rad, alpha* {p['astar'] * 1e-6:g} rad, pwm limit {p['pwm_limit']}"
+            )
             ok = ok and i["map_id"] == proto.map_id()
         return 0 if ok else 1
     with bus:

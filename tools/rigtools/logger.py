@@ -32,7 +32,7 @@ from . import proto
 
 RAD_PER_COUNT = 2 * math.pi / 400
 T128_S = 128e-6
-T_WRAP = 1 << 16            # the frames' time field wraps every 65536 x 128 us = 8.39 s
+T_WRAP = 1 << 16  # the frames' time field wraps every 65536 x 128 us = 8.39 s
 CSV_HEADER = "segment,cycle,cell,t_s,host_time,alpha_counts,beta_counts,flags\n"
 TEXT_FORMATS = ("asc", "csv", "log", "txt", "trc")
 
@@ -63,37 +63,37 @@ class SampleDecoder:
     experiment runner) every row is finished at once and a heartbeat correction applies
     from the next row on; the logger holds rows (hold=True)."""
 
-    HOLD_ROWS = 8192          # rows held at most while waiting for a heartbeat
+    HOLD_ROWS = 8192  # rows held at most while waiting for a heartbeat
 
     def __init__(self, n_cells: int = proto.N_CELLS, report=None, sink=None, hold: bool = False):
         self.n = n_cells
         self.hold = hold
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.db = proto.database()
-        self.rows = []          # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
+        self.rows = []  # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
         self.sink = sink or self.rows.extend
-        self.gaps = []          # (segment, cell, first missing cycle, missing count)
-        self.status = {}        # (frame kind, cell) -> last decoded dict
-        self.events = []        # (host time, text)
+        self.gaps = []  # (segment, cell, first missing cycle, missing count)
+        self.status = {}  # (frame kind, cell) -> last decoded dict
+        self.events = []  # (host time, text)
         self.segment = 0
         self.n_rows = 0
-        self.t_end = 0.0        # t_s of the last row
-        self.host_end = None    # host time of the last row
-        self.t_base = 0.0       # t_s of the segment's time zero
-        self.per = None         # cycle period (128 us units), measured
+        self.t_end = 0.0  # t_s of the last row
+        self.host_end = None  # host time of the last row
+        self.t_base = 0.0  # t_s of the segment's time zero
+        self.per = None  # cycle period (128 us units), measured
         self.tx_drop = 0
         self._reset()
 
     def _reset(self):
-        self.u_last = None      # unwrapped time of the newest sample (128 us units)
-        self.t_raw = None       # its raw 16-bit time field
+        self.u_last = None  # unwrapped time of the newest sample (128 us units)
+        self.t_raw = None  # its raw 16-bit time field
         self.u0 = None
-        self.host0 = None       # host time of the segment's first sample
+        self.host0 = None  # host time of the segment's first sample
         self.pending_hb = None  # (heartbeat time in 128 us units, host time) awaiting the next sample
-        self.off_min = None     # min(host - primary time) over confirmed samples, s
-        self.hb_off = None      # unwrapped time - heartbeat time (128 us units)
-        self.held = []          # [cell, seq, u, host, alpha, beta, flags]
-        self.prev = [None] * self.n     # (cycle, u) of each cell's last row
+        self.off_min = None  # min(host - primary time) over confirmed samples, s
+        self.hb_off = None  # unwrapped time - heartbeat time (128 us units)
+        self.held = []  # [cell, seq, u, host, alpha, beta, flags]
+        self.prev = [None] * self.n  # (cycle, u) of each cell's last row
         self.k_ref = None
 
     def new_segment(self, host: float, why: str):
@@ -113,8 +113,9 @@ class SampleDecoder:
             return
         if kind == "CELL_SAMPLE":
             try:
-                d = self.db.decode_message(msg.arbitration_id, bytes(msg.data), decode_choices=False,
-                                           scaling=False)      # raw wire integers: counts, 128 us ticks
+                d = self.db.decode_message(
+                    msg.arbitration_id, bytes(msg.data), decode_choices=False, scaling=False
+                )  # raw wire integers: counts, 128 us ticks
             except Exception as e:
                 self.report(f"undecodable CELL_SAMPLE frame 0x{msg.arbitration_id:03X}: {e}")
                 return
@@ -122,7 +123,7 @@ class SampleDecoder:
         elif kind in ("CELL_STATUS", "CELL_LINK", "PRIMARY_STATUS", "PRIMARY_REJECT", "CMD_RESULT"):
             try:
                 d = self.db.decode_message(msg.arbitration_id, bytes(msg.data), decode_choices=False)
-            except Exception as e:   # wrong length etc.: keep going, say so
+            except Exception as e:  # wrong length etc.: keep going, say so
                 self.report(f"undecodable {kind} frame 0x{msg.arbitration_id:03X}: {e}")
                 return
             self.status[(kind, j)] = d
@@ -159,8 +160,10 @@ class SampleDecoder:
         sample that follows it, never with the one before)."""
         if tx_drop != self.tx_drop:
             if tx_drop > self.tx_drop:
-                self.report(f"primary: {tx_drop}{'+' if tx_drop == 255 else ''} frames dropped at its USB queue "
-                            "(the reader fell behind)")
+                self.report(
+                    f"primary: {tx_drop}{'+' if tx_drop == 255 else ''} frames dropped at its USB queue "
+                    "(the reader fell behind)"
+                )
             self.tx_drop = tx_drop
         self.pending_hb = (uptime_ms * 1000 / 128, host)
 
@@ -183,16 +186,18 @@ class SampleDecoder:
         cycle-counter step fits its time step worst (a lost wrap shows there as a cycle step that
         the time step does not explain); the largest time step if that is ambiguous."""
         last = {j + 1: (p[0] & 0xFF, p[1]) for j, p in enumerate(self.prev) if p is not None}
-        steps = []       # (row index, cycle step modulo 256, time step) per held row
+        steps = []  # (row index, cycle step modulo 256, time step) per held row
         for i, (j, seq, u, *_rest) in enumerate(self.held):
             if j in last:
                 steps.append((i, (seq - last[j][0]) % 256, u - last[j][1]))
             last[j] = (seq, u)
         if not steps:
             if not evidence:
-                self.u_last += du     # nothing held: the rows from now on carry the correction
-                self.report(f"time base: {du * T128_S:.2f} s more elapsed than the frames' 8.4 s time field "
-                            "shows (from the next sample on)")
+                self.u_last += du  # nothing held: the rows from now on carry the correction
+                self.report(
+                    f"time base: {du * T128_S:.2f} s more elapsed than the frames' 8.4 s time field "
+                    "shows (from the next sample on)"
+                )
             return
         per = self.per
         if per is None:
@@ -207,14 +212,16 @@ class SampleDecoder:
                 scores.append((dt, i))
         best = max(sc for sc, _ in scores)
         if evidence and (not per or best < 4):
-            return     # the host clock alone is no proof (the rows may be an old backlog)
+            return  # the host clock alone is no proof (the rows may be an old backlog)
         # every cell shows the jump at its first row after it: cut at the earliest of those
         at = min(i for sc, i in scores if sc >= (min(best, max(4.0, best / 2)) if per else best))
         for r in self.held[at:]:
             r[2] += du
         self.u_last += du
-        self.report(f"time base: {du * T128_S:.2f} s more elapsed in a gap than the frames' 8.4 s time field shows "
-                    f"(put right from the {'host' if evidence else 'primary heartbeat'} clock)")
+        self.report(
+            f"time base: {du * T128_S:.2f} s more elapsed in a gap than the frames' 8.4 s time field shows "
+            f"(put right from the {'host' if evidence else 'primary heartbeat'} clock)"
+        )
 
     def _host_check(self, host_now):
         """Whole wrap periods the held rows miss by the host clock (anchored on the least-delayed sample)."""
@@ -255,7 +262,7 @@ class SampleDecoder:
                     m = 0
                 d = base + 256 * m
                 if d == 0 and u > pu:
-                    d = 256       # time went on: a whole wrap of the counter, not a repeat
+                    d = 256  # time went on: a whole wrap of the counter, not a repeat
                 if d == 0:
                     self.report(f"cell {j}: cycle {pk} again (duplicate frame), skipped")
                     continue
@@ -265,12 +272,14 @@ class SampleDecoder:
                 k = pk + d
                 if d > 1:
                     self.gaps.append((self.segment, j, pk + 1, d - 1))
-                    self.report(f"gap: cell {j} lost {d - 1} sample(s) ({(u - pu) * T128_S:.3f} s) after cycle {pk} "
-                                f"(segment {self.segment})")
+                    self.report(
+                        f"gap: cell {j} lost {d - 1} sample(s) ({(u - pu) * T128_S:.3f} s) after cycle {pk} "
+                        f"(segment {self.segment})"
+                    )
             self.prev[j - 1] = (k, u)
-            off = host - u * T128_S           # host clock minus primary clock (+ the read latency)
+            off = host - u * T128_S  # host clock minus primary clock (+ the read latency)
             if self.off_min is None or off < self.off_min:
-                self.off_min = off            # the least-delayed confirmed sample anchors the host check
+                self.off_min = off  # the least-delayed confirmed sample anchors the host check
             self.k_ref = k if self.k_ref is None else max(self.k_ref, k)
             t_s = self.t_base + (u - self.u0) * T128_S
             out.append((self.segment, k, j, t_s, host, al, be, fl))
@@ -318,10 +327,19 @@ def rows_to_arrays(rows: np.ndarray, n: int, gaps) -> dict:
         col = rows[:, 2].astype(np.int64) - 1
         a[inv, col], b[inv, col], t[inv, col], h[inv, col] = rows[:, 5], rows[:, 6], rows[:, 3], rows[:, 4]
         fl[inv, col] = rows[:, 7].astype(np.int16)
-    return {"segment": keys[:, 0], "cycle": keys[:, 1], "cells": np.arange(1, n + 1),
-            "t_s": t, "host_time": h, "alpha_counts": a, "beta_counts": b,
-            "alpha_rad": a * RAD_PER_COUNT, "beta_rad": b * RAD_PER_COUNT, "flags": fl,
-            "gaps": np.array(gaps, dtype=np.int64).reshape(-1, 4)}
+    return {
+        "segment": keys[:, 0],
+        "cycle": keys[:, 1],
+        "cells": np.arange(1, n + 1),
+        "t_s": t,
+        "host_time": h,
+        "alpha_counts": a,
+        "beta_counts": b,
+        "alpha_rad": a * RAD_PER_COUNT,
+        "beta_rad": b * RAD_PER_COUNT,
+        "flags": fl,
+        "gaps": np.array(gaps, dtype=np.int64).reshape(-1, 4),
+    }
 
 
 class CsvChunks:
@@ -394,9 +412,20 @@ class RigLogger:
 
     SILENT_S = 1.0
 
-    def __init__(self, interface: str, channel: str, prefix: Path, formats=("asc",), bitrate=None,
-                 reconnect_s: float = 1.0, give_up_s: float | None = None, report=None, open_bus=None,
-                 first_frame_s: float = 30.0, wait_open_s: float = 0.0):
+    def __init__(
+        self,
+        interface: str,
+        channel: str,
+        prefix: Path,
+        formats=("asc",),
+        bitrate=None,
+        reconnect_s: float = 1.0,
+        give_up_s: float | None = None,
+        report=None,
+        open_bus=None,
+        first_frame_s: float = 30.0,
+        wait_open_s: float = 0.0,
+    ):
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
         self.prefix = Path(prefix)
         self.formats = [f.strip().lstrip(".") for f in formats if f.strip()]
@@ -409,7 +438,7 @@ class RigLogger:
         self.frames = 0
         self.reconnects = 0
         self.corrupt = 0
-        self.commands = []       # (seconds after the first frame, command-tool arguments)
+        self.commands = []  # (seconds after the first frame, command-tool arguments)
         self.command_log = []
         self.stop_reason = None  # set by a signal handler
         self.error = None
@@ -419,6 +448,7 @@ class RigLogger:
 
         if self.interface == "slcan" and self.bitrate:
             import can
+
             return can.Bus(interface="slcan", channel=self.channel, bitrate=self.bitrate)
         return open_bus(self.interface, self.channel)
 
@@ -428,7 +458,7 @@ class RigLogger:
         while True:
             try:
                 return self.open_bus()
-            except Exception as e:   # python-can and pyserial raise several types
+            except Exception as e:  # python-can and pyserial raise several types
                 text = str(e).splitlines()[0] if str(e) else type(e).__name__
                 if limit is not None and time.time() - t0 >= limit:
                     raise RunFailed(f"cannot open {self.channel}: {text}") from None
@@ -470,7 +500,7 @@ class RigLogger:
         for s in (signal.SIGTERM, signal.SIGHUP):
             try:
                 old[s] = signal.signal(s, self._on_signal)
-            except ValueError:   # not the main thread (tests): no handlers
+            except ValueError:  # not the main thread (tests): no handlers
                 pass
         bus = None
         try:
@@ -486,8 +516,10 @@ class RigLogger:
                 if deadline is not None and now >= deadline:
                     break
                 if t_first is None and self.first_frame_s is not None and now - started > self.first_frame_s:
-                    raise RunFailed(f"no frame from {self.channel} in {self.first_frame_s:g} s "
-                                    "(is the primary connected and the channel right?)")
+                    raise RunFailed(
+                        f"no frame from {self.channel} in {self.first_frame_s:g} s "
+                        "(is the primary connected and the channel right?)"
+                    )
                 if t_first is not None:
                     self._due_commands(bus, writers, t_first)
                 try:
@@ -508,8 +540,9 @@ class RigLogger:
                     if bus is None:
                         break
                     self.reconnects += 1
-                    self.decoder.new_segment(time.time(), f"reconnected after {time.time() - lost:.1f} s "
-                                                          "(samples in between are lost)")
+                    self.decoder.new_segment(
+                        time.time(), f"reconnected after {time.time() - lost:.1f} s (samples in between are lost)"
+                    )
                     last_rx = time.time()
                     continue
                 now = time.time()
@@ -529,7 +562,7 @@ class RigLogger:
                 self._take(msg, writers)
         except KeyboardInterrupt:
             self.stop_reason = "SIGINT"
-        except OSError as e:     # a write failed: full disk, quota, file size limit
+        except OSError as e:  # a write failed: full disk, quota, file size limit
             self.error = f"write failed: {e.strerror or e}"
         finally:
             for s, h in old.items():
@@ -566,8 +599,7 @@ class RigLogger:
                 if p.exists():
                     truncate_to_last_line(p)
         try:
-            self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n,
-                                         self.decoder.gaps)
+            self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n, self.decoder.gaps)
             np.savez_compressed(self.prefix.with_suffix(".npz"), **self.arrays)
         except OSError as e:
             self.error = self.error or f"write failed: {e.strerror or e}"
@@ -591,21 +623,33 @@ def check_out(prefix: Path, formats) -> str | None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.rigtools.logger", description=__doc__.split("\n\n")[0],
-                                 epilog="Exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
-                                        "3 run failed (port, no frames, write error).")
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.rigtools.logger",
+        description=__doc__.split("\n\n")[0],
+        epilog="Exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
+        "3 run failed (port, no frames, write error).",
+    )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
     ap.add_argument("-c", "--channel", required=True, help="e.g. /dev/ttyACM0@115200 or <pty>@115200")
     ap.add_argument("-o", "--out", required=True, help="output prefix, e.g. out/run1")
-    ap.add_argument("--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)")
+    ap.add_argument(
+        "--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)"
+    )
     ap.add_argument("--bitrate", type=int, default=None, help="CAN bit rate sent as Sn (ignored by the primary)")
-    ap.add_argument("--duration", type=float, default=None, help="seconds to log from the first frame (default: until Ctrl-C)")
+    ap.add_argument(
+        "--duration", type=float, default=None, help="seconds to log from the first frame (default: until Ctrl-C)"
+    )
     ap.add_argument("--give-up", type=float, default=None, help="stop retrying a lost connection after this many s")
     ap.add_argument("--wait-open", type=float, default=0.0, help="keep trying to open the port this many s at start")
     ap.add_argument("--first-frame", type=float, default=30.0, help="fail if no frame arrives in this many s")
-    ap.add_argument("--do", action="append", default=[], metavar="T:COMMAND",
-                    help='run a command-tool command T s after the first frame through the same port, '
-                         'e.g. --do "2:perturb 8 --torque 0.02 --duration 0.1"')
+    ap.add_argument(
+        "--do",
+        action="append",
+        default=[],
+        metavar="T:COMMAND",
+        help="run a command-tool command T s after the first frame through the same port, "
+        'e.g. --do "2:perturb 8 --torque 0.02 --duration 0.1"',
+    )
     args = ap.parse_args(argv)
 
     def bad(text):
@@ -625,9 +669,18 @@ def main(argv=None) -> int:
     problem = check_out(Path(args.out), formats)
     if problem:
         return bad(problem)
-    log = RigLogger(args.interface, args.channel, Path(args.out), formats, args.bitrate,
-                    give_up_s=args.give_up, first_frame_s=args.first_frame, wait_open_s=args.wait_open)
+    log = RigLogger(
+        args.interface,
+        args.channel,
+        Path(args.out),
+        formats,
+        args.bitrate,
+        give_up_s=args.give_up,
+        first_frame_s=args.first_frame,
+        wait_open_s=args.wait_open,
+    )
     from .command import build, parser
+
     for item in args.do:
         t, sep, text = item.partition(":")
         try:
@@ -649,10 +702,12 @@ def main(argv=None) -> int:
     per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0)
     lost = int(arr["gaps"][:, 3].sum()) if len(arr["gaps"]) else 0
     why = f"; stopped by {log.stop_reason}" if log.stop_reason else ""
-    print(f"{n} frames; samples per cell min {per_cell.min() if len(per_cell) else 0} max "
-          f"{per_cell.max() if len(per_cell) else 0}; {len(arr['gaps'])} gaps ({lost} samples lost); "
-          f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; wrote {args.out}.npz/.csv and "
-          f"{','.join(formats)}{why}")
+    print(
+        f"{n} frames; samples per cell min {per_cell.min() if len(per_cell) else 0} max "
+        f"{per_cell.max() if len(per_cell) else 0}; {len(arr['gaps'])} gaps ({lost} samples lost); "
+        f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; wrote {args.out}.npz/.csv and "
+        f"{','.join(formats)}{why}"
+    )
     return 0
 
 

@@ -17,7 +17,7 @@ from can.interfaces.slcan import slcanBus
 
 try:
     from serial import Timeout
-except ImportError:   # pragma: no cover - pyserial is a dependency of the slcan interface
+except ImportError:  # pragma: no cover - pyserial is a dependency of the slcan interface
     Timeout = None
 
 
@@ -44,7 +44,7 @@ class BufferedSlcanBus(slcanBus):
                 if line is not None:
                     return line
                 port = self.serialPortOrig
-                chunk = port.read(max(1, port.in_waiting))   # waits at most the port timeout (1 ms)
+                chunk = port.read(max(1, port.in_waiting))  # waits at most the port timeout (1 ms)
                 if chunk:
                     self._buffer.extend(chunk)
                 elif deadline.expired():

@@ -21,8 +21,7 @@ def test_json_contract_and_values(capsys):
     rc, out, _ = run(capsys, "--sigma", "9/125", "--json")
     assert rc == 0
     d = json.loads(out)
-    for k in ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s",
-              "unstable_band_cells"):
+    for k in ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s", "unstable_band_cells"):
         assert k in d
     ref = dispersion(Params(sigma=9 / 125))
     assert d["regime"] == "conditionally_unstable"
@@ -31,8 +30,20 @@ def test_json_contract_and_values(capsys):
 
 
 def test_flags_reach_the_analysis(capsys):
-    rc, out, _ = run(capsys, "--sigma", "0.112", "--inertia", "--eta-scale", "10", "--continuum",
-                     "--set", "gamma=0.1", "--cells", "16", "--json")
+    rc, out, _ = run(
+        capsys,
+        "--sigma",
+        "0.112",
+        "--inertia",
+        "--eta-scale",
+        "10",
+        "--continuum",
+        "--set",
+        "gamma=0.1",
+        "--cells",
+        "16",
+        "--json",
+    )
     d = json.loads(out)
     ref = dispersion(Params(sigma=0.112, eta_scale=10.0), inertia=True, discrete=False, n_cells=16)
     assert rc == 0 and d["model"] == "continuum" and d["inertia"] is True and d["regime"] == "stable"
@@ -47,13 +58,16 @@ def test_human_table(capsys):
     assert rc == 0 and "unconditionally unstable" in out and "inf]" in out
 
 
-@pytest.mark.parametrize("argv,msg", [
-    (["--sigma", "abc"], "not a number"),
-    (["--set", "nope=1"], "unknown parameter"),
-    (["--set", "eta_a=-1"], "eta_alpha"),
-    (["--set", "k_ab"], "KEY=VALUE"),
-    (["--eta-scale", "inf"], "finite"),
-])
+@pytest.mark.parametrize(
+    "argv,msg",
+    [
+        (["--sigma", "abc"], "not a number"),
+        (["--set", "nope=1"], "unknown parameter"),
+        (["--set", "eta_a=-1"], "eta_alpha"),
+        (["--set", "k_ab"], "KEY=VALUE"),
+        (["--eta-scale", "inf"], "finite"),
+    ],
+)
 def test_errors_are_clean(capsys, argv, msg):
     rc, out, err = run(capsys, *argv)
     assert rc == 2 and out == "" and msg in err
@@ -65,7 +79,7 @@ def test_parse_set_types():
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.integers(-10**6, 10**6), st.integers(1, 10**6))
+@given(st.integers(-(10**6), 10**6), st.integers(1, 10**6))
 def test_fraction_parser(num, den):
     p = parse_set(Params(), [f"sigma={num}/{den}"])
     assert p.sigma == num / den

@@ -7,8 +7,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host_emulator.analysis.observables import (REST_TOL_RAD, domain_walls, dominant_mode, growth_rate, observables,
-                                               spatial_period, temporal_period)
+from host_emulator.analysis.observables import (
+    REST_TOL_RAD,
+    domain_walls,
+    dominant_mode,
+    growth_rate,
+    observables,
+    spatial_period,
+    temporal_period,
+)
 
 X16 = np.arange(16) + 0.5
 
@@ -53,9 +60,9 @@ def test_steady_pattern():
 
 def test_moving_run_is_not_steady():
     t = np.linspace(0, 2, 401)
-    a, b = run(t, lambda tt: 0.5 * np.cos(2 * np.pi * X16 / 8 - 3 * tt))      # travelling wave
+    a, b = run(t, lambda tt: 0.5 * np.cos(2 * np.pi * X16 / 8 - 3 * tt))  # travelling wave
     assert observables(t, a, b)["steady"] is False
-    a, b = run(t, lambda tt: np.full(16, 0.2 * tt))                              # slow drift
+    a, b = run(t, lambda tt: np.full(16, 0.2 * tt))  # slow drift
     assert observables(t, a, b)["steady"] is False
 
 

@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
-from scipy.optimize import linear_sum_assignment
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from scipy.optimize import linear_sum_assignment
 
 from host_emulator.analysis import stability as stab
 from host_emulator.params import Params
@@ -18,7 +18,7 @@ def omega_closed_form(p, kappa, discrete):
     """docs/physics.md#linear-stability as written: Omega = (tr J_k +- sqrt(tr^2 - 4 det)) / 2 / eta_a, J_k = J - q diag(k_a, k_b/gamma)."""
     g = p.gamma
     j = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab / g, -p.k_ab / g]])
-    q = 2 * (1 - np.cos(kappa)) if discrete else kappa ** 2
+    q = 2 * (1 - np.cos(kappa)) if discrete else kappa**2
     a = j[0, 0] - q * p.ka_eff
     d = j[1, 1] - q * p.kb_eff / g
     tr, det = a + d, a * d - j[0, 1] * j[1, 0]
@@ -28,7 +28,7 @@ def omega_closed_form(p, kappa, discrete):
 
 def quartic_roots(p, kappa, discrete):
     """Roots of det(I s^2 + E s - A(q)) = 0 built as a polynomial (independent of the companion matrix)."""
-    q = 2 * (1 - math.cos(kappa)) if discrete else kappa ** 2
+    q = 2 * (1 - math.cos(kappa)) if discrete else kappa**2
     a00 = -p.k_ab - p.k2 - q * p.ka_eff
     a01 = p.k_ab - p.sigma
     a10 = p.k_ab
@@ -47,8 +47,12 @@ def sort_desc(z):
 
 params_st = st.builds(
     lambda s, kab, k2, g, es: Params(sigma=s, k_ab=kab, k2=k2, gamma=g, eta_scale=es),
-    st.floats(0.0, 0.2), st.floats(0.005, 0.05), st.floats(-0.1, 0.02), st.floats(0.05, 1.0),
-    st.floats(0.5, 20.0))
+    st.floats(0.0, 0.2),
+    st.floats(0.005, 0.05),
+    st.floats(-0.1, 0.02),
+    st.floats(0.05, 1.0),
+    st.floats(0.5, 20.0),
+)
 
 
 @settings(max_examples=60, deadline=None)
@@ -89,7 +93,7 @@ def assembled_matrix(p, n, periodic, inertia):
         for nb in (j - 1, j + 1):
             if periodic or 0 <= nb < n:
                 lap[j, nb % n] += 1.0
-                lap[j, j] -= 1.0          # a missing neighbour contributes no torque (free end)
+                lap[j, j] -= 1.0  # a missing neighbour contributes no torque (free end)
     jr = stab.reaction_jacobian(p)
     eye = np.eye(n)
     a = np.block([[p.ka_eff * lap + jr[0, 0] * eye, jr[0, 1] * eye], [jr[1, 0] * eye, p.kb_eff * lap + jr[1, 1] * eye]])
@@ -133,6 +137,7 @@ def band_closed_form(p, discrete):
         if discrete:
             return None if q >= 4 else 2 * np.pi / np.arccos(1 - q / 2)
         return 2 * np.pi / np.sqrt(q)
+
     lo = 2.0 if discrete and qs[1] >= 4 else lam(qs[1])
     return [lo, lam(qs[0])]
 
@@ -192,7 +197,7 @@ def test_uniform_mode_period_closed_form():
     assert 4 * det > tr * tr
     d = stab.dispersion(p)
     assert d["uniform_mode_period_s"] == pytest.approx(4 * np.pi * p.eta_alpha / np.sqrt(4 * det - tr * tr), rel=1e-9)
-    assert d["oscillation_period_s"] is None      # the least stable mode (lambda ~ 5 cells) is real
+    assert d["oscillation_period_s"] is None  # the least stable mode (lambda ~ 5 cells) is real
 
 
 @settings(max_examples=60, deadline=None)
@@ -228,6 +233,7 @@ def test_bad_input_is_rejected():
 
 def test_dispersion_is_json_ready():
     import json
+
     for inertia in (False, True):
         d = stab.dispersion(Params(sigma=6 / 125), inertia=inertia, n_cells=16)
         json.dumps(d, allow_nan=False)

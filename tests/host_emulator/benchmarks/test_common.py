@@ -28,9 +28,8 @@ def test_unreached_target_and_dominated_points():
     assert wall_at(pts([(2e-3, 1e-5), (1e-2, 1e-7)]), 1e-4) == 2e-3
 
 
-@given(st.lists(st.tuples(st.floats(1e-4, 10.0), st.floats(1e-9, 1.0)), min_size=1, max_size=12),
-       st.floats(1e-9, 1.0))
-@example([(1.0, 1.0000000000000003e-09), (2.0, 1e-09)], 1e-09)   # logs equal: was a ZeroDivisionError
+@given(st.lists(st.tuples(st.floats(1e-4, 10.0), st.floats(1e-9, 1.0)), min_size=1, max_size=12), st.floats(1e-9, 1.0))
+@example([(1.0, 1.0000000000000003e-09), (2.0, 1e-09)], 1e-09)  # logs equal: was a ZeroDivisionError
 def test_wall_at_is_bracketed_by_the_front(P, target):
     """The interpolated wall lies between the walls of the front points around the target, and no run that
     reaches the target is cheaper than the answer."""

@@ -6,7 +6,8 @@ import sys
 
 import numpy as np
 
-from host_emulator.benchmarks import peers, workprecision as wp
+from host_emulator.benchmarks import peers
+from host_emulator.benchmarks import workprecision as wp
 from host_emulator.benchmarks.common import WPPoint
 
 
@@ -23,9 +24,14 @@ def test_missing_peer_is_skipped_with_one_line(monkeypatch):
 
 
 def test_peers_are_not_counted_as_ours():
-    pts = [WPPoint("rk4", "a", 0.01, 1e-5), WPPoint("rk4", "b", 0.005, 1e-3),
-           WPPoint("diffrax Tsit5", "a", 0.001, 1e-5), WPPoint("diffrax Tsit5", "b", 0.0005, 1e-3),
-           WPPoint("CVODE Adams", "a", 0.02, 1e-5), WPPoint("CVODE Adams", "b", 0.01, 1e-3)]
+    pts = [
+        WPPoint("rk4", "a", 0.01, 1e-5),
+        WPPoint("rk4", "b", 0.005, 1e-3),
+        WPPoint("diffrax Tsit5", "a", 0.001, 1e-5),
+        WPPoint("diffrax Tsit5", "b", 0.0005, 1e-3),
+        WPPoint("CVODE Adams", "a", 0.02, 1e-5),
+        WPPoint("CVODE Adams", "b", 0.01, 1e-3),
+    ]
     _, best, peer = wp.summarize(pts, 1e-4, ours_prefix=("diffrax",))
     assert best[0] == "rk4" and peer[0] == "diffrax Tsit5"
     _, best, peer = wp.summarize(pts, 1e-4)

@@ -18,12 +18,14 @@ def G(coef, d):
 def energy(p, bands, x, v, psi_k):
     n = p.cells
     a, b = x[:n], x[n:]
-    E = 0.5 * p.I_a * (v[:n] ** 2).sum() + 0.5 * p.I_b * (v[n:] ** 2).sum() + 0.5 * psi_k * (a ** 2).sum()
-    for u, coef, d0, L, k in ((np.diff(a), P.BAND_A_COEF, P.DELTA_A0_M, P.R_ALPHA_M, p.ka_eff),
-                              (np.diff(b), P.BAND_B_COEF, P.DELTA_B0_M, P.R_BETA_ARM_M, p.kb_eff)):
+    E = 0.5 * p.I_a * (v[:n] ** 2).sum() + 0.5 * p.I_b * (v[n:] ** 2).sum() + 0.5 * psi_k * (a**2).sum()
+    for u, coef, d0, L, k in (
+        (np.diff(a), P.BAND_A_COEF, P.DELTA_A0_M, P.R_ALPHA_M, p.ka_eff),
+        (np.diff(b), P.BAND_B_COEF, P.DELTA_B0_M, P.R_BETA_ARM_M, p.kb_eff),
+    ):
         if bands == "linear":
-            E += 0.5 * k * (u ** 2).sum()
-        else:   # U(u) = s [G(d0 + L u) + G(d0 - L u) - 2 G(d0)]
+            E += 0.5 * k * (u**2).sum()
+        else:  # U(u) = s [G(d0 + L u) + G(d0 - L u) - 2 G(d0)]
             E += p.band_scale * (G(coef, d0 + L * u) + G(coef, d0 - L * u) - 2 * G(coef, d0)).sum()
     return E
 
@@ -35,17 +37,17 @@ def test_energy_decays_at_dissipated_power(bands, psi_k):
     h = 2e-5
     m = LatticeModel(p, [], ModelOptions(bands=bands, stepper="rk4", dt=h, dt_out=h))
     rng = np.random.default_rng(0)
-    x0 = 0.15 * rng.standard_normal(12)          # small enough that no band goes slack
+    x0 = 0.15 * rng.standard_normal(12)  # small enough that no band goes slack
     s = m.solver(x0=x0)
     E = [energy(p, bands, s.x, s.v, psi_k)]
     C = m.forces(0.0, s.x)[1]
-    P_diss = [(C * s.v ** 2).sum()]
-    for _ in range(10000):                        # 0.2 s
+    P_diss = [(C * s.v**2).sum()]
+    for _ in range(10000):  # 0.2 s
         s.advance()
         E.append(energy(p, bands, s.x, s.v, psi_k))
-        P_diss.append((C * s.v ** 2).sum())
+        P_diss.append((C * s.v**2).sum())
     E, P_diss = np.array(E), np.array(P_diss)
     dissipated = np.sum((P_diss[1:] + P_diss[:-1]) / 2) * h
-    assert E[-1] < 0.2 * E[0]                     # most of it is gone: a real test of the balance
-    assert np.all(np.diff(E) <= 1e-12 * E[0])     # never increases
+    assert E[-1] < 0.2 * E[0]  # most of it is gone: a real test of the balance
+    assert np.all(np.diff(E) <= 1e-12 * E[0])  # never increases
     np.testing.assert_allclose(E[0] - E[-1], dissipated, rtol=1e-5)

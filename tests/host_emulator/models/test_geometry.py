@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from host_emulator.models import ModelOptions, Perturbation
 from host_emulator.controller import run_solver
+from host_emulator.models import ModelOptions, Perturbation
 from host_emulator.models.lattice import LatticeModel
 from host_emulator.params import Params
 
@@ -23,7 +23,7 @@ def test_geometric_matches_small_angle_to_second_order():
         fs, fg = beta_forces("small", x), beta_forces("geometric", x)
         rel.append(np.abs(fg - fs).max() / np.abs(fs).max())
     assert rel[0] < 1e-3
-    assert rel[0] / rel[1] > 30          # the difference vanishes like eps^2
+    assert rel[0] / rel[1] > 30  # the difference vanishes like eps^2
 
 
 def test_geometric_differs_for_large_common_rotation():
@@ -39,8 +39,11 @@ def test_geometric_differs_for_large_common_rotation():
 def test_small_perturbation_trajectories_agree():
     out = []
     for geom in ("small", "geometric"):
-        m = LatticeModel(Params(cells=8, sigma=14 / 125, eta_scale=10), [Perturbation(4, "alpha", 5e-4, 0.0, 0.05)],
-                         ModelOptions(beta_geometry=geom))
+        m = LatticeModel(
+            Params(cells=8, sigma=14 / 125, eta_scale=10),
+            [Perturbation(4, "alpha", 5e-4, 0.0, 0.05)],
+            ModelOptions(beta_geometry=geom),
+        )
         out.append(run_solver(m.solver(), 0.5))
     a, b = out
     assert np.abs(a.beta).max() > 1e-3

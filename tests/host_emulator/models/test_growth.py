@@ -30,7 +30,7 @@ def measured_growth(p, m, inertia):
     s = mod.solver(x0=x0)
     shape = np.cos(np.pi * m * J_CENTRES / N)
     t, c = [], []
-    while s.t < 2.0 and np.abs(s.x).max() < 1e-4:   # stay linear: far below the psi' breakpoint
+    while s.t < 2.0 and np.abs(s.x).max() < 1e-4:  # stay linear: far below the psi' breakpoint
         s.advance()
         t.append(s.t)
         c.append(abs(shape @ s.x[:N]))

@@ -47,7 +47,7 @@ def test_hil_pattern_near_the_push_matches_lattice():
     eta_a = p.eta_a + e
     lat, _ = run("lattice", p.with_overrides(eta_a=eta_a, gamma=(p.eta_a * p.gamma + e) / eta_a), perts, 5.0)
     hil, _ = run("hil", p, perts, 5.0)
-    near = slice(2, 9)     # cells 3..9
+    near = slice(2, 9)  # cells 3..9
     la, ha = lat.alpha[-1, near], hil.alpha[-1, near]
     assert np.abs(la).max() > 0.5
     # the same domains (a wall may sit a fraction of a cell apart): equal signs wherever both are clearly off zero
@@ -64,10 +64,12 @@ def test_rest_stays_exactly_at_rest():
 def test_firmware_perturbation_path_moves_the_cell_and_respects_the_voltage_cap():
     """A 0.131 N*m command through mc_cell_perturb: the motor voltage never exceeds 5.86 V (duty cap)."""
     p = Params(cells=3)
-    m = make_model("hil", p, [Perturbation(2, "alpha", 0.131, 0.0, 0.2)], ModelOptions(perturb_via="firmware", dt_out=1 / 2000))
+    m = make_model(
+        "hil", p, [Perturbation(2, "alpha", 0.131, 0.0, 0.2)], ModelOptions(perturb_via="firmware", dt_out=1 / 2000)
+    )
     s = m.solver()
     vmax = 0.0
-    for _ in range(400):             # tick by tick, reading the voltage the plant saw
+    for _ in range(400):  # tick by tick, reading the voltage the plant saw
         s.advance()
         vmax = max(vmax, max(abs(m.plant.volt[0][j]) for j in range(3)))
     assert 5.8 < vmax <= 5.86
@@ -101,13 +103,14 @@ def test_noise_is_seeded_and_glitches_are_counted():
     nz = NoiseOptions(seed=7, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-4, band_spread=0.05, eta_spread=0.1)
     a, sa = run("hil", Params(), perts, 1.0, noise=nz)
     b, sb = run("hil", Params(), perts, 1.0, noise=nz)
-    c, _ = run("hil", Params(), perts, 1.0, noise=NoiseOptions(seed=8, encoder_jitter_counts=0.3,
-                                                              encoder_glitch_prob=1e-4))
+    c, _ = run(
+        "hil", Params(), perts, 1.0, noise=NoiseOptions(seed=8, encoder_jitter_counts=0.3, encoder_glitch_prob=1e-4)
+    )
     np.testing.assert_array_equal(a.alpha, b.alpha)
     assert np.abs(a.alpha - c.alpha).max() > 0
     info = sa.info()
     assert info["glitches_injected"] > 0
-    assert info["encoder_errors"] == 2 * info["glitches_injected"]   # each glitch: two illegal transitions
+    assert info["encoder_errors"] == 2 * info["glitches_injected"]  # each glitch: two illegal transitions
 
 
 def test_bad_firmware_parameters_are_rejected_clearly():

@@ -30,7 +30,7 @@ def _models(opts, slack_f0=True, n=7, perts=()):
 def test_forces_match_reference(opts, slack_f0):
     m, ref = _models(opts, slack_f0)
     rng = np.random.default_rng(1)
-    for scale in (1e-3, 0.3, 1.2):   # 1.2 rad differences make alpha bands go slack
+    for scale in (1e-3, 0.3, 1.2):  # 1.2 rad differences make alpha bands go slack
         x = scale * rng.standard_normal(2 * m.n)
         F, C = m.forces(0.0, x)
         Fr, Cr = ref.forces(0.0, x)
@@ -62,7 +62,7 @@ def test_perturbation_window_matches_reference():
 def test_trajectories_match_reference(stepper, inertia):
     """0.5 s of a perturbed 6-cell lattice, same stepper and step: C and numpy agree to rounding."""
     perts = [Perturbation(3, "alpha", 0.02, 0.0, 0.05)]
-    p = Params(cells=6, band_scale=0.5)    # the table stiffness keeps dt = 1e-4 inside every stepper's limit
+    p = Params(cells=6, band_scale=0.5)  # the table stiffness keeps dt = 1e-4 inside every stepper's limit
     o = ModelOptions(stepper=stepper, inertia=inertia, dt_out=0.01, dt=1e-4)
     m = LatticeModel(p, perts, o)
     ref = ReferencePlant(p, o, perts)
@@ -72,5 +72,5 @@ def test_trajectories_match_reference(stepper, inertia):
         s.advance()
         traj.append(s.state()[0])
     xs, _ = ref.run(stepper, s.h, 50 * s.nsub, record_every=s.nsub)
-    assert np.abs(xs[-1, :6]).max() > 0.01          # it did move
+    assert np.abs(xs[-1, :6]).max() > 0.01  # it did move
     np.testing.assert_allclose(np.array(traj), xs[:, :6], rtol=1e-8, atol=1e-11)

@@ -22,8 +22,9 @@ def error_at(stepper, dt, t_end=0.2, eta_scale=10):
     return np.abs(s.x - exact[: 2 * N]).max() / np.abs(x0).max()
 
 
-@pytest.mark.parametrize("stepper,order,dt,eta_scale", [("symplectic_euler", 1, 2e-4, 10), ("euler", 1, 2e-4, 10),
-                                                         ("rk4", 4, 2e-3, 1)])
+@pytest.mark.parametrize(
+    "stepper,order,dt,eta_scale", [("symplectic_euler", 1, 2e-4, 10), ("euler", 1, 2e-4, 10), ("rk4", 4, 2e-3, 1)]
+)
 def test_convergence_order(stepper, order, dt, eta_scale):
     e1 = error_at(stepper, dt, eta_scale=eta_scale)
     e2 = error_at(stepper, dt / 2, eta_scale=eta_scale)
@@ -46,7 +47,7 @@ def test_limit_is_stable_and_3x_limit_blows_up(stepper, inertia):
     p = Params(cells=16, sigma=14 / 125, eta_scale=10)
     m = LatticeModel(p, [], ModelOptions(bands="linear", stepper=stepper, inertia=inertia))
     h, _ = m.step_limit()
-    x0 = 1e-3 * np.cos(np.pi * np.arange(32))   # zig-zag: the stiffest modes
+    x0 = 1e-3 * np.cos(np.pi * np.arange(32))  # zig-zag: the stiffest modes
     s = m.solver(x0=x0)
     n = int(2.0 / h)
     rc = m.lib.he_advance(m.plant, s.sid, 0.9 * h, n, s._pt, s._px, s._pv)
