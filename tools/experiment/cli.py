@@ -268,6 +268,10 @@ def print_summary(s: dict, out: Path):
         f"(repeats: {', '.join(f(v) for v in s['pattern_period_cells_repeats'])})   "
         f"oscillation period: {f(s['oscillation_period_s'], ' s')}"
     )
+    print(
+        f"  at rest: {s['at_rest']}   domain walls: {f(s['domain_walls'])} "
+        f"(repeats: {', '.join(f(v) for v in s['domain_walls_repeats'])})"
+    )
     print("  final alpha (rad, mean): " + " ".join("  n/a" if v is None else f"{v:+.2f}" for v in s["final_alpha_rad"]))
     if s["repeats"] > 1:
         print(

@@ -74,6 +74,8 @@ def repeat_result(rep, n_cells: int):
         rec.update(
             t_end_s=0.0,
             steady=False,
+            at_rest=False,
+            domain_walls=None,
             pattern_period_cells=None,
             oscillation_period_s=None,
             final_alpha_rad=[None] * n_cells,
@@ -89,8 +91,13 @@ def repeat_result(rep, n_cells: int):
     rec.update(
         t_end_s=float(s.t[-1]),
         steady=obs.get("steady", False),
+        # the emulator's observables: a chain at rest has no pattern, whatever a flatness test reads into it
+        at_rest=obs.get("at_rest", False),
+        domain_walls=obs.get("domain_walls"),
         oscillation_period_s=obs.get("oscillation_period_s"),
-        pattern_period_cells=spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 else None,
+        pattern_period_cells=(
+            spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 and not obs.get("at_rest", False) else None
+        ),
         final_alpha_rad=[float(v) if p else None for v, p in zip(s.alpha[-1], pres)],
         final_beta_rad=[float(v) if p else None for v, p in zip(s.beta[-1], pres)],
         cells_without_data=[j + 1 for j in range(n_cells) if not pres[j]],
@@ -157,6 +164,9 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
             "wall_s": wall_s,
             "realtime_factor": total_t / wall_s if wall_s > 0 else 0.0,
             "steady": bool(done) and all(r["steady"] for r in done),
+            "at_rest": bool(done) and all(r["at_rest"] for r in done),
+            "domain_walls": median("domain_walls"),
+            "domain_walls_repeats": [r["domain_walls"] for r in done],
             "pattern_period_cells": median("pattern_period_cells"),
             "oscillation_period_s": median("oscillation_period_s"),
             **stats,
