@@ -1,4 +1,4 @@
-"""C headers of the bus vectors for the Unity suites (test/test_native_regs, _slcan, _primary): generated, never kept."""
+"""C headers of the bus vectors for the Unity suites (test/test_native_regs, _slcan, _primary); never kept in git."""
 
 from __future__ import annotations
 
@@ -149,7 +149,7 @@ def primary_header() -> str:
         "    uint8_t dlc;",
         "    uint8_t data[8];",
         "} pv_frame_t;",
-        "/* one poll cycle: each cell's read answered with status/rx after duration us; expected sample and counters */",
+        "/* one poll cycle: each read answered with status/rx after duration us; expected sample and counters */",
         "typedef struct {",
         "    uint8_t status;",
         "    uint8_t len;",
@@ -214,7 +214,8 @@ def primary_header() -> str:
         txns = ", ".join(f"{{{k}, {j}, {n}, {_bytes(b)}}}" for k, j, n, b in c["txns"]) or "{0}"
         frames = ", ".join(_frame(f, d) for f, d in c["frames"]) or "{0}"
         body.append(
-            f"    {{{_cstr(c['name'])}, {len(c['can'])}, {{{can}}}, {c['write_status']}, {c['cell_result']}, {len(c['block_rx'])}, "
+            f"    {{{_cstr(c['name'])}, {len(c['can'])}, {{{can}}}, {c['write_status']}, {c['cell_result']}, "
+            f"{len(c['block_rx'])}, "
             f"{_bytes(c['block_rx'])}, {len(c['txns'])}, {{{txns}}}, {len(c['frames'])}, {{{frames}}}}},"
         )
     body.append("};")

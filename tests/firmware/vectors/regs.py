@@ -1,4 +1,4 @@
-"""Vectors for the cell register handler: one write to a fresh cell, then one tick; expected outcome by a reference model."""
+"""Vectors for the cell register handler: one write to a fresh cell, then a tick; expected by a reference model."""
 
 from __future__ import annotations
 
