@@ -1,4 +1,4 @@
-"""Primary scheduler on the emulated bus: round-robin rate vs the I2C bound, fault isolation, command forwarding, rejection reports."""
+"""Primary scheduler: bus rate vs the I2C bound, fault isolation, commands, rejections; plus the shared vectors."""
 
 import struct
 
@@ -6,6 +6,7 @@ import pytest
 
 from host_emulator.bus.i2c import I2CTiming, lattice_rate_limit
 from host_emulator.bus.rig import BusOptions, make_rig
+from tests.firmware.vectors import primary as pv
 from tools.rigtools import proto
 
 D = proto.D
@@ -195,7 +196,7 @@ def test_scene_perturbations_reach_the_served_cells():
 
 
 class Primary:
-    """The compiled primary driven by hand: every transaction's outcome chosen by the test."""
+    """The compiled primary driven by hand, under the harness rules of tests/firmware/vectors/primary.py."""
 
     def __init__(self, fw):
         self.ffi, self.lib = fw
@@ -204,14 +205,14 @@ class Primary:
         self.t = self.ffi.new("mc_txn_t *")
         self.now = 0
 
-    def step(self, outcome):
-        """Start the next transaction and complete it with outcome(txn) -> (status, bytes, duration_us)."""
+    def start(self):
         while not self.lib.mc_primary_next(self.p, self.now, self.t):
             self.now += 10
-        st, data, dur = outcome(self.t)
-        self.now += dur
-        self.lib.mc_primary_complete(self.p, self.now, st, data, len(data))
-        return self.t.cell + 1, self.t.kind
+        return self.t
+
+    def finish(self, duration, status, data=b""):
+        self.now += duration
+        self.lib.mc_primary_complete(self.p, self.now, status, data, len(data))
 
     def frames(self):
         f = self.ffi.new("mc_can_frame_t *")
@@ -221,50 +222,91 @@ class Primary:
         return out
 
 
-def snapshot_block(addr, tick=1, alpha=0, beta=0, cmd_seq=0, result=0):
-    body = struct.pack("<BBIhhHBBBBHHH", 0x10, addr, tick, alpha, beta, 0, 0, cmd_seq, result, 0, 0, 0, 0)
-    return body + bytes([proto.crc8(body)])
+@pytest.mark.parametrize("v", pv.POLL_CASES, ids=[c["name"] for c in pv.POLL_CASES])
+def test_poll_cycle_vectors(fw, v):
+    """One poll cycle of test/test_native_primary: samples of the intact reads only, one counter per failed read."""
+    pr = Primary(fw)
+    for i, x in enumerate(v["cells"]):
+        t = pr.start()
+        assert (t.kind, t.cell, t.addr, t.len) == (pv.READ, i, proto.cell_address(i + 1), pv.SNAP_LEN)
+        pr.finish(x["duration"], x["status"], x["rx"])
+    samples = [(f - D.FRAMES["CELL_SAMPLE"]["base"], d) for f, d in pr.frames() if 0x100 < f <= 0x110]
+    want = [(j + 1, x) for j, x in enumerate(v["cells"]) if x["sample"]]
+    assert [j for j, _ in samples] == [j for j, _ in want]
+    for (_, d), (_, x) in zip(samples, want):
+        assert (d[0],) + struct.unpack("<hh", d[1:5]) + (d[7],) == (1, x["alpha"], x["beta"], x["flags"])
+    for i, x in enumerate(v["cells"]):
+        c = pr.p.cell[i]
+        assert (c.nack, c.integrity, c.timeout) == (x["nack"], x["integrity"], x["timeout"]), i + 1
 
 
-def test_read_integrity_checks(fw):
+@pytest.mark.parametrize("v", pv.BACKOFF_CASES, ids=[c["name"] for c in pv.BACKOFF_CASES])
+def test_backoff_vectors(fw, v):
+    """Back-off of test/test_native_primary: the cycles a timing-out cell is polled in, and nobody else affected."""
     _, lib = fw
     pr = Primary(fw)
-    bad = {
-        2: lambda a: b"\xff" * 23,  # empty transmit buffer
-        3: lambda a: snapshot_block(a + 1),  # another cell's block
-        4: lambda a: snapshot_block(a)[:22],  # short read
-        5: lambda a: snapshot_block(a)[:-1] + bytes([snapshot_block(a)[-1] ^ 1]),  # CRC
-        6: lambda a: bytes([0x11]) + snapshot_block(a)[1:],
-    }  # wrong tag (IDENT)
+    polls = []
+    while len(polls) < len(v["polls"]):
+        t = pr.start()
+        good = pv.snapshot_block(t.addr)
+        if t.cell + 1 != v["cell"]:
+            pr.finish(pv.DURATION_US, lib.MC_I2C_OK, good)
+            continue
+        polls.append(pr.p.cycles)
+        if len(polls) > v["n_timeouts"]:
+            pr.finish(pv.DURATION_US, lib.MC_I2C_OK, good)
+        elif v["late"]:
+            pr.finish(pr.p.txn_timeout_us + 1, lib.MC_I2C_OK, good)
+        else:
+            pr.finish(pv.DURATION_US, lib.MC_I2C_TIMEOUT)
+    assert polls == v["polls"]
+    c = pr.p.cell[v["cell"] - 1]
+    assert (c.timeout, c.skipped) == (v["n_timeouts"], v["skipped"])
+    assert all(pr.p.cell[i].timeout + pr.p.cell[i].skipped == 0 for i in range(16) if i + 1 != v["cell"])
+
+
+def _reported(fid):
+    b = D.FRAMES
+    return fid == b["PRIMARY_REJECT"]["base"] or any(
+        b[k]["base"] < fid <= b[k]["base"] + 16 for k in ("CMD_RESULT", "BLOCK_DATA")
+    )
+
+
+@pytest.mark.parametrize("v", pv.COMMAND_CASES, ids=[c["name"] for c in pv.COMMAND_CASES])
+def test_command_vectors(fw, v):
+    """Commands of test/test_native_primary: the writes and block reads, and the result/reject/block frames."""
+    ffi, lib = fw
+    pr = Primary(fw)
     for _ in range(16):
-        pr.step(lambda t: (lib.MC_I2C_OK, bad.get(t.cell + 1, lambda a: snapshot_block(a, alpha=t.cell))(t.addr), 500))
-    got = {j for j, _ in by_kind(pr.frames())["CELL_SAMPLE"]}
-    assert got == set(range(1, 17)) - set(bad)
-    assert [pr.p.cell[j - 1].integrity for j in sorted(bad)] == [1] * len(bad)
-    assert pr.p.cell[0].integrity == 0
-
-
-def test_timeouts_back_off_exponentially_and_reset(fw):
-    _, lib = fw
-    pr = Primary(fw)
-    polled = []
-
-    def outcome(t):
-        if t.cell == 4:
-            polled.append(pr.p.cycles)
-            if len(polled) <= 7:  # the first seven polls time out, then the cell recovers
-                return lib.MC_I2C_OK, snapshot_block(t.addr), pr.p.txn_timeout_us + 1  # late = timeout
-        return lib.MC_I2C_OK, snapshot_block(t.addr), 500
-
-    while pr.p.cycles < 300:
-        pr.step(outcome)
-    gaps = [b - a for a, b in zip(polled, polled[1:])]
-    # skipped 1, 2, 4, .. 64 (= BACKOFF_MAX) cycles after successive timeouts (gap = skip + 1), then every cycle
-    assert gaps[:7] == [2, 3, 5, 9, 17, 33, 65]
-    assert set(gaps[7:]) == {1}
-    c = pr.p.cell[4]
-    assert c.timeout == 7 and c.skipped == sum(g - 1 for g in gaps)
-    assert pr.p.cell[3].timeout == 0
+        t = pr.start()
+        pr.finish(pv.DURATION_US, lib.MC_I2C_OK, pv.snapshot_block(t.addr))
+    pr.frames()
+    f = ffi.new("mc_can_frame_t *")
+    for fid, data in v["can"]:
+        f.id, f.dlc = fid, len(data)
+        for k in range(8):
+            f.data[k] = data[k] if k < len(data) else 0
+        lib.mc_primary_can_rx(pr.p, pr.now, f)
+    seq, result, pointer, txns = [0] * 16, [0] * 16, [False] * 16, []
+    for _ in range(pv.CMD_STEPS):
+        t = pr.start()
+        i = t.cell
+        if t.kind == pv.WRITE:
+            buf = bytes(t.buf)[: t.len]
+            txns.append((pv.WRITE, i + 1, t.len, buf))
+            pr.finish(pv.DURATION_US, v["write_status"])
+            if v["write_status"] == pv.OK and buf[0] == D.REGISTERS["POINTER"]["id"]:
+                pointer[i] = True
+            elif v["write_status"] == pv.OK:
+                seq[i], result[i] = buf[1], v["cell_result"]
+        elif pointer[i]:
+            pointer[i] = False
+            txns.append((pv.READ, i + 1, t.len, b""))
+            pr.finish(pv.DURATION_US, lib.MC_I2C_OK, v["block_rx"])
+        else:
+            pr.finish(pv.DURATION_US, lib.MC_I2C_OK, pv.snapshot_block(t.addr, cmd_seq=seq[i], result=result[i]))
+    assert txns == v["txns"]
+    assert [(fid, d) for fid, d in pr.frames() if _reported(fid)] == v["frames"]
 
 
 def blocks(frames, j):
@@ -299,26 +341,3 @@ def test_pointer_command_reads_blocks_back():
     # the polls go on undisturbed: every cell keeps sampling, no integrity errors from the pointer moves
     assert all(rig.p.cell[i].integrity == 0 for i in range(16))
     assert {j for j, _ in by_kind(frames)["CELL_SAMPLE"]} == set(range(1, 17))
-
-
-def test_pointer_command_retries_a_corrupt_block(fw):
-    _, lib = fw
-    pr = Primary(fw)
-    for _ in range(16):
-        pr.step(lambda t: (lib.MC_I2C_OK, snapshot_block(t.addr), 500))
-    f = pr.ffi.new("mc_can_frame_t *")
-    f.id, f.dlc = proto.cmd_frame_id(2), 3
-    for i, b in enumerate(proto.cmd_data("POINTER", 4, block=1)):
-        f.data[i] = b
-    lib.mc_primary_can_rx(pr.p, pr.now, f)
-    seen = []
-
-    def outcome(t):
-        seen.append((t.cell + 1, t.kind, t.len))
-        return lib.MC_I2C_OK, b"\xff" * t.len if t.kind == lib.MC_TXN_READ else b"", 100
-
-    for _ in range(6):
-        pr.step(outcome)
-    # write pointer, read 11 bytes (bad), three times; then CRC is reported
-    assert seen == [(2, lib.MC_TXN_WRITE, 4), (2, lib.MC_TXN_READ, 11)] * 3
-    assert (2, 0x01, 4, R["CRC"], 3) in results(pr.frames())

@@ -1,16 +1,15 @@
-"""Cell register handler: writes validated (CRC-8, register, length, range) and applied only at a tick boundary; read blocks consistent."""
-
-import struct
+"""Cell register handler: writes validated (CRC-8, register, length, range), applied at a tick; reads consistent."""
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.firmware.vectors import regs as rv
 from tools.rigtools import proto
 
 D = proto.D
-J = 5
-ADDR = proto.cell_address(J)
+J = rv.J
+ADDR = rv.ADDR
 
 
 class Cell:
@@ -21,7 +20,7 @@ class Cell:
         self.c = ffi.new("mc_cell_t *")
         lib.mc_cell_init(self.c)
         self.r = ffi.new("mc_regs_t *")
-        assert lib.mc_regs_init(self.r, self.c, ADDR, 0xC0FFEE, ffi.NULL) == lib.MC_OK
+        assert lib.mc_regs_init(self.r, self.c, ADDR, rv.BUILD, ffi.NULL) == lib.MC_OK
         self.a = ffi.new("mc_quad_snap_t *")
         self.b = ffi.new("mc_quad_snap_t *")
         self.buf = ffi.new("uint8_t[64]")
@@ -116,7 +115,7 @@ def test_ident_block(cell, fw):
         0x11,
         ADDR,
         lib.MC_FW_VERSION,
-        0xC0FFEE,
+        rv.BUILD,
         lib.MC_PROTO_MAP_ID,
     )
 
@@ -160,56 +159,25 @@ def test_perturb_enable_bemf_pwm_clear(cell):
     assert cell.c.faults == 0 and cell.snapshot()["rejected"] == 0
 
 
-def _rejected(cell, frame, expect):
-    before = cell.config()
-    n0 = cell.snapshot()["rejected"]
-    cell.write(frame)
+@pytest.mark.parametrize("v", rv.CASES, ids=[c["name"] for c in rv.CASES])
+def test_register_vectors(fw, v):
+    """The vectors the Unity suite test/test_native_regs runs: read pointer, snapshot, PARAMS block, no side effect."""
+    cell = Cell(fw)
     cell.tick()
+    before = cell.config()
+    cell.write(v["frame"])
+    cell.tick()
+    if v["pointer"]:
+        assert cell.read()[0] == v["read_tag"]
     s = cell.snapshot()
-    assert s["cmd_result"] == D.RESULTS[expect]
-    assert s["rejected"] == (n0 + 1) & 0xFF
-    assert cell.config() == before
-
-
-def test_bad_crc_rejected(cell):
-    f = bytearray(proto.i2c_write_frame(J, "ENABLE", 1, b"\x01"))
-    f[-1] ^= 0x20
-    _rejected(cell, bytes(f), "CRC")
-
-
-def test_write_for_another_cell_fails_crc(cell):
-    f = bytes([D.REGISTERS["ENABLE"]["id"], 1, 1])
-    other = f + bytes([proto.crc8(bytes([proto.cell_address(J + 1) << 1]) + f)])
-    _rejected(cell, other, "CRC")
-
-
-def test_unknown_register_rejected(cell):
-    body = bytes([0x7E, 1, 0, 0])
-    _rejected(cell, body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]), "REG")
-
-
-def test_wrong_length_rejected(cell):
-    body = bytes([D.REGISTERS["K_AB"]["id"], 1, 0, 0])  # 2 payload bytes, needs 4
-    _rejected(cell, body + bytes([proto.crc8(bytes([ADDR << 1]) + body)]), "LENGTH")
-    _rejected(cell, bytes(40), "LENGTH")  # longer than any write
-
-
-@pytest.mark.parametrize(
-    "reg,vals,expect",
-    [
-        ("K_AB", {"value": 250001}, "RANGE"),
-        ("ASTAR", {"value": -1}, "RANGE"),
-        ("K1", {"value": -70000}, "SHAPE"),
-        ("K2", {"value": 60000}, "SHAPE"),
-        ("ENABLE", {"on": 2}, "RANGE"),
-        ("BEMF", {"on": 255}, "RANGE"),
-        ("PERTURB", {"chain": 2, "torque": 1, "ticks": 1}, "RANGE"),
-        ("PERTURB", {"chain": 0, "torque": 32767, "ticks": 1}, "RANGE"),
-        ("PWM_LIMIT", {"ticks": 5000}, "RANGE"),
-    ],
-)
-def test_out_of_range_rejected(cell, reg, vals, expect):
-    _rejected(cell, proto.i2c_write_frame(J, reg, 0x42, proto.pack_payload(reg, **vals)), expect)
+    assert (s["cmd_result"], s["rejected"], s["bus_err"]) == (D.RESULTS[v["result"]], v["rejected"], v["bus_err"])
+    if v["result"] == "OK":
+        assert s["cmd_seq"] == v["seq"]
+    else:
+        assert cell.config() == before
+    cell.write(proto.i2c_write_frame(J, "POINTER", 0, bytes([D.BLOCKS["PARAMS"]["id"]])))
+    p = proto.decode_block("PARAMS", cell.read())
+    assert (p["k_ab"], p["sigma"], p["k1"], p["k2"], p["astar"]) == v["params"]
 
 
 def test_empty_receive_ignored_and_mailbox_full_counted(cell):
@@ -235,40 +203,6 @@ def test_bad_pointer_counted_and_ignored(cell):
 
 def test_short_read_is_truncated(cell):
     assert cell.read(cap=5) == cell.read()[:5]
-
-
-def _reference_result(frame: bytes):
-    """Independent model of the validation order: length, CRC, register, length, ranges."""
-    if len(frame) < 3 or len(frame) > 3 + max(
-        sum(D.TYPE_SIZES[f[1]] for f in r["payload"]) for r in D.REGISTERS.values()
-    ):
-        return "LENGTH"
-    if proto.crc8(bytes([ADDR << 1]) + frame[:-1]) != frame[-1]:
-        return "CRC"
-    regs = {r["id"]: (k, r) for k, r in D.REGISTERS.items()}
-    if frame[0] not in regs or regs[frame[0]][0] == "POINTER":
-        return "REG"
-    name, r = regs[frame[0]]
-    if len(frame) != 3 + sum(D.TYPE_SIZES[f[1]] for f in r["payload"]):
-        return "LENGTH"
-    p = frame[2:-1]
-    if name in ("K_AB", "SIGMA", "K1", "K2", "ASTAR"):
-        v = struct.unpack("<i", p)[0]
-        ph = {"K_AB": 20000, "SIGMA": 72000, "K1": 60000, "K2": -60000, "ASTAR": 1178097}
-        ph[name] = v
-        if any(abs(ph[k]) > 250000 for k in ("K_AB", "SIGMA", "K1", "K2")) or not 0 <= ph["ASTAR"] <= 6283185:
-            return "RANGE"
-        if ph["K1"] <= ph["K2"] or ph["K1"] <= 0:
-            return "SHAPE"
-        return "OK"
-    if name in ("ENABLE", "BEMF"):
-        return "OK" if p[0] <= 1 else "RANGE"
-    if name == "PERTURB":
-        chain, t, _ = struct.unpack("<BhH", p)
-        return "OK" if chain <= 1 and abs(4 * t) <= 131000 else "RANGE"
-    if name == "PWM_LIMIT":
-        return "OK" if struct.unpack("<H", p)[0] <= 2400 else "RANGE"
-    return "OK"
 
 
 frames = st.one_of(
@@ -311,7 +245,7 @@ def test_any_write_matches_reference_and_rejections_change_nothing(fw, frame):
     if not frame:
         assert s["cmd_result"] == D.RESULTS["NONE"]
         return
-    expect = _reference_result(frame)
+    expect = rv.reference_result(frame)
     assert s["cmd_result"] == D.RESULTS[expect], (frame.hex(), expect)
     if expect != "OK":
         assert cell.config() == before

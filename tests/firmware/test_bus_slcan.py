@@ -4,6 +4,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.firmware.vectors import slcan as sv
+from tests.firmware.vectors.slcan import model
+
 
 class Slcan:
     def __init__(self, fw):
@@ -39,49 +42,7 @@ def sl(fw):
     return s
 
 
-def model(line: str, is_open: bool, listen: bool):
-    """Reference: (kind, reply, frame) for one line; kind in none/reply/frame/error."""
-    hexd = set("0123456789abcdefABCDEF")
-    if line == "":
-        return "none", "", None
-    if any(not (0x20 <= ord(c) <= 0x7E) for c in line) or len(line) > 32:
-        return "error", "\a", None
-    c, rest = line[0], line[1:]
-    simple = {"O": "\r", "L": "\r", "C": "\r", "V": "V0101\r", "v": "v0101\r", "N": "NMC01\r", "F": "F00\r"}
-    if c in simple:
-        return ("reply", simple[c], None) if rest == "" else ("error", "\a", None)
-    if c == "S":
-        return ("reply", "\r", None) if len(rest) == 1 and rest in "012345678" else ("error", "\a", None)
-    if c == "s":
-        return ("reply", "\r", None) if len(rest) == 4 and set(rest) <= hexd else ("error", "\a", None)
-    if c == "Z":
-        return ("reply", "\r", None) if rest in ("0", "1") else ("error", "\a", None)
-    if c in "Mm":
-        return ("reply", "\r", None) if len(rest) == 8 and set(rest) <= hexd else ("error", "\a", None)
-    if c in "tTrR":
-        if not is_open or listen:
-            return "error", "\a", None
-        n = 8 if c in "TR" else 3
-        if len(rest) < n + 1 or not set(rest[: n + 1]) <= hexd or not rest[n].isdigit():
-            return "error", "\a", None
-        fid, dlc = int(rest[:n], 16), int(rest[n])
-        if dlc > 8 or fid > (0x7FF if n == 3 else 0x1FFFFFFF):
-            return "error", "\a", None
-        body = rest[n + 1 :]
-        if c in "rR":
-            if body:
-                return "error", "\a", None
-            data = b""
-        else:
-            if len(body) != 2 * dlc or not set(body) <= hexd:
-                return "error", "\a", None
-            data = bytes.fromhex(body)
-        flags = (0x80000000 if n == 8 else 0) | (0x40000000 if c in "rR" else 0)
-        return "frame", "Z\r" if n == 8 else "z\r", (fid | flags, dlc, data if c in "tT" else b"")
-    return "error", "\a", None
-
-
-alphabet = st.sampled_from(list("tTrRSsOLCVvNFZMmx0123456789abcdefABCDEFG \x07\x7f"))
+alphabet = st.sampled_from(sv.ALPHABET)
 lines = st.one_of(
     st.text(alphabet, max_size=30),
     st.builds(
@@ -157,5 +118,31 @@ def test_encode_roundtrip_and_python_can_compatible(fw, ext, fid, data, ts_on, t
     assert frame == (fid | (0x80000000 if ext else 0), len(data), data)
 
 
-def test_encode_rejects_invalid(sl):
-    assert sl.encode(0x800, b"") == ""  # 11-bit id out of range
+EV = {
+    "none": "MC_SLCAN_EV_NONE",
+    "reply": "MC_SLCAN_EV_REPLY",
+    "frame": "MC_SLCAN_EV_FRAME",
+    "error": "MC_SLCAN_EV_ERROR",
+}
+
+
+@pytest.mark.parametrize("v", sv.LINE_CASES, ids=[c["name"] for c in sv.LINE_CASES])
+def test_line_vectors(fw, v):
+    """The vectors the Unity suite test/test_native_slcan runs: event, reply, frame and error count of one line."""
+    sl = Slcan(fw)
+    if v["state"] != "closed":
+        sl.line("L" if v["state"] == "listen" else "O")
+    errs = sl.s.errors
+    ev, reply, frame = sl.line(v["line"])
+    if frame and frame[0] & sv.RTR:
+        frame = frame[:2] + (b"",)  # a remote frame carries no data
+    assert (ev, reply, frame) == (getattr(fw[1], EV[v["kind"]]), v["reply"], v["frame"])
+    assert sl.s.errors == errs + (v["kind"] == "error")
+
+
+def test_encode_vectors(fw):
+    """The encoder vectors of test/test_native_slcan (an invalid frame encodes to nothing)."""
+    for v in sv.ENCODE_CASES:
+        sl = Slcan(fw)
+        sl.s.timestamps = int(v["timestamps"])
+        assert sl.encode(v["id"], v["data"], v["ts_ms"]) == v["text"], v

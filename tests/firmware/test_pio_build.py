@@ -81,9 +81,17 @@ def test_post_link_lint_ran_on_both_images(build_log):
     assert "fwcheck: FAILED" not in build_log and "WARNING `python -m tools.fwcheck lint`" not in build_log
 
 
-def test_unity_suite_passed_under_real_unity(build_log):
+SUITES = sorted(p.name for p in (ROOT / "test").glob("test_*") if (p / "test_main.c").is_file())
+
+
+def test_every_unity_suite_passed_under_real_unity(build_log):
+    """`pio test -e native` ran every suite under test/ (golden vectors, registers, SLCAN, primary), none failed."""
+    assert len(SUITES) >= 4, SUITES
+    summary = dict(re.findall(r"^native\s+(test_\S+)\s+(PASSED|FAILED|ERRORED|SKIPPED)\b", build_log, re.M))
+    assert summary == {s: "PASSED" for s in SUITES}, summary
     m = re.search(r"(\d+) test cases: (\d+) succeeded", build_log)
-    assert m and m.group(1) == m.group(2) and int(m.group(1)) >= 8, build_log[-2000:]
+    assert m and m.group(1) == m.group(2) and int(m.group(1)) >= 20, build_log[-2000:]
+    assert "[FAILED]" not in build_log
 
 
 def test_cell_image_holds_our_interrupt_handlers(build_log):
