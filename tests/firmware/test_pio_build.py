@@ -6,6 +6,7 @@ use.sh), or the user's own ~/.platformio holding the atmelsam and native platfor
 one line saying why. Any build or test error fails it.
 """
 
+import fcntl
 import os
 import re
 import shutil
@@ -36,8 +37,7 @@ def _how():
     return None, "no offline PlatformIO tree: set MC_PIO_TREE or install the atmelsam and native platforms"
 
 
-@pytest.fixture(scope="module")
-def build_log(tmp_path_factory):
+def _build(tmp_path_factory):
     cmd, why = _how()
     env = dict(
         os.environ,
@@ -59,6 +59,27 @@ def build_log(tmp_path_factory):
     out = r.stdout + r.stderr
     assert r.returncode == 0, out[-6000:]
     return out
+
+
+@pytest.fixture(scope="module")
+def build_log(tmp_path_factory):
+    """The log of one real build, shared by the xdist workers: the first builds under a lock, the others read
+    its log (two builds into the same .pio would delete each other's objects)."""
+    shared = tmp_path_factory.getbasetemp().parent
+    log, failed = shared / "pio_build.log", shared / "pio_build.failed"
+    with open(shared / "pio_build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if failed.exists():
+            pytest.fail(failed.read_text())
+        if not log.exists():
+            try:
+                log.write_text(_build(tmp_path_factory))
+            except pytest.skip.Exception:
+                raise
+            except BaseException as e:
+                failed.write_text(str(e)[-6000:])
+                raise
+        return log.read_text()
 
 
 def _sections(log):
