@@ -1,5 +1,6 @@
 /* Closed loop of the compiled cell firmware with the plant (equations in he_hil.h). */
 #include <math.h>
+#include <stdlib.h>
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
@@ -81,8 +82,9 @@ void he_hil_sync_encoders(he_hil_t *h, const double *x)
  * floating-point reaction. he_advance recomputes per step what a tick holds fixed (Kt V, and
  * 1 + h C / I with C = eta + m/S_L: three divisions per cylinder) and makes five passes over the state
  * (forces, bonds, update, flush, checks). plant_step_fast does the same arithmetic, in the same order on
- * the same operands, in one pass per chain with the per-tick terms cached. Any other configuration, and
- * every step during which a perturbation is on, goes through he_advance. */
+ * the same operands, in two passes over the state (update and checks; then the next step's bond torques and
+ * the stretch test) with the per-tick terms cached. Any other configuration, and every step during which a
+ * perturbation is on, goes through he_advance. */
 /* MAINTENANCE: plant_step_fast re-does he_plant_forces + he_advance for this configuration only. A new term
  * in he_plant_forces (a torque or voltage limit, another force) must either be added to plant_step_fast in
  * the same order or make fast_ok() return 0 when it is active; test_golden.py's fast-vs-generic test and the
@@ -102,11 +104,125 @@ static int pert_active(const he_plant_t *p, double t)
     return 0;
 }
 
-static inline double band_g(const double *c, int slack_f0, double d)
+/* The scratch of he_hil_run_ws (he_hil.h): heap arrays sized by the cell count, set up by he_hil_ws_open from
+ * h and its plant, which nothing may change while it is open. */
+struct he_hil_ws {
+    he_hil_t *h;
+    int n, fast;
+    int bonds_ok;      /* bond[] holds the bond torques of the current x (fast path) */
+    double dt;         /* tick_s / substeps */
+    double *mv;        /* [2n] Kt V per cylinder, held over the tick */
+    double *den;       /* [2n] 1 + dt C / I for the tick */
+    double *den_on;    /* [2n] ... while the driver is awake (m = Kt) */
+    double *den_off;   /* [2n] ... while it coasts (m = 0) */
+    double *bond;      /* [2n] bond torques T(j, j+1) per chain, [n-1] of each used */
+    double *kbl;       /* [2n] kscale_j * band_scale * lever per bond (the first two factors of T) */
+    double *enc_lo;    /* [2n] (double)count[i]: the encoder needs no step while lo <= theta cpr < lo + 1 */
+};
+typedef struct he_hil_ws hil_ws_t;
+
+void he_hil_ws_close(he_hil_ws_t *w) { free(w); }
+
+int he_hil_ws_open(he_hil_t *h, he_hil_ws_t **out)
 {
-    if (d > 0.0)
-        return c[0] + d * (c[1] + d * (c[2] + d * c[3]));
-    return slack_f0 ? c[0] : 0.0;
+    if (!out)
+        return HE_ERR_ARG;
+    *out = NULL;
+    if (!h || !h->plant || !h->cells || !h->quad || !h->count || h->n != h->plant->n || h->n < 1
+        || h->n > HE_MAX_CELLS || h->substeps < 1 || !(h->tick_s > 0.0))
+        return HE_ERR_ARG;
+    const he_plant_t *p = h->plant;
+    int n = h->n, n2 = 2 * n;
+    /* one block: the header, then 7 arrays of 2n doubles */
+    size_t head = (sizeof(hil_ws_t) + sizeof(double) - 1) / sizeof(double) * sizeof(double);
+    hil_ws_t *w = malloc(head + (size_t)7 * (size_t)n2 * sizeof(double));
+    if (!w)
+        return HE_ERR_NOMEM;
+    double *b = (double *)(void *)((char *)w + head);
+    w->h = h;
+    w->n = n;
+    w->dt = h->tick_s / h->substeps;
+    w->fast = fast_ok(p, h->stepper);
+    w->bonds_ok = 0;
+    w->mv = b;
+    w->den = b + n2;
+    w->den_on = b + 2 * n2;
+    w->den_off = b + 3 * n2;
+    w->bond = b + 4 * n2;
+    w->kbl = b + 5 * n2;
+    w->enc_lo = b + 6 * n2;
+    for (int i = 0; i < n2; i++)
+        w->enc_lo[i] = (double)h->count[i];
+    if (w->fast) {
+        /* 1 + h C / I with C = eta + m / S_L (he_plant_forces, he_advance) for m = Kt (driving) and m = 0
+         * (coasting): the only two values a tick can give, so no division per tick is left for them */
+        double dt = w->dt;
+        for (int ch = 0; ch < 2; ch++)
+            for (int j = 0; j < n; j++) {
+                w->den_on[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + h->kt / p->speed_const) / p->I[ch];
+                w->den_off[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + 0.0 / p->speed_const) / p->I[ch];
+                /* he_band_torque's ks * band_scale * L * (g+ - g-), evaluated left to right */
+                w->kbl[ch * n + j] = j + 1 < n ? p->kscale[ch][j] * p->band_scale * p->lever[ch] : 0.0;
+            }
+    }
+    *out = w;
+    return HE_OK;
+}
+
+/* Bond torques T(j, j+1) = s*L*[g(delta0 + u) - g(delta0 - u)], u = L (x_j - x_j+1) (he_band_torque) of both
+ * chains into w->bond, and he_plant_range_check's stretch test delta0 + L|x_j - x_j+1| > lim on the same x
+ * (L |d| = |L d| for L > 0, so it reuses u): nonzero when some bond fails it. Two bonds per SSE2 instruction
+ * where there is SSE2 (each lane does the scalar IEEE operations), the rest one at a time. */
+static int fast_bonds(const he_plant_t *p, hil_ws_t *w, const double *restrict x)
+{
+    int n = w->n, over_any = 0;
+    for (int ch = 0; ch < 2; ch++) {
+        const double *restrict c = p->coef[ch];
+        const double L = p->lever[ch], d0 = p->delta0[ch];
+        const double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
+        const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3];
+        const double slack = p->slack_f0 ? c0 : 0.0;
+        const double *restrict xc = x + ch * n;
+        const double *restrict kbl = w->kbl + ch * n;
+        double *restrict T = w->bond + ch * n;
+        int j = 0;
+#ifdef __SSE2__
+        {
+            const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd(), d0v = _mm_set1_pd(d0);
+            const __m128d Lv = _mm_set1_pd(L), limv = _mm_set1_pd(lim), slk = _mm_set1_pd(slack);
+            const __m128d c0v = _mm_set1_pd(c0), c1v = _mm_set1_pd(c1), c2v = _mm_set1_pd(c2), c3v = _mm_set1_pd(c3);
+            __m128d over = _mm_setzero_pd();
+            for (;; j += 2) {                      /* bonds (j, j+1), (j+1, j+2) */
+                if (j + 2 >= n) {
+                    if (j != n - 2 || n < 3)
+                        break;
+                    j = n - 3;                 /* one bond left: it and the one before (the same value again) */
+                }
+                __m128d u = _mm_mul_pd(Lv, _mm_sub_pd(_mm_loadu_pd(xc + j), _mm_loadu_pd(xc + j + 1)));
+                __m128d dp = _mm_add_pd(d0v, u), dm = _mm_sub_pd(d0v, u);
+                __m128d gp = _mm_add_pd(c0v, _mm_mul_pd(dp, _mm_add_pd(c1v, _mm_mul_pd(dp, _mm_add_pd(c2v, _mm_mul_pd(dp, c3v))))));
+                __m128d gm = _mm_add_pd(c0v, _mm_mul_pd(dm, _mm_add_pd(c1v, _mm_mul_pd(dm, _mm_add_pd(c2v, _mm_mul_pd(dm, c3v))))));
+                __m128d mp = _mm_cmpgt_pd(dp, zero), mm = _mm_cmpgt_pd(dm, zero);
+                gp = _mm_or_pd(_mm_and_pd(mp, gp), _mm_andnot_pd(mp, slk));
+                gm = _mm_or_pd(_mm_and_pd(mm, gm), _mm_andnot_pd(mm, slk));
+                _mm_storeu_pd(T + j, _mm_mul_pd(_mm_loadu_pd(kbl + j), _mm_sub_pd(gp, gm)));
+                over = _mm_or_pd(over, _mm_cmpgt_pd(_mm_add_pd(d0v, _mm_andnot_pd(sign, u)), limv));
+            }
+            over_any |= _mm_movemask_pd(over);
+        }
+#endif
+        for (; j + 1 < n; j++) {
+            double u = L * (xc[j] - xc[j + 1]);
+            double dp = d0 + u, dm = d0 - u;
+            double gp = c0 + dp * (c1 + dp * (c2 + dp * c3));
+            double gm = c0 + dm * (c1 + dm * (c2 + dm * c3));
+            gp = dp > 0.0 ? gp : slack;
+            gm = dm > 0.0 ? gm : slack;
+            T[j] = kbl[j] * (gp - gm);
+            over_any |= d0 + fabs(u) > lim;
+        }
+    }
+    return over_any;
 }
 
 static inline void sympl_update(double F, double dt, double I, double den, double *x, double *v)
@@ -117,183 +233,240 @@ static inline void sympl_update(double F, double dt, double I, double den, doubl
     *v = fabs(vj) < HE_TINY_RAD ? 0.0 : vj;
 }
 
-/* One step of size dt; mv = Kt V and den = 1 + dt C / I per cylinder (as he_plant_forces / he_advance form
- * them); T is scratch of n doubles (the bond torques). HE_OK or the code he_advance would return. Written as simple loops
- * without cross-iteration dependences so the compiler can run two cylinders per SSE2 instruction: each lane
- * does the very IEEE operations of the scalar code, so the bits do not change. */
-static int plant_step_fast(const he_plant_t *p, double dt, const double *restrict mv,
-                           const double *restrict den, double *restrict x, double *restrict v,
-                           double *restrict T)
+static inline int out_of_bounds(double x, double v)
 {
-    int n = p->n;
-    int bad = 0, bad_band = 0;
-    for (int ch = 0; ch < 2; ch++) {
-        const double *restrict c = p->coef[ch];
-        const double *restrict ks = p->kscale[ch];
-        const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale, I = p->I[ch];
-        const double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
-        const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3];
-        const double slack = p->slack_f0 ? c0 : 0.0;
-        double *restrict xc = x + ch * n;
-        double *restrict vc = v + ch * n;
-        const double *restrict mvc = mv + ch * n;
-        const double *restrict denc = den + ch * n;
-        /* bond torques T(j, j+1) = s*L*[g(delta0 + u) - g(delta0 - u)], u = L (x_j - x_j+1) (he_band_torque) */
-        for (int j = 0; j + 1 < n; j++) {
-            double u = L * (xc[j] - xc[j + 1]);
-            double dp = d0 + u, dm = d0 - u;
-            double gp = c0 + dp * (c1 + dp * (c2 + dp * c3));
-            double gm = c0 + dm * (c1 + dm * (c2 + dm * c3));
-            gp = dp > 0.0 ? gp : slack;
-            gm = dm > 0.0 ? gm : slack;
-            T[j] = ks[j] * bs * L * (gp - gm);
-        }
-        /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order; v1 = (v0 + h F/I) / (1 + h C/I),
-         * x1 = x0 + h v1 (he_advance); then he_flush_tiny and the he_state_check bounds */
-        /* F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order (the end cylinders have one bond
-         * and no "+ 0.0", which would turn a -0.0 into +0.0); then v1 = (v0 + h F/I) / (1 + h C/I),
-         * x1 = x0 + h v1 (he_advance) and he_flush_tiny */
-        if (n == 1) {
-            sympl_update(mvc[0], dt, I, denc[0], xc, vc);
-        } else {
-            sympl_update(mvc[0] - T[0], dt, I, denc[0], xc, vc);
-            for (int j = 1; j + 1 < n; j++)
-                sympl_update((mvc[j] + T[j - 1]) - T[j], dt, I, denc[j], xc + j, vc + j);
-            sympl_update(mvc[n - 1] + T[n - 2], dt, I, denc[n - 1], xc + n - 1, vc + n - 1);
-        }
-        /* he_state_check's bounds (NaN fails them) and he_plant_range_check's stretch test; two lanes at a
-         * time where SSE2 is there (the same compares on the same values), the rest one at a time */
-        int j = 0;
-#ifdef __SSE2__
-        {
-            const __m128d sign = _mm_set1_pd(-0.0), xlim = _mm_set1_pd(HE_ANGLE_LIMIT_RAD);
-            const __m128d vlim = _mm_set1_pd(HE_SPEED_LIMIT_RAD_S), blim = _mm_set1_pd(lim);
-            const __m128d d0v = _mm_set1_pd(d0), Lv = _mm_set1_pd(L);
-            __m128d ok = _mm_castsi128_pd(_mm_set1_epi32(-1)), over = _mm_setzero_pd();
-            for (; j + 2 < n; j += 2) {            /* x[j], x[j+1] and the bonds (j, j+1), (j+1, j+2) */
-                __m128d xa = _mm_loadu_pd(xc + j), xb = _mm_loadu_pd(xc + j + 1), va = _mm_loadu_pd(vc + j);
-                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, xa), xlim));
-                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, va), vlim));
-                __m128d st = _mm_add_pd(d0v, _mm_mul_pd(Lv, _mm_andnot_pd(sign, _mm_sub_pd(xa, xb))));
-                over = _mm_or_pd(over, _mm_cmpgt_pd(st, blim));
-            }
-            bad |= _mm_movemask_pd(ok) != 3;
-            bad_band |= _mm_movemask_pd(over) != 0;
-        }
-#endif
-        for (; j < n; j++) {
-            bad |= !(fabs(xc[j]) <= HE_ANGLE_LIMIT_RAD) | !(fabs(vc[j]) <= HE_SPEED_LIMIT_RAD_S);
-            if (j + 1 < n)
-                bad_band |= d0 + L * fabs(xc[j] - xc[j + 1]) > lim;
-        }
-    }
-    if (bad)
-        return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
-    return bad_band ? HE_ERR_BAND : HE_OK;
+    return !(fabs(x) <= HE_ANGLE_LIMIT_RAD) | !(fabs(v) <= HE_SPEED_LIMIT_RAD_S);
 }
 
-int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
+/* ---- fast path of the plant step (bit-identical to he_advance for the configuration it accepts) ----
+ * One step of size w->dt with the tick's w->mv = Kt V and w->den = 1 + dt C / I per cylinder (as
+ * he_plant_forces / he_advance form them) and w->bond = the bond torques of x (fast_bonds):
+ *   F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order (the end cylinders have one bond and no
+ *   "+ 0.0", which would turn a -0.0 into +0.0); v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 (he_advance),
+ *   then he_flush_tiny and he_state_check's bounds (NaN fails them);
+ * then the bond torques of the new x, which the next step needs, and with them he_plant_range_check's stretch
+ * test of the new x. HE_OK or the code he_advance would return (on an error w->bond is stale). */
+static int plant_step_fast(const he_plant_t *p, hil_ws_t *w, double *restrict x, double *restrict v)
+{
+    int n = w->n, bad = 0;
+    const double dt = w->dt;
+    for (int ch = 0; ch < 2; ch++) {
+        const double I = p->I[ch];
+        double *restrict xc = x + ch * n;
+        double *restrict vc = v + ch * n;
+        const double *restrict mvc = w->mv + ch * n;
+        const double *restrict denc = w->den + ch * n;
+        const double *restrict T = w->bond + ch * n;
+        if (n == 1) {
+            sympl_update(mvc[0], dt, I, denc[0], xc, vc);
+            bad |= out_of_bounds(xc[0], vc[0]);
+            continue;
+        }
+        sympl_update(mvc[0] - T[0], dt, I, denc[0], xc, vc);
+        bad |= out_of_bounds(xc[0], vc[0]);
+        int j = 1;
+#ifdef __SSE2__
+        {
+            const __m128d sign = _mm_set1_pd(-0.0), tiny = _mm_set1_pd(HE_TINY_RAD);
+            const __m128d xlim = _mm_set1_pd(HE_ANGLE_LIMIT_RAD), vlim = _mm_set1_pd(HE_SPEED_LIMIT_RAD_S);
+            const __m128d dtv = _mm_set1_pd(dt), Iv = _mm_set1_pd(I);
+            __m128d ok = _mm_castsi128_pd(_mm_set1_epi32(-1));
+            for (; j + 2 < n; j += 2) {        /* cylinders j, j+1, both interior */
+                __m128d F = _mm_sub_pd(_mm_add_pd(_mm_loadu_pd(mvc + j), _mm_loadu_pd(T + j - 1)), _mm_loadu_pd(T + j));
+                __m128d vj = _mm_div_pd(_mm_add_pd(_mm_loadu_pd(vc + j), _mm_div_pd(_mm_mul_pd(dtv, F), Iv)),
+                                        _mm_loadu_pd(denc + j));
+                __m128d xj = _mm_add_pd(_mm_loadu_pd(xc + j), _mm_mul_pd(dtv, vj));
+                xj = _mm_andnot_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, xj), tiny), xj);
+                vj = _mm_andnot_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, vj), tiny), vj);
+                _mm_storeu_pd(xc + j, xj);
+                _mm_storeu_pd(vc + j, vj);
+                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, xj), xlim));
+                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, vj), vlim));
+            }
+            bad |= _mm_movemask_pd(ok) != 3;
+        }
+#endif
+        for (; j + 1 < n; j++) {
+            sympl_update((mvc[j] + T[j - 1]) - T[j], dt, I, denc[j], xc + j, vc + j);
+            bad |= out_of_bounds(xc[j], vc[j]);
+        }
+        sympl_update(mvc[n - 1] + T[n - 2], dt, I, denc[n - 1], xc + n - 1, vc + n - 1);
+        bad |= out_of_bounds(xc[n - 1], vc[n - 1]);
+    }
+    if (bad) {
+        w->bonds_ok = 0;
+        return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
+    }
+    int over = fast_bonds(p, w, x);
+    w->bonds_ok = !over;
+    return over ? HE_ERR_BAND : HE_OK;
+}
+
+/* An encoder whose count must move: encoder_feed without its random draws (noise off), the same steps in the
+ * same order; keeps w->enc_lo in step with h->count. */
+static void encoder_move(he_hil_t *h, hil_ws_t *w, int i, double theta)
+{
+    double c = theta * h->counts_per_rad;
+    c = c > 2.0e9 ? 2.0e9 : c;
+    c = c < -2.0e9 ? -2.0e9 : c;
+    int32_t target = (int32_t)c;
+    target -= (double)target > c;
+    int32_t cur = h->count[i];
+    if (cur == target)
+        return;
+    mc_quad_t *q = &h->quad[i];
+    while (cur != target) {
+        cur += cur < target ? 1 : -1;
+        mc_quad_update(q, (uint8_t)he_gray(cur));
+    }
+    h->count[i] = cur;
+    w->enc_lo[i] = (double)cur;
+}
+
+/* Noise off: every encoder whose floor(theta cpr) left its count moves there. floor(c) == count exactly when
+ * count <= c < count + 1 (count + 1 is exact in a double), so a quiet encoder costs two compares and no
+ * conversion; NaN fails the compares and takes encoder_move's path, as before. */
+static void encoders_quiet(he_hil_t *h, hil_ws_t *w, const double *x)
+{
+    const double cpr = h->counts_per_rad;
+    const double *lo = w->enc_lo;
+    int n2 = 2 * w->n, i = 0;
+#ifdef __SSE2__
+    const __m128d cp = _mm_set1_pd(cpr), one = _mm_set1_pd(1.0);
+    for (; i + 2 <= n2; i += 2) {
+        __m128d c = _mm_mul_pd(_mm_loadu_pd(x + i), cp), l = _mm_loadu_pd(lo + i);
+        __m128d in = _mm_and_pd(_mm_cmple_pd(l, c), _mm_cmplt_pd(c, _mm_add_pd(l, one)));
+        if (_mm_movemask_pd(in) != 3) {
+            encoder_move(h, w, i, x[i]);
+            encoder_move(h, w, i + 1, x[i + 1]);
+        }
+    }
+#endif
+    for (; i < n2; i++) {
+        double c = x[i] * cpr;
+        if (!(lo[i] <= c && c < lo[i] + 1.0))
+            encoder_move(h, w, i, x[i]);
+    }
+}
+
+/* One control tick of every cell: the firmware tick on the decoder snapshots, then the motor terms it
+ * commands (p->volt, p->mgain for he_plant_forces; with fast, w->mv and w->den for the fast step). Returns the
+ * OR of the cells' fault flags. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline uint32_t cells_loop(he_hil_t *h, hil_ws_t *w, const int fast)
 {
     he_plant_t *p = h->plant;
-    int n = h->n;
-    if (!p || n != p->n || h->substeps < 1 || !(h->tick_s > 0.0))
-        return HE_ERR_ARG;
-    double dt = h->tick_s / h->substeps;
-    double t0 = *t;
-    int fast = fast_ok(p, h->stepper);
-    int n2f = fast ? 2 * n : 1;
-    double mv[n2f], den[n2f], den_on[n2f], den_off[n2f], bond[n2f];
-    if (fast) {
-        /* 1 + h C / I with C = eta + m / S_L (he_plant_forces, he_advance) for m = Kt (driving) and m = 0
-         * (coasting): the only two values a tick can give, so no division per tick is left for them */
-        for (int ch = 0; ch < 2; ch++)
-            for (int j = 0; j < n; j++) {
-                den_on[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + h->kt / p->speed_const) / p->I[ch];
-                den_off[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + 0.0 / p->speed_const) / p->I[ch];
-            }
-    }
-    for (int64_t k = 0; k < n_ticks; k++) {
-        for (int j = 0; j < n; j++) {
-            mc_quad_snap_t sa, sb;
-            mc_cell_t *c = &h->cells[j];
-            /* cache: mc_cell_t is 2192 bytes (velocity ring); at 4096 cells a tick's working set (~1.7 MB)
-             * exceeds L2, and the cost per cell rose 1.33x over 1024 cells. Fetching the hot head (the
-             * first 192 bytes) of a cell 4 ahead brings it back to ~1.1x (docs/accuracy.md, Scaling). */
-            if (j + 4 < n) {
-                const char *ahead = (const char *)&h->cells[j + 4];
-                __builtin_prefetch(ahead);
-                __builtin_prefetch(ahead + 64);
-                __builtin_prefetch(ahead + 128);
-            }
-            mc_quad_snapshot(&h->quad[j], &sa);
-            mc_quad_snapshot(&h->quad[n + j], &sb);
-            h->fault_or |= mc_cell_tick(c, &sa, &sb);
-            for (int ch = 0; ch < 2; ch++) {
-                const mc_drive_out_t *o = &c->out[ch];
-                int i = ch * n + j;
-                if (o->enable) {
-                    /* V = +-duty/top * Vs, held over the tick (the table holds the same quotients) */
-                    int32_t top = c->drive.pwm_top;
-                    double vlt = (h->volt_tab && top == h->volt_tab_top && o->duty <= top)
-                                     ? h->volt_tab[o->duty]
-                                     : (double)o->duty / (double)top * h->supply_v;
-                    double vs = o->dir ? vlt : -vlt;
-                    p->volt[ch][j] = vs;
-                    p->mgain[ch][j] = h->kt;
-                    if (fast) {
-                        mv[i] = h->kt * vs;            /* F = m V (he_plant_forces) */
-                        den[i] = den_on[i];
-                    }
-                } else {
-                    p->volt[ch][j] = 0.0;
-                    p->mgain[ch][j] = 0.0;
-                    if (fast) {
-                        mv[i] = 0.0 * 0.0;
-                        den[i] = den_off[i];
-                    }
+    const int n = w->n;
+    const double kt = h->kt, supply = h->supply_v;
+    const double *const vtab = h->volt_tab;
+    const int32_t vtop = h->volt_tab_top;
+    uint32_t fo = 0;
+    mc_cell_t *const cells = h->cells;
+    const mc_quad_t *const quad = h->quad;
+    double *const mv = w->mv, *const den = w->den;
+    const double *const den_on = w->den_on, *const den_off = w->den_off;
+    double *const volt[2] = {p->volt[0], p->volt[1]}, *const mg[2] = {p->mgain[0], p->mgain[1]};
+    for (int j = 0; j < n; j++) {
+        mc_quad_snap_t sa, sb;
+        mc_cell_t *c = &cells[j];
+        /* cache: the hot head of the cell 4 ahead (docs/accuracy.md, Scaling) */
+        if (j + 4 < n)
+            __builtin_prefetch(&cells[j + 4]);
+        mc_quad_snapshot(&quad[j], &sa);
+        mc_quad_snapshot(&quad[n + j], &sb);
+        fo |= mc_cell_tick(c, &sa, &sb);
+        /* the commands as values: the double stores below could alias them otherwise (-fno-strict-aliasing) */
+        const mc_drive_out_t out[2] = {c->out[0], c->out[1]};
+        /* V = +-duty/top * Vs, held over the tick (the table holds the same quotients) */
+        const int32_t top = c->drive.pwm_top;
+        const int tab = vtab && top == vtop;
+        for (int ch = 0; ch < 2; ch++) {
+            const mc_drive_out_t o = out[ch];
+            int i = ch * n + j;
+            if (o.enable) {
+                double vlt = (tab && o.duty <= top) ? vtab[o.duty] : (double)o.duty / (double)top * supply;
+                double vs = o.dir ? vlt : -vlt;
+                volt[ch][j] = vs;
+                mg[ch][j] = kt;
+                if (fast) {
+                    mv[i] = kt * vs;               /* F = m V (he_plant_forces) */
+                    den[i] = den_on[i];
+                }
+            } else {
+                volt[ch][j] = 0.0;
+                mg[ch][j] = 0.0;
+                if (fast) {
+                    mv[i] = 0.0 * 0.0;
+                    den[i] = den_off[i];
                 }
             }
         }
+    }
+    return fo;
+}
+
+/* One call per tick. flatten (GCC, across translation units under -flto) inlines mc_cell_tick, the very
+ * firmware function, into the loop, so that snapshots and outputs stay in registers. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((noinline, flatten))
+#endif
+static uint32_t tick_cells(he_hil_t *h, hil_ws_t *w)
+{
+    return w->fast ? cells_loop(h, w, 1) : cells_loop(h, w, 0);
+}
+
+int he_hil_run_ws(he_hil_ws_t *w, int64_t n_ticks, double *t, double *x, double *v)
+{
+    if (!w || !t || !x || !v)
+        return HE_ERR_ARG;
+    he_hil_t *h = w->h;
+    he_plant_t *p = h->plant;
+    const int n = w->n, fast = w->fast, noisy = h->jitter_counts > 0.0 || h->glitch_prob > 0.0;
+    const double dt = w->dt;
+    double t0 = *t;
+    uint32_t fo = h->fault_or;
+    for (int64_t k = 0; k < n_ticks; k++) {
+        fo |= tick_cells(h, w);
         double tk = t0 + (double)k * h->tick_s;
         for (int s = 0; s < h->substeps; s++) {
             double ts = tk + (double)s * dt;
             int rc;
             if (fast && !pert_active(p, ts + HE_STAGE_EDGE * dt)) {
-                rc = plant_step_fast(p, dt, mv, den, x, v, bond);
+                if (!w->bonds_ok)
+                    fast_bonds(p, w, x);       /* torques only: the state's checks come after the step */
+                rc = plant_step_fast(p, w, x, v);
                 ts = ts + (double)1 * dt;
             } else {
+                w->bonds_ok = 0;
                 rc = he_advance(p, h->stepper, dt, 1, &ts, x, v);
             }
             if (rc != HE_OK) {
+                h->fault_or = fo;
                 *t = ts;
                 return rc;
             }
-            if (h->jitter_counts > 0.0 || h->glitch_prob > 0.0) {
+            if (noisy) {
                 for (int i = 0; i < 2 * n; i++)
-                    encoder_feed(h, i, x[i]);
+                    w->enc_lo[i] = (double)encoder_feed(h, i, x[i]);
             } else {
-                /* noise off: encoder_feed without its random draws, the same steps in the same order */
-                const double cpr = h->counts_per_rad;
-                for (int i = 0; i < 2 * n; i++) {
-                    double c = x[i] * cpr;
-                    c = c > 2.0e9 ? 2.0e9 : c;
-                    c = c < -2.0e9 ? -2.0e9 : c;
-                    int32_t target = (int32_t)c;
-                    target -= (double)target > c;
-                    int32_t cur = h->count[i];
-                    if (cur == target)
-                        continue;
-                    mc_quad_t *q = &h->quad[i];
-                    while (cur != target) {
-                        cur += cur < target ? 1 : -1;
-                        mc_quad_update(q, (uint8_t)he_gray(cur));
-                    }
-                    h->count[i] = cur;
-                }
+                encoders_quiet(h, w, x);
             }
         }
         h->ticks++;
     }
+    h->fault_or = fo;
     *t = t0 + (double)n_ticks * h->tick_s;
     return HE_OK;
+}
+
+int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v)
+{
+    hil_ws_t *w;
+    int rc = he_hil_ws_open(h, &w);
+    if (rc == HE_OK)
+        rc = he_hil_run_ws(w, n_ticks, t, x, v);
+    he_hil_ws_close(w);
+    return rc;
 }

@@ -4,6 +4,8 @@
 
 #include <stdint.h>
 #include "he_plant.h"
+
+#define HE_ERR_NOMEM (-7)   /* malloc failed (he_plant.h holds the other HE_ERR_* codes) */
 #ifndef MC_CDEF /* the FFI pass sees mc_cell.h earlier in the same umbrella */
 #include "mc_cell.h"
 #endif
@@ -53,7 +55,18 @@ int32_t he_encoder_feed(he_hil_t *h, int i, double theta);
 void he_hil_sync_encoders(he_hil_t *h, const double *x);
 /* tab[d] = d/top * supply_v for d = 0..top: the motor voltage of each duty, as the tick computes it. */
 void he_hil_volt_table(double *tab, int32_t top, double supply_v);
-/* Run n_ticks control ticks from *t; HE_OK or an HE_ERR_* of the plant state. */
+/* Run n_ticks control ticks from *t; HE_OK or an HE_ERR_* of the plant state (HE_ERR_NOMEM: no memory for
+ * the scratch arrays, nothing run). */
 int he_hil_run(he_hil_t *h, int64_t n_ticks, double *t, double *x, double *v);
+
+/* he_hil_run in pieces with one scratch for all of them (the sampled and batch loops, he_sample.h):
+ * he_hil_ws_open sets up the per-cylinder arrays (heap, 2n doubles each) from h and its plant, which must not
+ * change until he_hil_ws_close; then each he_hil_run_ws(w, n_ticks, t, x, v) does exactly what
+ * he_hil_run(h, n_ticks, t, x, v) would. HE_ERR_ARG (and *w = NULL) for an inconsistent h, HE_ERR_NOMEM when
+ * malloc fails. he_hil_ws_close(NULL) does nothing. */
+typedef struct he_hil_ws he_hil_ws_t;
+int he_hil_ws_open(he_hil_t *h, he_hil_ws_t **w);
+int he_hil_run_ws(he_hil_ws_t *w, int64_t n_ticks, double *t, double *x, double *v);
+void he_hil_ws_close(he_hil_ws_t *w);
 
 #endif /* HE_HIL_H */

@@ -35,16 +35,21 @@ int he_hil_run_sampled(he_hil_t *hl, int64_t tick0, int64_t rate_hz, int64_t tic
         return HE_ERR_ARG;
     int n2 = 2 * hl->n;
     *done = 0;
-    for (int64_t s = 0; s < nsamp; s++) {
+    if (nsamp == 0)
+        return HE_OK;
+    he_hil_ws_t *w;                                   /* one scratch for every sample (heap, he_hil.h) */
+    int rc = he_hil_ws_open(hl, &w);
+    for (int64_t s = 0; s < nsamp && rc == HE_OK; s++) {
         /* t = tick / rate_hz, both exact in a double: the correctly rounded quotient, as Python's int / int */
         *t = (double)(tick0 + s * ticks_per_out) / (double)rate_hz;
-        int rc = he_hil_run(hl, ticks_per_out, t, x, v);
+        rc = he_hil_run_ws(w, ticks_per_out, t, x, v);
         if (rc != HE_OK)
-            return rc;                                /* *t: as he_hil_run left it */
+            break;                                    /* *t: as he_hil_run left it */
         record(out + s * n2, x, n2);
         *done = s + 1;
     }
-    return HE_OK;
+    he_hil_ws_close(w);
+    return rc;
 }
 
 int he_hil_run_batch(int32_t m, he_hil_t *const *hl, const int64_t *rate_hz, const int64_t *tpo,
@@ -62,15 +67,19 @@ int he_hil_run_batch(int32_t m, he_hil_t *const *hl, const int64_t *rate_hz, con
             continue;
         }
         int n2 = 2 * hl[i]->n, r = HE_OK;
-        for (int64_t s = 0; s < nsamp[i]; s++) {
+        he_hil_ws_t *w = NULL;                        /* one scratch per lattice (heap, he_hil.h) */
+        if (nsamp[i] > 0)
+            r = he_hil_ws_open(hl[i], &w);
+        for (int64_t s = 0; s < nsamp[i] && r == HE_OK; s++) {
             double t = (double)(s * tpo[i]) / (double)rate_hz[i];    /* as he_hil_run_sampled, tick0 = 0 */
-            r = he_hil_run(hl[i], tpo[i], &t, x[i], v[i]);
+            r = he_hil_run_ws(w, tpo[i], &t, x[i], v[i]);
             if (r != HE_OK)
                 break;
             if (out[i])
                 record(out[i] + s * n2, x[i], n2);
             done[i] = s + 1;
         }
+        he_hil_ws_close(w);
         rc[i] = r;
         failed += r != HE_OK;
     }

@@ -95,6 +95,7 @@ def error_text(lib, rc: int) -> str:
             "(30% strain): the motion grew out of the physical range"
         ),
         lib.HE_ERR_ARG: "invalid plant configuration",
+        lib.HE_ERR_NOMEM: "out of memory for the run's scratch arrays",
         lib.HE_ERR_STEPPER: "unknown stepper id",
     }.get(rc, f"error {rc}")
 
