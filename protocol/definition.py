@@ -83,6 +83,28 @@ BLOCKS = {
             ("crc", "u8", "CRC-8 of all bytes before"),
         ],
     },
+    # --- health additions (firmware review: watchdog and reset cause); additive, no layout above changed ---
+    "BOOT": {
+        "id": 3,
+        "doc": "why the cell last restarted and the watchdog in force",
+        "fields": [
+            ("tag", "u8", "(PROTO_VERSION << 4) | block id"),
+            ("addr", "u8", "7-bit address of the cell"),
+            ("reset_cause", "u8", "RESET_CAUSE bits read at boot (SAMD21 PM RCAUSE)"),
+            ("wdt_ms", "u16", "watchdog timeout in force, ms (0 = off)"),
+            ("crc", "u8", "CRC-8 of all bytes before"),
+        ],
+    },
+}
+
+# Reset cause bits (BOOT.reset_cause, PRIMARY_HEALTH.reset_cause): the SAMD21 PM RCAUSE register as read at boot.
+RESET_CAUSE = {
+    "POR": 0,  # power-on reset
+    "BOD12": 1,  # 1.2 V brown-out
+    "BOD33": 2,  # 3.3 V brown-out
+    "EXT": 4,  # reset pin
+    "WDT": 5,  # watchdog expired (the firmware hung)
+    "SYST": 6,  # system reset request (software reset, bootloader entry)
 }
 
 CELL_FLAGS = {
@@ -249,6 +271,20 @@ FRAMES = {
             ("count", "u16", 1, 0, "", "rejected frames since boot (wraps)"),
         ],
     },
+    # --- health addition (firmware review: USB flow control, bus recovery, reset cause); additive ---
+    "PRIMARY_HEALTH": {
+        "base": 0x0F2,
+        "per_cell": False,
+        "sender": "PRIMARY",
+        "dlc": 8,
+        "doc": "primary health, once per second after the heartbeat",
+        "signals": [
+            ("reset_cause", "u8", 1, 0, "", "RESET_CAUSE bits read at the primary's boot"),
+            ("usb_lost", "u32", 1, 0, "byte", "SLCAN output bytes the USB port did not take (saturates)"),
+            ("bus_reset", "u16", 1, 0, "", "I2C bus recoveries: 9 clocks and a STOP (wraps)"),
+            ("usb_fail", "u8", 1, 0, "", "USB writes that failed (wraps)"),
+        ],
+    },
 }
 
 # ---------------------------------------------------------------------------
@@ -303,4 +339,4 @@ DBC_CHOICES = {
 }
 
 # frame -> cycle time in ms (frames sent on a fixed period; the per-cell frames follow the polling rate).
-DBC_CYCLE_MS = {"PRIMARY_STATUS": 1000}
+DBC_CYCLE_MS = {"PRIMARY_STATUS": 1000, "PRIMARY_HEALTH": 1000}

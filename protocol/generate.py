@@ -99,6 +99,10 @@ def render_header(d) -> str:
     for name, bit in sorted(d.CELL_FLAGS.items(), key=lambda kv: kv[1]):
         w(f"#define MC_CF_{name} 0x{1 << bit:02X}")
     w("")
+    w("/* ---- reset cause bits (BOOT block, PRIMARY_HEALTH frame) ---- */")
+    for name, bit in sorted(getattr(d, "RESET_CAUSE", {}).items(), key=lambda kv: kv[1]):
+        w(f"#define MC_RCAUSE_{name} 0x{1 << bit:02X}")
+    w("")
     w("/* ---- writable registers: S addr+W reg seq payload crc8 P ---- */")
     w("#define MC_WRITE_OVERHEAD 3   /* reg, seq, crc */")
     maxpay = 0
@@ -289,6 +293,8 @@ def render_tables(d) -> str:
     L += [f"| 0x{v:02X} | {k} |" for k, v in sorted(d.RESULTS.items(), key=lambda kv: kv[1])]
     L += ["", "## Cell flags", "", "| bit | name |", "|---|---|"]
     L += [f"| {v} | {k} |" for k, v in sorted(d.CELL_FLAGS.items(), key=lambda kv: kv[1])]
+    L += ["", "## Reset cause bits", "", "| bit | name |", "|---|---|"]
+    L += [f"| {v} | {k} |" for k, v in sorted(getattr(d, "RESET_CAUSE", {}).items(), key=lambda kv: kv[1])]
     L += ["", "## CAN frames (11-bit ids; per-cell frames at base + j)", ""]
     for name, f in d.FRAMES.items():
         ids = f"0x{f['base'] + 1:03X}..0x{f['base'] + d.N_CELLS:03X}" if f["per_cell"] else f"0x{f['base']:03X}"

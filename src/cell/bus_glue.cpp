@@ -61,6 +61,8 @@ extern "C" void bus_setup(uint8_t addr)
     mc_cell_t *c = cell_app_cell();
     cell_app_lock();
     int rc = mc_regs_init(&g_regs, c, addr, MC_BUILD_ID, NULL);
+    if (rc == MC_OK)
+        mc_regs_set_boot(&g_regs, cell_app_reset_cause(), cell_app_wdt_ms());
     cell_app_unlock();
     if (rc != MC_OK)
         return;

@@ -28,6 +28,9 @@ uint8_t cell_app_index(void);
 uint8_t cell_app_addr(void);
 /* Control ticks run since start-up (wraps mod 2^32). */
 uint32_t cell_app_ticks(void);
+/* MC_RCAUSE_* bits read at boot, and the watchdog timeout in force (ms, 0 = off). */
+uint8_t cell_app_reset_cause(void);
+uint16_t cell_app_wdt_ms(void);
 
 #ifdef __cplusplus
 }

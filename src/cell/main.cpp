@@ -3,6 +3,7 @@
 #include "cell_config.h"
 #include "metacell.h"
 #include "samd21_hw.h"
+#include "../common/samd21_sys.h"
 #include "cell_app.h"
 #include "bus_glue.h"
 
@@ -11,6 +12,8 @@
  *   snapshot both decoders -> mc_cell_tick() -> hw_apply(out[alpha], out[beta])
  * The USB serial port answers the identity request "ID?" (src/common/mc_ident.h)
  * and nothing else; the bus glue (docs/datapath.md) carries every other command.
+ * The watchdog (src/common/samd21_sys.h) is fed once per loop pass; the reset cause
+ * read at boot goes out in the BOOT block.
  */
 
 enum { SETUP_OK = 0, SETUP_ERR_PINS, SETUP_ERR_DRIVE, SETUP_ERR_TICK };
@@ -21,6 +24,8 @@ static mc_quad_t g_quad[2];
 static volatile uint32_t g_ticks;
 static int g_setup_err = SETUP_OK;
 static mc_ident_rx_t g_rx;
+static uint8_t g_reset_cause;
+static uint16_t g_wdt_ms;
 
 /* TC3 interrupt, MC_CTRL_RATE_HZ times a second. */
 extern "C" void hw_tick_handler(void)
@@ -41,6 +46,8 @@ void cell_app_unlock(void) { hw_tick_unmask(); }
 uint8_t cell_app_index(void) { return MC_CELL_INDEX; }
 uint8_t cell_app_addr(void) { return MC_CELL_ADDR; }
 uint32_t cell_app_ticks(void) { return g_ticks; }
+uint8_t cell_app_reset_cause(void) { return g_reset_cause; }
+uint16_t cell_app_wdt_ms(void) { return g_wdt_ms; }
 
 void cell_app_positions(int32_t *pos_a, int32_t *pos_b)
 {
@@ -77,6 +84,9 @@ static void answer_identity(void)
 void setup()
 {
     hw_drivers_init();   /* drivers asleep before anything else */
+    g_reset_cause = sys_reset_cause();
+    sys_wdt_start();     /* fed by loop() from here on, also after a start-up error */
+    g_wdt_ms = SYS_WDT_MS;
     pinMode(LED_BUILTIN, OUTPUT);
     digitalWrite(LED_BUILTIN, HIGH);   /* XIAO user LED is active low: off */
     Serial.begin(115200);              /* USB CDC: the rate is ignored, never 1200 */
@@ -111,6 +121,7 @@ void setup()
 
 void loop()
 {
+    sys_wdt_feed();
     while (Serial.available() > 0) {
         if (mc_ident_rx_feed(&g_rx, (uint8_t)Serial.read()))
             answer_identity();

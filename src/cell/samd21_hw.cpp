@@ -145,12 +145,24 @@ static void attach_encoder_pin(uint8_t pin, void (*isr)(void))
     PORT->Group[d.ulPort].PINCFG[d.ulPin].reg |= PORT_PINCFG_INEN;
 }
 
+/*
+ * PORT CTRL.SAMPLING: the IOBUS reads IN in one cycle, but with on-demand sampling
+ * (the reset state) a pin's input synchroniser only runs when the APB reads it, so
+ * an IOBUS read may return a level from the last APB read: a stale level makes the
+ * decoder see a skipped state (a false illegal transition, a latched fault). The
+ * datasheet asks for continuous sampling of every pin read through the IOBUS.
+ */
+#define ENC_SAMPLE_PA ((1ul << ENC_AB_BIT) | (1ul << ENC_BA_BIT) | (1ul << ENC_BB_BIT))
+#define ENC_SAMPLE_PB (1ul << ENC_AA_BIT)
+
 void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta)
 {
     static const uint8_t pins[] = {CELL_PIN_ENC_A_A, CELL_PIN_ENC_A_B, CELL_PIN_ENC_B_A,
                                    CELL_PIN_ENC_B_B};
     for (unsigned i = 0; i < sizeof(pins); i++)
         pinMode(pins[i], INPUT_PULLUP);
+    PORT->Group[PA].CTRL.reg |= ENC_SAMPLE_PA;   /* continuous sampling: PA05, PA06, PA07 */
+    PORT->Group[PB].CTRL.reg |= ENC_SAMPLE_PB;   /* and PB09 */
     delayMicroseconds(20);   /* let the pull-ups settle before the first sample */
     s_quad[MC_ALPHA] = alpha;
     s_quad[MC_BETA] = beta;

@@ -5,6 +5,7 @@ extern "C" {
 #include "bus/mc_primary.h"
 #include "../common/mc_ident.h"
 }
+#include "../common/samd21_sys.h"
 #include "primary_hw.h"
 
 /*
@@ -12,7 +13,10 @@ extern "C" {
  * SLCAN); this file moves bytes (docs/datapath.md):
  *   USB in  -> mc_link_rx  -> replies to USB
  *   mc_primary_next -> one guarded Wire transaction (primary_hw.cpp) -> mc_primary_complete
- *   mc_link_tx -> USB out (whole lines, only as much as the CDC buffer takes)
+ *   mc_link_tx -> USB out (whole lines, one USB packet per write, see usb_out)
+ *   USB DTR edge (the laptop opened or closed the port) -> mc_link_session
+ * The watchdog (src/common/samd21_sys.h) is fed once per loop pass; the reset cause
+ * read at boot, the bus recoveries and the USB bytes lost go out in PRIMARY_HEALTH.
  * "ID?" lines are answered with the identity line (tools/flash); the SLCAN parser
  * also sees them and counts them as malformed, but its BEL reply is suppressed.
  */
@@ -28,18 +32,44 @@ extern "C" {
 #define MC_TXN_TIMEOUT_US 5000
 #endif
 
+/* One write = at most one USB full-speed bulk packet: the core sends it whole or not at all. */
+#define USB_PACKET 64
+
 static mc_link_t g_link;
 static mc_ident_rx_t g_rx;
 static char g_line_first;    /* first byte of the USB line being received */
+static bool g_dtr;           /* last seen USB DTR (host has the port open) */
+static uint32_t g_resets;    /* bus recoveries already reported to the library */
 
 void setup()
 {
+    uint8_t cause = sys_reset_cause();
     Serial.begin(115200);   /* USB CDC: the rate is ignored, never 1200 */
     mc_ident_rx_init(&g_rx);
     mc_link_init(&g_link, primary_hw_micros());
     mc_primary_configure(&g_link.p, MC_POLL_PERIOD_US, MC_TXN_TIMEOUT_US, MC_SCHED_ACK_TIMEOUT_US,
                          MC_SCHED_STATUS_EVERY);
+    mc_primary_set_reset_cause(&g_link.p, cause);
     primary_hw_begin(MC_I2C_HZ);
+    g_dtr = Serial.dtr();
+    sys_wdt_start();
+}
+
+/*
+ * Serial.availableForWrite() is a constant on this core (63), so it cannot pace the
+ * output. Serial.write() blocks up to 70 ms when the host stops reading, then gives
+ * up (returning 0, or (size_t)-1 from the core's failed send); later writes fail at
+ * once until the host reads again. So every write is at most one packet (whole SLCAN
+ * lines, all or nothing) and any write that does not report all its bytes counts
+ * them as lost (PRIMARY_HEALTH.usb_lost); nothing is dropped silently.
+ */
+static bool usb_write(const void *buf, uint32_t n)
+{
+    size_t w = Serial.write((const uint8_t *)buf, n);
+    if (w == n)
+        return true;
+    mc_primary_usb_lost(&g_link.p, n);
+    return false;
 }
 
 static void usb_in(void)
@@ -51,12 +81,12 @@ static void usb_in(void)
             char line[MC_IDENT_LINE_MAX];
             int n = mc_ident_format(line, sizeof(line), MC_IDENT_ROLE_PRIMARY, 0, 0, MC_FW_VERSION);
             if (n > 0)
-                Serial.write((const uint8_t *)line, (size_t)n);
+                usb_write(line, (uint32_t)n);
         }
         uint32_t used;
         uint32_t n = mc_link_rx(&g_link, primary_hw_micros(), &b, 1, &used, out, sizeof(out));
         if (n && g_line_first != 'I')
-            Serial.write((const uint8_t *)out, n);
+            usb_write(out, n);
         if (b == '\r' || b == '\n')
             g_line_first = 0;
         else if (!g_line_first)
@@ -64,8 +94,27 @@ static void usb_in(void)
     }
 }
 
+/* Queued frames out: whole lines, one packet per write, a few packets per pass; stop at the
+ * first failed write (the host is not reading: the queue fills and counts its drops). */
+static void usb_out(void)
+{
+    char out[USB_PACKET];
+    for (int k = 0; k < 4; k++) {
+        uint32_t n = mc_link_tx(&g_link, primary_hw_micros(), out, sizeof(out));
+        if (n == 0 || !usb_write(out, n))
+            return;
+    }
+}
+
 void loop()
 {
+    sys_wdt_feed();
+    /* a laptop opening or closing the port starts a new link session */
+    bool dtr = Serial.dtr();
+    if (dtr != g_dtr) {
+        g_dtr = dtr;
+        mc_link_session(&g_link);
+    }
     usb_in();
     mc_txn_t t;
     if (mc_primary_next(&g_link.p, primary_hw_micros(), &t)) {
@@ -74,15 +123,7 @@ void loop()
         int st = primary_hw_txn(&t, rx, &len);
         mc_primary_complete(&g_link.p, primary_hw_micros(), st, rx, len);
     }
-    /* whole lines only; with the channel closed mc_link_tx just empties the queue */
-    int room = primary_hw_usb_room();
-    if (room >= MC_SLCAN_FRAME_MAX || !g_link.s.open) {
-        char out[256];
-        uint32_t cap = room > (int)sizeof(out) ? (uint32_t)sizeof(out) : (uint32_t)MC_SLCAN_FRAME_MAX;
-        if (room > MC_SLCAN_FRAME_MAX && room < (int)sizeof(out))
-            cap = (uint32_t)room;
-        uint32_t n = mc_link_tx(&g_link, primary_hw_micros(), out, cap);
-        if (n)
-            Serial.write((const uint8_t *)out, n);
-    }
+    for (uint32_t r = primary_hw_bus_resets(); g_resets != r; g_resets++)
+        mc_primary_bus_reset(&g_link.p);
+    usb_out();
 }

@@ -1,31 +1,71 @@
-/* Primary hardware layer: Wire on SERCOM2 guarded by the SERCOM timeouts and bus recovery; micros(); USB room. */
+/* Primary hardware layer: bounded I2C master transactions on SERCOM2, open-drain bus recovery, micros(). */
 #include <Arduino.h>
 #include <Wire.h>
 #include "primary_hw.h"
 
 /*
- * Guarding Wire (the core's primary calls block while the bus is held):
- *   - SERCOM2 runs with its SCL low timeout (LOWTOUTEN, 25-35 ms) and an inactive
- *     bus timeout (INACTOUT), so a held SCL ends the blocking call with an error;
- *   - before each transaction a bus seen busy is recovered with 9 SCL pulses;
- *   - a transaction that returns after txn.timeout_us counts as a timeout in the
- *     library (its data is dropped) and the cell is backed off 1, 2, 4 .. 64 cycles.
- * So a stuck cell costs at most ~35 ms per back-off period and never stalls the others.
+ * Every wait here is bounded. The core's Wire master (1.8.5) waits on MB/SB alone:
+ * after a bus error or lost arbitration while reading, SB never comes and
+ * requestFrom() never returns (only the write path checks BUSERR). So Wire is used
+ * only to set up SERCOM2 (clock, pins, baud); each transaction drives the I2CM
+ * registers itself, and every wait (MB/SB, SYNCBUSY) ends at the transaction's
+ * deadline, txn.timeout_us after its start, or at a bus error / lost arbitration.
+ *   - SERCOM2 also runs with its SCL low timeout (LOWTOUTEN: SCL held low 25-35 ms
+ *     sets LOWTOUT) and the inactive-bus timeout INACTOUT = 3: 20-21 SCL periods,
+ *     ~52 us at 400 kHz (~205 us at 100 kHz), after which a bus left busy by a
+ *     missing STOP counts as idle;
+ *   - a transaction that fails with a timeout or a bus error ends with a STOP when
+ *     the primary owns the bus; a bus still not idle is recovered at once (9 SCL
+ *     pulses, open-drain, then a STOP) and the recovery counted (PRIMARY_HEALTH);
+ *   - the library counts the timeout and backs the cell off 1, 2, 4 .. 64 cycles.
+ * So a stuck or babbling cell costs at most txn.timeout_us + one recovery (~0.2 ms)
+ * per back-off period, and the main loop never stops long enough for the watchdog.
  * Writes always end with STOP and reads are separate transactions (no repeated start).
  */
 static uint32_t g_hz;
+static uint32_t g_t0, g_limit;   /* deadline of the transaction in progress */
+static uint32_t g_recoveries;    /* bus recoveries (primary_hw_bus_resets) */
+
+#define I2CM (SERCOM2->I2CM)
+#define BUSSTATE_IDLE 1u
+#define BUSSTATE_OWNER 2u
+#define CMD_READ_MORE 2u   /* acknowledge action, then read one more byte */
+#define CMD_STOP 3u        /* acknowledge action, then STOP */
+#define SYNC_US 50u        /* bound of a SYNCBUSY wait outside a transaction */
+
+static int expired(void) { return (uint32_t)(micros() - g_t0) > g_limit; }
+
+/* Wait for SYNCBUSY.SYSOP to clear until the deadline; 0 when it did. */
+static int sync_sysop(void)
+{
+    while (I2CM.SYNCBUSY.bit.SYSOP) {
+        if (expired())
+            return -1;
+    }
+    return 0;
+}
+
+static void deadline(uint32_t us)
+{
+    g_t0 = micros();
+    g_limit = us;
+}
 
 static void sercom_timeouts(void)
 {
-    Sercom *s = SERCOM2;
-    s->I2CM.CTRLA.bit.ENABLE = 0;
-    while (s->I2CM.SYNCBUSY.bit.ENABLE) {}
-    s->I2CM.CTRLA.bit.LOWTOUTEN = 1;   /* SCL low > 25-35 ms: error, Wire returns */
-    s->I2CM.CTRLA.bit.INACTOUT = 3;    /* bus idle after ~205 us of inactivity */
-    s->I2CM.CTRLA.bit.ENABLE = 1;
-    while (s->I2CM.SYNCBUSY.bit.ENABLE) {}
-    s->I2CM.STATUS.bit.BUSSTATE = 1;   /* force idle */
-    while (s->I2CM.SYNCBUSY.bit.SYSOP) {}
+    deadline(SYNC_US);
+    I2CM.CTRLA.bit.ENABLE = 0;
+    while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {
+    }
+    I2CM.CTRLA.bit.LOWTOUTEN = 1;   /* SCL low > 25-35 ms: LOWTOUT error */
+    I2CM.CTRLA.bit.INACTOUT = 3;    /* bus idle after 20-21 SCL periods: ~52 us at 400 kHz */
+    I2CM.CTRLA.bit.ENABLE = 1;
+    deadline(SYNC_US);
+    while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {
+    }
+    I2CM.STATUS.bit.BUSSTATE = BUSSTATE_IDLE;   /* force idle */
+    deadline(SYNC_US);
+    sync_sysop();
 }
 
 void primary_hw_begin(uint32_t hz)
@@ -36,41 +76,158 @@ void primary_hw_begin(uint32_t hz)
     sercom_timeouts();
 }
 
-/* 9 clock pulses with SDA released free a secondary stuck mid-byte; then restart Wire. */
+/* SCL / SDA as open-drain lines: low = output driving 0; released = input with pull-up.
+ * digitalWrite(LOW) on an input clears OUT (and the pull) before the pin becomes an
+ * output, so a line is never driven high. */
+static void line_low(uint32_t pin)
+{
+    digitalWrite(pin, LOW);
+    pinMode(pin, OUTPUT);
+}
+
+static void line_release(uint32_t pin) { pinMode(pin, INPUT_PULLUP); }
+
+/* 9 clock pulses with SDA released free a secondary stuck mid-byte (it sees its byte end
+ * and a NACK); then a STOP (SDA rising while SCL is high) resets every secondary's bus
+ * state machine; then SERCOM2 is set up again. ~0.2 ms at 5 us half periods. */
 static void bus_recover(void)
 {
     Wire.end();
-    pinMode(PIN_WIRE_SDA, INPUT_PULLUP);
-    pinMode(PIN_WIRE_SCL, OUTPUT);
+    line_release(PIN_WIRE_SDA);
+    line_release(PIN_WIRE_SCL);
+    delayMicroseconds(5);
     for (int i = 0; i < 9; i++) {
-        digitalWrite(PIN_WIRE_SCL, LOW);
+        line_low(PIN_WIRE_SCL);
         delayMicroseconds(5);
-        digitalWrite(PIN_WIRE_SCL, HIGH);
+        line_release(PIN_WIRE_SCL);
         delayMicroseconds(5);
     }
+    /* STOP: SDA low while SCL is low, SCL up, then SDA up */
+    line_low(PIN_WIRE_SCL);
+    delayMicroseconds(5);
+    line_low(PIN_WIRE_SDA);
+    delayMicroseconds(5);
+    line_release(PIN_WIRE_SCL);
+    delayMicroseconds(5);
+    line_release(PIN_WIRE_SDA);
+    delayMicroseconds(5);
+    g_recoveries++;
     primary_hw_begin(g_hz);
+}
+
+static int bus_fault(void)
+{
+    return (I2CM.STATUS.reg & (SERCOM_I2CM_STATUS_BUSERR | SERCOM_I2CM_STATUS_ARBLOST |
+                               SERCOM_I2CM_STATUS_LOWTOUT)) != 0;
+}
+
+/* Wait for MB or SB. MC_I2C_OK, MC_I2C_BUS_ERROR (bus error, lost arbitration, SCL low
+ * timeout) or MC_I2C_TIMEOUT (deadline). */
+static int wait_bus(void)
+{
+    for (;;) {
+        if (expired())
+            return MC_I2C_TIMEOUT;
+        if (bus_fault())
+            return MC_I2C_BUS_ERROR;
+        if (I2CM.INTFLAG.reg & (SERCOM_I2CM_INTFLAG_MB | SERCOM_I2CM_INTFLAG_SB))
+            return bus_fault() ? MC_I2C_BUS_ERROR : MC_I2C_OK;
+    }
+}
+
+/* Issue a command (CTRLB.CMD) with ACKACT = nack; sync bounded by the deadline. */
+static int command(uint32_t cmd, uint32_t nack)
+{
+    I2CM.CTRLB.reg = (I2CM.CTRLB.reg & ~(SERCOM_I2CM_CTRLB_CMD_Msk | SERCOM_I2CM_CTRLB_ACKACT)) |
+                     SERCOM_I2CM_CTRLB_CMD(cmd) | (nack ? SERCOM_I2CM_CTRLB_ACKACT : 0u);
+    return sync_sysop();
+}
+
+/* End a transaction: STOP if the primary still owns the bus; a failed one that leaves
+ * the bus not idle (held, unknown, lost), an error flag set or SERCOM2 unsynchronised
+ * is recovered (SERCOM2 reset included). */
+static int finish(int st)
+{
+    if (I2CM.STATUS.bit.BUSSTATE == BUSSTATE_OWNER) {
+        deadline(SYNC_US);   /* room for the STOP even after the transaction's deadline */
+        command(CMD_STOP, 1);
+    }
+    if (st == MC_I2C_TIMEOUT || st == MC_I2C_BUS_ERROR || I2CM.STATUS.bit.LOWTOUT)
+        if (I2CM.STATUS.bit.BUSSTATE != BUSSTATE_IDLE || bus_fault() || I2CM.SYNCBUSY.bit.SYSOP)
+            bus_recover();
+    return st;
+}
+
+static int start(uint8_t addr_rw)
+{
+    if (sync_sysop())
+        return MC_I2C_TIMEOUT;
+    I2CM.ADDR.reg = addr_rw;
+    return wait_bus();
+}
+
+static int write_txn(const mc_txn_t *t)
+{
+    int st = start((uint8_t)(t->addr << 1));
+    if (st != MC_I2C_OK)
+        return finish(st);
+    if (I2CM.STATUS.bit.RXNACK)
+        return finish(MC_I2C_NACK_ADDR);
+    for (uint32_t k = 0; k < t->len; k++) {
+        if (sync_sysop())
+            return finish(MC_I2C_TIMEOUT);
+        I2CM.DATA.reg = t->buf[k];
+        st = wait_bus();
+        if (st != MC_I2C_OK)
+            return finish(st);
+        if (I2CM.STATUS.bit.RXNACK)
+            return finish(MC_I2C_NACK_DATA);
+    }
+    return finish(MC_I2C_OK);
+}
+
+static int read_txn(const mc_txn_t *t, uint8_t *rx, uint32_t *len)
+{
+    uint32_t want = t->len < MC_BLK_MAX_LEN ? t->len : MC_BLK_MAX_LEN;
+    int st = start((uint8_t)((t->addr << 1) | 1u));
+    if (st != MC_I2C_OK)
+        return finish(st);
+    /* MB instead of SB on a read: the address was not acknowledged */
+    if (!I2CM.INTFLAG.bit.SB)
+        return finish(I2CM.STATUS.bit.RXNACK ? MC_I2C_NACK_ADDR : MC_I2C_BUS_ERROR);
+    for (uint32_t k = 0; k < want; k++) {
+        if (k > 0) {
+            /* ACK the previous byte and clock in the next */
+            if (command(CMD_READ_MORE, 0))
+                return finish(MC_I2C_TIMEOUT);
+            st = wait_bus();
+            if (st != MC_I2C_OK)
+                return finish(st);
+        }
+        if (sync_sysop())
+            return finish(MC_I2C_TIMEOUT);
+        rx[(*len)++] = (uint8_t)I2CM.DATA.reg;
+    }
+    /* NACK the last byte, then STOP (finish) */
+    I2CM.CTRLB.bit.ACKACT = 1;
+    return finish(MC_I2C_OK);
 }
 
 int primary_hw_txn(const mc_txn_t *t, uint8_t *rx, uint32_t *len)
 {
     *len = 0;
-    if (SERCOM2->I2CM.STATUS.bit.BUSSTATE == 3 || SERCOM2->I2CM.STATUS.bit.LOWTOUT) {
+    deadline(t->timeout_us);
+    if (I2CM.STATUS.bit.BUSSTATE == 3u || I2CM.STATUS.bit.LOWTOUT) {
         bus_recover();
         return MC_I2C_BUS_ERROR;
     }
-    if (t->kind == MC_TXN_WRITE) {
-        Wire.beginTransmission(t->addr);
-        Wire.write(t->buf, t->len);
-        uint8_t e = Wire.endTransmission(true);
-        return e == 0 ? MC_I2C_OK : e == 2 ? MC_I2C_NACK_ADDR : e == 3 ? MC_I2C_NACK_DATA : MC_I2C_BUS_ERROR;
-    }
-    uint8_t n = Wire.requestFrom(t->addr, (size_t)t->len, true);
-    if (n == 0)
-        return SERCOM2->I2CM.STATUS.bit.LOWTOUT ? MC_I2C_TIMEOUT : MC_I2C_NACK_ADDR;
-    while (Wire.available() > 0 && *len < MC_BLK_MAX_LEN)
-        rx[(*len)++] = (uint8_t)Wire.read();
-    return MC_I2C_OK;
+    if (t->kind == MC_TXN_WRITE)
+        return write_txn(t);
+    int st = read_txn(t, rx, len);
+    if (st != MC_I2C_OK)
+        *len = 0;
+    return st;
 }
 
+uint32_t primary_hw_bus_resets(void) { return g_recoveries; }
 uint32_t primary_hw_micros(void) { return (uint32_t)micros(); }
-int primary_hw_usb_room(void) { return Serial.availableForWrite(); }

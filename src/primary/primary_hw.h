@@ -1,4 +1,4 @@
-/* Primary hardware layer: guarded Wire transactions on SERCOM2, microsecond clock, USB transmit room. */
+/* Primary hardware layer: bounded I2C transactions on SERCOM2, bus recovery count, microsecond clock. */
 #ifndef PRIMARY_HW_H
 #define PRIMARY_HW_H
 
@@ -7,12 +7,13 @@ extern "C" {
 #include "bus/mc_primary.h"
 }
 
-/* Wire primary at hz with the SERCOM SCL-low and inactive-bus timeouts enabled. */
+/* I2C master at hz on SERCOM2 with the SCL-low and inactive-bus timeouts enabled. */
 void primary_hw_begin(uint32_t hz);
-/* Run one transaction; returns an MC_I2C_* status, read bytes in rx[0..*len). */
+/* Run one transaction within t->timeout_us (every wait bounded); returns an MC_I2C_*
+ * status, read bytes in rx[0..*len) (*len = 0 unless MC_I2C_OK). */
 int primary_hw_txn(const mc_txn_t *t, uint8_t *rx, uint32_t *len);
+/* Bus recoveries (9 clocks + STOP) since boot. */
+uint32_t primary_hw_bus_resets(void);
 uint32_t primary_hw_micros(void);
-/* Bytes the USB CDC transmit buffer takes now without blocking. */
-int primary_hw_usb_room(void);
 
 #endif /* PRIMARY_HW_H */

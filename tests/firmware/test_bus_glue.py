@@ -1,4 +1,4 @@
-"""The bus glue (src/cell/bus_glue.cpp, src/primary/*.cpp) compiles against the library headers and stand-in Arduino/Wire headers."""
+"""The glue in src/ compiles against the library headers and the stand-in Arduino/Wire/SAMD21 headers."""
 
 import shutil
 import subprocess
@@ -10,7 +10,17 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.skipif(not shutil.which("g++"), reason="no host C++ compiler")
-@pytest.mark.parametrize("src", ["src/cell/bus_glue.cpp", "src/primary/primary_hw.cpp", "src/primary/main.cpp"])
+@pytest.mark.parametrize(
+    "src",
+    [
+        "src/cell/bus_glue.cpp",
+        "src/cell/samd21_hw.cpp",
+        "src/cell/main.cpp",
+        "src/primary/primary_hw.cpp",
+        "src/primary/main.cpp",
+        "src/common/samd21_sys.cpp",
+    ],
+)
 def test_bus_glue_compiles(src):
     res = subprocess.run(
         [

@@ -1,4 +1,4 @@
-"""Rig logger on python-can: python-can log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports, reconnects.
+"""Rig logger on python-can: log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports, reconnects.
 
     python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1 --duration 60
     python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
@@ -39,6 +39,11 @@ TEXT_FORMATS = ("asc", "csv", "log", "txt", "trc")
 
 class RunFailed(Exception):
     """The run could not go on (exit 3); the message is one line."""
+
+
+def reset_cause_names(bits: int) -> list[str]:
+    """Names of the RESET_CAUSE bits set in a BOOT.reset_cause / PRIMARY_HEALTH.reset_cause byte."""
+    return [name for name, b in sorted(proto.D.RESET_CAUSE.items(), key=lambda kv: kv[1]) if bits >> b & 1]
 
 
 class SampleDecoder:
@@ -82,6 +87,8 @@ class SampleDecoder:
         self.t_base = 0.0  # t_s of the segment's time zero
         self.per = None  # cycle period (128 us units), measured
         self.tx_drop = 0
+        self.usb_lost = 0  # bytes the primary's USB port did not take (PRIMARY_HEALTH, cumulative)
+        self.primary_reset_cause = None  # PRIMARY_HEALTH.reset_cause, names
         self._reset()
 
     def _reset(self):
@@ -120,7 +127,7 @@ class SampleDecoder:
                 self.report(f"undecodable CELL_SAMPLE frame 0x{msg.arbitration_id:03X}: {e}")
                 return
             self.sample(j, d["seq"], d["alpha"], d["beta"], d["t128"], d["flags"], msg.timestamp)
-        elif kind in ("CELL_STATUS", "CELL_LINK", "PRIMARY_STATUS", "PRIMARY_REJECT", "CMD_RESULT"):
+        elif kind in ("CELL_STATUS", "CELL_LINK", "PRIMARY_STATUS", "PRIMARY_REJECT", "CMD_RESULT", "PRIMARY_HEALTH"):
             try:
                 d = self.db.decode_message(msg.arbitration_id, bytes(msg.data), decode_choices=False)
             except Exception as e:  # wrong length etc.: keep going, say so
@@ -129,6 +136,8 @@ class SampleDecoder:
             self.status[(kind, j)] = d
             if kind == "PRIMARY_STATUS":
                 self.heartbeat(round(d["uptime_ms"] * 1000), d["tx_drop"], msg.timestamp)
+            elif kind == "PRIMARY_HEALTH":
+                self.health(int(d["reset_cause"]), int(d["usb_lost"]))
 
     def sample(self, j, seq, alpha, beta, t128, flags, host):
         t128 = int(t128) % T_WRAP
@@ -153,6 +162,22 @@ class SampleDecoder:
         if self.u_last is None:
             return self.t_end
         return self.t_base + (self.u_last - self.u0) * T128_S
+
+    def health(self, reset_cause: int, usb_lost: int) -> None:
+        """PRIMARY_HEALTH: say why the primary last restarted (once) and every growth of the bytes its USB port
+        did not take (the laptop stopped reading for longer than the port's 70 ms send timeout)."""
+        names = reset_cause_names(reset_cause)
+        if names != self.primary_reset_cause:
+            self.primary_reset_cause = names
+            warn = " (it hung: watchdog reset)" if "WDT" in names else ""
+            self.report(f"primary: last reset {'+'.join(names) or 'none'}{warn}")
+        if usb_lost != self.usb_lost:
+            if usb_lost > self.usb_lost:
+                self.report(
+                    f"primary: {usb_lost - self.usb_lost} bytes of output lost at its USB port "
+                    f"({usb_lost} since boot; the reader stalled)"
+                )
+            self.usb_lost = usb_lost
 
     def heartbeat(self, uptime_ms: int, tx_drop: int = 0, host: float | None = None):
         """The primary's millisecond clock: confirms (or puts right) the held rows' time base at the

@@ -1,4 +1,4 @@
-/* Host stand-in for the SAMD core's TwoWire API (syntax check only). */
+/* Host stand-in for the SAMD core's TwoWire API (declarations; tests/firmware/glue_host.cpp defines them). */
 #pragma once
 #include "Arduino.h"
 struct TwoWire {

@@ -295,7 +295,21 @@ static void heartbeat(mc_primary_t *p)
     d[MC_CAN_PRIMARY_STATUS_TX_DROP] = (uint8_t)(p->tx_drop > 255u ? 255u : p->tx_drop);
     push(p, MC_CAN_PRIMARY_STATUS, MC_CAN_PRIMARY_STATUS_DLC, d);
     p->cycles_window = 0;
+    d[MC_CAN_PRIMARY_HEALTH_RESET_CAUSE] = p->reset_cause;
+    mc_put_u32(d + MC_CAN_PRIMARY_HEALTH_USB_LOST, p->usb_lost);
+    mc_put_u16(d + MC_CAN_PRIMARY_HEALTH_BUS_RESET, p->bus_reset);
+    d[MC_CAN_PRIMARY_HEALTH_USB_FAIL] = p->usb_fail;
+    push(p, MC_CAN_PRIMARY_HEALTH, MC_CAN_PRIMARY_HEALTH_DLC, d);
 }
+
+void mc_primary_usb_lost(mc_primary_t *p, uint32_t n)
+{
+    p->usb_lost = n > 0xFFFFFFFFu - p->usb_lost ? 0xFFFFFFFFu : p->usb_lost + n;
+    p->usb_fail++;
+}
+
+void mc_primary_bus_reset(mc_primary_t *p) { p->bus_reset++; }
+void mc_primary_set_reset_cause(mc_primary_t *p, uint8_t cause) { p->reset_cause = cause; }
 
 int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
 {

@@ -113,6 +113,11 @@ typedef struct {
     uint32_t ans_drop;        /* command answers dropped (queue full even for NO_ROOM) */
     uint32_t stale_drop;      /* queued frames dropped at a channel open or a new session */
     uint16_t slcan_err;       /* copied in by the link */
+    /* health (PRIMARY_HEALTH frame, once a second after the heartbeat), reported by the glue */
+    uint32_t usb_lost;        /* SLCAN output bytes the USB port did not take (saturates) */
+    uint16_t bus_reset;       /* I2C bus recoveries (wraps) */
+    uint8_t usb_fail;         /* failed USB writes (wraps) */
+    uint8_t reset_cause;      /* MC_RCAUSE_* bits read at boot */
 } mc_primary_t;
 
 void mc_primary_init(mc_primary_t *p, uint32_t now_us);
@@ -130,6 +135,11 @@ void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f
 /* Pop one outgoing frame; 0 when the queue is empty. */
 int mc_primary_pop(mc_primary_t *p, mc_can_frame_t *f);
 uint32_t mc_primary_ms(mc_primary_t *p, uint32_t now_us);
+/* Health the glue reports (sent in PRIMARY_HEALTH): n bytes of output the USB port did not
+ * take (one failed write), one I2C bus recovery, the reset cause read at boot. */
+void mc_primary_usb_lost(mc_primary_t *p, uint32_t n);
+void mc_primary_bus_reset(mc_primary_t *p);
+void mc_primary_set_reset_cause(mc_primary_t *p, uint8_t cause);
 
 /* ---- the primary as an SLCAN device: parser + scheduler + encoder ---- */
 typedef struct {

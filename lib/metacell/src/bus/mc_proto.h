@@ -6,7 +6,7 @@
 
 /* All multi-byte fields little-endian. See docs/datapath.md. */
 #define MC_PROTO_VERSION 1
-#define MC_PROTO_MAP_ID 0x9D2E
+#define MC_PROTO_MAP_ID 0x6FA3
 #define MC_N_CELLS 16
 #define MC_ADDR_BASE 0x10   /* cell j at MC_ADDR_BASE + j - 1 */
 #define MC_CRC8_POLY 0x07
@@ -54,7 +54,16 @@
 #define MC_PARAMS_ASTAR 18   /* i32 */
 #define MC_PARAMS_PWM_LIMIT 22   /* u16 */
 #define MC_PARAMS_CRC 24   /* u8 */
-#define MC_BLK_COUNT 3
+/* BOOT: why the cell last restarted and the watchdog in force */
+#define MC_BLK_BOOT 3
+#define MC_BLK_BOOT_TAG 0x13
+#define MC_BLK_BOOT_LEN 6
+#define MC_BOOT_TAG 0   /* u8 */
+#define MC_BOOT_ADDR 1   /* u8 */
+#define MC_BOOT_RESET_CAUSE 2   /* u8 */
+#define MC_BOOT_WDT_MS 3   /* u16 */
+#define MC_BOOT_CRC 5   /* u8 */
+#define MC_BLK_COUNT 4
 #define MC_BLK_MAX_LEN 25
 
 /* ---- cell flags (snapshot, params, CAN) ---- */
@@ -63,6 +72,14 @@
 #define MC_CF_PERTURBING 0x04
 #define MC_CF_PENDING 0x08
 #define MC_CF_FAULT 0x10
+
+/* ---- reset cause bits (BOOT block, PRIMARY_HEALTH frame) ---- */
+#define MC_RCAUSE_POR 0x01
+#define MC_RCAUSE_BOD12 0x02
+#define MC_RCAUSE_BOD33 0x04
+#define MC_RCAUSE_EXT 0x10
+#define MC_RCAUSE_WDT 0x20
+#define MC_RCAUSE_SYST 0x40
 
 /* ---- writable registers: S addr+W reg seq payload crc8 P ---- */
 #define MC_WRITE_OVERHEAD 3   /* reg, seq, crc */
@@ -186,6 +203,13 @@
 #define MC_CAN_PRIMARY_REJECT_BAD_ID 1   /* u32 */
 #define MC_CAN_PRIMARY_REJECT_BAD_DLC 5   /* u8 */
 #define MC_CAN_PRIMARY_REJECT_COUNT 6   /* u16 */
+/* PRIMARY_HEALTH: primary health, once per second after the heartbeat */
+#define MC_CAN_PRIMARY_HEALTH 0x0F2
+#define MC_CAN_PRIMARY_HEALTH_DLC 8
+#define MC_CAN_PRIMARY_HEALTH_RESET_CAUSE 0   /* u8 */
+#define MC_CAN_PRIMARY_HEALTH_USB_LOST 1   /* u32 */
+#define MC_CAN_PRIMARY_HEALTH_BUS_RESET 5   /* u16 */
+#define MC_CAN_PRIMARY_HEALTH_USB_FAIL 7   /* u8 */
 
 /* ---- primary schedule defaults ---- */
 #define MC_SCHED_I2C_HZ 400000
@@ -222,6 +246,7 @@ static inline int mc_proto_block_len(uint8_t block)
     case MC_BLK_SNAPSHOT: return MC_BLK_SNAPSHOT_LEN;
     case MC_BLK_IDENT: return MC_BLK_IDENT_LEN;
     case MC_BLK_PARAMS: return MC_BLK_PARAMS_LEN;
+    case MC_BLK_BOOT: return MC_BLK_BOOT_LEN;
     default: return -1;
     }
 }

@@ -84,10 +84,21 @@ int mc_regs_init(mc_regs_t *r, const mc_cell_t *c, uint8_t addr, uint32_t build,
     mc_put_u32(id + MC_IDENT_BUILD, build);
     mc_put_u16(id + MC_IDENT_MAP_ID, MC_PROTO_MAP_ID);
     seal(id, MC_BLK_IDENT_LEN);
+    mc_regs_set_boot(r, 0, 0);
     publish_params(r, c);
     mc_quad_snap_t z = {0, 0, 0};
     publish_snapshot(r, c, &z, &z);
     return MC_OK;
+}
+
+void mc_regs_set_boot(mc_regs_t *r, uint8_t reset_cause, uint16_t wdt_ms)
+{
+    uint8_t *b = r->boot;
+    b[MC_BOOT_TAG] = MC_BLK_BOOT_TAG;
+    b[MC_BOOT_ADDR] = r->addr;
+    b[MC_BOOT_RESET_CAUSE] = reset_cause;
+    mc_put_u16(b + MC_BOOT_WDT_MS, wdt_ms);
+    seal(b, MC_BLK_BOOT_LEN);
 }
 
 void mc_regs_on_receive(mc_regs_t *r, const uint8_t *data, uint32_t len)
@@ -125,6 +136,10 @@ uint32_t mc_regs_on_request(mc_regs_t *r, uint8_t *out, uint32_t cap)
     case MC_BLK_IDENT:
         src = r->ident;
         n = MC_BLK_IDENT_LEN;
+        break;
+    case MC_BLK_BOOT:
+        src = r->boot;
+        n = MC_BLK_BOOT_LEN;
         break;
     case MC_BLK_PARAMS:
         src = r->params[r->params_idx];

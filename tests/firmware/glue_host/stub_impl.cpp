@@ -1,0 +1,127 @@
+/* Host definitions of the Arduino/SAMD21 stand-ins: register memory, open-drain line model, clock, USB serial, Wire. */
+#include <stdio.h>
+#include <string.h>
+#include "Arduino.h"
+#include "Wire.h"
+#include "stub_state.h"
+
+static Sercom g_sercom2;
+Sercom *const SERCOM2 = &g_sercom2;
+static PortStub g_port;
+PortStub *const PORT = &g_port;
+PortStub *const PORT_IOBUS = &g_port;   /* the same PORT registers through the single-cycle bus */
+static PmStub g_pm;
+PmStub *const PM = &g_pm;
+static GclkStub g_gclk;
+GclkStub *const GCLK = &g_gclk;
+static WdtStub g_wdt;
+WdtStub *const WDT = &g_wdt;
+static TccStub g_tcc0;
+TccStub *const TCC0 = &g_tcc0;
+static TcStub g_tc3;
+TcStub *const TC3 = &g_tc3;
+/* Seeed XIAO_m0 variant: D0..D10 */
+const PinDescription g_APinDescription[] = {{0, 2}, {0, 4}, {0, 10}, {0, 11}, {0, 8}, {0, 9},
+                                            {1, 8}, {1, 9}, {0, 7},  {0, 5},  {0, 6}};
+
+stub_state_t stub;
+
+static void line_event(uint32_t pin)
+{
+    if (pin != PIN_WIRE_SDA && pin != PIN_WIRE_SCL)
+        return;
+    stub_pin_t &p = stub.pin[pin];
+    if (p.mode == OUTPUT && p.out)
+        stub.driven_high++;   /* an I2C line must never be driven high */
+    int sda = stub.pin[PIN_WIRE_SDA].mode == OUTPUT ? stub.pin[PIN_WIRE_SDA].out : 1;
+    int scl = stub.pin[PIN_WIRE_SCL].mode == OUTPUT ? stub.pin[PIN_WIRE_SCL].out : 1;
+    if (sda == stub.sda && scl == stub.scl)
+        return;
+    if (scl && stub.scl && sda != stub.sda) {
+        if (sda)
+            stub.stops++;
+        else
+            stub.starts++;
+    }
+    if (!scl && stub.scl)
+        stub.scl_falls++;
+    stub.sda = sda;
+    stub.scl = scl;
+    if (stub.n_log < (int)sizeof(stub.log))
+        stub.log[stub.n_log++] = (char)('0' + (scl << 1 | sda));
+}
+
+void pinMode(uint32_t pin, uint32_t mode)
+{
+    if (pin >= 32)
+        return;
+    stub.pin[pin].mode = (int)mode;
+    if (mode == INPUT_PULLUP)
+        stub.pin[pin].out = 1;   /* SAMD: OUT selects the pull direction */
+    line_event(pin);
+}
+
+void digitalWrite(uint32_t pin, uint32_t value)
+{
+    if (pin >= 32)
+        return;
+    stub.pin[pin].out = value ? 1 : 0;
+    line_event(pin);
+}
+
+int digitalRead(uint32_t pin) { return pin < 32 ? stub.pin[pin].out : 0; }
+
+unsigned long micros(void)
+{
+    stub.now_us += 1;
+    if (stub.on_micros)
+        stub.on_micros();
+    return stub.now_us;
+}
+void delayMicroseconds(unsigned int us) { stub.now_us += us; }
+unsigned long millis(void) { return stub.now_us / 1000u; }
+void attachInterrupt(uint32_t pin, void (*isr)(void), uint32_t mode)
+{
+    (void)isr;
+    (void)mode;
+    if (pin < 32)
+        stub.attached |= 1u << pin;
+}
+void NVIC_SetPriority(IRQn_Type, uint32_t) {}
+void NVIC_ClearPendingIRQ(IRQn_Type) {}
+void NVIC_EnableIRQ(IRQn_Type) {}
+void NVIC_DisableIRQ(IRQn_Type) {}
+
+SerialStub Serial;
+void SerialStub::begin(unsigned long) {}
+int SerialStub::available() { return stub.in_pos < stub.in_len; }
+int SerialStub::read() { return stub.in_pos < stub.in_len ? (uint8_t)stub.in[stub.in_pos++] : -1; }
+size_t SerialStub::write(const uint8_t *buf, size_t n)
+{
+    (void)buf;
+    stub.usb_tried += n;
+    stub.usb_writes++;
+    if (n > stub.usb_max_write)
+        stub.usb_max_write = n;
+    if (stub.usb_blocked)
+        return (size_t)-1;   /* the core's failed send after its 70 ms wait */
+    stub.usb_sent += n;
+    return n;
+}
+size_t SerialStub::print(const char *s) { return write((const uint8_t *)s, strlen(s)); }
+int SerialStub::availableForWrite() { return 63; }
+bool SerialStub::dtr() { return stub.dtr; }
+
+TwoWire Wire;
+void TwoWire::begin() { stub.wire_begins++; }
+void TwoWire::begin(uint8_t) { stub.wire_begins++; }
+void TwoWire::end() { stub.wire_ends++; }
+void TwoWire::setClock(uint32_t) {}
+void TwoWire::onReceive(void (*)(int)) {}
+void TwoWire::onRequest(void (*)(void)) {}
+int TwoWire::available() { return 0; }
+int TwoWire::read() { return -1; }
+size_t TwoWire::write(const uint8_t *, size_t n) { return n; }
+void TwoWire::beginTransmission(uint8_t) {}
+uint8_t TwoWire::endTransmission(bool) { return 4; }
+uint8_t TwoWire::requestFrom(uint8_t, size_t, bool) { return 0; }

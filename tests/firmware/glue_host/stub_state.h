@@ -1,0 +1,27 @@
+/* State of the host stand-ins that the glue test drivers set and inspect. */
+#pragma once
+#include <stddef.h>
+#include <stdint.h>
+
+typedef struct {
+    int mode, out;
+} stub_pin_t;
+
+typedef struct {
+    unsigned long now_us;
+    void (*on_micros)(void);   /* called at every micros(): a scenario's peripheral */
+    stub_pin_t pin[32];
+    int sda, scl;              /* line levels (released = high) */
+    int starts, stops, scl_falls, driven_high;
+    char log[256];             /* line states: '0' + (scl << 1 | sda) at each change */
+    int n_log;
+    uint32_t attached;
+    /* USB serial */
+    const char *in;
+    size_t in_len, in_pos;
+    bool dtr, usb_blocked;
+    size_t usb_tried, usb_sent, usb_writes, usb_max_write;
+    int wire_begins, wire_ends;
+} stub_state_t;
+
+extern stub_state_t stub;

@@ -1,0 +1,124 @@
+"""The Arduino glue (src/) run on the host on register stand-ins: sampling, bounded I2C, recovery, watchdog, USB."""
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent / "glue_host"
+INC = ["-I", str(ROOT / "tests/firmware/bus_stub"), "-I", str(HERE), "-I", str(ROOT / "lib/metacell/src")]
+INC += ["-I", str(ROOT / "src"), "-I", str(ROOT / "src/cell")]
+TXN_TIMEOUT_US = 1500  # what the drivers pass as txn.timeout_us
+SYNC_US = 50  # primary_hw.cpp: bound of the STOP's sync wait
+RECOVERY_US = 22 * 5 + 20  # 9 pulses + STOP at 5 us half periods, plus the stand-in clock's 1 us per read
+
+pytestmark = pytest.mark.skipif(not (shutil.which("g++") and shutil.which("gcc")), reason="no host C/C++ compiler")
+
+
+def _run(cmd):
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    return res.stdout
+
+
+@pytest.fixture(scope="module")
+def programs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("glue")
+    objs = []
+    for c in sorted((ROOT / "lib/metacell/src").rglob("*.c")):
+        o = tmp / (c.stem + ".o")
+        _run(["gcc", "-std=c99", "-O1", "-c", "-I", str(ROOT / "lib/metacell/src"), str(c), "-o", str(o)])
+        objs.append(str(o))
+    common = [str(HERE / "stub_impl.cpp"), str(ROOT / "src/common/samd21_sys.cpp"), str(ROOT / "src/common/mc_ident.c")]
+    flags = ["g++", "-std=gnu++11", "-O1", "-Wall", "-Wextra", "-Werror", *INC]
+    primary, cell = tmp / "primary", tmp / "cell"
+    _run(
+        [
+            *flags,
+            str(HERE / "primary_driver.cpp"),
+            str(ROOT / "src/primary/primary_hw.cpp"),
+            *common,
+            *objs,
+            "-o",
+            str(primary),
+        ]
+    )
+    _run(
+        [
+            *flags,
+            "-DMC_CELL_INDEX=1",
+            "-DMC_CELL_ADDR=0x10",
+            str(HERE / "cell_driver.cpp"),
+            str(ROOT / "src/cell/samd21_hw.cpp"),
+        ]
+        + common
+        + objs
+        + ["-o", str(cell)]
+    )
+    return primary, cell
+
+
+def results(exe, *args) -> dict:
+    out = subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=60, check=True).stdout
+    return dict(line.split("=", 1) for line in out.splitlines())
+
+
+def test_encoder_pins_are_sampled_continuously(programs):
+    """PA05, PA06, PA07 and PB09 are read through the IOBUS: PORT CTRL must sample them continuously."""
+    r = results(programs[1])
+    assert int(r["setup_err"]) == 0
+    # pins from the variant table (D7 = PB09, D8 = PA07, D9 = PA05, D10 = PA06), not from the glue's constants
+    assert int(r["ctrl_pa"], 16) == (1 << 5) | (1 << 6) | (1 << 7)
+    assert int(r["ctrl_pb"], 16) == 1 << 9
+    assert int(r["attached"], 16) == sum(1 << p for p in (7, 8, 9, 10))
+
+
+def test_cell_watchdog_and_boot_block(programs):
+    from tools.rigtools import proto
+
+    r = results(programs[1])
+    assert (int(r["wdt_enabled"]), int(r["wdt_per"]), int(r["wdt_fed"])) == (1, 7, 1)  # PER 0x7 = 1024 clocks
+    boot = bytes.fromhex(r["boot"])
+    d = proto.decode_block("BOOT", boot)
+    assert proto.crc8(boot[:-1]) == boot[-1]
+    assert d["tag"] == (proto.D.PROTO_VERSION << 4) | proto.D.BLOCKS["BOOT"]["id"]
+    assert (d["addr"], d["reset_cause"], d["wdt_ms"]) == (0x10, 1 << proto.D.RESET_CAUSE["WDT"], 1000)
+
+
+@pytest.mark.parametrize(
+    "scenario,status",
+    [("stuck_read", 3), ("stuck_write", 3), ("sync_stuck", 3), ("arblost_read", 4), ("buserr_mid_read", 4)],
+)
+def test_a_broken_bus_never_hangs_the_primary(programs, scenario, status):
+    """Every wait ends by the deadline (timeout) or at the error; then a recovery: open-drain clocks and a STOP."""
+    r = results(programs[0], scenario)
+    assert int(r["status"]) == status  # MC_I2C_TIMEOUT = 3, MC_I2C_BUS_ERROR = 4
+    assert int(r["len"]) == 0
+    assert int(r["elapsed_us"]) <= TXN_TIMEOUT_US + SYNC_US + RECOVERY_US
+    assert int(r["resets"]) == 1
+    assert int(r["driven_high"]) == 0  # SCL/SDA only ever pulled low or released
+    assert int(r["scl_falls"]) == 10  # 9 recovery clocks + the low phase before the STOP
+    assert (int(r["stops"]), int(r["starts"])) == (1, 0)
+    assert r["lines"].endswith("1023")  # SCL low/SDA high, SDA low, SCL up, SDA up: a STOP
+
+
+@pytest.mark.parametrize("scenario,status,n", [("ok_read", 0, 23), ("nack_read", 1, 0), ("ok_write", 0, 0)])
+def test_good_transactions(programs, scenario, status, n):
+    r = results(programs[0], scenario)
+    assert (int(r["status"]), int(r["len"]), int(r["resets"])) == (status, n, 0)
+    if scenario == "ok_read":
+        assert int(r["byte0"]) == 0x5A and int(r["acknack"]) == 1  # last byte NACKed
+
+
+def test_primary_counts_usb_loss_and_starts_sessions(programs):
+    r = results(programs[0], "main")
+    assert (int(r["wdt_enabled"]), int(r["wdt_per"]), int(r["wdt_fed"])) == (1, 7, 1)
+    assert int(r["reset_cause"]) == 0x20  # RCAUSE.WDT read at boot
+    assert int(r["open"]) == 1 and int(r["sent"]) > 0
+    # the host stopped reading: every byte offered and not taken is counted, none silently
+    assert int(r["usb_lost"]) == int(r["usb_tried"]) > 0
+    assert int(r["usb_fail"]) > 0
+    assert int(r["max_write"]) <= 64  # one USB packet per write: all or nothing
+    assert int(r["open_after_close"]) == 0  # DTR dropped: mc_link_session closed the channel
