@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..physics import pypde_reaction
 from .common import WPPoint, best_time, max_err
 
 PDE_DT_GRID = (2e-5, 1e-5, 5e-6, 2.5e-6)
@@ -88,9 +89,7 @@ def pypde_problem(scene, m):
 
     p = scene.params
     ea, eb = p.eta_alpha, p.eta_beta
-    bk = p.k1 * p.alpha_star / (p.k1 - p.k2)
-    # tri-linear psi'(a) = k1 a - k1 a* clip(a/b, -1, 1), clip(u) = (|u + 1| - |u - 1|)/2
-    psi = f"({p.k1!r}*a - {p.k1 * p.alpha_star!r}*(Abs(a/{bk!r} + 1) - Abs(a/{bk!r} - 1))/2)"
+    ra, rb = pypde_reaction(p)  # the reaction law as py-pde expressions, built by physics.py
     fa, fb = [], []
     for q in scene.perturbations:
         # torque density T over the cell [cell-1, cell], on for start <= t < end (sign(0) = 0: half at the edge)
@@ -100,8 +99,8 @@ def pypde_problem(scene, m):
         )
         (fa if q.chain == "alpha" else fb).append(f" + {q.torque_Nm / (ea if q.chain == 'alpha' else eb)!r}*{w}")
     eqs = {
-        "a": f"{p.ka_eff / ea!r}*laplace(a) + ({p.k_ab!r}*(b - a) - {psi} - {p.sigma!r}*b)/{ea!r}" + "".join(fa),
-        "b": f"{p.kb_eff / eb!r}*laplace(b) + {p.k_ab!r}*(a - b)/{eb!r}" + "".join(fb),
+        "a": f"{p.ka_eff / ea!r}*laplace(a) + {ra}/{ea!r}" + "".join(fa),
+        "b": f"{p.kb_eff / eb!r}*laplace(b) + {rb}/{eb!r}" + "".join(fb),
     }
     eq = pde.PDE(eqs, bc={"derivative": 0})
     grid = pde.CartesianGrid([[0, scene.cells]], [scene.cells * m])
