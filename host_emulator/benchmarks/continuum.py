@@ -6,7 +6,7 @@ The method-of-lines continuum with M points per cell (models/continuum.py) is, n
     eta_b b_i' = k_b M^2 (b_{i-1} - 2 b_i + b_{i+1}) + R_b(a_i, b_i)
 
 which is exactly the overdamped lattice plant with linear bands of stiffness k M^2, N M cells, and the cell's
-torque density T applied to each of its M nodes. So the compiled steppers (he_step*.c) solve the PDE too;
+torque density T applied to each of its M nodes. So the compiled steppers (csrc/he_step.c) solve the PDE too;
 `run_fast` does that. The reference is models/continuum.py's BDF at rtol 1e-10 on the same grid.
 """
 

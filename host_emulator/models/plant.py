@@ -10,7 +10,6 @@ from .. import params as P
 from ..params import Params
 from .options import ModelOptions, Perturbation
 
-
 # he_plant_t -> its scratch buffer: cffi frees the buffer when the plant goes (weak keys)
 _keepalive: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 

@@ -1,4 +1,7 @@
-"""Reference plant in numpy, written independently from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
+"""Reference plant in numpy, written from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
+
+The band and reaction laws are physics.py's (the one Python copy, checked against an independent float
+reference in tests/host_emulator/test_physics.py); the assembly, geometry and stepping here are independent.
 
 Used by the tests to check the compiled plant (forces and whole trajectories) and as executable
 documentation of the equations. Same conventions: x = [alpha_1..alpha_n, beta_1..beta_n],
