@@ -48,12 +48,15 @@ def as_lattice(params, cells, m, perturbations):
 
 def run_fast(scene, stepper, dt, m):
     """The continuum on the compiled lattice engine; (T, 2*cells) at the cell centres."""
-    from ..models.lattice import LatticeModel
+    from ..models import make_model
     from ..models.options import ModelOptions
 
     p, perts = as_lattice(scene.params, scene.cells, m, scene.perturbations)
-    model = LatticeModel(
-        p, perts, ModelOptions(inertia=False, bands="linear", stepper=stepper, dt=dt, dt_out=scene.options.dt_out)
+    model = make_model(
+        "lattice",
+        p,
+        perts,
+        ModelOptions(inertia=False, bands="linear", stepper=stepper, dt=dt, dt_out=scene.options.dt_out),
     )
     s = model.solver()
     n_out = int(round(scene.t_end_s / s.dt_out))

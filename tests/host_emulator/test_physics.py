@@ -151,3 +151,24 @@ def test_bond_slope_is_the_derivative_of_the_band_torque(fw):
             fd = (tau(plant, ch, 0, dx + h, 0.0) - tau(plant, ch, 0, dx - h, 0.0)) / (2 * h)
             assert lib.he_bond_slope(plant, ch, 0, dx) == pytest.approx(fd, rel=1e-5, abs=1e-9)
     assert math.isfinite(lib.he_damping(plant, 0, 0))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-5, 5), min_size=1, max_size=20))
+def test_psi_prime_and_slope_match_the_reference(values):
+    """physics.psi_prime_and_slope (the continuum's rhs and Jacobian, Params.psi_prime) against the reference's
+    psi' (read off reaction_si at beta = 0) and its finite differences (moved from the continuum model's tests)."""
+    p = Params()
+    a = np.array(values)
+    pp, slope = physics.psi_prime_and_slope(p, a)
+
+    def ref_psi(x):
+        return np.array([-_ref(p, v, 0.0)[0] - p.k_ab * v for v in x])  # R_a(x, 0) = -k_ab x - psi'(x)
+
+    assert np.allclose(pp, ref_psi(a), atol=1e-15)
+    assert np.array_equal(np.asarray(p.psi_prime(a)), pp)
+    h = 1e-6
+    fd = (ref_psi(a + h) - ref_psi(a - h)) / (2 * h)
+    b = p.k1 * p.alpha_star / (p.k1 - p.k2)
+    away = np.abs(np.abs(a) - b) > 2 * h  # the kinks have no derivative
+    assert np.allclose(slope[away], fd[away], atol=1e-6)
