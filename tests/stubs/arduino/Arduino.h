@@ -1,4 +1,4 @@
-/* Host stand-in for the Arduino API and the SERCOM2 I2C-master registers used by the bus glue (syntax check only). */
+/* Host stand-in for the Arduino API used by src/ and the SERCOM2 I2C-master registers of the bus glue (syntax checks only). */
 #pragma once
 #include <stddef.h>
 #include <stdint.h>
@@ -6,16 +6,20 @@
 #define LOW 0
 #define OUTPUT 1
 #define INPUT_PULLUP 2
+#define LED_BUILTIN 13
 #define PIN_WIRE_SDA 4
 #define PIN_WIRE_SCL 5
 void pinMode(uint32_t pin, uint32_t mode);
 void digitalWrite(uint32_t pin, uint32_t value);
+int digitalRead(uint32_t pin);
 void delayMicroseconds(unsigned int us);
+unsigned long millis(void);
 unsigned long micros(void);
 struct SerialStub {
     void begin(unsigned long baud);
     int available();
     int read();
+    size_t print(const char *s);
     size_t write(const uint8_t *buf, size_t n);
     int availableForWrite();
 };
