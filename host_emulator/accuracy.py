@@ -42,35 +42,49 @@ def check_level(level) -> str:
     return level
 
 
-def resolve_options(model: str, params, perturbations, options, level: str, explicit=()):
-    """ModelOptions with the preset of `level` applied to every knob key not in `explicit`."""
-    check_level(level)
-    explicit = set(explicit)
-    if model == "lattice":
-        stepper, frac, geom = LATTICE[level]
-    elif model == "hil":
-        stepper, subs, geom = HIL[level]
-    else:
-        return options
+def _preset(options, stepper, geom, explicit):
+    """The preset's stepper and beta geometry on every key the scene did not set."""
     kw = {}
     if "stepper" not in explicit:
         kw["stepper"] = stepper
     if geom and "beta_geometry" not in explicit and options.bands == "cubic":
         kw["beta_geometry"] = geom
-    opts = dataclasses.replace(options, **kw)
-    if model == "lattice" and "dt" not in explicit:
-        from .models import make_model
+    return dataclasses.replace(options, **kw)
 
-        limit, _ = make_model(model, params, perturbations, opts).step_limit()
+
+def _resolve_lattice(params, perturbations, options, level, explicit):
+    from .models import make_model
+
+    stepper, frac, geom = LATTICE[level]
+    opts = _preset(options, stepper, geom, explicit)
+    if "dt" not in explicit:
+        limit, _ = make_model("lattice", params, perturbations, opts).step_limit()
         opts = dataclasses.replace(opts, dt=frac * limit)
-    if model == "hil" and "substeps" not in explicit and "dt" not in explicit:
-        import math
+    return opts
 
-        from .models import make_model
 
-        m = make_model(model, params, perturbations, opts)
+def _resolve_hil(params, perturbations, options, level, explicit):
+    import math
+
+    from .models import make_model
+
+    stepper, subs, geom = HIL[level]
+    opts = _preset(options, stepper, geom, explicit)
+    if "substeps" not in explicit and "dt" not in explicit:
+        m = make_model("hil", params, perturbations, opts)
         limit, _ = m.step_limit()
         tick = 1.0 / m.rate_hz
         # never above 0.8 x the stable limit (slow control rates need several plant steps per tick)
         opts = dataclasses.replace(opts, substeps=max(subs, math.ceil(tick / (0.8 * limit) - 1e-9)))
     return opts
+
+
+# model name -> its preset rule; a model without one (the continuum) keeps its options
+RESOLVERS = {"lattice": _resolve_lattice, "hil": _resolve_hil}
+
+
+def resolve_options(model: str, params, perturbations, options, level: str, explicit=()):
+    """ModelOptions with the preset of `level` applied to every knob key not in `explicit`."""
+    check_level(level)
+    rule = RESOLVERS.get(model)
+    return options if rule is None else rule(params, perturbations, options, level, set(explicit))

@@ -20,9 +20,8 @@ def bench_main(argv=None) -> int:
     ap.add_argument("--cpu", type=int, default=None, help="pin to this CPU (default: the first allowed one)")
     args = ap.parse_args(argv)
 
-    from .controller import run_solver
+    from .controller import build_solver, run_solver
     from .firmware import load
-    from .models import make_model
     from .scene import load_scene
 
     if hasattr(os, "sched_setaffinity"):
@@ -32,9 +31,9 @@ def bench_main(argv=None) -> int:
     load()  # compile outside the timing
     walls = []
     for _ in range(max(1, args.repeat)):
-        model = make_model(scene.model, scene.params, scene.perturbations, scene.options)
+        solver = build_solver(scene)  # as `run` builds it: the scene's accuracy preset applies
         t0 = time.perf_counter()
-        res = run_solver(model.solver(), scene.t_end_s)
+        res = run_solver(solver, scene.t_end_s)
         walls.append(time.perf_counter() - t0)
     wall = statistics.median(walls)
     sim = float(res.t[-1])

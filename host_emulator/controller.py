@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .models import NumericalInstability, make_model
+from .models import NumericalInstability, Solver, make_model
 from .trackers import ProgressTracker, RecordTracker, Tracker
 
 
@@ -31,7 +31,7 @@ def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResul
     rec = RecordTracker()
     trackers = [rec, *trackers]
     t0 = time.perf_counter()
-    if hasattr(solver, "run_all"):
+    if solver.whole_run:
         t, a, b = solver.run_all(t_end_s)
         if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
             raise NumericalInstability(f"{solver.model.name}: non-finite state in the output")
@@ -50,14 +50,7 @@ def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResul
         for tr in trackers:
             tr.sample(0.0, a, b)
         try:
-            if hasattr(solver, "advance_many"):
-                _run_chunked(solver, n_out, trackers)
-            else:
-                for _ in range(n_out):
-                    solver.advance()
-                    a, b = solver.state()
-                    for tr in trackers:
-                        tr.sample(solver.t, a, b)
+            _run_chunked(solver, n_out, trackers)  # Solver.advance_many: compiled chunks, or advance() calls
         finally:
             for tr in trackers[1:]:
                 tr.finish()
@@ -93,24 +86,37 @@ def _run_chunked(solver, n_out: int, trackers: list[Tracker]):
         chunk = max(1, min(CHUNK_MAX_SAMPLES, int(CHUNK_WALL_S / per) if per > 0 else CHUNK_MAX_SAMPLES))
 
 
-def run_scene(scene, *, progress: bool = True, trackers: list[Tracker] = ()) -> RunResult:
-    """Build the scene's model, run it and return the recorded trajectories."""
+def build_solver(scene, *, resolve: bool = True, options=None, perturbations=None, x0=None) -> Solver:
+    """The one construction path of a scene's solver (runs, the bus rig, bench-speed and the benchmarks).
+
+    resolve: apply the scene's accuracy preset (accuracy.resolve_options) to its model options, as a run does;
+    False keeps the options as given (benchmarks sweeping steppers and steps set them themselves).
+    options / perturbations replace the scene's; x0 is the initial state (2n angles) where the model takes one."""
     from .accuracy import resolve_options
 
-    options = resolve_options(
-        scene.model,
-        scene.params,
-        scene.perturbations,
-        scene.options,
-        getattr(scene, "accuracy", "balanced"),
-        getattr(scene, "explicit_options", ()),
-    )
-    model = make_model(scene.model, scene.params, scene.perturbations, options)
-    solver = model.solver()
+    options = scene.options if options is None else options
+    perturbations = scene.perturbations if perturbations is None else perturbations
+    if resolve:
+        options = resolve_options(
+            scene.model,
+            scene.params,
+            perturbations,
+            options,
+            getattr(scene, "accuracy", "balanced"),
+            getattr(scene, "explicit_options", ()),
+        )
+    model = make_model(scene.model, scene.params, list(perturbations), options)
+    return model.solver() if x0 is None else model.solver(x0=x0)
+
+
+def run_scene(scene, *, progress: bool = True, trackers: list[Tracker] = ()) -> RunResult:
+    """Build the scene's model, run it and return the recorded trajectories."""
+    solver = build_solver(scene)
     extra = list(trackers)
     if progress:
         extra.append(ProgressTracker())
     res = run_solver(solver, scene.t_end_s, extra)
-    if hasattr(solver, "faults"):
-        res.info["cell_faults"] = solver.faults()
+    faults = solver.faults()
+    if faults is not None:
+        res.info["cell_faults"] = faults
     return res

@@ -40,15 +40,8 @@ SIGMA_MAIN = 9 / 125
 SIGMA_REGIMES = {"conditional": 9 / 125, "unconditional": 6 / 125, "stable": 14 / 125}
 
 
-def band_force(coef, delta):
-    """Cubic fit f(delta) [N] (works on floats and numpy arrays)."""
-    c0, c1, c2, c3 = coef
-    return c0 + delta * (c1 + delta * (c2 + delta * c3))
-
-
-def band_slope(coef, delta):
-    c0, c1, c2, c3 = coef
-    return c1 + delta * (2 * c2 + delta * 3 * c3)
+# the band law and the reaction law are written once, in physics.py (re-exported here for old callers)
+from .physics import band_force, band_slope  # noqa: E402,F401
 
 
 @dataclass(frozen=True)
@@ -154,12 +147,7 @@ class Params:
         return dataclasses.replace(self, **kw)
 
     def psi_prime(self, alpha):
-        """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array)."""
-        import numpy as np
+        """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array): physics.psi_prime."""
+        from .physics import psi_prime
 
-        a = np.asarray(alpha, dtype=float)
-        b = self.k1 * self.alpha_star / (self.k1 - self.k2)
-        out = np.where(
-            a < -b, self.k1 * (a + self.alpha_star), np.where(a > b, self.k1 * (a - self.alpha_star), self.k2 * a)
-        )
-        return out if out.ndim else float(out)
+        return psi_prime(self, alpha)

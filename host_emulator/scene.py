@@ -8,11 +8,11 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .models import model_names
 from .models.options import ConfigError, ModelOptions, Perturbation, parse_options, parse_perturbation
 from .params import Params
 
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
-MODELS = ("continuum", "lattice", "hil")
 TOP_KEYS = ("name", "description", "model", "cells", "t_end_s", "accuracy", "params", "model_options", "perturbation")
 REQUIRED = ("name", "model", "cells", "t_end_s")
 
@@ -130,8 +130,8 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     desc = d.get("description", "")
     if not isinstance(desc, str):
         raise ConfigError(f"description = {desc!r}: expected a string")
-    if d["model"] not in MODELS:
-        raise ConfigError(f"model = {d['model']!r}: expected one of {', '.join(MODELS)}")
+    if d["model"] not in model_names():
+        raise ConfigError(f"model = {d['model']!r}: expected one of {', '.join(model_names())}")
     cells = d["cells"]
     if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 4096:
         raise ConfigError(f"cells = {cells!r}: expected an integer in 1..4096")

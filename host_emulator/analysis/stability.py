@@ -26,6 +26,8 @@ import math
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from ..physics import reaction_jacobian as _physics_jacobian
+
 __all__ = [
     "reaction_jacobian",
     "jacobian",
@@ -73,9 +75,10 @@ def q_of_kappa(kappa, discrete=True):
 
 # ---- Jacobians ----------------------------------------------------------------
 def reaction_jacobian(params) -> np.ndarray:
-    """dR/d(alpha, beta) at rest, N m / rad: [[-k_ab - k2, k_ab - sigma], [k_ab, -k_ab]] (psi''(0) = k2)."""
-    kab, k2, s = params.k_ab, params.k2, params.sigma
-    return np.array([[-kab - k2, kab - s], [kab, -kab]], dtype=float)
+    """dR/d(alpha, beta) at rest, N m / rad: [[-k_ab - k2, k_ab - sigma], [k_ab, -k_ab]] (psi''(0) = k2).
+
+    Written beside the law in physics.py (physics.reaction_jacobian); this is its value at rest."""
+    return _physics_jacobian(params)
 
 
 def jacobian(params) -> np.ndarray:

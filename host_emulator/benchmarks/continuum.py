@@ -6,7 +6,7 @@ The method-of-lines continuum with M points per cell (models/continuum.py) is, n
     eta_b b_i' = k_b M^2 (b_{i-1} - 2 b_i + b_{i+1}) + R_b(a_i, b_i)
 
 which is exactly the overdamped lattice plant with linear bands of stiffness k M^2, N M cells, and the cell's
-torque density T applied to each of its M nodes. So the compiled steppers (he_step*.c) solve the PDE too;
+torque density T applied to each of its M nodes. So the compiled steppers (csrc/he_step.c) solve the PDE too;
 `run_fast` does that. The reference is models/continuum.py's BDF at rtol 1e-10 on the same grid.
 """
 
@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..physics import pypde_reaction
 from .common import WPPoint, best_time, max_err
 
 PDE_DT_GRID = (2e-5, 1e-5, 5e-6, 2.5e-6)
@@ -47,12 +48,15 @@ def as_lattice(params, cells, m, perturbations):
 
 def run_fast(scene, stepper, dt, m):
     """The continuum on the compiled lattice engine; (T, 2*cells) at the cell centres."""
-    from ..models.lattice import LatticeModel
+    from ..models import make_model
     from ..models.options import ModelOptions
 
     p, perts = as_lattice(scene.params, scene.cells, m, scene.perturbations)
-    model = LatticeModel(
-        p, perts, ModelOptions(inertia=False, bands="linear", stepper=stepper, dt=dt, dt_out=scene.options.dt_out)
+    model = make_model(
+        "lattice",
+        p,
+        perts,
+        ModelOptions(inertia=False, bands="linear", stepper=stepper, dt=dt, dt_out=scene.options.dt_out),
     )
     s = model.solver()
     n_out = int(round(scene.t_end_s / s.dt_out))
@@ -88,9 +92,7 @@ def pypde_problem(scene, m):
 
     p = scene.params
     ea, eb = p.eta_alpha, p.eta_beta
-    bk = p.k1 * p.alpha_star / (p.k1 - p.k2)
-    # tri-linear psi'(a) = k1 a - k1 a* clip(a/b, -1, 1), clip(u) = (|u + 1| - |u - 1|)/2
-    psi = f"({p.k1!r}*a - {p.k1 * p.alpha_star!r}*(Abs(a/{bk!r} + 1) - Abs(a/{bk!r} - 1))/2)"
+    ra, rb = pypde_reaction(p)  # the reaction law as py-pde expressions, built by physics.py
     fa, fb = [], []
     for q in scene.perturbations:
         # torque density T over the cell [cell-1, cell], on for start <= t < end (sign(0) = 0: half at the edge)
@@ -100,8 +102,8 @@ def pypde_problem(scene, m):
         )
         (fa if q.chain == "alpha" else fb).append(f" + {q.torque_Nm / (ea if q.chain == 'alpha' else eb)!r}*{w}")
     eqs = {
-        "a": f"{p.ka_eff / ea!r}*laplace(a) + ({p.k_ab!r}*(b - a) - {psi} - {p.sigma!r}*b)/{ea!r}" + "".join(fa),
-        "b": f"{p.kb_eff / eb!r}*laplace(b) + {p.k_ab!r}*(a - b)/{eb!r}" + "".join(fb),
+        "a": f"{p.ka_eff / ea!r}*laplace(a) + {ra}/{ea!r}" + "".join(fa),
+        "b": f"{p.kb_eff / eb!r}*laplace(b) + {rb}/{eb!r}" + "".join(fb),
     }
     eq = pde.PDE(eqs, bc={"derivative": 0})
     grid = pde.CartesianGrid([[0, scene.cells]], [scene.cells * m])

@@ -106,15 +106,12 @@ def _x0(question, n):
 
 def run_one(scene, question):
     from ..analysis.observables import observables
-    from ..controller import run_solver
-    from ..models import make_model
+    from ..controller import build_solver, run_solver
 
     def go():
-        m = make_model(scene.model, scene.params, scene.perturbations if question == "pattern" else [], scene.options)
-        if scene.model == "hil":
-            s = m.solver()
-        else:
-            s = m.solver(x0=_x0(question, scene.cells))
+        perts = scene.perturbations if question == "pattern" else []
+        x0 = None if scene.model == "hil" else _x0(question, scene.cells)
+        s = build_solver(scene, resolve=False, perturbations=perts, x0=x0)
         if question != "pattern" and scene.model == "hil":
             # the same tilt after the encoders' zero (the firmware sees it as a real deflection)
             s.x[: scene.cells] = TILT_RAD

@@ -22,13 +22,13 @@ def _scene(model, cells, t_end_s, dt_out=0.01):
 
 def kernel_time(model_name, cells, t_end_s):
     """Wall time of the compiled loop alone over t_end_s (one C call), best of 3."""
-    from ..models import make_model
+    from ..controller import build_solver
 
     sc = _scene(model_name, cells, t_end_s)
 
     def go():
-        m = make_model(sc.model, sc.params, sc.perturbations, sc.options)
-        s = m.solver()
+        s = build_solver(sc, resolve=False)
+        m = s.model
         t0 = clock()
         if model_name == "lattice":
             n = int(round(t_end_s / s.h))
@@ -46,14 +46,12 @@ def kernel_time(model_name, cells, t_end_s):
 def e2e_time(model_name, cells, t_end_s, dt_out=0.01, repeat=5):
     """Wall time of the controller run (run_solver: chunks of output samples per C call); the model and solver
     construction (a per-cell setup cost, not a per-cell-second one) is outside the timing. Best of `repeat`."""
-    from ..controller import run_solver
-    from ..models import make_model
+    from ..controller import build_solver, run_solver
 
     sc = _scene(model_name, cells, t_end_s, dt_out)
     best = float("inf")
     for _ in range(repeat):
-        m = make_model(sc.model, sc.params, sc.perturbations, sc.options)
-        s = m.solver()
+        s = build_solver(sc, resolve=False)
         t0 = clock()
         run_solver(s, t_end_s)
         best = min(best, clock() - t0)

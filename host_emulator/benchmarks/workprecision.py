@@ -50,11 +50,10 @@ def _sampled_states(solver, t_end_s, n):
 
 def run_ours(scene, stepper, dt):
     """Trajectory (T, 2n) of the compiled lattice at the output times, stepper and largest step dt."""
-    from ..models.lattice import LatticeModel
+    from ..controller import build_solver
 
-    model = LatticeModel(scene.params, scene.perturbations, replace(scene.options, stepper=stepper, dt=dt))
-    s = model.solver()
-    return _sampled_states(s, scene.t_end_s, model.n), s.h
+    s = build_solver(scene, resolve=False, options=replace(scene.options, stepper=stepper, dt=dt))
+    return _sampled_states(s, scene.t_end_s, s.model.n), s.h
 
 
 def _cuts(scene):
@@ -187,12 +186,11 @@ HIL_STEPPERS = ("symplectic_euler", "imex_euler", "noh_bathe", "rk4")
 
 
 def run_hil(scene, stepper, substeps):
-    from ..models.hil import HilModel
+    from ..controller import build_solver
 
-    model = HilModel(
-        scene.params, scene.perturbations, replace(scene.options, stepper=stepper, substeps=substeps, dt=None)
-    )
-    return _sampled_states(model.solver(), scene.t_end_s, model.n)
+    opts = replace(scene.options, stepper=stepper, substeps=substeps, dt=None)
+    s = build_solver(scene, resolve=False, options=opts)
+    return _sampled_states(s, scene.t_end_s, s.model.n)
 
 
 def hil_workprecision(t_end_s=3.0, quick=False, log=print):

@@ -110,16 +110,13 @@ class EmulatedRig:
             if self.regs[j].rx_full:
                 self._snap(j)
                 lib.mc_regs_apply(self.regs + j, self.solver.cells + j, self.qa, self.qb)
-        ev = self.solver.events  # scene perturbations with perturb_via = "firmware"
-        while ev and ev[0][0] <= self.solver.tick:
-            _, j, ch, unm, nt = ev.pop(0)
-            lib.mc_cell_perturb(self.solver.cells + j, ch, unm, nt)
         try:
-            self.solver._run(1)  # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders
+            # he_hil_run: mc_cell_tick of every cell, motors, plant, encoders (and the scene's firmware commands)
+            self.solver.run_ticks(1)
         except NumericalInstability:
             if not self._band_stop():
                 raise
-            self.solver._run(1)
+            self.solver.run_ticks(1)
         self.ticks += 1
         self.next_tick_us += self.tick_us
 
@@ -131,10 +128,11 @@ class EmulatedRig:
         lib, sol = self.lib, self.solver
         plant = sol.h.plant
         where = self.ffi.new("int *", -1)
+        px = self.ffi.from_buffer("double[]", sol.x)
         n = self.n
         hit = False
         for _ in range(8 * n):  # each pass puts one pair back; neighbours may follow
-            if lib.he_plant_range_check(plant, sol._px, where) != lib.HE_ERR_BAND or where[0] < 0:
+            if lib.he_plant_range_check(plant, px, where) != lib.HE_ERR_BAND or where[0] < 0:
                 break
             ch, j = divmod(where[0], n)
             lim = (lib.HE_BAND_STOP_FACTOR * plant.delta_max[ch] - plant.delta0[ch]) / plant.lever[ch]
@@ -147,7 +145,7 @@ class EmulatedRig:
             for k in (j, j + 1):
                 sol.cells[k].faults |= bit
             hit = True
-        if not hit or lib.he_plant_range_check(plant, sol._px, where) == lib.HE_ERR_BAND:
+        if not hit or lib.he_plant_range_check(plant, px, where) == lib.HE_ERR_BAND:
             return False
         self.band_stops += 1
         return True
@@ -286,12 +284,12 @@ class EmulatedRig:
 
 
 def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overrides=()):
-    """EmulatedRig over the hil model of a scene (the scene must use model = "hil")."""
-    from ..models.hil import HilModel
+    """EmulatedRig over the hil model of a scene (the scene must use model = "hil"), built as a run builds it
+    (controller.build_solver: the scene's accuracy preset applies)."""
+    from ..controller import build_solver
     from ..scene import load_scene
 
     sc = load_scene(scene_name, overrides)
     if sc.model != "hil":
         raise ValueError(f'scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = "hil"')
-    model = HilModel(sc.params, list(sc.perturbations), sc.options)
-    return EmulatedRig(model.solver(), opts), sc
+    return EmulatedRig(build_solver(sc), opts), sc

@@ -6,7 +6,6 @@
 #endif
 #include "he_hil.h"
 #include "he_step.h"
-#include "he_step_more.h"
 
 static const uint8_t gray_ab[4] = {0u, 1u, 3u, 2u};
 

@@ -1,15 +1,18 @@
-/* Plant physics of the emulated lattice: torques only (equations beside the code; steppers in he_step.c). */
+/* Plant physics of the emulated lattice: torques, their slopes and bounds (equations beside the code; steppers in he_step.c). */
 #include <math.h>
 #include "he_plant.h"
 
-static double cubic(const double *c, double d) { return c[0] + d * (c[1] + d * (c[2] + d * c[3])); }
-static double cubic_slope(const double *c, double d) { return c[1] + d * (2.0 * c[2] + d * 3.0 * c[3]); }
+/* f(d) and f'(d) of the cubic band law; Python: physics.band_force / physics.band_slope */
+double he_cubic(const double c[4], double d) { return c[0] + d * (c[1] + d * (c[2] + d * c[3])); }
+double he_cubic_slope(const double c[4], double d) { return c[1] + d * (2.0 * c[2] + d * 3.0 * c[3]); }
+
+double he_damping(const he_plant_t *p, int ch, int j) { return p->eta[ch][j] + p->mgain[ch][j] / p->speed_const; }
 
 /* Band force with the slack rule: g(d) = f(d) for d > 0, else f(0) (slack_f0) or 0. */
 static double band_force(const he_plant_t *p, int ch, double d)
 {
     if (d > 0.0)
-        return cubic(p->coef[ch], d);
+        return he_cubic(p->coef[ch], d);
     return p->slack_f0 ? p->coef[ch][0] : 0.0;
 }
 
@@ -29,7 +32,7 @@ int he_plant_check(const he_plant_t *p)
         if (!(p->lever[ch] > 0.0) || !isfinite(p->k_lin[ch]) || !isfinite(p->delta0[ch]))
             return HE_ERR_ARG;
         for (int j = 0; j < p->n; j++) {
-            double c = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;
+            double c = he_damping(p, ch, j);
             if (!isfinite(p->eta[ch][j]) || p->eta[ch][j] < 0.0 || !isfinite(p->kscale[ch][j]) ||
                 !isfinite(p->mgain[ch][j]) || !isfinite(p->volt[ch][j]))
                 return HE_ERR_ARG;
@@ -91,6 +94,21 @@ int he_plant_range_check(const he_plant_t *p, const double *x, int *where)
     return HE_OK;
 }
 
+/* tangent stiffness of bond j of chain ch: d tau / d(x_j - x_{j+1}) (small-angle form) */
+double he_bond_slope(const he_plant_t *p, int ch, int j, double dx)
+{
+    double ks = p->kscale[ch][j];
+    if (p->bands == HE_BANDS_LINEAR)
+        return ks * p->k_lin[ch];
+    /* tau = s L [g(d0 + L dx) - g(d0 - L dx)]  =>  dtau/ddx = s L^2 [g'(d0 + L dx) + g'(d0 - L dx)],
+     * g' = f' where the band is taut, 0 where slack */
+    double L = p->lever[ch], d0 = p->delta0[ch], u = L * dx;
+    double gp = d0 + u > 0.0 ? he_cubic_slope(p->coef[ch], d0 + u) : 0.0;
+    double gm = d0 - u > 0.0 ? he_cubic_slope(p->coef[ch], d0 - u) : 0.0;
+    return ks * p->band_scale * L * L * (gp + gm);
+}
+
+/* The reaction law; Python: physics.reaction (+ physics.reaction_jacobian beside it); firmware: mc_reaction.h */
 void he_reaction(const he_plant_t *p, double al, double be, double *ra, double *rb)
 {
     /* psi'(x) = sign(x) * max(k2|x|, k1|x| - k1 a*)  (= the tri-linear law for k1 > k2) */
@@ -103,6 +121,15 @@ void he_reaction(const he_plant_t *p, double al, double be, double *ra, double *
     *rb = p->k_ab * (al - be);                        /* R_b = k_ab(a - b) */
 }
 
+/* Gershgorin rows of dR/dx (psi'' is k1 or k2); Python: physics.reaction_gershgorin */
+double he_react_stiffness(const he_plant_t *p, int ch)
+{
+    if (p->reaction != HE_REACT_IDEAL)
+        return 0.0;
+    double e1 = fabs(p->k_ab + p->k1), e2 = fabs(p->k_ab + p->k2);
+    return ch == 0 ? (e1 > e2 ? e1 : e2) + fabs(p->k_ab - p->sigma) : 2.0 * fabs(p->k_ab);
+}
+
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C)
 {
     int n = p->n;
@@ -111,7 +138,7 @@ void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, 
         double *Fc = F + ch * n;
         for (int j = 0; j < n; j++) {
             Fc[j] = p->mgain[ch][j] * p->volt[ch][j];            /* Kt*V */
-            C[ch * n + j] = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;  /* eta + Kt/S_L */
+            C[ch * n + j] = he_damping(p, ch, j);                 /* eta + Kt/S_L */
         }
         if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
             /* reciprocal bond: torque -T on j and +T on j+1 */
@@ -164,22 +191,15 @@ void he_plant_bounds(const he_plant_t *p, double w2[2], double cmin[2], double c
         } else {
             double L = p->lever[ch];
             double dmax = p->delta_max[ch];
-            double s0 = fabs(cubic_slope(p->coef[ch], 0.0)), s1 = fabs(cubic_slope(p->coef[ch], dmax));
+            double s0 = fabs(he_cubic_slope(p->coef[ch], 0.0)), s1 = fabs(he_cubic_slope(p->coef[ch], dmax));
             kb = fabs(p->band_scale) * 2.0 * L * L * (s0 > s1 ? s0 : s1);
             if (ch == 1 && p->beta_geometry == HE_BETA_GEOMETRIC)
-                kb += fabs(p->band_scale) * 2.0 * fabs(cubic(p->coef[ch], dmax)) * L * L / p->lattice_m;
+                kb += fabs(p->band_scale) * 2.0 * fabs(he_cubic(p->coef[ch], dmax)) * L * L / p->lattice_m;
         }
-        double kr;
-        if (p->reaction == HE_REACT_IDEAL) {
-            double e1 = fabs(p->k_ab + p->k1), e2 = fabs(p->k_ab + p->k2);
-            kr = ch == 0 ? (e1 > e2 ? e1 : e2) + fabs(p->k_ab - p->sigma) : 2.0 * fabs(p->k_ab);
-        } else {
-            kr = 0.0;
-        }
-        double K = 4.0 * kb * ksmax + kr;
+        double K = 4.0 * kb * ksmax + he_react_stiffness(p, ch);
         double c_lo = INFINITY, c_hi = 0.0;
         for (int j = 0; j < p->n; j++) {
-            double c = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;
+            double c = he_damping(p, ch, j);
             c_lo = c < c_lo ? c : c_lo;
             c_hi = c > c_hi ? c : c_hi;
         }

@@ -37,6 +37,7 @@ enum {
     HE_ERR_STEP = -4,       /* step larger than the stable limit */
     HE_ERR_STEPPER = -5,    /* unknown stepper id */
     HE_ERR_BAND = -6,       /* a band stretched beyond HE_BAND_STOP_FACTOR x the fit's range */
+    HE_ERR_NOMEM = -7,      /* the steppers' scratch could not be allocated */
 };
 #define HE_ANGLE_LIMIT_RAD 1000
 #define HE_BAND_STOP_FACTOR 2
@@ -74,6 +75,9 @@ typedef struct {
     he_pert_t pert[HE_MAX_PERT];
     double react_limit;      /* |R_a|, |R_b| clipped to this (N*m): the drivers' voltage cap kt*vmax;
                                 INFINITY (or any value <= 0 is rejected) for no actuator limit */
+    double *work;            /* steppers' scratch, allocated once per model by its owner (HE_WORK_PER_STATE
+                                doubles per state entry, 2n entries); NULL: he_advance mallocs per call */
+    int64_t work_len;        /* doubles at work */
 } he_plant_t;
 
 /* Check sizes and finiteness; HE_OK or HE_ERR_ARG. */
@@ -83,8 +87,23 @@ void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, 
 /* Band torque on cylinder x_self from the bond to x_other (chain 0/1, bond index
  * for the stiffness spread): the tau(x_self, x_other) of docs/physics.md#band-torque. */
 double he_band_torque(const he_plant_t *p, int chain, int bond, double x_self, double x_other);
-/* Ideal reaction torques R_a, R_b of docs/physics.md#reaction-torques. */
+/* Ideal reaction torques R_a, R_b of docs/physics.md#reaction-torques. The law has one copy per language:
+ * this (C float), host_emulator/physics.py (Python), lib/metacell/src/control/mc_reaction.h (firmware,
+ * fixed point); tests/host_emulator/test_physics.py checks all three against one float reference. */
 void he_reaction(const he_plant_t *p, double alpha, double beta, double *ra, double *rb);
+/* Gershgorin row bound of the reaction Jacobian dR/dx on chain ch (N*m/rad), 0 without the ideal reaction:
+ *   alpha: max(|k_ab + k1|, |k_ab + k2|) + |k_ab - sigma|,   beta: 2 |k_ab|
+ * (Python: physics.reaction_gershgorin). */
+double he_react_stiffness(const he_plant_t *p, int chain);
+/* Cubic band law f(d) = c0 + c1 d + c2 d^2 + c3 d^3 (N) and its slope f'(d) = c1 + 2 c2 d + 3 c3 d^2 (N/m)
+ * (Python: physics.band_force, physics.band_slope). */
+double he_cubic(const double c[4], double d);
+double he_cubic_slope(const double c[4], double d);
+/* Tangent stiffness of bond (j, j+1) of a chain at x_j - x_j+1 = dx: d tau / d dx (N*m/rad), small-angle
+ * band form (the geometric beta form uses it too: the IMEX stepper's W-matrix). */
+double he_bond_slope(const he_plant_t *p, int chain, int bond, double dx);
+/* Viscous + back-EMF damping of cylinder j of a chain: C = eta + m / S_L (N*m*s). */
+double he_damping(const he_plant_t *p, int chain, int j);
 /* Cubic bands: HE_ERR_BAND if some stretch exceeds HE_BAND_STOP_FACTOR * delta_max
  * (the motion left the range where the band law means anything), else HE_OK.
  * *where = 0-based bond index (+ n for the beta chain). */

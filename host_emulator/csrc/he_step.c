@@ -1,8 +1,8 @@
-/* Steppers for the plant: explicit Euler, semi-implicit (symplectic) Euler, RK4 (equations in he_step.h). */
+/* Stepper dispatch by id, the shared scratch and the final state check (methods in he_explicit.c, he_noh_bathe.c, he_imex.c). */
 #include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
 #include "he_step.h"
-#include "he_step_more.h"
 
 int he_state_check(int n2, const double *x, const double *v)
 {
@@ -15,60 +15,27 @@ int he_state_check(int n2, const double *x, const double *v)
     return HE_OK;
 }
 
-double he_step_limit(const he_plant_t *p, int stepper, int *limiting_chain)
+void he_flush_tiny(int n2, double *x, double *v)
 {
-    double w2[2], cmin[2], cmax[2], rate[2], best = INFINITY;
-    int arg = -1;
-    if (stepper < 0 || stepper >= HE_STEP_COUNT)
-        return -1.0;
-    if (stepper == HE_STEP_NOH_BATHE || stepper == HE_STEP_IMEX)
-        return he_step_more_limit(p, stepper, limiting_chain);
-    he_plant_bounds(p, w2, cmin, cmax, rate);
-    for (int ch = 0; ch < 2; ch++) {
-        double h = INFINITY;
-        if (!p->inertia) {
-            if (rate[ch] > 0.0)
-                h = (stepper == HE_STEP_RK4 ? 2.5 : 2.0) / rate[ch];
-        } else if (stepper == HE_STEP_EULER) {
-            /* |1 + h lambda| < 1 for lambda = -c/2 +- i sqrt(w2 - c^2/4) */
-            double a = w2[ch] > 0.0 ? cmin[ch] / w2[ch] : INFINITY;
-            double b = cmax[ch] > 0.0 ? 2.0 / cmax[ch] : INFINITY;
-            h = a < b ? a : b;
-        } else if (stepper == HE_STEP_SYMPLECTIC) {
-            if (w2[ch] > 0.0)
-                h = (cmin[ch] + sqrt(cmin[ch] * cmin[ch] + 4.0 * w2[ch])) / w2[ch];
-        } else {
-            double m = sqrt(w2[ch]) > cmax[ch] ? sqrt(w2[ch]) : cmax[ch];
-            if (m > 0.0)
-                h = 2.5 / m;
-        }
-        if (h < best) {
-            best = h;
-            arg = ch;
-        }
+    for (int i = 0; i < n2; i++) {
+        x[i] = fabs(x[i]) < HE_TINY_RAD ? 0.0 : x[i];
+        v[i] = fabs(v[i]) < HE_TINY_RAD ? 0.0 : v[i];
     }
-    if (limiting_chain)
-        *limiting_chain = arg;
-    return best;
 }
 
-/* derivative of the state: dx = v (or F/C), dv = (F - C v)/I */
-static void deriv(const he_plant_t *p, double t, const double *x, const double *v,
-                  double *dx, double *dv, double *F, double *C)
+double he_step_limit(const he_plant_t *p, int stepper, int *limiting_chain)
 {
-    int n = p->n, n2 = 2 * n;
-    he_plant_forces(p, t, x, F, C);
-    if (p->inertia) {
-        for (int i = 0; i < n2; i++) {
-            double I = p->I[i >= n];
-            dx[i] = v[i];
-            dv[i] = (F[i] - C[i] * v[i]) / I;
-        }
-    } else {
-        for (int i = 0; i < n2; i++) {
-            dx[i] = F[i] / C[i];
-            dv[i] = 0.0;
-        }
+    switch (stepper) {
+    case HE_STEP_EULER:
+    case HE_STEP_SYMPLECTIC:
+    case HE_STEP_RK4:
+        return he_explicit_limit(p, stepper, limiting_chain);
+    case HE_STEP_NOH_BATHE:
+        return he_noh_bathe_limit(p, stepper, limiting_chain);
+    case HE_STEP_IMEX:
+        return he_imex_limit(p, stepper, limiting_chain);
+    default:
+        return -1.0;
     }
 }
 
@@ -79,55 +46,32 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
         return HE_ERR_ARG;
     if (stepper < 0 || stepper >= HE_STEP_COUNT)
         return HE_ERR_STEPPER;
-    if (stepper == HE_STEP_NOH_BATHE || stepper == HE_STEP_IMEX)
-        return he_advance_more(p, stepper, h, nsteps, t, x, v);
-    double F[n2], C[n2];
-    double t0 = *t;
-    for (int64_t s = 0; s < nsteps; s++) {
-        double tt = t0 + (double)s * h;   /* no accumulated rounding in t */
-        if (stepper == HE_STEP_RK4) {
-            double k1x[n2], k1v[n2], k2x[n2], k2v[n2], k3x[n2], k3v[n2], k4x[n2], k4v[n2];
-            double xs[n2], vs[n2];
-            deriv(p, tt + HE_STAGE_EDGE * h, x, v, k1x, k1v, F, C);
-            for (int i = 0; i < n2; i++) { xs[i] = x[i] + 0.5 * h * k1x[i]; vs[i] = v[i] + 0.5 * h * k1v[i]; }
-            deriv(p, tt + 0.5 * h, xs, vs, k2x, k2v, F, C);
-            for (int i = 0; i < n2; i++) { xs[i] = x[i] + 0.5 * h * k2x[i]; vs[i] = v[i] + 0.5 * h * k2v[i]; }
-            deriv(p, tt + 0.5 * h, xs, vs, k3x, k3v, F, C);
-            for (int i = 0; i < n2; i++) { xs[i] = x[i] + h * k3x[i]; vs[i] = v[i] + h * k3v[i]; }
-            deriv(p, tt + (1.0 - HE_STAGE_EDGE) * h, xs, vs, k4x, k4v, F, C);
-            /* y1 = y0 + h/6 (k1 + 2 k2 + 2 k3 + k4) */
-            for (int i = 0; i < n2; i++) {
-                x[i] += h / 6.0 * (k1x[i] + 2.0 * k2x[i] + 2.0 * k3x[i] + k4x[i]);
-                v[i] += h / 6.0 * (k1v[i] + 2.0 * k2v[i] + 2.0 * k3v[i] + k4v[i]);
-            }
-            if (!p->inertia)
-                for (int i = 0; i < n2; i++)
-                    v[i] = (k1x[i] + 2.0 * k2x[i] + 2.0 * k3x[i] + k4x[i]) / 6.0;
-        } else {
-            he_plant_forces(p, tt + HE_STAGE_EDGE * h, x, F, C);
-            if (!p->inertia) {
-                for (int i = 0; i < n2; i++) {
-                    v[i] = F[i] / C[i];           /* x' = F/C */
-                    x[i] += h * v[i];
-                }
-            } else if (stepper == HE_STEP_SYMPLECTIC) {
-                for (int i = 0; i < n2; i++) {
-                    double I = p->I[i >= n];
-                    v[i] = (v[i] + h * F[i] / I) / (1.0 + h * C[i] / I);
-                    x[i] += h * v[i];
-                }
-            } else {
-                for (int i = 0; i < n2; i++) {
-                    double I = p->I[i >= n];
-                    double a = (F[i] - C[i] * v[i]) / I;
-                    x[i] += h * v[i];
-                    v[i] += h * a;
-                }
-            }
-        }
-        he_flush_tiny(n2, x, v);
+    /* scratch: the plant's (allocated once per model) or, without it, one allocation for this call */
+    int64_t need = (int64_t)HE_WORK_PER_STATE * n2;
+    double *work = p->work, *own = NULL;
+    if (work == NULL || p->work_len < need) {
+        own = malloc((size_t)need * sizeof(double));
+        if (own == NULL)
+            return HE_ERR_NOMEM;
+        work = own;
     }
+    double t0 = *t;
+    int rc;
+    switch (stepper) {
+    case HE_STEP_NOH_BATHE:
+        rc = he_noh_bathe_advance(p, stepper, h, nsteps, t0, x, v, work);
+        break;
+    case HE_STEP_IMEX:
+        rc = he_imex_advance(p, stepper, h, nsteps, t0, x, v, work);
+        break;
+    default:
+        rc = he_explicit_advance(p, stepper, h, nsteps, t0, x, v, work);
+        break;
+    }
+    free(own);
+    if (rc != HE_OK)
+        return rc;
     *t = t0 + (double)nsteps * h;
-    int rc = he_state_check(n2, x, v);
+    rc = he_state_check(n2, x, v);
     return rc != HE_OK ? rc : he_plant_range_check(p, x, NULL);
 }

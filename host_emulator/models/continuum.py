@@ -28,6 +28,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
+from ..physics import reaction, reaction_jacobian
+
 __all__ = ["simulate_continuum", "ContinuumError", "validate_perturbations"]
 
 _PERT_KEYS = {"cell", "chain", "torque_Nm", "start_s", "duration_s"}
@@ -67,17 +69,6 @@ def validate_perturbations(perturbations, cells):
             raise ValueError(f"{where}: need start_s >= 0 and duration_s > 0")
         out.append({"cell": int(cell), "chain": p["chain"], **vals})
     return out
-
-
-def _psi_prime_and_slope(params, a):
-    """psi'(alpha) (tri-linear, odd) and psi''(alpha), elementwise. k1 == k2 means psi' = k2 alpha."""
-    k1, k2, ast = params.k1, params.k2, params.alpha_star
-    if k1 == k2:
-        return k2 * a, np.full_like(a, k2)
-    b = k1 * ast / (k1 - k2)  # breakpoint |alpha| = k1 alpha* / (k1 - k2)
-    outer = np.abs(a) > b
-    pp = np.where(outer, k1 * (a - np.sign(a) * ast), k2 * a)
-    return pp, np.where(outer, k1, k2)
 
 
 def _laplacian(n, h):
@@ -146,13 +137,13 @@ def simulate_continuum(
     x = (np.arange(n) + 0.5) * h
     lap = _laplacian(n, h)
     ea, eb = params.eta_alpha, params.eta_beta
-    kab, sig = params.k_ab, params.sigma
     da = (params.ka_eff / ea) * lap
     db = (params.kb_eff / eb) * lap
     eye = sp.identity(n, format="csr")
-    c_ab = sp.csr_matrix(eye * ((kab - sig) / ea))  # d(alpha_t)/d(beta)
-    c_ba = sp.csr_matrix(eye * (kab / eb))  # d(beta_t)/d(alpha)
-    jbb = db - eye * (kab / eb)
+    j0 = reaction_jacobian(params)  # dR/d(alpha, beta); only dR_a/dalpha depends on the state
+    c_ab = sp.csr_matrix(eye * (j0[0, 1] / ea))  # d(alpha_t)/d(beta)
+    c_ba = sp.csr_matrix(eye * (j0[1, 0] / eb))  # d(beta_t)/d(alpha)
+    jbb = db + eye * (j0[1, 1] / eb)
 
     y0 = np.zeros(2 * n)
     if initial is not None:
@@ -178,17 +169,16 @@ def simulate_continuum(
     def make_rhs(fa, fb):
         def rhs(_t, y):
             a, b = y[:n], y[n:]
-            pp, _ = _psi_prime_and_slope(params, a)
-            # eta_a a_t = k_a L a + k_ab (b - a) - psi'(a) - sigma b + P_a ;  eta_b b_t = k_b L b + k_ab (a - b) + P_b
-            at = da @ a + (kab * (b - a) - pp - sig * b) / ea + fa
-            bt = db @ b + (kab * (a - b)) / eb + fb
+            ra, rb = reaction(params, a, b)  # physics.py: the one Python copy of the law
+            # eta_a a_t = k_a L a + R_a(a, b) + P_a ;  eta_b b_t = k_b L b + R_b(a, b) + P_b
+            at = da @ a + ra / ea + fa
+            bt = db @ b + rb / eb + fb
             return np.concatenate([at, bt])
 
         return rhs
 
     def jac(_t, y):
-        _, slope = _psi_prime_and_slope(params, y[:n])
-        jaa = da - sp.diags((kab + slope) / ea)
+        jaa = da + sp.diags(reaction_jacobian(params, y[:n])[0, 0] / ea)  # dR_a/dalpha = -k_ab - psi''(alpha)
         return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
 
     # output times and segment boundaries (perturbation switch-on/off)

@@ -6,6 +6,7 @@ import numpy as np
 
 from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability
+from .solver import Solver
 
 
 class ContinuumModel:
@@ -21,8 +22,10 @@ class ContinuumModel:
         return ContinuumSolver(self)
 
 
-class ContinuumSolver:
+class ContinuumSolver(Solver):
     """Batch solver: the whole run happens in one call (scipy BDF inside simulate_continuum)."""
+
+    whole_run = True
 
     def __init__(self, model: ContinuumModel):
         self.model = model

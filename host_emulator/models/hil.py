@@ -11,6 +11,7 @@ from ..params import Params
 from .lattice import LatticeModel
 from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability, choose_step, error_text
+from .solver import Solver
 
 
 def firmware_config(ffi, lib, params: Params):
@@ -76,7 +77,7 @@ class HilModel(LatticeModel):
         return HilSolver(self, x0, v0)
 
 
-class HilSolver:
+class HilSolver(Solver):
     """Runs whole control ticks in C (he_hil_run); Python only applies firmware perturbation commands."""
 
     def __init__(self, model: HilModel, x0=None, v0=None):
@@ -201,16 +202,26 @@ class HilSolver:
             raise self._error(rc)
         self.tick += nt
 
-    def advance(self):
+    def _apply_due_commands(self):
+        """Send the firmware perturbation commands due at the current tick (perturb_via = "firmware")."""
         lib = self.model.lib
-        end = self.tick + self.ticks_per_out
+        while self.events and self.events[0][0] <= self.tick:
+            _, j, ch, unm, nt = self.events.pop(0)
+            lib.mc_cell_perturb(self.cells + j, ch, unm, nt)
+
+    def run_ticks(self, nt: int = 1):
+        """Run nt control ticks (mc_cell_tick of every cell, motors, plant, encoders), sending the scene's
+        firmware perturbation commands at their ticks: the public per-tick interface (the bus rig applies its
+        register writes between calls). Raises NumericalInstability; then the failing tick is not counted."""
+        end = self.tick + int(nt)
         while self.tick < end:
-            while self.events and self.events[0][0] <= self.tick:
-                _, j, ch, unm, nt = self.events.pop(0)
-                lib.mc_cell_perturb(self.cells + j, ch, unm, nt)
+            self._apply_due_commands()
             nxt = min([end] + [e[0] for e in self.events if e[0] > self.tick])
             self._run(nxt - self.tick)
         self.t = self.tick / self.model.rate_hz
+
+    def advance(self):
+        self.run_ticks(self.ticks_per_out)
 
     def advance_many(self, k_max: int):
         """Up to k_max output intervals, bit-identical to as many advance() calls: whole samples free of
@@ -224,9 +235,7 @@ class HilSolver:
             raise ValueError(f"k_max = {k_max}: must be >= 1")
         m = self.model
         ffi, lib, n, tpo = m.ffi, m.lib, m.n, self.ticks_per_out
-        while self.events and self.events[0][0] <= self.tick:  # commands due now, as advance() applies them
-            _, j, ch, unm, nt = self.events.pop(0)
-            lib.mc_cell_perturb(self.cells + j, ch, unm, nt)
+        self._apply_due_commands()  # commands due now, as advance() applies them
         free = k_max
         if self.events:  # samples ending at or before the next command
             free = min(free, (self.events[0][0] - self.tick) // tpo)

@@ -7,6 +7,7 @@ import numpy as np
 from ..params import Params
 from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability, build_plant, choose_step, error_text, step_limit
+from .solver import Solver
 from .steppers import stepper_id
 
 
@@ -56,7 +57,7 @@ class LatticeModel:
         return LatticeSolver(self, x0, v0)
 
 
-class LatticeSolver:
+class LatticeSolver(Solver):
     """Advances a LatticeModel one output interval at a time with the chosen compiled stepper."""
 
     def __init__(self, model: LatticeModel, x0=None, v0=None):

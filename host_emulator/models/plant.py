@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from .. import params as P
 from ..params import Params
 from .options import ModelOptions, Perturbation
+
+# he_plant_t -> its scratch buffer: cffi frees the buffer when the plant goes (weak keys)
+_keepalive: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class NumericalInstability(RuntimeError):
@@ -69,6 +74,11 @@ def build_plant(
         e.torque = q.torque_Nm
         e.t0 = q.start_s
         e.t1 = q.start_s + q.duration_s
+    # the steppers' scratch, allocated once per plant (he_step.h HE_WORK_PER_STATE); kept alive by the plant
+    work = ffi.new("double[]", lib.HE_WORK_PER_STATE * 2 * n)
+    p.work = work
+    p.work_len = lib.HE_WORK_PER_STATE * 2 * n
+    _keepalive[p] = work
     if lib.he_plant_check(p) != lib.HE_OK:
         raise ValueError(
             "plant parameters rejected (non-positive inertia/damping or non-finite value); "
@@ -97,6 +107,7 @@ def error_text(lib, rc: int) -> str:
         lib.HE_ERR_ARG: "invalid plant configuration",
         lib.HE_ERR_NOMEM: "out of memory for the run's scratch arrays",
         lib.HE_ERR_STEPPER: "unknown stepper id",
+        lib.HE_ERR_NOMEM: "out of memory for the stepper's scratch",
     }.get(rc, f"error {rc}")
 
 

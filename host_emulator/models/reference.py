@@ -1,4 +1,7 @@
-"""Reference plant in numpy, written independently from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
+"""Reference plant in numpy, written from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
+
+The band and reaction laws are physics.py's (the one Python copy, checked against an independent float
+reference in tests/host_emulator/test_physics.py); the assembly, geometry and stepping here are independent.
 
 Used by the tests to check the compiled plant (forces and whole trajectories) and as executable
 documentation of the equations. Same conventions: x = [alpha_1..alpha_n, beta_1..beta_n],
@@ -10,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import params as P
+from ..physics import band_force, reaction
 from .options import ModelOptions, Perturbation
 from .plant import spreads
 
@@ -39,7 +43,7 @@ class ReferencePlant:
     def _g(self, coef, d):
         """Slack rule: f(d) for d > 0, else f(0) (slack_f0) or 0."""
         f0 = coef[0] if self.p.slack_f0 else 0.0
-        return np.where(d > 0, P.band_force(coef, d), f0)
+        return np.where(d > 0, band_force(coef, d), f0)
 
     def bond_torque(self, chain: int, xs, xo):
         """tau(x_self, x_other) of docs/physics.md#band-torque for arrays of bonds (before the per-bond spread)."""
@@ -85,8 +89,9 @@ class ReferencePlant:
         if self.ideal:
             a, b = x[:n], x[n:]
             lim = self.p.torque_limit_nm  # actuator limit (inf when off)
-            F[:n] += np.clip(self.p.k_ab * (b - a) - self.p.psi_prime(a) - self.p.sigma * b, -lim, lim)
-            F[n:] += np.clip(self.p.k_ab * (a - b), -lim, lim)
+            ra, rb = reaction(self.p, a, b)  # physics.py
+            F[:n] += np.clip(ra, -lim, lim)
+            F[n:] += np.clip(rb, -lim, lim)
         if mgain is not None:
             F += mgain * volt
             C += mgain / self.p.speed_const

@@ -1,4 +1,4 @@
-"""Registry of the compiled plant's time steppers, by name (the C side is host_emulator/csrc/he_step.c)."""
+"""Registry of the compiled plant's time steppers, by name (C: host_emulator/csrc/he_step.h ids, one file per method)."""
 
 from __future__ import annotations
 

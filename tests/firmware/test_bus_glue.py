@@ -31,7 +31,7 @@ def test_bus_glue_compiles(src):
             "-Wextra",
             "-Werror",
             "-I",
-            str(ROOT / "tests/firmware/bus_stub"),
+            str(ROOT / "tests/stubs/arduino"),
             "-I",
             str(ROOT / "lib/metacell/src"),
             "-I",

@@ -8,7 +8,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent / "glue_host"
-INC = ["-I", str(ROOT / "tests/firmware/bus_stub"), "-I", str(HERE), "-I", str(ROOT / "lib/metacell/src")]
+INC = ["-I", str(ROOT / "tests/stubs/arduino"), "-I", str(HERE), "-I", str(ROOT / "lib/metacell/src")]
 INC += ["-I", str(ROOT / "src"), "-I", str(ROOT / "src/cell")]
 TXN_TIMEOUT_US = 1500  # what the drivers pass as txn.timeout_us
 SYNC_US = 50  # primary_hw.cpp: bound of the STOP's sync wait

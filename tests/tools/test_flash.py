@@ -824,7 +824,7 @@ def test_glue_compiles_against_the_library_headers(src, defines):
             "-Wextra",
             "-Werror",
             "-I",
-            str(ROOT / "tests/tools/arduino_stub"),
+            str(ROOT / "tests/stubs/arduino"),
             "-I",
             str(ROOT / "lib/metacell/src"),
             "-I",

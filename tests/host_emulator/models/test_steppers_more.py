@@ -118,7 +118,7 @@ def test_limit_is_stable_and_beyond_blows_up(stepper, inertia):
 
 
 def numpy_noh_bathe(ref, h, nsteps, x, v):
-    """Noh-Bathe (inertia) on the numpy reference plant, from the equations in he_step_more.h."""
+    """Noh-Bathe (inertia) on the numpy reference plant, from the equations in he_noh_bathe.h."""
     p = P_NB
     q1 = (1 - 2 * p) / (2 * p * (1 - p))
     q2 = 0.5 - p * q1

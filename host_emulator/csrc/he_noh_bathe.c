@@ -1,20 +1,9 @@
-/* Noh-Bathe two-sub-step explicit stepper and linearly-implicit IMEX Euler for the plant (equations in he_step_more.h). */
+/* Noh-Bathe two-sub-step explicit plant stepper (equations in he_noh_bathe.h). */
 #include <math.h>
 #include <stddef.h>
-#include "he_step.h"
-#include "he_step_more.h"
+#include "he_noh_bathe.h"
 
 #define NB_P ((double)HE_NOH_BATHE_P_PERMILLE / 1000.0)
-
-void he_flush_tiny(int n2, double *x, double *v)
-{
-    for (int i = 0; i < n2; i++) {
-        x[i] = fabs(x[i]) < HE_TINY_RAD ? 0.0 : x[i];
-        v[i] = fabs(v[i]) < HE_TINY_RAD ? 0.0 : v[i];
-    }
-}
-
-/* ---------------------------------------------------------------- Noh-Bathe */
 
 /* 1 if some perturbation switches on or off in (ta, tb] */
 static int he_forcing_changes(const he_plant_t *p, double ta, double tb)
@@ -119,11 +108,15 @@ static void nb_accel(const he_plant_t *p, double t, const double *x, const doubl
         a[i] = (F[i] - C[i] * v[i]) / p->I[i >= n];
 }
 
-static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0, double *x, double *v)
+int he_noh_bathe_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, double t0, double *x,
+                         double *v, double *work)
 {
     int n = p->n, n2 = 2 * n;
     double q0, q1, q2, pp = NB_P, s = (1.0 - pp) * h, ph = pp * h;
-    double F[n2], C[n2], a0[n2], ap[n2], a1[n2], xp[n2], vp[n2], w[n2];
+    double *F = work, *C = work + n2, *a0 = work + 2 * n2, *ap = work + 3 * n2, *a1 = work + 4 * n2;
+    double *xp = work + 5 * n2, *vp = work + 6 * n2, *w = work + 7 * n2;
+    if (stepper != HE_STEP_NOH_BATHE)
+        return HE_ERR_STEPPER;
     nb_coef(&q0, &q1, &q2);
     if (!p->inertia) {
         /* xp = x0 + p h f0;  x1 = x0 + h((1 - 1/(2p)) f0 + 1/(2p) fp) */
@@ -143,7 +136,7 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
             }
             he_flush_tiny(n2, x, v);
         }
-        return;
+        return HE_OK;
     }
     nb_accel(p, t0 + HE_STAGE_EDGE * h, x, v, a0, F, C);
     for (int64_t k = 0; k < nsteps; k++) {
@@ -172,133 +165,30 @@ static void nb_advance(const he_plant_t *p, double h, int64_t nsteps, double t0,
         if (k + 1 < nsteps && he_forcing_changes(p, tt + (1.0 - HE_STAGE_EDGE) * h, tt + (1.0 + HE_STAGE_EDGE) * h))
             nb_accel(p, tt + (1.0 + HE_STAGE_EDGE) * h, x, w, a0, F, C);
     }
-}
-
-/* ---------------------------------------------------------------- IMEX Euler */
-
-static double cubic_slope(const double *c, double d) { return c[1] + d * (2.0 * c[2] + d * 3.0 * c[3]); }
-
-/* tangent stiffness of bond j of chain ch: d tau / d(x_j - x_{j+1}) (small-angle form) */
-static double bond_slope(const he_plant_t *p, int ch, int j, double dx)
-{
-    double ks = p->kscale[ch][j];
-    if (p->bands == HE_BANDS_LINEAR)
-        return ks * p->k_lin[ch];
-    /* tau = s L [g(d0 + L dx) - g(d0 - L dx)]  =>  dtau/ddx = s L^2 [g'(d0 + L dx) + g'(d0 - L dx)],
-     * g' = f' where the band is taut, 0 where slack */
-    double L = p->lever[ch], d0 = p->delta0[ch], u = L * dx;
-    double gp = d0 + u > 0.0 ? cubic_slope(p->coef[ch], d0 + u) : 0.0;
-    double gm = d0 - u > 0.0 ? cubic_slope(p->coef[ch], d0 - u) : 0.0;
-    return ks * p->band_scale * L * L * (gp + gm);
-}
-
-/* Reaction stiffness bound per chain (Gershgorin rows of dR/dx, as in he_plant_bounds). */
-static double react_stiffness(const he_plant_t *p, int ch)
-{
-    if (p->reaction != HE_REACT_IDEAL)
-        return 0.0;
-    double e1 = fabs(p->k_ab + p->k1), e2 = fabs(p->k_ab + p->k2);
-    return ch == 0 ? (e1 > e2 ? e1 : e2) + fabs(p->k_ab - p->sigma) : 2.0 * fabs(p->k_ab);
-}
-
-/* Solve the tridiagonal system (diag d, symmetric off-diagonal e[j] between j and j+1) in place
- * on r (Thomas algorithm; d is overwritten). Returns 0, or -1 on a non-positive pivot. */
-static int thomas(int n, double *d, const double *e, double *r)
-{
-    for (int j = 1; j < n; j++) {
-        if (!(d[j - 1] > 0.0))
-            return -1;
-        double m = e[j - 1] / d[j - 1];
-        d[j] -= m * e[j - 1];
-        r[j] -= m * r[j - 1];
-    }
-    if (!(d[n - 1] > 0.0))
-        return -1;
-    r[n - 1] /= d[n - 1];
-    for (int j = n - 2; j >= 0; j--)
-        r[j] = (r[j] - e[j] * r[j + 1]) / d[j];
-    return 0;
-}
-
-static int imex_advance(const he_plant_t *p, double h, int64_t nsteps, double t0, double *x, double *v)
-{
-    int n = p->n, n2 = 2 * n;
-    double F[n2], C[n2], d[n], e[n], r[n];
-    for (int64_t k = 0; k < nsteps; k++) {
-        double tt = t0 + (double)k * h;
-        he_plant_forces(p, tt + HE_STAGE_EDGE * h, x, F, C);
-        for (int ch = 0; ch < 2; ch++) {
-            const double *xc = x + ch * n;
-            double *vc = v + ch * n;
-            double I = p->I[ch];
-            for (int j = 0; j < n; j++) {
-                int i = ch * n + j;
-                if (p->inertia) {
-                    d[j] = I + h * C[i];                 /* I + h C */
-                    r[j] = I * vc[j] + h * F[i];         /* I v0 + h F */
-                } else {
-                    d[j] = C[i];                         /* C */
-                    r[j] = h * F[i];                     /* h F  (unknown: x1 - x0) */
-                }
-            }
-            double w = p->inertia ? h * h : h;           /* + h^2 Kb  or  + h Kb */
-            for (int j = 0; j + 1 < n; j++) {
-                double sl = w * bond_slope(p, ch, j, xc[j] - xc[j + 1]);
-                d[j] += sl;
-                d[j + 1] += sl;
-                e[j] = -sl;
-            }
-            if (thomas(n, d, e, r) != 0)
-                return HE_ERR_ARG;
-            for (int j = 0; j < n; j++)
-                vc[j] = p->inertia ? r[j] : r[j] / h;    /* v1 */
-        }
-        for (int i = 0; i < n2; i++)
-            x[i] += h * v[i];                            /* x1 = x0 + h v1 */
-        he_flush_tiny(n2, x, v);
-    }
     return HE_OK;
 }
+/* ---------------------------------------------------------------- stable limit */
 
-/* ---------------------------------------------------------------- limits and dispatch */
-
-double he_step_more_limit(const he_plant_t *p, int stepper, int *limiting_chain)
+double he_noh_bathe_limit(const he_plant_t *p, int stepper, int *limiting_chain)
 {
     double w2[2], cmin[2], cmax[2], rate[2], best = INFINITY;
     int arg = -1;
-    if (stepper != HE_STEP_NOH_BATHE && stepper != HE_STEP_IMEX)
+    if (stepper != HE_STEP_NOH_BATHE)
         return -1.0;
     he_plant_bounds(p, w2, cmin, cmax, rate);
     for (int ch = 0; ch < 2; ch++) {
         double h = INFINITY;
-        if (stepper == HE_STEP_NOH_BATHE) {
-            if (!p->inertia) {
-                if (rate[ch] > 0.0)
-                    h = 2.0 / rate[ch];                  /* two-stage RK2: |1 + z + z^2/2| <= 1 */
-            } else {
-                /* worst case over the modes the bounds allow: stiffness 0..w2, damping cmin..cmax */
-                static const double frac[6] = {1.0, 0.5, 0.25, 0.1, 0.01, 0.0};
-                for (int a = 0; a < 6; a++)
-                    for (int b = 0; b < 2; b++) {
-                        double hh = nb_limit_one(b ? cmax[ch] : cmin[ch], frac[a] * w2[ch]);
-                        h = hh < h ? hh : h;
-                    }
-            }
+        if (!p->inertia) {
+            if (rate[ch] > 0.0)
+                h = 2.0 / rate[ch];                  /* two-stage RK2: |1 + z + z^2/2| <= 1 */
         } else {
-            double kr = react_stiffness(p, ch);
-            double c_lo = INFINITY;
-            for (int j = 0; j < p->n; j++) {
-                double c = p->eta[ch][j] + p->mgain[ch][j] / p->speed_const;
-                c_lo = c < c_lo ? c : c_lo;
-            }
-            if (kr > 0.0) {
-                if (!p->inertia) {
-                    h = 2.0 * c_lo / kr;                 /* explicit Euler on the reaction */
-                } else {
-                    double c = c_lo / p->I[ch], wr2 = kr / p->I[ch];
-                    h = (c + sqrt(c * c + 4.0 * wr2)) / wr2;
+            /* worst case over the modes the bounds allow: stiffness 0..w2, damping cmin..cmax */
+            static const double frac[6] = {1.0, 0.5, 0.25, 0.1, 0.01, 0.0};
+            for (int a = 0; a < 6; a++)
+                for (int b = 0; b < 2; b++) {
+                    double hh = nb_limit_one(b ? cmax[ch] : cmin[ch], frac[a] * w2[ch]);
+                    h = hh < h ? hh : h;
                 }
-            }
         }
         if (h < best) {
             best = h;
@@ -308,24 +198,4 @@ double he_step_more_limit(const he_plant_t *p, int stepper, int *limiting_chain)
     if (limiting_chain)
         *limiting_chain = arg;
     return best;
-}
-
-int he_advance_more(const he_plant_t *p, int stepper, double h, int64_t nsteps, double *t, double *x, double *v)
-{
-    int n = p->n, n2 = 2 * n;
-    if (n < 1 || n > HE_MAX_CELLS || !(h > 0.0) || nsteps < 0)
-        return HE_ERR_ARG;
-    double t0 = *t;
-    if (stepper == HE_STEP_NOH_BATHE) {
-        nb_advance(p, h, nsteps, t0, x, v);
-    } else if (stepper == HE_STEP_IMEX) {
-        int rc = imex_advance(p, h, nsteps, t0, x, v);
-        if (rc != HE_OK)
-            return rc;
-    } else {
-        return HE_ERR_STEPPER;
-    }
-    *t = t0 + (double)nsteps * h;
-    int rc = he_state_check(n2, x, v);
-    return rc != HE_OK ? rc : he_plant_range_check(p, x, NULL);
 }
