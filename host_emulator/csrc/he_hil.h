@@ -5,7 +5,6 @@
 #include <stdint.h>
 #include "he_plant.h"
 
-#define HE_ERR_NOMEM (-7)   /* malloc failed (he_plant.h holds the other HE_ERR_* codes) */
 #ifndef MC_CDEF /* the FFI pass sees mc_cell.h earlier in the same umbrella */
 #include "mc_cell.h"
 #endif

@@ -105,9 +105,8 @@ def error_text(lib, rc: int) -> str:
             "(30% strain): the motion grew out of the physical range"
         ),
         lib.HE_ERR_ARG: "invalid plant configuration",
-        lib.HE_ERR_NOMEM: "out of memory for the run's scratch arrays",
         lib.HE_ERR_STEPPER: "unknown stepper id",
-        lib.HE_ERR_NOMEM: "out of memory for the stepper's scratch",
+        lib.HE_ERR_NOMEM: "out of memory for the run's scratch arrays",
     }.get(rc, f"error {rc}")
 
 
