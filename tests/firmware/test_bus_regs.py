@@ -1,4 +1,4 @@
-"""Cell register handler: writes validated (CRC-8, register, length, range) and applied only at a tick boundary; read blocks consistent."""
+"""Cell register handler: writes validated (CRC-8, register, length, range), applied at a tick boundary."""
 
 import struct
 
@@ -256,7 +256,8 @@ def _reference_result(frame: bytes):
         v = struct.unpack("<i", p)[0]
         ph = {"K_AB": 20000, "SIGMA": 72000, "K1": 60000, "K2": -60000, "ASTAR": 1178097}
         ph[name] = v
-        if any(abs(ph[k]) > 250000 for k in ("K_AB", "SIGMA", "K1", "K2")) or not 0 <= ph["ASTAR"] <= 6283185:
+        kmax, amax = D.LIMITS["K_MAX_UNM"], D.LIMITS["ASTAR_MAX_URAD"]
+        if any(abs(ph[k]) > kmax for k in ("K_AB", "SIGMA", "K1", "K2")) or not 0 <= ph["ASTAR"] <= amax:
             return "RANGE"
         if ph["K1"] <= ph["K2"] or ph["K1"] <= 0:
             return "SHAPE"
@@ -265,7 +266,8 @@ def _reference_result(frame: bytes):
         return "OK" if p[0] <= 1 else "RANGE"
     if name == "PERTURB":
         chain, t, _ = struct.unpack("<BhH", p)
-        return "OK" if chain <= 1 and abs(4 * t) <= 131000 else "RANGE"
+        # the wire carries torque in TORQUE_WIRE_UNM LSBs; the cell accepts |torque| <= PERTURB_MAX_UNM uN*m
+        return "OK" if chain <= 1 and abs(D.TORQUE_WIRE_UNM * t) <= D.LIMITS["PERTURB_MAX_UNM"] else "RANGE"
     if name == "PWM_LIMIT":
         return "OK" if struct.unpack("<H", p)[0] <= 2400 else "RANGE"
     return "OK"

@@ -1,4 +1,4 @@
-"""Rig logger on python-can: python-can log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports, reconnects.
+"""Rig logger on python-can: python-can log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gaps, reconnects.
 
     python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1 --duration 60
     python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
@@ -28,9 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from protocol.codec import RAD_PER_COUNT
+
 from . import proto
 
-RAD_PER_COUNT = 2 * math.pi / 400
 T128_S = 128e-6
 T_WRAP = 1 << 16  # the frames' time field wraps every 65536 x 128 us = 8.39 s
 CSV_HEADER = "segment,cycle,cell,t_s,host_time,alpha_counts,beta_counts,flags\n"
