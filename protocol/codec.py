@@ -80,31 +80,35 @@ def unit_of(reg: str, name: str) -> str | None:
     return _field(reg, name)[1]
 
 
-def raw_range(reg: str, name: str) -> tuple[int, int]:
-    """Accepted raw values of a field: its type's range, narrowed by the definition's firmware range."""
+def raw_range(reg: str, name: str, firmware: bool = True) -> tuple[int, int]:
+    """Accepted raw values of a field: its type's range, narrowed by the definition's firmware range (unless
+    firmware=False: then only what the field can carry)."""
     typ, _ = _field(reg, name)
     lo, hi = TYPE_RANGES[typ]
+    if not firmware:
+        return lo, hi
     rlo, rhi = REGISTERS[reg].get("range", {}).get(name, (lo, hi))
     return max(lo, rlo), min(hi, rhi)
 
 
-def si_range(reg: str, name: str) -> tuple[float, float]:
+def si_range(reg: str, name: str, firmware: bool = True) -> tuple[float, float]:
     """raw_range in SI units."""
     _, unit = _field(reg, name)
-    lo, hi = raw_range(reg, name)
+    lo, hi = raw_range(reg, name, firmware)
     return raw_to_si(unit, lo), raw_to_si(unit, hi)
 
 
-def to_register(reg: str, name: str, x: float) -> int:
-    """SI value -> raw register value, RangeError (naming the accepted SI range) if the register or the
-    firmware would not take it."""
+def to_register(reg: str, name: str, x: float, firmware: bool = True) -> int:
+    """SI value -> raw register value, RangeError (naming the accepted SI range) if the firmware would refuse
+    it; with firmware=False only if the field cannot carry it (the cell then answers RESULT RANGE itself)."""
     _, unit = _field(reg, name)
     raw = si_to_raw(unit, x)
-    lo, hi = raw_range(reg, name)
+    lo, hi = raw_range(reg, name, firmware)
     if not lo <= raw <= hi:
-        slo, shi = si_range(reg, name)
+        slo, shi = si_range(reg, name, firmware)
         u = si_unit(unit)
-        raise RangeError(f"{reg}.{name} = {x:g} {u}: the firmware accepts {slo:g}..{shi:g} {u}".rstrip())
+        who = "the firmware accepts" if firmware else f"the {_field(reg, name)[0]} field carries"
+        raise RangeError(f"{reg}.{name} = {x:g} {u}: {who} {slo:g}..{shi:g} {u}".rstrip())
     return raw
 
 

@@ -58,14 +58,16 @@ class HilModel(LatticeModel):
         self.lib.mc_cell_init(c)
         if self.lib.mc_cell_set_params(c, self.phys) != self.lib.MC_OK:
             raise ValueError(
-                "firmware rejected the reaction parameters (|k| <= 0.25 N*m/rad, 0 <= alpha_star <= 2 pi, "
+                f"firmware rejected the reaction parameters (|k| <= {self.lib.MC_K_MAX_UNM * 1e-6:g} N*m/rad, "
+                f"0 <= alpha_star <= {self.lib.MC_ASTAR_MAX_URAD * 1e-6:g} rad, "
                 f"k1 > max(k2, 0)): k_ab={params.k_ab}, sigma={params.sigma}, k1={params.k1}, "
                 f"k2={params.k2}, alpha_star={params.alpha_star}"
             )
         if self.lib.mc_cell_set_drive(c, self.drive_cfg) != self.lib.MC_OK:
             raise ValueError(
                 "firmware rejected the drive configuration (control_rate_hz 100..50000, pwm_top "
-                f"255..4095, vmax_v <= 5.86 and <= supply_v): control_rate_hz={params.control_rate_hz}, "
+                f"255..4095, vmax_v <= {self.lib.MC_VMAX_ABS_MV / 1000:g} and <= supply_v): "
+                f"control_rate_hz={params.control_rate_hz}, "
                 f"pwm_top={params.pwm_top}, vmax_v={params.vmax_v}, supply_v={params.supply_v}"
             )
         self.rate_hz = int(self.drive_cfg.ctrl_rate_hz)

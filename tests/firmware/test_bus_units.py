@@ -142,3 +142,13 @@ def test_no_code_outside_protocol_restates_a_wire_fact():
             if any(p.search(code) for p in RESTATED):
                 hits.append(f"{rel}:{n}: {line.strip()}")
     assert not hits, "\n".join(hits)
+
+
+def test_codec_can_leave_the_verdict_to_the_cell():
+    """firmware=False refuses only what the field cannot carry (the command tool lets the cell answer RANGE)."""
+    k = codec.K_MAX_NM_PER_RAD + 0.05
+    assert codec.to_register("SIGMA", "value", k, firmware=False) == round(k * 1e6)
+    with pytest.raises(codec.RangeError, match="firmware accepts"):
+        codec.to_register("SIGMA", "value", k)
+    with pytest.raises(codec.RangeError, match="field carries"):
+        codec.to_register("SIGMA", "value", 3000.0, firmware=False)

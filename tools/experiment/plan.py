@@ -66,12 +66,13 @@ class ExperimentPlan:
 
 
 def wire_param(name: str, value: float) -> int:
-    """SI -> register value of a reaction parameter (protocol.codec: uN*m/rad, urad), within the firmware's range."""
+    """SI -> register value of a reaction parameter (protocol.codec: uN*m/rad, urad). Only values the register
+    cannot carry are refused here: the cells judge the rest (a refusal aborts the run before the drive is on)."""
     reg = dict(FIRMWARE_PARAMS).get(name)
     if reg is None:
         raise PlanError(f"params.{name}: not a firmware parameter (one of {[n for n, _ in FIRMWARE_PARAMS]})")
     try:
-        return codec.to_register(reg, "value", value)
+        return codec.to_register(reg, "value", value, firmware=False)
     except codec.RangeError as e:
         raise PlanError(f"params.{name} = {value!r}: {e}") from None
 

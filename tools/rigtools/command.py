@@ -28,9 +28,9 @@ CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
 
 def physical_to_wire(name: str, value: float) -> int:
     """SI value (N*m/rad, rad for alpha_star) -> integer register value (protocol.codec: uN*m/rad, urad),
-    ValueError outside the range the firmware accepts."""
+    ValueError if the register cannot carry it (the cell answers RANGE for what it does not accept)."""
     try:
-        return codec.to_register(PARAM_REGS[name], "value", value)
+        return codec.to_register(PARAM_REGS[name], "value", value, firmware=False)
     except codec.RangeError as e:
         raise ValueError(f"{name}: {e}") from None
 
