@@ -20,9 +20,11 @@ bench: setup
 	$(PY) -m host_emulator.bus.bench
 	$(PY) -m tools.fwcheck report
 
-# Regenerate the C headers, DBC and tables from protocol/definition.py (the test suite fails while they are stale).
+# After editing protocol/definition.py: regenerate the C headers, DBC and tables, and (a unit or limit changes the
+# library's behaviour) the native golden vectors. The test suite fails while either is stale.
 proto: setup
 	$(PY) -m protocol.generate
+	$(PY) -m tools.fwcheck golden-header
 
 clean:
 	rm -rf build out .pio
