@@ -1,7 +1,7 @@
 # Single entry point: `make demo` runs the default scene, `make test` runs every check.
 PY := .venv/bin/python
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test bench clean proto
 
 setup:
 	@bash tools/setup.sh
@@ -19,6 +19,12 @@ bench: setup
 	$(PY) -m host_emulator.batch --points 1000 --workers 1 2
 	$(PY) -m host_emulator.bus.bench
 	$(PY) -m tools.fwcheck report
+
+# After editing protocol/definition.py: regenerate the C headers, DBC and tables, and (a unit or limit changes the
+# library's behaviour) the native golden vectors. The test suite fails while either is stale.
+proto: setup
+	$(PY) -m protocol.generate
+	$(PY) -m tools.fwcheck golden-header
 
 clean:
 	rm -rf build out .pio

@@ -10,6 +10,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from protocol import definition as _wire_units
+
 # ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
 LATTICE_M = 0.060  # a, lattice parameter
 R_ALPHA_M = 0.010  # r, alpha cylinder radius (alpha bands at r)
@@ -33,7 +35,7 @@ MOTOR_KT_NM_PER_V = 0.09 / 12.0  # stall torque / rated voltage
 MOTOR_SPEED_CONST = 49.8  # S_L, rad/(V s), measured (datasheet 47.9)
 SUPPLY_V = 9.0
 VMAX_V = 5.86  # DRV8874 2.1 A limit at 9 V
-COUNTS_PER_REV = 400
+COUNTS_PER_REV = _wire_units.COUNTS_PER_REV  # the wire definition (protocol/definition.py); C: MC_COUNTS_PER_REV
 
 # ---- reaction law (docs/physics.md#reaction-torques) -------------------------------------------------
 SIGMA_MAIN = 9 / 125

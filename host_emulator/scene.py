@@ -1,4 +1,4 @@
-"""Scenes: TOML files naming a model, its parameters, switches and perturbations (shipped in scenes/ or given as a path)."""
+"""Scenes: TOML files naming a model, its parameters, switches and perturbations (shipped in scenes/ or a path)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,8 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from protocol import codec
 
 from .models import model_names
 from .models.options import ConfigError, ModelOptions, Perturbation, parse_options, parse_perturbation
@@ -148,9 +150,10 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     perturbations = tuple(parse_perturbation(p, cells, f"perturbation[{i + 1}]") for i, p in enumerate(perts))
     if d["model"] == "hil" and options.perturb_via == "firmware":
         for i, p in enumerate(perturbations):
-            if abs(p.torque_Nm) > 0.131:
+            if abs(codec.si_to_raw("uN*m", p.torque_Nm)) > codec.LIMITS["PERTURB_MAX_UNM"]:
                 raise ConfigError(
-                    f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most 0.131 N*m"
+                    f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most "
+                    f"{codec.PERTURB_MAX_NM:g} N*m"
                 )
     from .accuracy import DEFAULT, check_level
 

@@ -1,13 +1,16 @@
 """The single definition of every wire format of the rig: I2C register map and blocks, CAN (SLCAN) frames.
 
-Pure data (Python literals), no imports from the project. ``protocol/generate.py``
-turns it into ``lib/metacell/src/bus/mc_proto.h`` (C) and ``protocol/metacell.dbc``
-(CAN database); the Python tools read it directly. Change the map here, bump
-PROTO_VERSION when a layout changes, and rerun ``python protocol/generate.py``;
+Pure data (Python literals), no imports from the project. ``python -m protocol.generate``
+turns it into ``lib/metacell/src/bus/mc_proto.h`` and ``lib/metacell/src/mc_units.h`` (C),
+``protocol/metacell.dbc`` (CAN database) and ``docs/datapath-map.md``; the Python side reads
+it through ``protocol.wire`` (frames, CRC, addresses) and ``protocol.codec`` (SI <-> register
+units). Change the map here, bump PROTO_VERSION when a layout changes, and regenerate;
 ``tests/firmware/test_bus_proto.py`` fails while the generated files are stale.
 
 All multi-byte fields are little-endian. Types: u8 i8 u16 i16 u32 i32.
 """
+
+import math as _math
 
 PROTO_VERSION = 1
 
@@ -43,7 +46,7 @@ BLOCKS = {
             ("tag", "u8", "(PROTO_VERSION << 4) | block id"),
             ("addr", "u8", "7-bit address of the cell"),
             ("tick", "u32", "control ticks since the cell booted"),
-            ("alpha", "i16", "alpha angle, encoder counts (400/rev), zeroed, clamped to +-2048"),
+            ("alpha", "i16", "alpha angle, encoder counts, zeroed, clamped to +-2048"),
             ("beta", "i16", "beta angle, encoder counts, zeroed, clamped to +-2048"),
             ("faults", "u16", "latched MC_FAULT_* flags"),
             ("flags", "u8", "CELL_FLAGS bits"),
@@ -115,10 +118,40 @@ CELL_FLAGS = {
     "FAULT": 4,  # faults != 0 (drivers off)
 }
 
+# ---------------------------------------------------------------------------
+# Physical units and the firmware's acceptance limits. Each register field and frame signal names its unit (a
+# key of UNITS); protocol/codec.py converts SI <-> register values with them, the generator writes them into
+# lib/metacell/src/mc_units.h (the C library's own constants) and into the DBC's physical view. One line here
+# changes every side.
+COUNTS_PER_REV = 400  # encoder counts per revolution: angles on the wire and in the firmware
+TORQUE_WIRE_UNM = 4  # PERTURB torque on the wire: one LSB = 4 uN*m (so an i16 spans +-131 mN*m)
+
+# Limits in register units (uN*m/rad, urad, uN*m); the cell library rejects anything outside (RESULT RANGE).
+LIMITS = {
+    "K_MAX_UNM": 250000,  # |k_ab|, |sigma|, |k1|, |k2| <= 0.25 N*m/rad
+    "ASTAR_MAX_URAD": 6283185,  # 0 <= alpha* <= 2 pi rad
+    "PERTURB_MAX_UNM": 131000,  # |perturbing torque| <= 0.131 N*m (within the 2^22 TU torque clamp)
+}
+
+# unit -> {"si": SI unit, and either "micro": LSB in millionths of the SI unit (the codec computes
+# round(x * 1e6 / micro), exact for micro = 1) or "lsb": SI value of one LSB; "text": how docs name it}.
+UNITS = {
+    "uN*m/rad": {"si": "N*m/rad", "micro": 1},
+    "urad": {"si": "rad", "micro": 1},
+    "uN*m": {"si": "N*m", "micro": 1},
+    "wire torque": {"si": "N*m", "micro": TORQUE_WIRE_UNM, "text": f"{TORQUE_WIRE_UNM} uN*m"},
+    "count": {"si": "rad", "lsb": 2 * _math.pi / COUNTS_PER_REV, "text": f"count, {COUNTS_PER_REV}/rev"},
+    "tick": {"si": "tick", "lsb": 1, "text": "control ticks"},
+    "timer tick": {"si": "timer tick", "lsb": 1, "text": "timer ticks"},
+}
+
 # Writable registers. Payloads are the same bytes in the I2C write and in the
 # CAN command frame (after reg and seq), so one layout serves both.
-# "range" is informative for tools; the cell library is the authority and
-# rejects anything it does not accept (RESULT RANGE/SHAPE/CONFIG).
+# Payload fields: (name, type, unit key of UNITS or None). "range": {field: (lo, hi)} in register units, the
+# firmware's acceptance range, used by protocol/codec.py to refuse a value before it is sent; the cell library
+# checks the same LIMITS and rejects anything else (RESULT RANGE/SHAPE/CONFIG).
+_K = LIMITS["K_MAX_UNM"]
+_T = LIMITS["PERTURB_MAX_UNM"] // TORQUE_WIRE_UNM  # largest |torque| on the wire the cell accepts
 REGISTERS = {
     "POINTER": {
         "id": 0x01,
@@ -126,22 +159,38 @@ REGISTERS = {
         "doc": "select the block returned by the next read (SNAPSHOT after it); applied at once. "
         "As a CAN CMD: the primary reads that block and sends it as BLOCK_DATA frames",
     },
-    "K_AB": {"id": 0x10, "payload": [("value", "i32", "uN*m/rad")], "doc": "k_ab, -250000..250000"},
-    "SIGMA": {"id": 0x11, "payload": [("value", "i32", "uN*m/rad")], "doc": "sigma, -250000..250000"},
-    "K1": {"id": 0x12, "payload": [("value", "i32", "uN*m/rad")], "doc": "k1 (> 0, > k2)"},
-    "K2": {"id": 0x13, "payload": [("value", "i32", "uN*m/rad")], "doc": "k2 (< k1)"},
-    "ASTAR": {"id": 0x14, "payload": [("value", "i32", "urad")], "doc": "alpha*, 0..6283185"},
-    "ENABLE": {"id": 0x20, "payload": [("on", "u8", None)], "doc": "drive enable, 0 or 1"},
-    "BEMF": {"id": 0x21, "payload": [("on", "u8", None)], "doc": "back-EMF compensation, 0 or 1"},
+    "K_AB": {"id": 0x10, "payload": [("value", "i32", "uN*m/rad")], "range": {"value": (-_K, _K)}, "doc": "k_ab"},
+    "SIGMA": {"id": 0x11, "payload": [("value", "i32", "uN*m/rad")], "range": {"value": (-_K, _K)}, "doc": "sigma"},
+    "K1": {
+        "id": 0x12,
+        "payload": [("value", "i32", "uN*m/rad")],
+        "range": {"value": (-_K, _K)},
+        "doc": "k1 (> 0, > k2)",
+    },
+    "K2": {"id": 0x13, "payload": [("value", "i32", "uN*m/rad")], "range": {"value": (-_K, _K)}, "doc": "k2 (< k1)"},
+    "ASTAR": {
+        "id": 0x14,
+        "payload": [("value", "i32", "urad")],
+        "range": {"value": (0, LIMITS["ASTAR_MAX_URAD"])},
+        "doc": "alpha*",
+    },
+    "ENABLE": {"id": 0x20, "payload": [("on", "u8", None)], "range": {"on": (0, 1)}, "doc": "drive enable"},
+    "BEMF": {
+        "id": 0x21,
+        "payload": [("on", "u8", None)],
+        "range": {"on": (0, 1)},
+        "doc": "back-EMF compensation",
+    },
     "PERTURB": {
         "id": 0x22,
-        "payload": [("chain", "u8", None), ("torque", "i16", "4 uN*m"), ("ticks", "u16", "control ticks")],
-        "doc": "perturbing torque on chain 0=alpha 1=beta, |torque*4| <= 131000 uN*m",
+        "payload": [("chain", "u8", None), ("torque", "i16", "wire torque"), ("ticks", "u16", "tick")],
+        "range": {"chain": (0, 1), "torque": (-_T, _T)},
+        "doc": "perturbing torque on chain 0=alpha 1=beta for ticks control ticks",
     },
     "ZERO": {"id": 0x23, "payload": [], "doc": "make the current positions the zero of both angles"},
     "PWM_LIMIT": {
         "id": 0x24,
-        "payload": [("ticks", "u16", "timer ticks")],
+        "payload": [("ticks", "u16", "timer tick")],
         "doc": "PWM duty limit (clamped to the 5.86 V cap)",
     },
     "CLEAR_FAULTS": {"id": 0x25, "payload": [], "doc": "clear latched faults"},
@@ -179,8 +228,8 @@ FRAMES = {
         "doc": "one snapshot of cell j, sent for every successful poll",
         "signals": [
             ("seq", "u8", 1, 0, "", "per-cell sample counter (wraps at 256): gaps = lost samples"),
-            ("alpha", "i16", 1, 0, "count", "alpha angle, 400 counts/rev"),
-            ("beta", "i16", 1, 0, "count", "beta angle, 400 counts/rev"),
+            ("alpha", "i16", 1, 0, "count", "alpha angle, encoder counts"),
+            ("beta", "i16", 1, 0, "count", "beta angle, encoder counts"),
             ("t128", "u16", 128e-6, 0, "s", "primary clock at the read, 128 us units (wraps)"),
             ("flags", "u8", 1, 0, "", "CELL_FLAGS bits"),
         ],
@@ -304,24 +353,10 @@ TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}
 # ---------------------------------------------------------------------------
 # The CAN database's physical view (protocol/metacell.dbc only: the wire layout, the C header and the map id do
 # not depend on it). Tools that read the DBC (cantools decode/monitor, SavvyCAN, ...) show SI units and names;
-# code that wants the raw wire integers decodes with scaling=False, decode_choices=False.
-import math as _math  # noqa: E402
-
-COUNT_RAD = 2 * _math.pi / 400  # one encoder count (400 counts per revolution), rad
-
-# (frame, signal) -> (scale, offset, unit); "CMD" signals are named <REGISTER>_<field>.
-DBC_PHYSICAL = {
-    ("CELL_SAMPLE", "alpha"): (COUNT_RAD, 0, "rad"),
-    ("CELL_SAMPLE", "beta"): (COUNT_RAD, 0, "rad"),
-    ("CMD", "K_AB_value"): (1e-6, 0, "N*m/rad"),
-    ("CMD", "SIGMA_value"): (1e-6, 0, "N*m/rad"),
-    ("CMD", "K1_value"): (1e-6, 0, "N*m/rad"),
-    ("CMD", "K2_value"): (1e-6, 0, "N*m/rad"),
-    ("CMD", "ASTAR_value"): (1e-6, 0, "rad"),
-    ("CMD", "PERTURB_torque"): (4e-6, 0, "N*m"),
-    ("CMD", "PERTURB_ticks"): (1, 0, "tick"),
-    ("CMD", "PWM_LIMIT_ticks"): (1, 0, "timer tick"),
-}
+# code that wants the raw wire integers decodes with scaling=False, decode_choices=False. Every register field and
+# frame signal whose unit is in UNITS is shown in its SI unit; DBC_PHYSICAL overrides single signals
+# ((frame, signal) -> (scale, offset, unit); "CMD" signals are named <REGISTER>_<field>).
+DBC_PHYSICAL = {}
 
 # (frame, signal) -> {raw value: name}: value tables of the enumerations. CELL_SAMPLE.flags is a bit field:
 # its table names the single-bit values (a combination decodes as its number).

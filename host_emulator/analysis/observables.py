@@ -1,4 +1,4 @@
-"""Observables of a run (docs/physics.md#experiments): steadiness, spatial period of the pattern, temporal period, amplitude, growth rate.
+"""Observables of a run (docs/physics.md#experiments): steadiness, spatial and temporal period, amplitude, growth rate.
 
 Definitions (t in s, alpha/beta (T, N) in rad, cells j = 1..N at x_j = j - 1/2):
 
@@ -42,6 +42,8 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from protocol.codec import RAD_PER_COUNT
+
 __all__ = [
     "observables",
     "spatial_period",
@@ -53,7 +55,7 @@ __all__ = [
     "is_at_rest",
 ]
 
-ENCODER_STEP_RAD = 2 * math.pi / 400
+ENCODER_STEP_RAD = RAD_PER_COUNT  # one encoder count (protocol/definition.py COUNTS_PER_REV)
 DEFAULT_TOL_RAD = 2 * ENCODER_STEP_RAD  # two encoder counts
 REST_TOL_RAD = 3 * ENCODER_STEP_RAD  # at rest: within three encoder counts of zero
 WALL_THRESHOLD_RAD = 0.1  # cells with |alpha| above this take part in the wall count

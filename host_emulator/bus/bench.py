@@ -1,4 +1,6 @@
-"""Benchmark: full-lattice sample rate the I2C bus allows (from the transaction bytes) vs what the compiled primary schedule reaches in the emulator.
+"""Benchmark: full-lattice sample rate the I2C bus allows vs what the compiled primary schedule reaches in the emulator.
+
+The bus limit follows from the transaction bytes.
 
 python -m host_emulator.bus.bench [--seconds 5]
 """
@@ -8,14 +10,14 @@ from __future__ import annotations
 import argparse
 import time
 
+from protocol import wire
+
 from .i2c import I2CTiming, lattice_rate_limit
 from .rig import BusOptions, make_rig
 
 
 def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, dict]:
     """(cycles per simulated second after a 0.5 s settle, wall seconds, rig, samples/s per cell)."""
-    from tools.rigtools import proto
-
     rig, _ = make_rig("exp5_rest", BusOptions(i2c_hz=hz, **faults))
     rig.advance_to(500_000)
     rig.frames()
@@ -23,12 +25,12 @@ def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, di
     t0 = time.perf_counter()
     step = 20_000
     t = 500_000
-    per_cell = {j: 0 for j in range(1, proto.N_CELLS + 1)}
+    per_cell = {j: 0 for j in range(1, wire.N_CELLS + 1)}
     while t < 500_000 + seconds * 1e6:
         t += step
         rig.advance_to(t)
         for fid, _ in rig.frames():
-            kind, j = proto.frame_kind(fid)
+            kind, j = wire.frame_kind(fid)
             if kind == "CELL_SAMPLE":
                 per_cell[j] += 1
     return ((rig.p.cycles - c0) / seconds, time.perf_counter() - t0, rig, {j: c / seconds for j, c in per_cell.items()})
@@ -38,16 +40,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m host_emulator.bus.bench", description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per measurement")
     args = ap.parse_args(argv)
-    from tools.rigtools import proto
-
-    n = sum(proto.D.TYPE_SIZES[f[1]] for f in proto.D.BLOCKS["SNAPSHOT"]["fields"])
+    n = wire.block_len("SNAPSHOT")
     for hz in (400_000, 100_000):
         tm = I2CTiming(hz)
         limit = lattice_rate_limit(hz)
         rate, wall, rig, _ = measure(hz, args.seconds)
         print(
             f"I2C {hz // 1000} kHz: snapshot read = {n} bytes = {tm.bits(n)} bit periods "
-            f"({tm.transaction_s(n) * 1e6:.1f} us incl. t_BUF) per cell, {proto.N_CELLS} cells"
+            f"({tm.transaction_s(n) * 1e6:.1f} us incl. t_BUF) per cell, {wire.N_CELLS} cells"
         )
         print(f"  bus-limited full-lattice rate : {limit:8.2f} Hz")
         print(

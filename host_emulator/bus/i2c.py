@@ -49,9 +49,9 @@ class I2CTiming:
 
 def lattice_rate_limit(hz: int = 400_000, cells: int | None = None, snapshot_len: int | None = None) -> float:
     """Full-lattice samples per second the bus allows: one snapshot read per cell, nothing else on the bus."""
-    from tools.rigtools import proto
+    from protocol import wire
 
-    cells = proto.N_CELLS if cells is None else cells
+    cells = wire.N_CELLS if cells is None else cells
     if snapshot_len is None:
-        snapshot_len = sum(proto.D.TYPE_SIZES[f[1]] for f in proto.D.BLOCKS["SNAPSHOT"]["fields"])
+        snapshot_len = wire.block_len("SNAPSHOT")
     return 1.0 / (cells * I2CTiming(hz).transaction_s(snapshot_len))

@@ -279,7 +279,7 @@ class EmulatedRig:
         import math
 
         n = self.n
-        k = 400 / (2 * math.pi)
+        k = self.lib.MC_COUNTS_PER_REV / (2 * math.pi)
         return [x * k for x in self.solver.x[:n]], [x * k for x in self.solver.x[n:]]
 
 

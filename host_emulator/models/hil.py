@@ -1,4 +1,4 @@
-"""Hardware-in-the-loop model: the lattice plant driven by the compiled cell firmware through motors, drivers and encoders."""
+"""Hardware-in-the-loop model: the lattice plant driven by the compiled cell firmware via motors, drivers, encoders."""
 
 from __future__ import annotations
 
@@ -6,22 +6,30 @@ import math
 
 import numpy as np
 
-from .. import params as P
+from protocol import codec
+
 from ..params import Params
 from .lattice import LatticeModel
 from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability, choose_step, error_text
 from .solver import Solver
 
+# Params field -> (mc_reaction_phys_t member, register carrying the same value on the wire)
+REACTION_FIELDS = (
+    ("k_ab", "k_ab_unm", "K_AB"),
+    ("sigma", "sigma_unm", "SIGMA"),
+    ("k1", "k1_unm", "K1"),
+    ("k2", "k2_unm", "K2"),
+    ("alpha_star", "astar_urad", "ASTAR"),
+)
+
 
 def firmware_config(ffi, lib, params: Params):
-    """(mc_reaction_phys_t, mc_drive_config_t) from Params: gains in uN*m/rad, a* in urad, volts in mV."""
+    """(mc_reaction_phys_t, mc_drive_config_t) from Params: gains and a* scaled as their registers are
+    (protocol.codec: uN*m/rad, urad; the firmware judges the range), volts in mV."""
     phys = ffi.new("mc_reaction_phys_t *")
-    phys.k_ab_unm = round(params.k_ab * 1e6)
-    phys.sigma_unm = round(params.sigma * 1e6)
-    phys.k1_unm = round(params.k1 * 1e6)
-    phys.k2_unm = round(params.k2 * 1e6)
-    phys.astar_urad = round(params.alpha_star * 1e6)
+    for name, member, reg in REACTION_FIELDS:
+        setattr(phys, member, codec.si_to_raw(codec.unit_of(reg, "value"), getattr(params, name)))
     drv = ffi.new("mc_drive_config_t *")
     lib.mc_drive_default_config(drv)
     drv.supply_mv = round(params.supply_v * 1000)
@@ -51,14 +59,16 @@ class HilModel(LatticeModel):
         self.lib.mc_cell_init(c)
         if self.lib.mc_cell_set_params(c, self.phys) != self.lib.MC_OK:
             raise ValueError(
-                "firmware rejected the reaction parameters (|k| <= 0.25 N*m/rad, 0 <= alpha_star <= 2 pi, "
+                f"firmware rejected the reaction parameters (|k| <= {self.lib.MC_K_MAX_UNM * 1e-6:g} N*m/rad, "
+                f"0 <= alpha_star <= {self.lib.MC_ASTAR_MAX_URAD * 1e-6:g} rad, "
                 f"k1 > max(k2, 0)): k_ab={params.k_ab}, sigma={params.sigma}, k1={params.k1}, "
                 f"k2={params.k2}, alpha_star={params.alpha_star}"
             )
         if self.lib.mc_cell_set_drive(c, self.drive_cfg) != self.lib.MC_OK:
             raise ValueError(
                 "firmware rejected the drive configuration (control_rate_hz 100..50000, pwm_top "
-                f"255..4095, vmax_v <= 5.86 and <= supply_v): control_rate_hz={params.control_rate_hz}, "
+                f"255..4095, vmax_v <= {self.lib.MC_VMAX_ABS_MV / 1000:g} and <= supply_v): "
+                f"control_rate_hz={params.control_rate_hz}, "
                 f"pwm_top={params.pwm_top}, vmax_v={params.vmax_v}, supply_v={params.supply_v}"
             )
         self.rate_hz = int(self.drive_cfg.ctrl_rate_hz)
@@ -120,7 +130,7 @@ class HilSolver(Solver):
         h.tick_s = tick
         h.supply_v = model.params.supply_v
         h.kt = model.params.kt
-        h.counts_per_rad = P.COUNTS_PER_REV / (2 * math.pi)
+        h.counts_per_rad = lib.MC_COUNTS_PER_REV / (2 * math.pi)
         h.jitter_counts = nz.encoder_jitter_counts
         h.glitch_prob = nz.encoder_glitch_prob
         h.rng = (nz.seed * 0x9E3779B97F4A7C15 + 0x2545F4914F6CDD1D) % (1 << 64) or 1
@@ -148,10 +158,12 @@ class HilSolver(Solver):
         self.events = []
         if opt.perturb_via == "firmware":
             for q in model.all_perturbations:
-                unm = round(q.torque_Nm * 1e6)
-                if abs(unm) > 131000:
+                # mc_cell_perturb takes uN*m (the wire's PERTURB register carries it in coarser LSBs)
+                unm = codec.si_to_raw("uN*m", q.torque_Nm)
+                if abs(unm) > lib.MC_PERTURB_MAX_UNM:
                     raise ValueError(
-                        f"perturbation torque {q.torque_Nm} N*m: the firmware accepts |torque| <= 0.131 N*m"
+                        f"perturbation torque {q.torque_Nm} N*m: the firmware accepts "
+                        f"|torque| <= {lib.MC_PERTURB_MAX_UNM * 1e-6:g} N*m"
                     )
                 k0 = round(q.start_s * model.rate_hz)
                 self.events.append(

@@ -1,24 +1,35 @@
 """The generated C header and DBC agree with protocol/definition.py; CRC-8 matches an independent bitwise reference."""
 
-import math
 import struct
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tools.rigtools import proto
+from protocol import codec, generate
+from protocol import definition as D
+from protocol import wire as proto
 
-D = proto.D
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_generated_files_are_current():
-    r = subprocess.run(
-        [sys.executable, str(proto.PROTOCOL_DIR / "generate.py"), "--check"], capture_output=True, text=True
-    )
+    """Fails while a generated file differs from what `python -m protocol.generate` writes (stale or hand-edited)."""
+    r = subprocess.run([sys.executable, "-m", "protocol.generate", "--check"], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
+
+
+def test_check_notices_a_stale_file(tmp_path, monkeypatch):
+    """The staleness check can fail: a generated file differing by one byte is reported."""
+    stale = tmp_path / "mc_units.h"
+    stale.write_text(generate.render_units_header(D).replace(str(D.TORQUE_WIRE_UNM), "9", 1))
+    monkeypatch.setattr(generate, "UNITS_HEADER", stale)
+    assert generate.main(["--check"]) == 1
+    stale.write_text(generate.render_units_header(D))
+    assert generate.main(["--check"]) == 0
 
 
 def test_c_constants_follow_definition(fw):
@@ -86,7 +97,7 @@ def test_dbc_has_every_frame_with_the_defined_layout():
             for sname, stype, scale, offset, _, _ in f["signals"]:
                 s = m.get_signal_by_name(sname)
                 assert (s.start, s.length, s.is_signed) == (8 * off, 8 * D.TYPE_SIZES[stype], stype[0] == "i")
-                assert (s.scale, s.offset) == D.DBC_PHYSICAL.get((name, sname), (scale, offset, ""))[:2]
+                assert (s.scale, s.offset) == generate.dbc_physical(D).get((name, sname), (scale, offset, ""))[:2]
                 off += D.TYPE_SIZES[stype]
 
 
@@ -106,7 +117,7 @@ def test_dbc_decodes_sample_frames(j, seq, a, b, t, flags):
     )
     assert (raw["seq"], raw["alpha"], raw["beta"], raw["flags"]) == (seq, a, b, flags)
     d = proto.database().decode_message(D.FRAMES["CELL_SAMPLE"]["base"] + j, data)  # physical units
-    assert d["alpha"] == pytest.approx(a * 2 * math.pi / 400) and d["beta"] == pytest.approx(b * 2 * math.pi / 400)
+    assert d["alpha"] == pytest.approx(a * codec.RAD_PER_COUNT) and d["beta"] == pytest.approx(b * codec.RAD_PER_COUNT)
     if flags in D.DBC_CHOICES[("CELL_SAMPLE", "flags")]:
         assert str(d["flags"]) == D.DBC_CHOICES[("CELL_SAMPLE", "flags")][flags]
     assert d["t128"] == pytest.approx(t * 128e-6)
@@ -121,7 +132,7 @@ def test_dbc_decodes_command_frames(j, seq, chain, torque, ticks):
     d = proto.database().decode_message(proto.cmd_frame_id(j), data + bytes(8 - len(data)))
     assert str(d["reg"]) == "PERTURB" and d["seq"] == seq
     assert str(d["PERTURB_chain"]) == ("ALPHA", "BETA")[chain] and d["PERTURB_ticks"] == ticks
-    assert d["PERTURB_torque"] == pytest.approx(4e-6 * torque)  # N*m
+    assert d["PERTURB_torque"] == pytest.approx(D.TORQUE_WIRE_UNM * 1e-6 * torque)  # N*m
     raw = proto.database().decode_message(
         proto.cmd_frame_id(j), data + bytes(8 - len(data)), scaling=False, decode_choices=False
     )

@@ -143,7 +143,8 @@ def test_zero_uses_the_positions_of_its_tick(cell):
 def test_perturb_enable_bemf_pwm_clear(cell):
     cell.cmd("PERTURB", 1, chain=1, torque=-1000, ticks=30)
     cell.tick()
-    assert (cell.c.pert_chain, cell.c.pert_torque, cell.c.pert_ticks) == (1, -4000 * 32, 29)
+    # -1000 wire LSBs of TORQUE_WIRE_UNM uN*m each, held in TU = 2^-5 uN*m
+    assert (cell.c.pert_chain, cell.c.pert_torque, cell.c.pert_ticks) == (1, -1000 * D.TORQUE_WIRE_UNM * 32, 29)
     cell.cmd("BEMF", 2, on=0)
     cell.tick()
     assert cell.c.bemf_comp == 0

@@ -3,6 +3,7 @@
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from protocol.definition import LIMITS
 from tests.firmware.reference import ObserverInt, drive_duty, reaction
 from tests.firmware.test_reaction import law_dict
 
@@ -47,7 +48,7 @@ PATH = st.lists(st.tuples(st.integers(-3, 3), st.integers(-3, 3)), min_size=1, m
     a0=st.integers(-300, 300),
     b0=st.integers(-300, 300),
     bemf=st.booleans(),
-    pert=st.integers(-131000, 131000),
+    pert=st.integers(-LIMITS["PERTURB_MAX_UNM"], LIMITS["PERTURB_MAX_UNM"]),
     pert_ticks=st.integers(0, 60),
     chain=st.integers(0, 1),
 )

@@ -5,12 +5,14 @@ import math
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from protocol.definition import LIMITS
 from tests.firmware.reference import RAD_PER_COUNT, TU_NM, psi_prime_piecewise, reaction, reaction_si
 
 I32 = st.integers(min_value=-(2**31), max_value=2**31 - 1)
 NEAR = st.integers(min_value=-3000, max_value=3000)
 GAIN = st.integers(min_value=-131071, max_value=131071)
-K_UNM = st.integers(min_value=-250000, max_value=250000)
+K_MAX = LIMITS["K_MAX_UNM"]  # the firmware's accepted |gain|, uN*m/rad (mc_units.h is generated from it)
+K_UNM = st.integers(min_value=-K_MAX, max_value=K_MAX)
 
 
 def law_dict(r):
@@ -143,7 +145,7 @@ def test_rejected_parameters_leave_running_ones(fw, field, value):
     p = ffi.new("mc_reaction_phys_t*")
     lib.mc_cell_default_params(p)
     setattr(p, field, value)
-    lo, hi = (0, 6283185) if field == "astar_urad" else (-250000, 250000)
+    lo, hi = (0, LIMITS["ASTAR_MAX_URAD"]) if field == "astar_urad" else (-K_MAX, K_MAX)
     g1, g2 = _gain(p.k1_unm), _gain(p.k2_unm)
     expect_ok = lo <= value <= hi and g1 > 0 and g1 > g2
     rc = lib.mc_cell_set_params(c, p)

@@ -1,4 +1,7 @@
-"""tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty (acceptance and every failure path)."""
+"""tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty.
+
+The rehearsals cover the acceptance run and every failure path.
+"""
 
 import json
 import math
@@ -16,6 +19,7 @@ from hypothesis import strategies as st
 
 from host_emulator.analysis.observables import domain_walls
 from host_emulator.scene import list_scenes, load_scene
+from protocol import codec
 from tools.experiment import cli
 from tools.experiment.compare import CompareError, compare
 from tools.experiment.plan import PlanError, make_plan, perturb_payload, pwm_limit_ticks, wire_param
@@ -39,16 +43,20 @@ def strict_json(path):
 
 
 # ---- plan: scene -> wire values (independent arithmetic) ------------------------------------
-@given(st.floats(-0.131, 0.131), st.floats(0.0005, 30.0), st.sampled_from(["alpha", "beta"]))
+TMAX = codec.PERTURB_MAX_NM  # the firmware's limit (0.131 N*m)
+LSB = codec.TORQUE_WIRE_UNM * 1e-6  # PERTURB torque LSB on the wire (4 uN*m)
+
+
+@given(st.floats(-TMAX, TMAX), st.floats(0.0005, 30.0), st.sampled_from(["alpha", "beta"]))
 def test_perturb_payload_round_trips_within_half_lsb(torque, duration, chain):
     p = perturb_payload(chain, torque, duration, 2000, "perturbation[1]")
-    assert abs(p["torque"] * 4e-6 - torque) <= 2e-6 + 1e-12  # 4 uN*m LSB
+    assert abs(p["torque"] * LSB - torque) <= LSB / 2 + 1e-12
     assert abs(p["ticks"] / 2000 - duration) <= 0.25e-3 + 1e-12 or p["ticks"] == 1
     assert p["chain"] == (0 if chain == "alpha" else 1)
     proto.pack_payload("PERTURB", **p)  # fits the wire layout
 
 
-@given(st.one_of(st.floats(0.1311, 10), st.floats(-10, -0.1311)))
+@given(st.one_of(st.floats(TMAX + LSB, 10), st.floats(-10, -TMAX - LSB)))
 def test_perturb_torque_beyond_firmware_limit_is_refused(torque):
     with pytest.raises(PlanError, match="torque_Nm"):
         perturb_payload("alpha", torque, 0.1, 2000, "perturbation[1]")
@@ -62,6 +70,12 @@ def test_perturb_duration_beyond_u16_ticks_is_refused():
 @given(st.floats(-1e3, 1e3, allow_nan=False))
 def test_wire_param_is_micro_units(v):
     assert wire_param("sigma", v) == round(v * 1e6)
+
+
+@given(st.one_of(st.floats(2148, 1e30), st.floats(-1e30, -2148)))
+def test_wire_param_beyond_the_int32_register_is_refused(v):
+    with pytest.raises(PlanError, match="params.sigma"):
+        wire_param("sigma", v)
 
 
 def test_wire_param_refuses_non_finite():

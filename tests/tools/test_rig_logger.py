@@ -1,4 +1,4 @@
-"""Rig logger: decoding into arrays, gap reports from sequence counters, reconnects, scheduled commands (python-can virtual bus)."""
+"""Rig logger: decoding into arrays, gaps from sequence counters, reconnects, scheduled commands (virtual bus)."""
 
 import struct
 import threading
@@ -161,7 +161,8 @@ def test_command_tool_rejects_bad_input():
             ["-c", "x", "perturb", "2", "--torque", "0.02", "--duration", "0.1", "--chain", "beta"]
         )
     )
-    assert (reg, vals) == ("PERTURB", {"chain": 1, "torque": 5000, "ticks": 200})
+    # 0.02 N*m in wire LSBs of TORQUE_WIRE_UNM uN*m
+    assert (reg, vals) == ("PERTURB", {"chain": 1, "torque": round(20000 / proto.D.TORQUE_WIRE_UNM), "ticks": 200})
 
 
 def test_command_tool_info_reads_identity_and_parameters(fw):

@@ -1,4 +1,4 @@
-"""Scene -> the rig's command plan: firmware parameters (wire units), perturbation commands (ticks), what the rig cannot set.
+"""Scene -> the rig's command plan: firmware parameters (wire units), perturbation commands, what the rig cannot set.
 
 Everything here is checked before the rig is touched: a scene that loads but cannot be
 expressed in the firmware's commands (torque or duration outside the PERTURB payload,
@@ -12,11 +12,11 @@ import math
 from dataclasses import dataclass, field
 
 from host_emulator.params import Params
+from protocol import codec
 from tools.rigtools import proto
 from tools.rigtools.command import CTRL_RATE_HZ
 
 RIG_PWM_TOP = 2400  # TCC0 period of the cell build (docs/hardware.md, MC_PWM_TOP)
-TORQUE_LSB_UNM = 4  # PERTURB torque unit on the wire: 4 uN*m
 # scene params the runner sends to every cell: Params field -> register (values SI: N*m/rad, rad)
 FIRMWARE_PARAMS = (("k_ab", "K_AB"), ("sigma", "SIGMA"), ("alpha_star", "ASTAR"), ("k1", "K1"), ("k2", "K2"))
 # set through PWM_LIMIT / BEMF; everything else in Params is the plant or the build, not settable at run time
@@ -38,7 +38,7 @@ class Command:
 class PerturbCommand:
     start_s: float  # after the drive is enabled
     cell: int
-    values: dict  # PERTURB payload: chain, torque (4 uN*m), ticks
+    values: dict  # PERTURB payload, raw register values: chain, torque (wire torque LSBs), ticks
     label: str
 
 
@@ -66,13 +66,15 @@ class ExperimentPlan:
 
 
 def wire_param(name: str, value: float) -> int:
-    """SI -> register value: gains N*m/rad -> uN*m/rad (x 1e6), alpha_star rad -> urad (x 1e6), rounded."""
-    if not math.isfinite(value):
-        raise PlanError(f"params.{name} = {value!r}: not a finite number")
-    v = round(value * 1e6)
-    if not -(1 << 31) <= v < (1 << 31):
-        raise PlanError(f"params.{name} = {value!r}: outside the register's int32 range")
-    return v
+    """SI -> register value of a reaction parameter (protocol.codec: uN*m/rad, urad). Only values the register
+    cannot carry are refused here: the cells judge the rest (a refusal aborts the run before the drive is on)."""
+    reg = dict(FIRMWARE_PARAMS).get(name)
+    if reg is None:
+        raise PlanError(f"params.{name}: not a firmware parameter (one of {[n for n, _ in FIRMWARE_PARAMS]})")
+    try:
+        return codec.to_register(reg, "value", value, firmware=False)
+    except codec.RangeError as e:
+        raise PlanError(f"params.{name} = {value!r}: {e}") from None
 
 
 def pwm_limit_ticks(p: Params, pwm_top: int = RIG_PWM_TOP) -> int:
@@ -83,16 +85,18 @@ def pwm_limit_ticks(p: Params, pwm_top: int = RIG_PWM_TOP) -> int:
 
 
 def perturb_payload(chain: str, torque_Nm: float, duration_s: float, rate_hz: int, where: str) -> dict:
-    """PERTURB payload: torque_wire = round(torque_Nm * 1e6 / 4) [4 uN*m], ticks = round(duration_s * rate_hz) >= 1."""
-    t4 = round(torque_Nm * 1e6 / TORQUE_LSB_UNM)
-    if not -32768 <= t4 <= 32767 or abs(t4 * TORQUE_LSB_UNM) > 131000:
-        raise PlanError(f"{where}.torque_Nm = {torque_Nm}: the firmware accepts |torque| <= 0.131 N*m")
+    """PERTURB payload (raw): torque in wire LSBs (protocol.codec), ticks = round(duration_s * rate_hz) >= 1."""
+    try:
+        torque = codec.to_register("PERTURB", "torque", torque_Nm)
+    except codec.RangeError as e:
+        raise PlanError(f"{where}.torque_Nm = {torque_Nm}: {e}") from None
     ticks = max(1, round(duration_s * rate_hz))
-    if ticks > 65535:
+    t_max = codec.raw_range("PERTURB", "ticks")[1]
+    if ticks > t_max:
         raise PlanError(
-            f"{where}.duration_s = {duration_s}: at most {65535 / rate_hz:.3f} s ({65535} ticks at {rate_hz} Hz)"
+            f"{where}.duration_s = {duration_s}: at most {t_max / rate_hz:.3f} s ({t_max} ticks at {rate_hz} Hz)"
         )
-    return {"chain": 0 if chain == "alpha" else 1, "torque": t4, "ticks": ticks}
+    return {"chain": 0 if chain == "alpha" else 1, "torque": torque, "ticks": ticks}
 
 
 def make_plan(

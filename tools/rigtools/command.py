@@ -1,4 +1,4 @@
-"""Command tool: set parameters, enable drives, perturb cells and zero encoders through the primary (python-can, any interface).
+"""Command tool: set parameters, enable drives, perturb cells, zero encoders through the primary (python-can, any bus).
 
     python -m tools.rigtools.command -c /dev/ttyACM0@115200 set 8 sigma 0.072
     python -m tools.rigtools.command -c /dev/pts/3@115200 perturb 8 --torque 0.02 --duration 0.1
@@ -18,6 +18,8 @@ import math
 import sys
 import time
 
+from protocol import codec
+
 from . import proto
 
 PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_star": "ASTAR", "astar": "ASTAR"}
@@ -25,13 +27,12 @@ CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
 
 
 def physical_to_wire(name: str, value: float) -> int:
-    """SI value (N*m/rad, rad for alpha_star) -> integer register value (uN*m/rad, urad), checked against int32."""
-    if not math.isfinite(value):
-        raise ValueError(f"{name}: not a finite number: {value}")
-    w = round(value * 1e6)
-    if not -(2**31) <= w < 2**31:
-        raise ValueError(f"{name}: {value} does not fit the register (|value| < 2147 in SI units)")
-    return w
+    """SI value (N*m/rad, rad for alpha_star) -> integer register value (protocol.codec: uN*m/rad, urad),
+    ValueError if the register cannot carry it (the cell answers RANGE for what it does not accept)."""
+    try:
+        return codec.to_register(PARAM_REGS[name], "value", value, firmware=False)
+    except codec.RangeError as e:
+        raise ValueError(f"{name}: {e}") from None
 
 
 class RigClient:
@@ -132,7 +133,7 @@ def parser():
     p = sub.add_parser("perturb", help="perturbing torque on one chain for a while")
     p.add_argument("cells", type=_cells)
     p.add_argument("--chain", choices=("alpha", "beta"), default="alpha")
-    p.add_argument("--torque", type=float, required=True, help="N*m, |torque| <= 0.131")
+    p.add_argument("--torque", type=float, required=True, help=f"N*m, |torque| <= {codec.PERTURB_MAX_NM:g}")
     p.add_argument("--duration", type=float, required=True, help="seconds (at the 2 kHz control tick)")
     for name in ("enable", "bemf"):
         e = sub.add_parser(name, help=f"{name} on/off")
@@ -157,11 +158,14 @@ def build(args) -> tuple[str, dict]:
     if args.cmd == "perturb":
         if not (math.isfinite(args.torque) and math.isfinite(args.duration)):
             raise ValueError(f"perturb: torque {args.torque} N*m and duration {args.duration} s must be finite")
-        t4 = round(args.torque * 1e6 / 4)
+        try:
+            torque = codec.to_register("PERTURB", "torque", args.torque)
+        except codec.RangeError as e:
+            raise ValueError(f"perturb: {e}") from None
         ticks = round(args.duration * CTRL_RATE_HZ)
-        if not -32768 <= t4 <= 32767 or not 0 < ticks <= 65535:
-            raise ValueError(f"perturb: torque {args.torque} N*m or duration {args.duration} s out of range")
-        return "PERTURB", {"chain": 0 if args.chain == "alpha" else 1, "torque": t4, "ticks": ticks}
+        if not 0 < ticks <= codec.raw_range("PERTURB", "ticks")[1]:
+            raise ValueError(f"perturb: duration {args.duration} s out of range")
+        return "PERTURB", {"chain": 0 if args.chain == "alpha" else 1, "torque": torque, "ticks": ticks}
     if args.cmd in ("enable", "bemf"):
         return args.cmd.upper(), {"on": args.state}
     if args.cmd == "zero":
@@ -195,6 +199,10 @@ def main(argv=None) -> int:
         print(f"error: cannot open {args.channel}: {text}", file=sys.stderr)
         return 3
     if args.cmd == "info":
+
+        def si(reg: str, raw: int) -> float:
+            return codec.from_register(reg, "value", raw)
+
         with bus:
             info = RigClient(bus, args.timeout).info(args.cells)
         ok = True
@@ -207,9 +215,11 @@ def main(argv=None) -> int:
             i, p = d["IDENT"], d["PARAMS"]
             print(
                 f"cell {j:2d}: addr 0x{i['addr']:02X} fw {i['fw_version'] >> 8}.{i['fw_version'] & 255} "
-                f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
-                f" | k_ab {p['k_ab'] * 1e-6:g} sigma {p['sigma'] * 1e-6:g} k1 {p['k1'] * 1e-6:g} k2 {p['k2'] * 1e-6:g} "
-                f"N*m/rad, alpha* {p['astar'] * 1e-6:g} rad, pwm limit {p['pwm_limit']}"
+                f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}"
+                f"{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
+                f" | k_ab {si('K_AB', p['k_ab']):g} sigma {si('SIGMA', p['sigma']):g} k1 {si('K1', p['k1']):g} "
+                f"k2 {si('K2', p['k2']):g} N*m/rad, alpha* {si('ASTAR', p['astar']):g} rad, "
+                f"pwm limit {p['pwm_limit']}"
             )
             ok = ok and i["map_id"] == proto.map_id()
         return 0 if ok else 1

@@ -28,9 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from protocol.codec import RAD_PER_COUNT
+
 from . import proto
 
-RAD_PER_COUNT = 2 * math.pi / 400
 T128_S = 128e-6
 T_WRAP = 1 << 16  # the frames' time field wraps every 65536 x 128 us = 8.39 s
 CSV_HEADER = "segment,cycle,cell,t_s,host_time,alpha_counts,beta_counts,flags\n"

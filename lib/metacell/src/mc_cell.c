@@ -2,8 +2,6 @@
 #include <stddef.h>
 #include "mc_cell.h"
 
-#define MC_PERTURB_MAX_UNM 131000
-
 void mc_cell_default_params(mc_reaction_phys_t *p)
 {
     p->k_ab_unm = 20000;     /* 1/50 */

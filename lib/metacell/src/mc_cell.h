@@ -81,7 +81,7 @@ int mc_cell_set_drive(mc_cell_t *c, const mc_drive_config_t *cfg);
 int mc_cell_set_runaway(mc_cell_t *c, int32_t counts);
 void mc_cell_enable(mc_cell_t *c, int on);
 void mc_cell_set_bemf(mc_cell_t *c, int on);
-/* Perturbing torque in uN*m (|t| <= 131000) on one chain for `ticks` ticks. */
+/* Perturbing torque in uN*m (|t| <= MC_PERTURB_MAX_UNM) on one chain for `ticks` ticks. */
 int mc_cell_perturb(mc_cell_t *c, int chain, int32_t torque_unm, uint32_t ticks);
 /* Make the given raw positions the new zero of both angles; the velocity observer restarts. */
 void mc_cell_zero(mc_cell_t *c, int32_t pos_a, int32_t pos_b);

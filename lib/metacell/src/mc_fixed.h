@@ -3,11 +3,12 @@
 #define MC_FIXED_H
 
 #include <stdint.h>
+#include "mc_units.h" /* generated from protocol/definition.py: MC_COUNTS_PER_REV, wire units, limits */
 
 /*
  * Units and formats used throughout the library (all integer, no float):
  *
- *   angle   int32  encoder counts, 400 per revolution (1 count = 2*pi/400 rad).
+ *   angle   int32  encoder counts, MC_COUNTS_PER_REV (400) per revolution (1 count = 2*pi/400 rad).
  *                  Decoder positions saturate at INT32_MIN/INT32_MAX, never wrap.
  *                  The tick limits its angles to +-runaway_counts <= MC_ANGLE_CLAMP;
  *                  the public law functions clamp to +-MC_ANGLE_CLAMP.
@@ -18,7 +19,6 @@
  *   duty    int32  sixteenths of a PWM timer tick inside the drive, then timer
  *                  ticks 0..duty_limit (see drivers/mc_drive.h).
  */
-#define MC_COUNTS_PER_REV     400
 #define MC_TORQUE_FRAC_BITS   5
 #define MC_ASTAR_FRAC_BITS    4
 #define MC_ANGLE_CLAMP        2048          /* counts: 5.12 rev */

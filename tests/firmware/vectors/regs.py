@@ -38,7 +38,8 @@ def reference_result(frame: bytes, addr: int = ADDR) -> str:
     if name in PARAM_REGS:
         ph = dict(DEFAULTS)
         ph[name] = struct.unpack("<i", p)[0]
-        if any(abs(ph[k]) > 250000 for k in ("K_AB", "SIGMA", "K1", "K2")) or not 0 <= ph["ASTAR"] <= 6283185:
+        kmax, amax = D.LIMITS["K_MAX_UNM"], D.LIMITS["ASTAR_MAX_URAD"]
+        if any(abs(ph[k]) > kmax for k in ("K_AB", "SIGMA", "K1", "K2")) or not 0 <= ph["ASTAR"] <= amax:
             return "RANGE"
         if ph["K1"] <= ph["K2"] or ph["K1"] <= 0:
             return "SHAPE"
@@ -47,7 +48,8 @@ def reference_result(frame: bytes, addr: int = ADDR) -> str:
         return "OK" if p[0] <= 1 else "RANGE"
     if name == "PERTURB":
         chain, t, _ = struct.unpack("<BhH", p)
-        return "OK" if chain <= 1 and abs(4 * t) <= 131000 else "RANGE"
+        # the wire carries torque in TORQUE_WIRE_UNM LSBs; the cell accepts |torque| <= PERTURB_MAX_UNM uN*m
+        return "OK" if chain <= 1 and abs(D.TORQUE_WIRE_UNM * t) <= D.LIMITS["PERTURB_MAX_UNM"] else "RANGE"
     if name == "PWM_LIMIT":
         return "OK" if struct.unpack("<H", p)[0] <= 2400 else "RANGE"
     return "OK"

@@ -1,14 +1,17 @@
-"""hil model: agreement with the ideal lattice when quantisation is fine, encoders, motor cap, noise, perturbation paths."""
+"""hil model: agreement with the ideal lattice at fine quantisation, encoders, motor cap, noise, perturbation paths."""
 
 import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host_emulator.analysis.observables import domain_walls
 from host_emulator.controller import run_solver
 from host_emulator.models import ModelOptions, NoiseOptions, Perturbation, make_model
 from host_emulator.params import Params
+from protocol import codec
 
 COUNT = 2 * math.pi / 400
 FINE = dict(control_rate_hz=20000, pwm_top=4095, bemf_comp=True)
@@ -62,10 +65,11 @@ def test_rest_stays_exactly_at_rest():
 
 
 def test_firmware_perturbation_path_moves_the_cell_and_respects_the_voltage_cap():
-    """A 0.131 N*m command through mc_cell_perturb: the motor voltage never exceeds 5.86 V (duty cap)."""
+    """The largest command mc_cell_perturb accepts (0.131 N*m): the motor voltage never exceeds 5.86 V (duty cap)."""
     p = Params(cells=3)
+    top = codec.PERTURB_MAX_NM
     m = make_model(
-        "hil", p, [Perturbation(2, "alpha", 0.131, 0.0, 0.2)], ModelOptions(perturb_via="firmware", dt_out=1 / 2000)
+        "hil", p, [Perturbation(2, "alpha", top, 0.0, 0.2)], ModelOptions(perturb_via="firmware", dt_out=1 / 2000)
     )
     s = m.solver()
     vmax = 0.0
@@ -118,10 +122,6 @@ def test_bad_firmware_parameters_are_rejected_clearly():
         make_model("hil", Params(control_rate_hz=60000), [], ModelOptions())
     with pytest.raises(ValueError, match="reaction parameters"):
         make_model("hil", Params(sigma=0.3), [], ModelOptions())
-
-
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 
 @settings(max_examples=50, deadline=None)

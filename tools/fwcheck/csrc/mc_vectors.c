@@ -369,7 +369,7 @@ static void fam_params(const mcv_api_t *api, rng_t *g, mcv_sink_t *s)
         }
         default: { /* perturbation command */
             int chain = r_range(g, -1, 2);
-            int32_t t = r_field(g, -131000, 131000);
+            int32_t t = r_field(g, -MC_PERTURB_MAX_UNM, MC_PERTURB_MAX_UNM);
             uint32_t ticks = rnd(g);
             uint32_t bt = cell.pert_ticks;
             int32_t bq = cell.pert_torque;
@@ -504,7 +504,7 @@ static void fam_cell(const mcv_api_t *api, rng_t *g, mcv_sink_t *s)
             case 0: { /* one PRNG call per statement: argument order is unspecified */
                 int chain = r_range(g, 0, 2);
                 uint32_t n = (uint32_t)r_range(g, 0, 60);
-                arg = r_field(g, -131000, 131000);
+                arg = r_field(g, -MC_PERTURB_MAX_UNM, MC_PERTURB_MAX_UNM);
                 rc = FN(api, mc_cell_perturb, f_c_perturb)(&cell, chain, arg, n);
                 break;
             }

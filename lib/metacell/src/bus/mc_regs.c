@@ -220,8 +220,8 @@ static uint8_t apply(mc_regs_t *r, mc_cell_t *c, const uint8_t *b, uint32_t len,
             mc_cell_set_bemf(c, p[0]);
         return MC_RES_OK;
     case MC_REG_PERTURB: {
-        /* torque on the wire in units of 4 uN*m: t_unm = 4 * t_wire */
-        int32_t t = mc_get_i16(p + MC_REG_PERTURB_TORQUE) * 4;
+        /* torque on the wire in units of MC_TORQUE_WIRE_UNM uN*m */
+        int32_t t = mc_get_i16(p + MC_REG_PERTURB_TORQUE) * MC_TORQUE_WIRE_UNM;
         return result_of(mc_cell_perturb(c, p[MC_REG_PERTURB_CHAIN], t,
                                          mc_get_u16(p + MC_REG_PERTURB_TICKS)));
     }

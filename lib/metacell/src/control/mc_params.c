@@ -5,6 +5,12 @@
 #include "../sensors/mc_velocity.h"
 #include "../mc_fixed.h"
 
+/* The two factors below and the 15708 urad per count in mc_drive_configure are worked out for 400 counts per
+ * revolution: a different encoder needs them recomputed. */
+#if MC_COUNTS_PER_REV != 400
+#error "mc_params.c: recompute MC_GAIN_PER_UNM_Q32, MC_ASTAR_PER_URAD_Q32 and 15708 for MC_COUNTS_PER_REV"
+#endif
+
 /* TU/count per uN*m/rad = (2*pi/400) * 32 = 0.50265482457..., as Q32. */
 #define MC_GAIN_PER_UNM_Q32 2158886033LL
 /* Q4 counts per urad = 400*16/(2*pi*1e6) = 1.01859163578813e-3, as Q32. */

@@ -40,9 +40,8 @@ typedef struct {
     int32_t astar_urad;    /* urad */
 } mc_reaction_phys_t;
 
-/* Accepted ranges (checked by mc_reaction_from_phys) */
-#define MC_K_MAX_UNM      250000     /* |k| <= 0.25 N*m/rad for every gain */
-#define MC_ASTAR_MAX_URAD 6283185    /* 0 <= a_s <= 2*pi rad */
+/* Accepted ranges (checked by mc_reaction_from_phys): MC_K_MAX_UNM (|k| for every gain, uN*m/rad) and
+ * MC_ASTAR_MAX_URAD (0 <= a_s), generated into mc_units.h from protocol/definition.py. */
 
 enum {
     MC_OK = 0,
