@@ -96,9 +96,7 @@ def cmd_run(args) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     try:
-        from .trackers import LiveTracker
-
-        live = [LiveTracker(args.live)] if args.live else []
+        live, plot = _live_trackers(args, scene, out)
         res = run_scene(scene, progress=not args.quiet, trackers=live)
     except NumericalInstability as e:
         print(f"error: run stopped: {e}", file=sys.stderr)
@@ -119,7 +117,30 @@ def cmd_run(args) -> int:
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _print_summary(summary, out, files)
+    if plot is not None and plot.interactive:
+        from matplotlib import pyplot as plt
+
+        print("live plot: close its window to exit", file=sys.stderr)
+        plt.show()
     return 0
+
+
+def _live_trackers(args, scene, out: Path) -> tuple[list, object]:
+    """Trackers for --print-every and --live; the PlotTracker (or None). On a non-interactive matplotlib
+    backend the live figure goes to --live-png (default OUT/live.png), said once on stderr."""
+    from .trackers import LiveTracker, PlotTracker
+
+    live: list = [LiveTracker(args.print_every)] if args.print_every else []
+    plot = None
+    if args.live is not None:
+        plot = PlotTracker(args.live, args.live_window, png=args.live_png, title=scene.name)
+        plot.setup(scene.cells, scene.t_end_s)  # opens the window before the run starts
+        if not plot.interactive and plot.png is None:
+            plot.png = str(out / "live.png")
+        if plot.png:
+            print(f"live plot: {plot.png} is rewritten every {args.live:g} ms of simulated time", file=sys.stderr)
+        live.append(plot)
+    return live, plot
 
 
 def _fmt(v, unit="", nd=4):
@@ -155,6 +176,16 @@ def _print_summary(s, out, files):
         f"  wrote {out}/summary.json, trajectories.npz"
         + ("" if not files else ", plots: " + ", ".join(str(f) for f in files))
     )
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
 
 
 def cmd_bench(args) -> int:
@@ -214,7 +245,31 @@ def _main(argv=None) -> int:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument(
         "--live",
-        type=float,
+        type=_positive_float,
+        nargs="?",
+        const=100.0,
+        default=None,
+        metavar="MS",
+        help="live plot (rolling space-time map of alpha, current alpha/beta profile) redrawn every MS of "
+        "simulated time (default 100); a window on an interactive matplotlib backend, else --live-png",
+    )
+    r.add_argument(
+        "--live-window",
+        type=_positive_float,
+        default=2.0,
+        metavar="S",
+        help="seconds of simulated time the live space-time map shows (default 2)",
+    )
+    r.add_argument(
+        "--live-png",
+        default=None,
+        metavar="PNG",
+        help="also rewrite the live figure to this file at every redraw (default on a non-interactive backend, "
+        "e.g. MPLBACKEND=Agg or no display: OUT/live.png)",
+    )
+    r.add_argument(
+        "--print-every",
+        type=_positive_float,
         default=None,
         metavar="SECONDS",
         help="print max |alpha|, |beta| every SECONDS of simulated time",

@@ -1,8 +1,8 @@
 """Command line: `python -m tools.experiment run SCENE --channel PORT@BAUD | rehearse SCENE | compare RIG_DIR EMU_DIR`.
 
 Exit status: 0 done cleanly, 1 done with problems (failed commands under --keep-going,
-missing cells, lost samples, a cell whose drive-off was not confirmed: all in the
-summary), 2 bad scene/argument (nothing sent to the rig),
+missing cells, lost samples, a cell whose drive-off was not confirmed, a cell reporting
+another protocol map id: all in the summary), 2 bad scene/argument (nothing sent to the rig),
 3 aborted (failed command, lost link; the drive was switched off if the link allowed),
 130 interrupted by Ctrl-C (drive switched off first).
 """
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import signal
 import sys
 import time
@@ -75,10 +76,64 @@ def _common(p: argparse.ArgumentParser):
     p.add_argument("--formats", default="asc", help="python-can log formats, comma separated (default asc)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument(
+        "--live",
+        type=_positive_float,
+        nargs="?",
+        const=200.0,
+        default=None,
+        metavar="MS",
+        help="live plot of the running repeat (rolling space-time map of alpha, current profile) from the logged "
+        "frames, redrawn every MS of primary-clock time (default 200); a window on an interactive matplotlib "
+        "backend, else --live-png",
+    )
+    p.add_argument(
+        "--live-window",
+        type=_positive_float,
+        default=2.0,
+        metavar="S",
+        help="seconds the live space-time map shows (default 2)",
+    )
+    p.add_argument(
+        "--live-png",
+        default=None,
+        metavar="PNG",
+        help="also rewrite the live figure to this file at every redraw (default on a non-interactive backend: "
+        "OUT/live.png)",
+    )
+    p.add_argument(
         "--plain-slcan",
         action="store_true",
         help="python-can's own slcan reader (one system call per byte) instead of the buffered one",
     )
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
+
+
+def make_live(args, scene, out: Path):
+    """RigLive for --live (None without it); on a non-interactive matplotlib backend the figure goes to a PNG."""
+    if getattr(args, "live", None) is None:
+        return None
+    from host_emulator.trackers import PlotTracker
+
+    from .live import RigLive
+
+    tracker = PlotTracker(args.live, args.live_window, png=args.live_png)
+    live = RigLive(tracker, scene.cells, title=scene.name)
+    live.begin(0, scene.t_end_s)  # the window opens before the bus does
+    if not tracker.interactive and tracker.png is None:
+        out.mkdir(parents=True, exist_ok=True)
+        tracker.png = str(out / "live.png")
+    if tracker.png:
+        print(f"live plot: {tracker.png} is rewritten every {args.live:g} ms of the run", file=sys.stderr)
+    return live
 
 
 def parser() -> argparse.ArgumentParser:
@@ -165,6 +220,7 @@ def execute(
     hook=None,
     report=None,
     plain_slcan=False,
+    live=None,
 ) -> tuple[int, dict]:
     """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary)."""
     from . import summary as S
@@ -187,7 +243,7 @@ def execute(
     rc, error = EXIT_OK, None
     exp = None
     try:
-        exp = Experiment(bus, plan, out, opts, report=report, hook=hook)
+        exp = Experiment(bus, plan, out, opts, report=report, hook=hook, live=live)
         exp.run()
     except KeyboardInterrupt:
         rc, error = EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
@@ -243,6 +299,7 @@ def execute(
         or summary["missing_cells"]
         or summary["samples_lost"]
         or not summary["drive_off_confirmed"]
+        or summary.get("cell_identity_mismatch")
     ):
         rc = EXIT_PROBLEMS
     return rc, summary
@@ -278,6 +335,13 @@ def print_summary(s: dict, out: Path):
         f"  missing cells: {s['missing_cells'] or 'none'}; failed commands: {len(s['failed_commands'])}; "
         f"gaps: {s['gaps']} ({s['samples_lost']} samples lost); drive off confirmed: {s['drive_off_confirmed']}"
     )
+    prov = s.get("provenance", {})
+    if "cell_fw_version" in prov:
+        print(
+            f"  cells: firmware {prov['cell_fw_version']}; protocol map {prov['cell_map_id']}; "
+            f"no identity: {prov['cell_identity_missing']}"
+            + (f"; MAP ID MISMATCH: cells {s['cell_identity_mismatch']}" if s.get("cell_identity_mismatch") else "")
+        )
     print(f"  wrote {out}/summary.json, " + ", ".join(s["files"][1:]))
 
 
@@ -291,6 +355,7 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
     out = Path(args.out or Path("out") / "rig" / scene.name)
+    live = make_live(args, scene, out)
     rc, summary = execute(
         scene,
         plan,
@@ -301,9 +366,15 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
         open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
         plots=not args.no_plots,
         plain_slcan=args.plain_slcan,
+        live=live,
     )
     if summary:
         print_summary(summary, out)
+    if live is not None and live.tracker.interactive:
+        from matplotlib import pyplot as plt
+
+        print("live plot: close its window to exit", file=sys.stderr)
+        plt.show()
     return rc
 
 

@@ -78,11 +78,12 @@ class RigClient:
             out[j] = "NO_ANSWER"
         return out
 
-    def info(self, cells) -> dict:
-        """{cell: {"IDENT": {...}, "PARAMS": {...}}} read back through the primary (POINTER commands)."""
+    def info(self, cells, blocks=("IDENT", "PARAMS")) -> dict:
+        """{cell: {"IDENT": {...}, "PARAMS": {...}, "results": [...]}} read back through the primary (POINTER
+        commands), one entry per block in `blocks` that arrived whole (CRC checked)."""
         self.chunks = {}
         res = {}
-        for name in ("IDENT", "PARAMS"):
+        for name in blocks:
             for j, r in self.command(cells, "POINTER", block=proto.D.BLOCKS[name]["id"]).items():
                 res.setdefault(j, []).append(r)
         out = {}
