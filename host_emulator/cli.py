@@ -228,12 +228,36 @@ def _main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator",
         description="Host emulator of the robotic metamaterial (docs/physics.md).",
-        epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator scenes\n"
+        "  python -m host_emulator run default --out out/default\n"
+        "  python -m host_emulator run exp3_single_sigma6 --set params.sigma=6/125 --live\n"
+        "  python -m host_emulator dispersion --sigma 9/125 --inertia\n"
+        "  python -m host_emulator sweep default --grid params.sigma=0.04:0.12:41 --out out/sweep\n"
+        "  python -m host_emulator SUBCOMMAND --help       # the options of one subcommand\n"
+        "exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
     )
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("scenes", help="list the shipped scenes")
-    r = sub.add_parser("run", help="run a scene (shipped name or .toml path)")
-    r.add_argument("scene")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="SUBCOMMAND", help="what to do")
+    sub.add_parser(
+        "scenes",
+        help="list the shipped scenes",
+        description="List the shipped scenes: name, model, description.",
+        epilog="example: python -m host_emulator scenes",
+    )
+    r = sub.add_parser(
+        "run",
+        help="run a scene (shipped name or .toml path)",
+        description="Run a scene: summary.json, trajectories.npz and plots in --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator run default\n"
+        "  python -m host_emulator run exp1_ccw_ccw --set t_end_s=5 --out out/exp1 --no-plots\n"
+        "  python -m host_emulator run default --live 50 --live-window 3    # live plot every 50 ms\n"
+        "  python -m host_emulator run my_scene.toml --accuracy exact --print-every 1\n"
+        "exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
+    )
+    r.add_argument("scene", help="shipped scene name (see `scenes`) or path of a .toml scene file")
     r.add_argument(
         "--set",
         action="append",
@@ -281,15 +305,45 @@ def _main(argv=None) -> int:
         default=None,
         help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)",
     )
-    sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
     sub.add_parser(
-        "robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)"
+        "dispersion",
+        help="linear stability (see dispersion --help)",
+        epilog="example: python -m host_emulator dispersion --help",
     )
-    sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
-    sub.add_parser("animate", help="GIF/MP4 of the lattice forming its pattern (see animate --help)")
-    sub.add_parser("sweep", help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)")
-    sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
-    sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
-    sub.add_parser("bench", help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)")
+    sub.add_parser(
+        "robustness",
+        help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)",
+        epilog="example: python -m host_emulator robustness --help",
+    )
+    sub.add_parser(
+        "paper",
+        help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)",
+        epilog="example: python -m host_emulator paper --help",
+    )
+    sub.add_parser(
+        "animate",
+        help="GIF/MP4 of the lattice forming its pattern (see animate --help)",
+        epilog="example: python -m host_emulator animate --help",
+    )
+    sub.add_parser(
+        "sweep",
+        help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)",
+        epilog="example: python -m host_emulator sweep --help",
+    )
+    sub.add_parser(
+        "serve",
+        help="emulated primary as an SLCAN device on a pty (see serve --help)",
+        epilog="example: python -m host_emulator serve --help",
+    )
+    sub.add_parser(
+        "bench-speed",
+        help="real-time factor of the default hil scene (see bench-speed --help)",
+        epilog="example: python -m host_emulator bench-speed --help",
+    )
+    sub.add_parser(
+        "bench",
+        help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)",
+        epilog="example: python -m host_emulator bench --help",
+    )
     args = ap.parse_args(argv)
     return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

@@ -137,12 +137,17 @@ def main(argv=None) -> int:
         prog="python -m host_emulator bench",
         description="Work-precision against scipy/py-pde, scaling, and (--fidelity) "
         "the cost and effect of each model component. Pinned to one core.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator bench --quick                # a smoke run\n"
+        "  python -m host_emulator bench --out out/bench        # the full work-precision figures\n"
+        "  python -m host_emulator bench --fidelity             # cost and effect of each model component",
     )
     ap.add_argument("--fidelity", action="store_true", help="only the fidelity-cost table")
     ap.add_argument("--quick", action="store_true", help="fewer step sizes/tolerances (a smoke run)")
-    ap.add_argument("--no-hil", action="store_true")
-    ap.add_argument("--no-continuum", action="store_true")
-    ap.add_argument("--no-scaling", action="store_true")
+    ap.add_argument("--no-hil", action="store_true", help="skip the hil (compiled firmware) work-precision")
+    ap.add_argument("--no-continuum", action="store_true", help="skip the continuum model against py-pde")
+    ap.add_argument("--no-scaling", action="store_true", help="skip the cost-against-cells scaling")
     ap.add_argument("--out", default="out/bench", help="directory for the PNG and JSON (default out/bench)")
     args = ap.parse_args(argv)
     where = pin_one_core()

@@ -137,11 +137,31 @@ def make_live(args, scene, out: Path):
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m tools.experiment", description=__doc__.split("\n\n")[0])
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("run", help="run a scene on the rig through the primary")
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.experiment",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.experiment rehearse exp1_ccw_ccw --repeats 2            # no hardware: the emulator\n"
+        "  python -m tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200 --repeats 3 --live\n"
+        "  python -m tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw\n"
+        "  python -m tools.experiment SUBCOMMAND --help\n" + __doc__.split("\n\n", 1)[1],
+    )
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="SUBCOMMAND", help="what to do")
+    r = sub.add_parser(
+        "run",
+        help="run a scene on the rig through the primary",
+        description="Run a scene on the rig through the primary; summary.json, logs and plots in --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200\n"
+        "  python -m tools.experiment run default -c /dev/ttyACM0@115200 --set params.sigma=6/125 --repeats 5 "
+        "--live 100\n"
+        "  python -m tools.experiment run exp5_rest -c /dev/ttyACM0@115200 --t-end 20 --no-early-stop "
+        "--formats asc,blf",
+    )
     _common(r)
-    r.add_argument("--channel", "-c", required=True, help="e.g. /dev/ttyACM0@115200")
+    r.add_argument("--channel", "-c", required=True, help="python-can channel, e.g. /dev/ttyACM0@115200")
     r.add_argument("--interface", "-i", default="slcan", help="python-can interface (default slcan)")
     r.add_argument(
         "--open-wait",
@@ -150,7 +170,15 @@ def parser() -> argparse.ArgumentParser:
         metavar="S",
         help="slcan: seconds python-can waits after opening the port (its default: 2)",
     )
-    h = sub.add_parser("rehearse", help="the same run against `python -m host_emulator serve` on a pty")
+    h = sub.add_parser(
+        "rehearse",
+        help="the same run against `python -m host_emulator serve` on a pty",
+        description="The same run against the emulated primary (python -m host_emulator serve) on a pty.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.experiment rehearse exp1_ccw_ccw --set t_end_s=4 --repeats 2\n"
+        "  python -m tools.experiment rehearse default --absent 3,7 --keep-going --live",
+    )
     _common(h)
     for name in ("absent", "stuck", "babble"):
         h.add_argument(f"--{name}", default=None, metavar="CELLS", help=f"serve: {name} cells, e.g. 3,7")
@@ -161,9 +189,14 @@ def parser() -> argparse.ArgumentParser:
         metavar="S",
         help="serve stops after S simulated seconds (default: long enough for the run)",
     )
-    c = sub.add_parser("compare", help="overlay a rig (or rehearsal) run and an emulator run of the same scene")
-    c.add_argument("rig_dir")
-    c.add_argument("emu_dir")
+    c = sub.add_parser(
+        "compare",
+        help="overlay a rig (or rehearsal) run and an emulator run of the same scene",
+        description="Table and plot of the final angles of a rig run against an emulator run of the same scene.",
+        epilog="example: python -m tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw --out cmp.png",
+    )
+    c.add_argument("rig_dir", help="output directory of `run` or `rehearse` (holds summary.json)")
+    c.add_argument("emu_dir", help="output directory of `python -m host_emulator run` of the same scene")
     c.add_argument("--out", default=None, help="PNG file (default RIG_DIR/compare.png)")
     return ap
 
