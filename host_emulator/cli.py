@@ -196,8 +196,13 @@ def cmd_bench(args) -> int:
 
 def main(argv=None) -> int:
     """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
+    from .firmware import FirmwareBuildError
+
     try:
         return _main(argv)
+    except FirmwareBuildError as e:  # no sources, no compiler: say what is missing, not a traceback
+        print(f"error: {e}", file=sys.stderr)
+        return 3
     except BrokenPipeError:  # e.g. `dispersion --json | head`: the reader left, not an error
         import os
 
