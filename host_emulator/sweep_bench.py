@@ -153,6 +153,11 @@ def report(r: dict) -> str:
         f"one point (16-cell hil, {r['t_end_s']:g} s simulated): {mm(p, 1e3)} ms; "
         f"Dask task round trip: {mm(o, 1e3)} ms = {100 * o['median'] / p['median']:.0f} % of a point",
     ]
+    k = len(_chunks(list(range(r["points"])), max(r["rates"]))[0])
+    lines.append(
+        f"  chunked as the sweep chunks them ({k} points per task at {max(r['rates'])} workers): "
+        f"{1e3 * o['median'] / k:.2f} ms of overhead per point = {100 * o['median'] / k / p['median']:.1f} % of a point"
+    )
     base = r["rates"][min(r["rates"])]["median"]
     mbase = r["baseline_rates"].get(min(r["rates"]), {}).get("median")
     for w in sorted(r["rates"]):
