@@ -193,7 +193,7 @@ def plot(res: dict, path) -> None:
     a.set_xticks(x, [str(w) for w in ws])
     a.set_xlabel("workers")
     a.set_ylabel("points / s (median)")
-    a.legend(fontsize=8)
+    a.legend(fontsize=8, loc="lower center")
     a.set_title(f"sweep throughput ({res['t_end_s']:g} s per point, {res['cores']} shared cores)", fontsize=9)
     b.bar(
         ["run of one point", "Dask task round trip"],
