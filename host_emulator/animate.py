@@ -2,7 +2,9 @@
 
 Each cell is drawn from above as two discs, the tall (alpha) cylinder and the short (beta) one, with a
 pointer at its angle; the strip below shows the alpha profile. GIF through Pillow (a matplotlib
-dependency) or MP4 when imageio-ffmpeg is installed (``--out lattice.mp4``).
+dependency) or MP4 through the ffmpeg that imageio-ffmpeg ships (``--out lattice.mp4``; the project's
+``video`` extra, in ``dev`` too). Without a working ffmpeg an MP4 request writes a GIF of the same name
+instead and says why.
 """
 
 from __future__ import annotations
@@ -12,13 +14,37 @@ import sys
 
 import numpy as np
 
+MP4_HINT = "pip install imageio-ffmpeg, or the project's extra: pip install 'metamaterial-rig[video]'"
 
-def animate(run, path, *, fps=20, t_max=None, every=None, scene=None):
-    """Write an animation of run (a RunResult) to path (.gif or .mp4); returns the path."""
+
+def ffmpeg_exe() -> tuple[str | None, str]:
+    """(path of a working ffmpeg from imageio-ffmpeg, "") or (None, why not)."""
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        return None, f"MP4 needs imageio-ffmpeg, which is not installed ({MP4_HINT})"
+    try:
+        return imageio_ffmpeg.get_ffmpeg_exe(), ""
+    except Exception as e:  # noqa: BLE001 - RuntimeError when no binary fits this platform
+        return None, f"imageio-ffmpeg found no ffmpeg binary ({e})"
+
+
+def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=True, report=None):
+    """Write an animation of run (a RunResult) to path (.gif or .mp4); returns the path written.
+
+    An .mp4 needs imageio-ffmpeg's ffmpeg; without one (or if it fails) and with `fallback`, the GIF of the
+    same name is written instead, `report(message)` says why (default: a warning), and its path is returned."""
     from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.figure import Figure
 
     from .plots import _title
+
+    path = str(path)
+    if not path.endswith((".gif", ".mp4")):
+        raise ValueError(f"{path}: the animation is written as .gif or .mp4")
+    exe, why = ffmpeg_exe() if path.endswith(".mp4") else (None, "")
+    if path.endswith(".mp4") and exe is None and not fallback:
+        raise RuntimeError(f"{why}; or write a .gif")
 
     t = np.asarray(getattr(run, "time", None) if getattr(run, "time", None) is not None else run.t)
     a, b = np.asarray(run.alpha), np.asarray(run.beta)
@@ -62,20 +88,29 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None):
         return pa, pb, prof, txt
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
-    path = str(path)
     if path.endswith(".mp4"):
-        try:
-            import imageio_ffmpeg
-            from matplotlib import rcParams
+        if exe is not None:
+            from matplotlib import rc_context
             from matplotlib.animation import FFMpegWriter
-        except ImportError:
-            raise RuntimeError("MP4 needs imageio-ffmpeg (pip install imageio-ffmpeg); or write a .gif") from None
-        rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
-        anim.save(path, writer=FFMpegWriter(fps=fps))
-    elif path.endswith(".gif"):
-        anim.save(path, writer=PillowWriter(fps=fps))
-    else:
-        raise ValueError(f"{path}: the animation is written as .gif or .mp4")
+
+            try:
+                with rc_context({"animation.ffmpeg_path": exe}):
+                    anim.save(path, writer=FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"]))
+                return path
+            except Exception as e:  # noqa: BLE001 - ffmpeg exits non-zero, cannot start, ...
+                why = f"ffmpeg failed ({type(e).__name__}: {e})"
+        if not fallback:
+            raise RuntimeError(f"{why}; or write a .gif")
+        gif = path[: -len(".mp4")] + ".gif"
+        msg = f"{why}: wrote the GIF {gif} instead of {path}"
+        if report is None:
+            import warnings
+
+            warnings.warn(msg, RuntimeWarning, stacklevel=2)
+        else:
+            report(msg)
+        path = gif
+    anim.save(path, writer=PillowWriter(fps=fps))
     return path
 
 
@@ -86,11 +121,16 @@ def animate_main(argv=None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  python -m host_emulator animate default --out lattice.gif\n"
         "  python -m host_emulator animate exp1_ccw_ccw --t-max 1.5 --fps 15 "
-        "--out exp1.gif",
+        "--out exp1.gif\n"
+        "  python -m host_emulator animate default --out lattice.mp4    # needs imageio-ffmpeg (extra 'video')",
     )
     ap.add_argument("scene", help="shipped scene name or .toml path")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
-    ap.add_argument("--out", required=True, help="output file, .gif (Pillow) or .mp4 (imageio-ffmpeg)")
+    ap.add_argument(
+        "--out",
+        required=True,
+        help="output file, .gif (Pillow) or .mp4 (imageio-ffmpeg; without it the .gif of the same name, said why)",
+    )
     ap.add_argument("--fps", type=int, default=20, help="frames per second of the animation (default 20)")
     ap.add_argument(
         "--t-max",
@@ -110,12 +150,14 @@ def animate_main(argv=None) -> int:
         return 2
     try:
         r = run(args.scene, list(args.set))
-        animate(r, args.out, fps=args.fps, t_max=args.t_max)
+        written = animate(
+            r, args.out, fps=args.fps, t_max=args.t_max, report=lambda m: print(f"note: {m}", file=sys.stderr)
+        )
     except (ConfigError, ValueError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except NumericalInstability as e:
         print(f"error: run stopped: {e}", file=sys.stderr)
         return 3
-    print(f"wrote {args.out}")
+    print(f"wrote {written}")
     return 0

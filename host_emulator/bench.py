@@ -13,10 +13,16 @@ def bench_main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator bench-speed",
         description="Print the real-time factor (simulated s per wall s) of a scene.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator bench-speed\n"
+        "  python -m host_emulator bench-speed exp1_ccw_ccw --set t_end_s=5",
     )
-    ap.add_argument("scene", nargs="?", default="default")
+    ap.add_argument("scene", nargs="?", default="default", help="scene name or .toml path (default: default)")
     ap.add_argument("--repeat", type=int, default=5, help="timed runs (the median is reported)")
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run (repeatable)"
+    )
     ap.add_argument("--cpu", type=int, default=None, help="pin to this CPU (default: the first allowed one)")
     args = ap.parse_args(argv)
 

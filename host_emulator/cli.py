@@ -96,9 +96,7 @@ def cmd_run(args) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     try:
-        from .trackers import LiveTracker
-
-        live = [LiveTracker(args.live)] if args.live else []
+        live, plot = _live_trackers(args, scene, out)
         res = run_scene(scene, progress=not args.quiet, trackers=live)
     except NumericalInstability as e:
         print(f"error: run stopped: {e}", file=sys.stderr)
@@ -119,7 +117,30 @@ def cmd_run(args) -> int:
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _print_summary(summary, out, files)
+    if plot is not None and plot.interactive:
+        from matplotlib import pyplot as plt
+
+        print("live plot: close its window to exit", file=sys.stderr)
+        plt.show()
     return 0
+
+
+def _live_trackers(args, scene, out: Path) -> tuple[list, object]:
+    """Trackers for --print-every and --live; the PlotTracker (or None). On a non-interactive matplotlib
+    backend the live figure goes to --live-png (default OUT/live.png), said once on stderr."""
+    from .trackers import LiveTracker, PlotTracker
+
+    live: list = [LiveTracker(args.print_every)] if args.print_every else []
+    plot = None
+    if args.live is not None:
+        plot = PlotTracker(args.live, args.live_window, png=args.live_png, title=scene.name)
+        plot.setup(scene.cells, scene.t_end_s)  # opens the window before the run starts
+        if not plot.interactive and plot.png is None:
+            plot.png = str(out / "live.png")
+        if plot.png:
+            print(f"live plot: {plot.png} is rewritten every {args.live:g} ms of simulated time", file=sys.stderr)
+        live.append(plot)
+    return live, plot
 
 
 def _fmt(v, unit="", nd=4):
@@ -149,12 +170,23 @@ def _print_summary(s, out, files):
     if d:
         print(
             f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
-            f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, growth {_fmt(d.get('fastest_growth_per_s'), '/s')}"
+            f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, "
+            f"growth {_fmt(d.get('fastest_growth_per_s'), '/s')}"
         )
     print(
         f"  wrote {out}/summary.json, trajectories.npz"
         + ("" if not files else ", plots: " + ", ".join(str(f) for f in files))
     )
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
 
 
 def cmd_bench(args) -> int:
@@ -165,8 +197,13 @@ def cmd_bench(args) -> int:
 
 def main(argv=None) -> int:
     """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
+    from .firmware import FirmwareBuildError
+
     try:
         return _main(argv)
+    except FirmwareBuildError as e:  # no sources, no compiler: say what is missing, not a traceback
+        print(f"error: {e}", file=sys.stderr)
+        return 3
     except BrokenPipeError:  # e.g. `dispersion --json | head`: the reader left, not an error
         import os
 
@@ -197,12 +234,36 @@ def _main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator",
         description="Host emulator of the robotic metamaterial (docs/physics.md).",
-        epilog="Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator scenes\n"
+        "  python -m host_emulator run default --out out/default\n"
+        "  python -m host_emulator run exp3_single_sigma6 --set params.sigma=6/125 --live\n"
+        "  python -m host_emulator dispersion --sigma 9/125 --inertia\n"
+        "  python -m host_emulator sweep default --grid params.sigma=0.04:0.12:41 --out out/sweep\n"
+        "  python -m host_emulator SUBCOMMAND --help       # the options of one subcommand\n"
+        "exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
     )
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("scenes", help="list the shipped scenes")
-    r = sub.add_parser("run", help="run a scene (shipped name or .toml path)")
-    r.add_argument("scene")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="SUBCOMMAND", help="what to do")
+    sub.add_parser(
+        "scenes",
+        help="list the shipped scenes",
+        description="List the shipped scenes: name, model, description.",
+        epilog="example: python -m host_emulator scenes",
+    )
+    r = sub.add_parser(
+        "run",
+        help="run a scene (shipped name or .toml path)",
+        description="Run a scene: summary.json, trajectories.npz and plots in --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator run default\n"
+        "  python -m host_emulator run exp1_ccw_ccw --set t_end_s=5 --out out/exp1 --no-plots\n"
+        "  python -m host_emulator run default --live 50 --live-window 3    # live plot every 50 ms\n"
+        "  python -m host_emulator run my_scene.toml --accuracy exact --print-every 1\n"
+        "exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
+    )
+    r.add_argument("scene", help="shipped scene name (see `scenes`) or path of a .toml scene file")
     r.add_argument(
         "--set",
         action="append",
@@ -214,7 +275,31 @@ def _main(argv=None) -> int:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument(
         "--live",
-        type=float,
+        type=_positive_float,
+        nargs="?",
+        const=100.0,
+        default=None,
+        metavar="MS",
+        help="live plot (rolling space-time map of alpha, current alpha/beta profile) redrawn every MS of "
+        "simulated time (default 100); a window on an interactive matplotlib backend, else --live-png",
+    )
+    r.add_argument(
+        "--live-window",
+        type=_positive_float,
+        default=2.0,
+        metavar="S",
+        help="seconds of simulated time the live space-time map shows (default 2)",
+    )
+    r.add_argument(
+        "--live-png",
+        default=None,
+        metavar="PNG",
+        help="also rewrite the live figure to this file at every redraw (default on a non-interactive backend, "
+        "e.g. MPLBACKEND=Agg or no display: OUT/live.png)",
+    )
+    r.add_argument(
+        "--print-every",
+        type=_positive_float,
         default=None,
         metavar="SECONDS",
         help="print max |alpha|, |beta| every SECONDS of simulated time",
@@ -226,15 +311,45 @@ def _main(argv=None) -> int:
         default=None,
         help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)",
     )
-    sub.add_parser("dispersion", help="linear stability (see dispersion --help)")
     sub.add_parser(
-        "robustness", help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)"
+        "dispersion",
+        help="linear stability (see dispersion --help)",
+        epilog="example: python -m host_emulator dispersion --help",
     )
-    sub.add_parser("paper", help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)")
-    sub.add_parser("animate", help="GIF/MP4 of the lattice forming its pattern (see animate --help)")
-    sub.add_parser("sweep", help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)")
-    sub.add_parser("serve", help="emulated primary as an SLCAN device on a pty (see serve --help)")
-    sub.add_parser("bench-speed", help="real-time factor of the default hil scene (see bench-speed --help)")
-    sub.add_parser("bench", help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)")
+    sub.add_parser(
+        "robustness",
+        help="fraction of noise seeds and pushes selecting the source's result (see robustness --help)",
+        epilog="example: python -m host_emulator robustness --help",
+    )
+    sub.add_parser(
+        "paper",
+        help="regenerate the source paper's Fig. 2 and 3, item by item (see paper --help)",
+        epilog="example: python -m host_emulator paper --help",
+    )
+    sub.add_parser(
+        "animate",
+        help="GIF/MP4 of the lattice forming its pattern (see animate --help)",
+        epilog="example: python -m host_emulator animate --help",
+    )
+    sub.add_parser(
+        "sweep",
+        help="a grid of overrides x seeds on Dask into one xarray dataset (see sweep --help)",
+        epilog="example: python -m host_emulator sweep --help",
+    )
+    sub.add_parser(
+        "serve",
+        help="emulated primary as an SLCAN device on a pty (see serve --help)",
+        epilog="example: python -m host_emulator serve --help",
+    )
+    sub.add_parser(
+        "bench-speed",
+        help="real-time factor of the default hil scene (see bench-speed --help)",
+        epilog="example: python -m host_emulator bench-speed --help",
+    )
+    sub.add_parser(
+        "bench",
+        help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)",
+        epilog="example: python -m host_emulator bench --help",
+    )
     args = ap.parse_args(argv)
     return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

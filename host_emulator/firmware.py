@@ -20,10 +20,29 @@ import threading
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-LIB_SRC = ROOT / "lib" / "metacell" / "src"
-HOST_CSRC = Path(__file__).resolve().parent / "csrc"
-BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR", ROOT / "build" / "host"))
+PKG = Path(__file__).resolve().parent
+CHECKOUT = PKG.parent / "lib" / "metacell" / "src"  # a source checkout (also `pip install -e .`)
+PACKAGED = PKG / "_lib" / "metacell" / "src"  # an installed wheel (setup.py copies lib/metacell here)
+IN_CHECKOUT = CHECKOUT.is_dir()
+LIB_SRC = CHECKOUT if IN_CHECKOUT else PACKAGED
+ROOT = PKG.parent if IN_CHECKOUT else PKG  # source paths in the build hash are relative to this
+HOST_CSRC = PKG / "csrc"
+
+
+def _default_build_dir() -> Path:
+    """build/host in a checkout; from a wheel, the user's cache (site-packages may not be writable)."""
+    if IN_CHECKOUT:
+        return ROOT / "build" / "host"
+    cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(cache) / "metacell-emulator" / "host"
+
+
+BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR") or _default_build_dir())
+
+
+class FirmwareBuildError(RuntimeError):
+    """The host build of the firmware library cannot be made (sources missing, no C compiler, ...)."""
+
 
 # Speed flags keep every float bit: no -ffast-math, no -march (FMA would fuse a*b+c), and -ffp-contract=off
 # so no compiler ever contracts; -fvisibility=hidden and -flto let the tick inline the firmware's small calls
@@ -116,11 +135,11 @@ _last: list = [float("-inf"), None]  # [monotonic time of the last check, its (f
 
 def load():
     """Return (ffi, lib) of the host build, compiling it on first use."""
-    if not LIB_SRC.is_dir():
-        raise RuntimeError(
-            f"the firmware sources are not here ({LIB_SRC}): the emulator compiles lib/metacell "
-            "from a source checkout; install the project with `pip install -e .` from the "
-            "repository, not from a wheel"
+    if not LIB_SRC.is_dir() or not any(LIB_SRC.rglob("*.c")):
+        raise FirmwareBuildError(
+            f"the firmware sources are not here ({CHECKOUT} nor {PACKAGED}): the emulator compiles "
+            "lib/metacell at first use; install a wheel built by `pip wheel .` from the repository (it carries "
+            "them), or `pip install -e .` in a checkout"
         )
     now = time.monotonic()
     if _last[1] is not None and now - _last[0] < RECHECK_S:
@@ -153,9 +172,19 @@ def _build(srcs: list[Path], key: str):
             extra_compile_args=CFLAGS,
             extra_link_args=LDFLAGS,
         )
+        try:
+            BUILD_DIR.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise FirmwareBuildError(f"cannot create the build directory {BUILD_DIR} ({e}); set MC_BUILD_DIR") from e
         tmp = Path(tempfile.mkdtemp(prefix="mcfw-", dir=BUILD_DIR.parent if BUILD_DIR.parent.exists() else None))
         try:
-            built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
+            try:
+                built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
+            except Exception as e:  # cffi raises VerificationError/CompileError/LinkError; distutils may exit
+                raise FirmwareBuildError(
+                    f"compiling the firmware library for the host failed ({type(e).__name__}: {e}); it needs a C "
+                    "compiler with LTO (gcc, `cc`) and the Python headers (Debian: apt-get install gcc python3-dev)"
+                ) from e
             outdir.mkdir(parents=True, exist_ok=True)
             so = outdir / built.name
             part = outdir / f".{built.name}.{os.getpid()}"

@@ -1,6 +1,12 @@
-"""Shared fixtures: the host build of the shipped firmware library."""
+"""Shared fixtures: the host build of the shipped firmware library; matplotlib's Agg backend for every test."""
+
+import os
 
 import pytest
+
+# No window from any test (live plots included); subprocesses inherit it. The package itself never selects
+# a backend: this is the test environment's choice.
+os.environ["MPLBACKEND"] = "Agg"
 
 
 @pytest.fixture(scope="session")

@@ -70,6 +70,11 @@ def dispersion_main(argv) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator dispersion",
         description="Linear stability of the uniform rest state (docs/physics.md#linear-stability).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator dispersion --sigma 9/125 --inertia\n"
+        "  python -m host_emulator dispersion --sigma 9/125 --inertia --cells 16 --json\n"
+        "  python -m host_emulator dispersion --band-scale 0.5 --plot out/dispersion.png",
     )
     ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
     ap.add_argument("--inertia", action="store_true", help="include cylinder inertia (4 roots per mode)")

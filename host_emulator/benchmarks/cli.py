@@ -1,4 +1,5 @@
-"""`python -m host_emulator bench [--fidelity] [--quick]`: work-precision, ratios against scipy/py-pde, scaling, fidelity cost."""
+"""`python -m host_emulator bench [--fidelity] [--quick]`: work-precision, ratios against scipy/py-pde, scaling,
+fidelity cost."""
 
 from __future__ import annotations
 
@@ -93,7 +94,8 @@ def run_workprecision(args, out: Path) -> int:
 
     if not args.no_continuum:
         print(
-            "\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), 16 cells x 4 points, 3 s simulated =="
+            "\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), "
+            "16 cells x 4 points, 3 s simulated =="
         )
         _, cpts, have_pde = cb.continuum_workprecision(3.0, m=4, quick=args.quick)
         print(wp.points_table(cpts))
@@ -137,12 +139,17 @@ def main(argv=None) -> int:
         prog="python -m host_emulator bench",
         description="Work-precision against scipy/py-pde, scaling, and (--fidelity) "
         "the cost and effect of each model component. Pinned to one core.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator bench --quick                # a smoke run\n"
+        "  python -m host_emulator bench --out out/bench        # the full work-precision figures\n"
+        "  python -m host_emulator bench --fidelity             # cost and effect of each model component",
     )
     ap.add_argument("--fidelity", action="store_true", help="only the fidelity-cost table")
     ap.add_argument("--quick", action="store_true", help="fewer step sizes/tolerances (a smoke run)")
-    ap.add_argument("--no-hil", action="store_true")
-    ap.add_argument("--no-continuum", action="store_true")
-    ap.add_argument("--no-scaling", action="store_true")
+    ap.add_argument("--no-hil", action="store_true", help="skip the hil (compiled firmware) work-precision")
+    ap.add_argument("--no-continuum", action="store_true", help="skip the continuum model against py-pde")
+    ap.add_argument("--no-scaling", action="store_true", help="skip the cost-against-cells scaling")
     ap.add_argument("--out", default="out/bench", help="directory for the PNG and JSON (default out/bench)")
     args = ap.parse_args(argv)
     where = pin_one_core()

@@ -37,7 +37,11 @@ def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, di
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m host_emulator.bus.bench", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator.bus.bench",
+        description=__doc__.split("\n\n")[0],
+        epilog="example: python -m host_emulator.bus.bench --seconds 2",
+    )
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per measurement")
     args = ap.parse_args(argv)
     n = wire.block_len("SNAPSHOT")

@@ -1,4 +1,5 @@
-"""`python -m host_emulator serve [SCENE] --slcan`: run a hil scene paced to real time, the emulated primary speaking SLCAN on a pty.
+"""`python -m host_emulator serve [SCENE] --slcan`: run a hil scene paced to real time, the emulated primary
+speaking SLCAN on a pty.
 
 The first output line is ``slcan pty: <path>``; point python-can at it with
 ``-i slcan -c <path>@115200``. Runs until interrupted (or --duration seconds).
@@ -51,11 +52,22 @@ def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator serve",
         description="Serve the emulated rig's primary as an SLCAN device on a pseudo-terminal.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator serve default --slcan              # prints 'slcan pty: /dev/pts/N'\n"
+        "  python -m host_emulator serve exp1_ccw_ccw --slcan --link /tmp/rig --absent 3,7\n"
+        "  python -m tools.rigtools.logger -c /dev/pts/N@115200 --out out/log   # in another shell",
     )
     ap.add_argument("scene", nargs="?", default="default", help="hil scene name or .toml path (default: default)")
     ap.add_argument("--slcan", action="store_true", help="speak SLCAN on a pty (the only mode; accepted for clarity)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
-    ap.add_argument("--i2c-hz", type=int, default=400_000, choices=(100_000, 400_000))
+    ap.add_argument(
+        "--i2c-hz",
+        type=int,
+        default=400_000,
+        choices=(100_000, 400_000),
+        help="I2C clock of the emulated bus, Hz (default 400000)",
+    )
     ap.add_argument("--period-us", type=int, default=0, help="poll cycle period (0: as fast as the bus allows)")
     ap.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: run on)")
     ap.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second (default 1)")

@@ -2,6 +2,7 @@
 
 import json
 import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -144,3 +145,47 @@ def test_did_you_mean_for_scenes_and_keys():
         load_scene("default", ["params.sigmaa=0.05"])
     with pytest.raises(ConfigError, match="did you mean 't_end_s'"):
         load_scene("default", ["t_end=1"])
+
+
+def _tiny_run(frames=12, cells=4):
+    """A RunResult-like object with known angles (no simulation needed to test the writers)."""
+    from types import SimpleNamespace
+
+    t = np.linspace(0.0, 0.55, frames)
+    a = 0.5 * np.sin(np.outer(t + 0.1, np.arange(1, cells + 1)))
+    return SimpleNamespace(t=t, alpha=a, beta=-0.3 * a, scene=None)
+
+
+def test_animate_writes_mp4_through_imageio_ffmpeg(tmp_path):
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+    from host_emulator.animate import animate
+
+    out = animate(_tiny_run(), tmp_path / "a.mp4", fps=10, every=1, report=pytest.fail)
+    assert out == str(tmp_path / "a.mp4")
+    head = (tmp_path / "a.mp4").read_bytes()[:12]
+    assert head[4:8] == b"ftyp"  # an ISO media file
+    n, secs = imageio_ffmpeg.count_frames_and_secs(out)
+    assert n == 12 and secs == pytest.approx(1.2, abs=0.11)  # every sample one frame at 10 fps
+
+
+def test_animate_mp4_without_imageio_ffmpeg_falls_back_to_gif(tmp_path, monkeypatch, capsys):
+    """No imageio-ffmpeg: the GIF of the same name, and a message naming the package to install."""
+    from PIL import Image
+
+    from host_emulator import animate as A
+    from host_emulator.cli import main
+
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # import fails as if not installed
+    notes = []
+    out = A.animate(_tiny_run(), tmp_path / "b.mp4", fps=10, every=1, report=notes.append)
+    assert out == str(tmp_path / "b.gif") and not (tmp_path / "b.mp4").exists()
+    assert len(notes) == 1 and "imageio-ffmpeg" in notes[0] and "b.gif" in notes[0]
+    with Image.open(out) as im:
+        assert im.n_frames == 12
+    with pytest.raises(RuntimeError, match="imageio-ffmpeg"):
+        A.animate(_tiny_run(), tmp_path / "c.mp4", fallback=False)
+    # the command line says it on stderr and names the file it wrote
+    assert main(["animate", "default", "--set", "t_end_s=0.2", "--t-max", "0.1", "--fps", "5",
+                 "--out", str(tmp_path / "d.mp4")]) == 0  # fmt: skip
+    io = capsys.readouterr()
+    assert "note: MP4 needs imageio-ffmpeg" in io.err and f"wrote {tmp_path / 'd.gif'}" in io.out

@@ -35,3 +35,80 @@ def test_bad_t_end():
     m = make_model("lattice", Params(cells=4), [], ModelOptions())
     with pytest.raises(ValueError, match="t_end_s"):
         run_solver(m.solver(), float("nan"))
+
+
+# ---- live plot -------------------------------------------------------------------------------------------
+def _plot_tracker(**kw):
+    from matplotlib.figure import Figure
+
+    from host_emulator.trackers import PlotTracker
+
+    return PlotTracker(fig=Figure(), **kw)
+
+
+def test_plot_tracker_draws_the_recorded_run():
+    """Through the controller: the map is the recorded alpha (window longer than the run), the profile its last row."""
+    import matplotlib
+
+    assert matplotlib.get_backend().lower() == "agg"  # the test environment's choice (conftest), not the package's
+    from host_emulator.controller import run_scene
+    from host_emulator.scene import load_scene
+
+    p = _plot_tracker(interval_ms=100, window_s=5.0)
+    res = run_scene(load_scene("default", ["model=lattice", "t_end_s=1"]), progress=False, trackers=[p])
+    assert np.abs(res.alpha).max() > 0.1  # the pattern grew: there is something to draw
+    np.testing.assert_array_equal(np.asarray(p.image.get_array()), res.alpha)
+    np.testing.assert_array_equal(p.line_a.get_ydata(), res.alpha[-1])
+    np.testing.assert_array_equal(p.line_b.get_ydata(), res.beta[-1])
+    assert p.image.get_extent()[2:] == [0.0, pytest.approx(res.t[-1])]
+    lo, hi = p.image.get_clim()
+    assert hi == -lo == pytest.approx(np.abs(res.alpha).max())
+    # at most one redraw per 100 ms of simulated time (t = 0, 0.1, ..., 1.0) and the final one; a compiled chunk
+    # that spans several intervals is drawn once
+    assert 2 <= p.draws <= 12
+
+
+def test_plot_tracker_window_rolls():
+    """Fed in uneven chunks, the map keeps exactly the samples of the last window_s, oldest first."""
+    rng = np.random.default_rng(3)
+    t = np.arange(500) * 0.01
+    a, b = rng.normal(size=(500, 5)), rng.normal(size=(500, 5))
+    p = _plot_tracker(interval_ms=50, window_s=1.0)
+    p.setup(5)
+    cuts = [0, 3, 40, 41, 200, 333, 500]
+    for i, j in zip(cuts[:-1], cuts[1:]):
+        p.sample_many(t[i:j], a[i:j], b[i:j])
+    p.update()
+    keep = t >= t[-1] - 1.0 - 1e-12
+    np.testing.assert_array_equal(np.asarray(p.image.get_array()), a[keep])
+    tw, aw, bw = p.window()
+    np.testing.assert_array_equal(tw, t[keep])
+    np.testing.assert_array_equal(bw, b[keep])
+    # one sample at a time: a redraw whenever 50 ms passed since the last one
+    q = _plot_tracker(interval_ms=50, window_s=1.0)
+    q.setup(5)
+    for k in range(101):
+        q.sample(t[k], a[k], b[k])
+    assert q.draws == 21  # t = 0, 0.05, ..., 1.0
+    np.testing.assert_array_equal(q.line_a.get_ydata(), a[100])
+
+
+def test_plot_tracker_refuses_bad_settings():
+    from host_emulator.trackers import PlotTracker
+
+    for kw in ({"interval_ms": 0}, {"window_s": -1}, {"interval_ms": float("nan")}):
+        with pytest.raises(ValueError, match="PlotTracker"):
+            PlotTracker(**kw)
+
+
+def test_cli_live_writes_the_figure_on_a_headless_backend(tmp_path, capsys):
+    """`run SCENE --live` under Agg: no window can open, so OUT/live.png is rewritten and the user is told."""
+    from host_emulator import cli
+
+    out = tmp_path / "r"
+    rc = cli.main(["run", "default", "--set", "t_end_s=0.3", "--live", "100", "--out", str(out), "--no-plots"])
+    assert rc == 0
+    assert "live.png is rewritten every 100 ms" in capsys.readouterr().err
+    assert (out / "live.png").stat().st_size > 5000
+    with pytest.raises(SystemExit):
+        cli.main(["run", "default", "--live", "-5"])

@@ -663,3 +663,65 @@ def test_bad_options_fail_before_touching_the_rig(tmp_path, capsys):
         err = capsys.readouterr().err
         assert rc == cli.EXIT_USAGE and word in err and "cannot open" not in err, (args, err)
     assert not out.exists()
+
+
+# ---- live plot fed from the logged frames; identity of the cells ----------------------------------------------
+def test_rig_live_plot_draws_the_series_of_the_logged_frames():
+    """RigLive polled as the runner polls it: the tracker ends up holding the same time series as the summary's."""
+    from matplotlib.figure import Figure
+
+    from host_emulator.trackers import PlotTracker
+    from tools.experiment.live import RigLive
+
+    dec = SampleDecoder(n_cells=3, report=lambda t: None)
+    tr = PlotTracker(interval_ms=50, window_s=10.0, fig=Figure())
+    live = RigLive(tr, 3, title="x")
+    live.begin(1, 5.0)
+    t0 = 3 * 78 * 128e-6
+    assert live.poll(dec, t0) == 0  # nothing logged yet
+    fed = []
+    for k in range(120):
+        for j in (1, 2, 3):
+            dec.sample(j, k % 256, 10 * j + k, -k, k * 78 + j, 1, 1000.0)
+        fed.append(live.poll(dec, t0))
+    live.finish(dec, t0)
+    want = series(dec.arrays(), t0, 0.0)
+    tw, aw, bw = tr.window()
+    np.testing.assert_allclose(tw, want.t)
+    np.testing.assert_array_equal(aw, want.alpha)
+    np.testing.assert_array_equal(np.asarray(tr.image.get_array()), want.alpha)
+    np.testing.assert_array_equal(bw, want.beta)
+    # fed in steps of about one interval (78 * 128 us = 10 ms per cycle: every 5th cycle), not every row
+    assert 15 <= sum(1 for n in fed if n) <= 30 and tr.title == "x rig, repeat 1"
+
+
+def test_rehearsal_records_cell_identity_and_draws_live(fw, tmp_path, capsys):
+    """The rig run reads every cell's IDENT block (firmware version, map id) from the emulated bus into the
+    summary and its provenance; --live under Agg writes OUT/live.png."""
+    from tools.experiment.summary import identity_provenance
+
+    out = tmp_path / "rig"
+    rc = cli.main(
+        ["rehearse", "exp1_ccw_ccw", "--set", "t_end_s=1", "--timeout", "3", "--live", "--out", str(out), "--no-plots"]
+    )
+    err = capsys.readouterr().err
+    s = strict_json(out / "summary.json")
+    assert rc in (0, cli.EXIT_PROBLEMS), err
+    ident = s["cell_identity"]
+    assert sorted(ident, key=int) == [str(j) for j in range(1, 17)]
+    v = fw[1].MC_FW_VERSION  # the firmware library's own constant, as compiled
+    for j in range(1, 17):
+        r = ident[str(j)]
+        assert r["addr"] == proto.cell_address(j) and r["map_id"] == f"0x{proto.map_id():04X}" and r["map_id_matches"]
+        assert r["proto_version"] == proto.D.PROTO_VERSION and r["fw_version_raw"] == v
+        assert r["fw_version"] == f"{v >> 8}.{v & 255}"
+    prov = s["provenance"]
+    assert prov["cell_map_id"] == f"0x{proto.map_id():04X} (cells 1-16)" and prov["cell_identity_missing"] == "none"
+    assert prov["cell_fw_version"] == f"{ident['1']['fw_version']} (cells 1-16)"
+    assert s["cell_identity_mismatch"] == []
+    assert (out / "live.png").stat().st_size > 5000 and "live.png is rewritten" in err
+    # the provenance strings group cells by value and name the silent ones
+    two = identity_provenance(
+        {1: {"fw_version": "1.0"}, 2: {"fw_version": "1.1"}, 3: {"fw_version": "1.0"}, 4: {"error": "x"}}
+    )
+    assert two["cell_fw_version"] == "1.0 (cells 1, 3); 1.1 (cells 2)" and two["cell_identity_missing"] == "4"

@@ -1,8 +1,8 @@
 """Command line: `python -m tools.experiment run SCENE --channel PORT@BAUD | rehearse SCENE | compare RIG_DIR EMU_DIR`.
 
 Exit status: 0 done cleanly, 1 done with problems (failed commands under --keep-going,
-missing cells, lost samples, a cell whose drive-off was not confirmed: all in the
-summary), 2 bad scene/argument (nothing sent to the rig),
+missing cells, lost samples, a cell whose drive-off was not confirmed, a cell reporting
+another protocol map id: all in the summary), 2 bad scene/argument (nothing sent to the rig),
 3 aborted (failed command, lost link; the drive was switched off if the link allowed),
 130 interrupted by Ctrl-C (drive switched off first).
 """
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import signal
 import sys
 import time
@@ -75,18 +76,92 @@ def _common(p: argparse.ArgumentParser):
     p.add_argument("--formats", default="asc", help="python-can log formats, comma separated (default asc)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument(
+        "--live",
+        type=_positive_float,
+        nargs="?",
+        const=200.0,
+        default=None,
+        metavar="MS",
+        help="live plot of the running repeat (rolling space-time map of alpha, current profile) from the logged "
+        "frames, redrawn every MS of primary-clock time (default 200); a window on an interactive matplotlib "
+        "backend, else --live-png",
+    )
+    p.add_argument(
+        "--live-window",
+        type=_positive_float,
+        default=2.0,
+        metavar="S",
+        help="seconds the live space-time map shows (default 2)",
+    )
+    p.add_argument(
+        "--live-png",
+        default=None,
+        metavar="PNG",
+        help="also rewrite the live figure to this file at every redraw (default on a non-interactive backend: "
+        "OUT/live.png)",
+    )
+    p.add_argument(
         "--plain-slcan",
         action="store_true",
         help="python-can's own slcan reader (one system call per byte) instead of the buffered one",
     )
 
 
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
+
+
+def make_live(args, scene, out: Path):
+    """RigLive for --live (None without it); on a non-interactive matplotlib backend the figure goes to a PNG."""
+    if getattr(args, "live", None) is None:
+        return None
+    from host_emulator.trackers import PlotTracker
+
+    from .live import RigLive
+
+    tracker = PlotTracker(args.live, args.live_window, png=args.live_png)
+    live = RigLive(tracker, scene.cells, title=scene.name)
+    live.begin(0, scene.t_end_s)  # the window opens before the bus does
+    if not tracker.interactive and tracker.png is None:
+        out.mkdir(parents=True, exist_ok=True)
+        tracker.png = str(out / "live.png")
+    if tracker.png:
+        print(f"live plot: {tracker.png} is rewritten every {args.live:g} ms of the run", file=sys.stderr)
+    return live
+
+
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m tools.experiment", description=__doc__.split("\n\n")[0])
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("run", help="run a scene on the rig through the primary")
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.experiment",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.experiment rehearse exp1_ccw_ccw --repeats 2            # no hardware: the emulator\n"
+        "  python -m tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200 --repeats 3 --live\n"
+        "  python -m tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw\n"
+        "  python -m tools.experiment SUBCOMMAND --help\n" + __doc__.split("\n\n", 1)[1],
+    )
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="SUBCOMMAND", help="what to do")
+    r = sub.add_parser(
+        "run",
+        help="run a scene on the rig through the primary",
+        description="Run a scene on the rig through the primary; summary.json, logs and plots in --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200\n"
+        "  python -m tools.experiment run default -c /dev/ttyACM0@115200 --set params.sigma=6/125 --repeats 5 "
+        "--live 100\n"
+        "  python -m tools.experiment run exp5_rest -c /dev/ttyACM0@115200 --t-end 20 --no-early-stop "
+        "--formats asc,blf",
+    )
     _common(r)
-    r.add_argument("--channel", "-c", required=True, help="e.g. /dev/ttyACM0@115200")
+    r.add_argument("--channel", "-c", required=True, help="python-can channel, e.g. /dev/ttyACM0@115200")
     r.add_argument("--interface", "-i", default="slcan", help="python-can interface (default slcan)")
     r.add_argument(
         "--open-wait",
@@ -95,7 +170,15 @@ def parser() -> argparse.ArgumentParser:
         metavar="S",
         help="slcan: seconds python-can waits after opening the port (its default: 2)",
     )
-    h = sub.add_parser("rehearse", help="the same run against `python -m host_emulator serve` on a pty")
+    h = sub.add_parser(
+        "rehearse",
+        help="the same run against `python -m host_emulator serve` on a pty",
+        description="The same run against the emulated primary (python -m host_emulator serve) on a pty.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.experiment rehearse exp1_ccw_ccw --set t_end_s=4 --repeats 2\n"
+        "  python -m tools.experiment rehearse default --absent 3,7 --keep-going --live",
+    )
     _common(h)
     for name in ("absent", "stuck", "babble"):
         h.add_argument(f"--{name}", default=None, metavar="CELLS", help=f"serve: {name} cells, e.g. 3,7")
@@ -106,9 +189,14 @@ def parser() -> argparse.ArgumentParser:
         metavar="S",
         help="serve stops after S simulated seconds (default: long enough for the run)",
     )
-    c = sub.add_parser("compare", help="overlay a rig (or rehearsal) run and an emulator run of the same scene")
-    c.add_argument("rig_dir")
-    c.add_argument("emu_dir")
+    c = sub.add_parser(
+        "compare",
+        help="overlay a rig (or rehearsal) run and an emulator run of the same scene",
+        description="Table and plot of the final angles of a rig run against an emulator run of the same scene.",
+        epilog="example: python -m tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw --out cmp.png",
+    )
+    c.add_argument("rig_dir", help="output directory of `run` or `rehearse` (holds summary.json)")
+    c.add_argument("emu_dir", help="output directory of `python -m host_emulator run` of the same scene")
     c.add_argument("--out", default=None, help="PNG file (default RIG_DIR/compare.png)")
     return ap
 
@@ -165,6 +253,7 @@ def execute(
     hook=None,
     report=None,
     plain_slcan=False,
+    live=None,
 ) -> tuple[int, dict]:
     """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary)."""
     from . import summary as S
@@ -187,7 +276,7 @@ def execute(
     rc, error = EXIT_OK, None
     exp = None
     try:
-        exp = Experiment(bus, plan, out, opts, report=report, hook=hook)
+        exp = Experiment(bus, plan, out, opts, report=report, hook=hook, live=live)
         exp.run()
     except KeyboardInterrupt:
         rc, error = EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
@@ -243,6 +332,7 @@ def execute(
         or summary["missing_cells"]
         or summary["samples_lost"]
         or not summary["drive_off_confirmed"]
+        or summary.get("cell_identity_mismatch")
     ):
         rc = EXIT_PROBLEMS
     return rc, summary
@@ -282,6 +372,13 @@ def print_summary(s: dict, out: Path):
         f"  missing cells: {s['missing_cells'] or 'none'}; failed commands: {len(s['failed_commands'])}; "
         f"gaps: {s['gaps']} ({s['samples_lost']} samples lost); drive off confirmed: {s['drive_off_confirmed']}"
     )
+    prov = s.get("provenance", {})
+    if "cell_fw_version" in prov:
+        print(
+            f"  cells: firmware {prov['cell_fw_version']}; protocol map {prov['cell_map_id']}; "
+            f"no identity: {prov['cell_identity_missing']}"
+            + (f"; MAP ID MISMATCH: cells {s['cell_identity_mismatch']}" if s.get("cell_identity_mismatch") else "")
+        )
     print(f"  wrote {out}/summary.json, " + ", ".join(s["files"][1:]))
 
 
@@ -295,6 +392,7 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
     out = Path(args.out or Path("out") / "rig" / scene.name)
+    live = make_live(args, scene, out)
     rc, summary = execute(
         scene,
         plan,
@@ -305,9 +403,15 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
         open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
         plots=not args.no_plots,
         plain_slcan=args.plain_slcan,
+        live=live,
     )
     if summary:
         print_summary(summary, out)
+    if live is not None and live.tracker.interactive:
+        from matplotlib import pyplot as plt
+
+        print("live plot: close its window to exit", file=sys.stderr)
+        plt.show()
     return rc
 
 

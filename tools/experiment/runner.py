@@ -1,4 +1,5 @@
-"""Run a scene on the rig through the primary (python-can): configure, zero, enable, perturb, log until steady, always disable.
+"""Run a scene on the rig through the primary (python-can): configure, zero, enable, perturb, log until steady,
+always disable.
 
 One `Experiment` owns the bus for the whole session. Every frame received (also while a
 command waits for its result) goes to the python-can writers and to the current repeat's
@@ -81,7 +82,16 @@ class Repeat:
 class Experiment:
     """A session on one open python-can bus."""
 
-    def __init__(self, bus, plan: ExperimentPlan, out: Path, opts: Options | None = None, report=None, hook=None):
+    def __init__(
+        self,
+        bus,
+        plan: ExperimentPlan,
+        out: Path,
+        opts: Options | None = None,
+        report=None,
+        hook=None,
+        live=None,
+    ):
         import can
 
         self.bus, self.plan, self.out = bus, plan, Path(out)
@@ -101,6 +111,8 @@ class Experiment:
         self.failures = []  # (phase, reg, cell, result) of every non-OK answer
         self.repeats: list[Repeat] = []
         self.safe = None  # result of the final ENABLE off
+        self.identity: dict = {}  # {cell: IDENT block fields, or {"error": ...}} read before the first repeat
+        self.live = live  # tools.experiment.live.RigLive or None: live plot fed from the logged frames
         self.t_session = time.time()
 
     # ---- frames --------------------------------------------------------------
@@ -222,6 +234,57 @@ class Experiment:
             elif now - start >= seconds:
                 return
 
+    # ---- identity ----------------------------------------------------------------
+    def read_identity(self) -> dict:
+        """Read every cell's IDENT block (firmware version, build, protocol map id) through the primary.
+
+        Returns {cell: record}; a cell that did not send its block gets {"error": ...}. A map id that differs
+        from this protocol definition's is reported (the cell would read our frames with another layout)."""
+        from tools.rigtools import proto
+
+        try:
+            info = self.client.info(list(self.plan.cells), blocks=("IDENT",))
+        except Exception as e:
+            raise LinkError(f"connection to the primary lost while reading identities: {type(e).__name__}: {e}") from e
+        want = proto.map_id()
+        out = {}
+        for j in self.plan.cells:
+            d = info.get(j, {})
+            i = d.get("IDENT")
+            if i is None:
+                out[j] = {"error": "no IDENT block (" + ", ".join(d.get("results", [])) + ")"}
+                continue
+            out[j] = {
+                "addr": i["addr"],
+                "proto_version": i["tag"] >> 4,
+                "fw_version": f"{i['fw_version'] >> 8}.{i['fw_version'] & 255}",
+                "fw_version_raw": i["fw_version"],
+                "build": f"0x{i['build']:08X}",
+                "map_id": f"0x{i['map_id']:04X}",
+                "map_id_matches": i["map_id"] == want,
+            }
+        bad = [j for j, r in out.items() if r.get("map_id_matches") is False]
+        if bad:
+            self.report(
+                f"cell(s) {cells_text(bad)} report protocol map id "
+                f"{', '.join(sorted({out[j]['map_id'] for j in bad}))}, this tool speaks 0x{want:04X}: "
+                "reflash them (python -m tools.flash flash)"
+            )
+        self.identity = out
+        self.hook("identity", identity=out)
+        return out
+
+    # ---- live plot -------------------------------------------------------------
+    def _live(self, method: str, *args):
+        """Call the live plot; a plotting error stops the plot (said once), never the run."""
+        if self.live is None:
+            return
+        try:
+            getattr(self.live, method)(*args)
+        except Exception as e:  # noqa: BLE001 - the drive and the log matter more than the picture
+            self.report(f"live plot stopped: {type(e).__name__}: {e}")
+            self.live = None
+
     # ---- rest, zero ------------------------------------------------------------
     def _wait_still(self, repeat: Repeat, window_s: float = 0.5):
         """Log until every cell moved < 2 counts over `window_s` (bounded by rest_timeout_s); keep the angles."""
@@ -284,6 +347,7 @@ class Experiment:
             f"{phase}: drive enabled on {len(rep.enabled_cells)} cell(s); running up to {self.plan.t_end_s:g} s"
         )
         self.hook("enabled", repeat=index)
+        self._live("begin", index, self.plan.t_end_s)
         pending = list(self.plan.perturbations)
         next_check = self.plan.last_perturbation_end_s + self.opts.settle_s
         rep.stopped = "t_end"
@@ -338,7 +402,9 @@ class Experiment:
                 [self.plan.t_end_s] + [p.start_s for p in pending] + ([next_check] if self.opts.early_stop else [])
             )
             self.pump(time.time() + min(0.05, max(0.005, nxt - now)))
+            self._live("poll", rep.decoder, rep.t0)
         rep.t_stop = self.clock(rep.decoder)
+        self._live("finish", rep.decoder, rep.t0)
         self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop - rep.t0:.2f} s")
         left = self.disable_all(phase)
         driving = [j for j in left if j in rep.enabled_cells]
@@ -349,6 +415,7 @@ class Experiment:
         return rep
 
     def run(self) -> None:
+        self.read_identity()
         for k in range(1, self.opts.repeats + 1):
             self.run_repeat(k)
 

@@ -1,4 +1,5 @@
-"""summary.json of a rig run: the keys of `python -m host_emulator run` (model = "rig") plus repeats, spread and every problem seen.
+"""summary.json of a rig run: the keys of `python -m host_emulator run` (model = "rig") plus repeats, spread,
+every problem seen and the cells' identity.
 
 Top-level observables over N repeats: final_alpha_rad / final_beta_rad are the per-cell mean
 of the repeats' final angles (spread: *_std_rad, *_min_rad, *_max_rad); steady is true only if
@@ -40,7 +41,7 @@ def json_ready(v):
 
 
 def _longest_run(mask) -> slice:
-    best, start, cur = slice(0, 0), None, 0
+    best, start = slice(0, 0), None
     for i, m in enumerate(list(mask) + [False]):
         if m and start is None:
             start = i
@@ -194,8 +195,27 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
     out.pop("solver", None)
     from host_emulator.provenance import provenance
 
-    out["provenance"] = provenance()  # code version, library versions, UTC time, command line
+    out["provenance"] = provenance() | identity_provenance(exp.identity)  # code, libraries, time, command, cells
+    out["cell_identity"] = {str(j): r for j, r in sorted(exp.identity.items())}
+    out["cell_identity_mismatch"] = sorted(j for j, r in exp.identity.items() if r.get("map_id_matches") is False)
     return json_ready(out), (None if res is None else (scene, res))
+
+
+def identity_provenance(identity: dict) -> dict:
+    """Flat strings for the provenance block: each distinct firmware version, build and protocol map id with the
+    cells that reported it (e.g. "1.0 (cells 1-16)"), and the cells that sent no identity."""
+    from .runner import cells_text
+
+    out = {}
+    for key, name in (("fw_version", "cell_fw_version"), ("build", "cell_build"), ("map_id", "cell_map_id")):
+        groups: dict = {}
+        for j, r in identity.items():
+            if key in r:
+                groups.setdefault(r[key], []).append(j)
+        out[name] = "; ".join(f"{v} (cells {cells_text(js)})" for v, js in sorted(groups.items())) or "none read"
+    silent = sorted(j for j, r in identity.items() if "error" in r)
+    out["cell_identity_missing"] = cells_text(silent) if silent else "none"
+    return out
 
 
 class _quiet:

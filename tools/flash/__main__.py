@@ -28,7 +28,17 @@ def default_pio() -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m tools.flash", description=__doc__)
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.flash",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.flash inventory --assign 1 --serial <USB serial>   # once per board\n"
+        "  python -m tools.flash plan                                         # what flash would do\n"
+        "  python -m tools.flash flash --only 1-4,primary\n"
+        "  python -m tools.flash identify\n"
+        "  python -m tools.flash SUBCOMMAND --help",
+    )
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument(
         "--inventory", default=str(inv.DEFAULT_PATH), help="board inventory JSON (default: %(default)s)"
@@ -36,20 +46,32 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument(
         "--ports-json", metavar="FILE", help="use this JSON list of ports instead of the USB ports (no hardware)"
     )
-    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="SUBCOMMAND", help="what to do")
 
     p = sub.add_parser(
-        "inventory", parents=[common], help="show connected boards; --assign one to a cell or the primary"
+        "inventory",
+        parents=[common],
+        help="show connected boards; --assign one to a cell or the primary",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  python -m tools.flash inventory\n"
+        "  python -m tools.flash inventory --assign primary --serial 8A1B2C3D\n"
+        "  python -m tools.flash inventory --assign 5 --replace       # a new board in slot 5",
     )
     p.add_argument("--assign", metavar="N|primary", help="record a board as cell N or the primary")
     p.add_argument("--serial", help="which board to assign (default: the only unassigned one connected)")
     p.add_argument("--replace", action="store_true", help="take the slot from the board holding it")
 
-    for name, helptext in (
-        ("plan", "print what flash would do, touching nothing"),
-        ("flash", "build, upload and verify every board"),
+    for name, helptext, examples in (
+        ("plan", "print what flash would do, touching nothing", ("plan", "plan --only 1-4,primary")),
+        ("flash", "build, upload and verify every board", ("flash", "flash --only 7 --stop-on-error")),
     ):
-        p = sub.add_parser(name, parents=[common], help=helptext)
+        p = sub.add_parser(
+            name,
+            parents=[common],
+            help=helptext,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+            epilog="examples:\n" + "\n".join(f"  python -m tools.flash {e}" for e in examples),
+        )
         p.add_argument("--only", help="boards to include, e.g. '1-4,7,primary' (default: all)")
         p.add_argument(
             "--skip-missing",
@@ -64,12 +86,31 @@ def _parser() -> argparse.ArgumentParser:
                 action="store_true",
                 help="stop at the first failed board (default: continue with the rest)",
             )
-            p.add_argument("--log-dir", default=str(Path(".pio") / "flash-logs"))
-            p.add_argument("--upload-timeout", type=float, default=600.0)
-            p.add_argument("--reappear-timeout", type=float, default=20.0)
+            p.add_argument(
+                "--log-dir",
+                default=str(Path(".pio") / "flash-logs"),
+                help="directory for each board's PlatformIO output (default: %(default)s)",
+            )
+            p.add_argument(
+                "--upload-timeout",
+                type=float,
+                default=600.0,
+                metavar="S",
+                help="seconds one board's build and upload may take (default %(default)g)",
+            )
+            p.add_argument(
+                "--reappear-timeout",
+                type=float,
+                default=20.0,
+                metavar="S",
+                help="seconds to wait for a board's USB port to come back after the upload (default %(default)g)",
+            )
 
     sub.add_parser(
-        "identify", parents=[common], help="ask every connected XIAO for its identity; flag duplicate addresses"
+        "identify",
+        parents=[common],
+        help="ask every connected XIAO for its identity; flag duplicate addresses",
+        epilog="example: python -m tools.flash identify",
     )
     return ap
 

@@ -132,13 +132,21 @@ def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m tools.fwcheck", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="python -m tools.fwcheck",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.fwcheck report                     # every check, as in the README table\n"
+        "  python -m tools.fwcheck ticks --cflags -O2         # instructions per tick at another optimisation\n"
+        "  python -m tools.fwcheck profile -v\n"
+        "  python -m tools.fwcheck lint --elf .pio/build/cell/firmware.elf --role cell",
     )
     ap.add_argument(
         "command",
         nargs="?",
         default="report",
         choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile"],
+        help="what to check (default report; each is described above)",
     )
     ap.add_argument("--lib-src", help="ticks/profile/size: measure a variant copy of lib/metacell/src")
     ap.add_argument("--cflags", help="ticks/profile/size: optimisation flags instead of -Os")
@@ -151,7 +159,12 @@ def main(argv: list[str] | None = None) -> int:
         default="cell",
         help="lint: which image's entry points to check (cell: the control path; primary: poll and SLCAN)",
     )
-    ap.add_argument("--seed", type=lambda s: int(s, 0), default=None)
+    ap.add_argument(
+        "--seed",
+        type=lambda s: int(s, 0),
+        default=None,
+        help="vectors/report: seed of the golden-vector generator (decimal or 0x...; default: the fixed one)",
+    )
     ap.add_argument("--out", help="golden-header: output path")
     a = ap.parse_args(argv)
     try:

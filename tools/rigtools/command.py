@@ -79,11 +79,12 @@ class RigClient:
             out[j] = "NO_ANSWER"
         return out
 
-    def info(self, cells) -> dict:
-        """{cell: {"IDENT": {...}, "PARAMS": {...}}} read back through the primary (POINTER commands)."""
+    def info(self, cells, blocks=("IDENT", "PARAMS")) -> dict:
+        """{cell: {"IDENT": {...}, "PARAMS": {...}, "results": [...]}} read back through the primary (POINTER
+        commands), one entry per block in `blocks` that arrived whole (CRC checked)."""
         self.chunks = {}
         res = {}
-        for name in ("IDENT", "PARAMS"):
+        for name in blocks:
             for j, r in self.command(cells, "POINTER", block=proto.D.BLOCKS[name]["id"]).items():
                 res.setdefault(j, []).append(r)
         out = {}
@@ -121,33 +122,59 @@ def _onoff(text: str) -> int:
 
 
 def parser():
-    ap = argparse.ArgumentParser(prog="python -m tools.rigtools.command", description=__doc__.split("\n\n")[0])
+    pre = "python -m tools.rigtools.command -c /dev/ttyACM0@115200"
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.rigtools.command",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        f"  {pre} set 8 sigma 0.072\n"
+        f"  {pre} perturb 8 --torque 0.02 --duration 0.1\n"
+        f"  {pre} enable 1-16 on\n"
+        f"  {pre} info all\n"
+        "  python -m tools.rigtools.command SUBCOMMAND --help     # one command's arguments\n"
+        "exit codes: 0 every addressed cell answered OK, 1 some cell did not, 2 bad input, 3 port not opened.",
+    )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
     ap.add_argument("-c", "--channel", required=True, help="e.g. /dev/ttyACM0@115200 or the emulator's pty@115200")
     ap.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for each result")
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    s = sub.add_parser("set", help="set a reaction parameter (SI units: N*m/rad; alpha_star in rad)")
-    s.add_argument("cells", type=_cells)
-    s.add_argument("name", choices=sorted(PARAM_REGS))
-    s.add_argument("value", type=float)
-    p = sub.add_parser("perturb", help="perturbing torque on one chain for a while")
-    p.add_argument("cells", type=_cells)
-    p.add_argument("--chain", choices=("alpha", "beta"), default="alpha")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND", help="what to send")
+    cells_help = "cells: 'all', a number 1-16, a range or a list (e.g. 8, 1-16, 1-4,7)"
+
+    def add(name, help, example):
+        return sub.add_parser(
+            name,
+            help=help,
+            description=help[0].upper() + help[1:] + ".",
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+            epilog=f"example:\n  {pre} {example}",
+        )
+
+    s = add("set", "set a reaction parameter (SI units: N*m/rad; alpha_star in rad)", "set 1-16 sigma 0.072")
+    s.add_argument("cells", type=_cells, help=cells_help)
+    s.add_argument(
+        "name", choices=sorted(PARAM_REGS), metavar="NAME", help="parameter: " + ", ".join(sorted(PARAM_REGS))
+    )
+    s.add_argument("value", type=float, help="value in SI units (N*m/rad; alpha_star and astar in rad)")
+    p = add("perturb", "perturbing torque on one chain for a while", "perturb 8 --torque 0.02 --duration 0.1")
+    p.add_argument("cells", type=_cells, help=cells_help)
+    p.add_argument("--chain", choices=("alpha", "beta"), default="alpha", help="chain pushed (default alpha)")
     p.add_argument("--torque", type=float, required=True, help=f"N*m, |torque| <= {codec.PERTURB_MAX_NM:g}")
     p.add_argument("--duration", type=float, required=True, help="seconds (at the 2 kHz control tick)")
     for name in ("enable", "bemf"):
-        e = sub.add_parser(name, help=f"{name} on/off")
-        e.add_argument("cells", type=_cells)
-        e.add_argument("state", type=_onoff)
-    z = sub.add_parser("zero", help="make the current positions the encoders' zero")
-    z.add_argument("cells", type=_cells)
-    i = sub.add_parser("info", help="read identity and parameters in force back from the cells")
-    i.add_argument("cells", type=_cells)
-    c = sub.add_parser("clear-faults", help="clear latched faults")
-    c.add_argument("cells", type=_cells)
-    w = sub.add_parser("pwm-limit", help="PWM duty limit in timer ticks (<= 2400; capped at 5.86 V)")
-    w.add_argument("cells", type=_cells)
-    w.add_argument("ticks", type=int)
+        what = "drive enable" if name == "enable" else "back-EMF compensation"
+        e = add(name, f"{what} on/off", f"{name} all {'off' if name == 'enable' else 'on'}")
+        e.add_argument("cells", type=_cells, help=cells_help)
+        e.add_argument("state", type=_onoff, help="on or off (also 1/0, true/false)")
+    z = add("zero", "make the current positions the encoders' zero", "zero all")
+    z.add_argument("cells", type=_cells, help=cells_help)
+    i = add("info", "read identity and parameters in force back from the cells", "info all")
+    i.add_argument("cells", type=_cells, help=cells_help)
+    c = add("clear-faults", "clear latched faults", "clear-faults 3,7")
+    c.add_argument("cells", type=_cells, help=cells_help)
+    w = add("pwm-limit", "PWM duty limit in timer ticks (<= 2400; capped at 5.86 V)", "pwm-limit all 1200")
+    w.add_argument("cells", type=_cells, help=cells_help)
+    w.add_argument("ticks", type=int, help="timer ticks of the 2400-tick PWM period (0..65535; the cell caps it)")
     return ap
 
 

@@ -652,7 +652,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m tools.rigtools.logger",
         description=__doc__.split("\n\n")[0],
-        epilog="Exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1                 # until Ctrl-C\n"
+        "  python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run2 --duration 30 --formats asc,blf\n"
+        '  python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/run3 --do "2:perturb 8 --torque 0.02 '
+        '--duration 0.1"\n'
+        "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
         "3 run failed (port, no frames, write error).",
     )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")

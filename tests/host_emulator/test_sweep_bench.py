@@ -1,0 +1,33 @@
+"""The sweep benchmark runs end to end on a tiny problem and reports what it measured (no timing asserted)."""
+
+import json
+
+import pytest
+
+from host_emulator import sweep_bench
+
+
+def test_chunks_follow_the_sweep_rule():
+    specs = list(range(400))
+    ch = sweep_bench._chunks(specs, 2)
+    assert [len(c) for c in ch] == [32] * 12 + [16] and sum(ch, []) == specs
+    assert [len(c) for c in sweep_bench._chunks(list(range(10)), 2)] == [2] * 5  # ceil(10 / 8) = 2
+
+
+@pytest.mark.slow
+def test_measure_and_report_tiny(tmp_path, capsys):
+    out = tmp_path / "b.json"
+    png = tmp_path / "b.png"
+    rc = sweep_bench.main(
+        ["--points", "4", "--workers", "1", "--t-end", "0.2", "--repeat", "1", "--big", "10", "--json", str(out),
+         "--plot", str(png)]
+    )  # fmt: skip
+    assert rc == 0
+    text = capsys.readouterr().out
+    r = json.loads(out.read_text())
+    assert r["points"] == 4 and r["big_points"] == 10 and set(r["rates"]) == {"1"} and set(r["baseline_rates"]) == {"1"}
+    assert all(v > 0 for v in r["rates"]["1"]["runs"] + r["point_s"]["runs"] + r["task_overhead_s"]["runs"])
+    assert "1 worker(s), 4 points" in text and "10-point sweep" in text and png.stat().st_size > 0
+    assert r["provenance"]["command"]
+    with pytest.raises(SystemExit):
+        sweep_bench.main(["--points", "0"])
