@@ -1,4 +1,5 @@
-"""The accuracy knob (`accuracy = "fast" | "balanced" | "exact"` in a scene, `run --accuracy`): stepper, step and model fidelity.
+"""The accuracy knob (`accuracy = "fast" | "balanced" | "exact"` in a scene, `run --accuracy`): stepper, step and model
+fidelity.
 
 Presets (chosen from the measured work-precision and fidelity tables, docs/accuracy.md). A model option the
 scene sets explicitly (model_options.stepper, .dt, .substeps, .beta_geometry) always wins over the preset.

@@ -149,7 +149,8 @@ def _print_summary(s, out, files):
     if d:
         print(
             f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
-            f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, growth {_fmt(d.get('fastest_growth_per_s'), '/s')}"
+            f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, "
+            f"growth {_fmt(d.get('fastest_growth_per_s'), '/s')}"
         )
     print(
         f"  wrote {out}/summary.json, trajectories.npz"

@@ -1,4 +1,5 @@
-"""Checks of a run's values before any work: finite, in range, fit the firmware's integers, memory and step count within the machine.
+"""Checks of a run's values before any work: finite, in range, fit the firmware's integers, memory and step count within
+the machine.
 
 `check_run(scene)` returns the first problem as one line (the CLI prints it and exits 2) or None.
 """

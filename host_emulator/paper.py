@@ -1,4 +1,5 @@
-"""`python -m host_emulator paper --out DIR`: the source paper's Fig. 2 and Fig. 3 regenerated, item by item against its numbers.
+"""`python -m host_emulator paper --out DIR`: the source paper's Fig. 2 and Fig. 3 regenerated, item by item against its
+numbers.
 
 Each item is one number the source reports (a regime, a pattern's wavelength, an oscillation's period, rest)
 beside ours, with an agreement rule written next to it:
@@ -13,7 +14,8 @@ beside ours, with an agreement rule written next to it:
 The repeats of Fig. 3 use the hil model with a realistic noise model (``NOISE``: 5 % spread of the band pairs'
 stiffness and of the honey cups' viscosity), each repeat its own seed, as the rig's ten hand-pushed repeats
 differ. No encoder jitter: an optical quadrature encoder at rest reads a steady count, and a jittering reading
-(0.5 count rms) is itself a push that grows a pattern out of rest at 9/125 (measured: 10 of 10 repeats). Figures are drawn with matplotlib's object API (no backend is chosen).
+(0.5 count rms) is itself a push that grows a pattern out of rest at 9/125 (measured: 10 of 10 repeats).
+Figures are drawn with matplotlib's object API (no backend is chosen).
 """
 
 from __future__ import annotations
@@ -90,6 +92,11 @@ def _walls_item(fig, what, z_source, obs_list):
     )
 
 
+def _rounded_band(band):
+    """The unstable band's edges (cells) to two decimals for a note; None (no band) and open edges stay None."""
+    return band and [None if x is None else round(x, 2) for x in band]
+
+
 def fig2_theory(items):
     """a.i-c.i: the regime of each sigma at the table k (as the source drew it) and at the rig's k."""
     curves = {}
@@ -107,7 +114,7 @@ def fig2_theory(items):
                     d["regime"],
                     d["regime"] == regime,
                     note=f"fastest {d['fastest_lambda_cells'] and round(d['fastest_lambda_cells'], 2)} cells, "
-                    f"band {d['unstable_band_cells'] and [None if x is None else round(x, 2) for x in d['unstable_band_cells']]}",
+                    f"band {_rounded_band(d['unstable_band_cells'])}",
                 )
             )
     return curves

@@ -1,4 +1,5 @@
-"""Scenes: TOML files naming a model, its parameters, switches and perturbations (shipped in scenes/ or given as a path)."""
+"""Scenes: TOML files naming a model, its parameters, switches and perturbations (shipped in scenes/ or given as a
+path)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Trackers called by the controller at every output sample (or per chunk of samples): recording, tqdm progress, live printing."""
+"""Trackers called by the controller at every output sample (or per chunk of samples): recording, tqdm progress, live
+printing."""
 
 from __future__ import annotations
 

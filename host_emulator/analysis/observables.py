@@ -1,4 +1,5 @@
-"""Observables of a run (docs/physics.md#experiments): steadiness, spatial period of the pattern, temporal period, amplitude, growth rate.
+"""Observables of a run (docs/physics.md#experiments): steadiness, spatial period of the pattern, temporal period,
+amplitude, growth rate.
 
 Definitions (t in s, alpha/beta (T, N) in rad, cells j = 1..N at x_j = j - 1/2):
 

@@ -1,17 +1,19 @@
-"""Linear stability of the uniform rest state (docs/physics.md#linear-stability): growth rates, dispersion curve, band, regime, Turing conditions.
+"""Linear stability of the uniform rest state (docs/physics.md#linear-stability): growth rates, dispersion curve, band,
+regime, Turing conditions.
 
 Linearised about (alpha, beta) = (0, 0), a perturbation x = (alpha, beta) * exp(i kappa j + s t)
 obeys, per unit cell (dimensional: torques in N m, angles in rad, time in s)::
 
     I s^2 x + E s x = A(q) x,     A(q) = Jr - q K,
     Jr = [[-k_ab - psi''(0), k_ab - sigma], [k_ab, -k_ab]]       (reaction Jacobian, dR/dx)
-    K  = diag(ka_eff, kb_eff) = 2 band_scale diag(k_a, k_b) (the simulated band law's slope),  E = diag(eta_a, eta_b),  I = diag(I_a, I_b)
+    K  = diag(ka_eff, kb_eff) = 2 band_scale diag(k_a, k_b)     (the simulated band law's slope)
+    E  = diag(eta_a, eta_b),  I = diag(I_a, I_b)
     q  = kappa^2                 (continuum, kappa in rad per cell: lambda = 2 pi / kappa cells)
     q  = 2 (1 - cos kappa)       (discrete lattice, nearest-neighbour bands)
 
-Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals the source's (docs/physics.md#linear-stability)
-(J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(ka_eff, kb_eff / gamma). With inertia they are
-the four roots of det(I s^2 + E s - A(q)) = 0, i.e. the eigenvalues of the companion matrix
+Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals the source's
+(docs/physics.md#linear-stability) (J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(ka_eff, kb_eff / gamma).
+With inertia they are the four roots of det(I s^2 + E s - A(q)) = 0, i.e. the eigenvalues of the companion matrix
 [[0, 1], [I^-1 A(q), -I^-1 E]].
 
 A free-end chain of n cells (a missing neighbour pushes nothing) has the graph Laplacian of a path,
@@ -79,7 +81,8 @@ def reaction_jacobian(params) -> np.ndarray:
 
 
 def jacobian(params) -> np.ndarray:
-    """the source's (docs/physics.md#linear-stability) J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma], [k_ab/gamma, -k_ab/gamma]].
+    """the source's (docs/physics.md#linear-stability) J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma],
+    [k_ab/gamma, -k_ab/gamma]].
 
     J = diag(1, 1/gamma) @ reaction_jacobian; growth rates without inertia are eig(J - q D) / eta_a with
     D = diag(ka_eff, kb_eff / gamma) (gamma = eta_b / eta_a).

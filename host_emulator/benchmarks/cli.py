@@ -1,4 +1,5 @@
-"""`python -m host_emulator bench [--fidelity] [--quick]`: work-precision, ratios against scipy/py-pde, scaling, fidelity cost."""
+"""`python -m host_emulator bench [--fidelity] [--quick]`: work-precision, ratios against scipy/py-pde, scaling,
+fidelity cost."""
 
 from __future__ import annotations
 
@@ -93,7 +94,8 @@ def run_workprecision(args, out: Path) -> int:
 
     if not args.no_continuum:
         print(
-            "\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), 16 cells x 4 points, 3 s simulated =="
+            "\n== continuum: continuum_single (continuum PDE, docs/physics.md#linear-stability), "
+            "16 cells x 4 points, 3 s simulated =="
         )
         _, cpts, have_pde = cb.continuum_workprecision(3.0, m=4, quick=args.quick)
         print(wp.points_table(cpts))

@@ -1,4 +1,5 @@
-"""Continuum (continuum PDE, docs/physics.md#linear-stability) work-precision: our compiled lattice engine and scipy-BDF path against py-pde, same grid.
+"""Continuum (continuum PDE, docs/physics.md#linear-stability) work-precision: our compiled lattice engine and scipy-BDF
+path against py-pde, same grid.
 
 The method-of-lines continuum with M points per cell (models/continuum.py) is, node by node,
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -138,13 +140,13 @@ def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
     ):
         for dt in grid[::2] if quick else grid:
             try:
-                (x, h, lim), w = best_time(lambda: run_fast(scene, st, dt, m), repeat=3)
+                (x, h, lim), w = best_time(partial(run_fast, scene, st, dt, m), repeat=3)
             except ValueError as e:
                 log(f"  continuum {st} dt {dt:g}: {e}")
                 continue
             points.append(WPPoint(f"lattice-engine {st}", f"dt={h:.3g}", w, max_err(x, ref)))
     for rtol in (1e-4, 1e-6, 1e-8) if not quick else (1e-4, 1e-7):
-        x, w = best_time(lambda: run_bdf(scene, m, rtol, rtol * 1e-3), repeat=2, budget_s=3.0)
+        x, w = best_time(partial(run_bdf, scene, m, rtol, rtol * 1e-3), repeat=2, budget_s=3.0)
         points.append(WPPoint("continuum.py BDF", f"rtol={rtol:g}", w, max_err(x, ref)))
     try:
         import pde  # noqa: F401
@@ -165,7 +167,7 @@ def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
                 "the rows below are warm calls"
             )
             warmed.add(solver)
-        x, w = best_time(lambda: run_pypde(scene, m, solver, **kw), repeat=1)
+        x, w = best_time(partial(run_pypde, scene, m, solver, **kw), repeat=1)
         setting = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in kw.items())
         points.append(WPPoint(f"py-pde {solver}", setting, w, max_err(x, ref)))
     return scene, points, True

@@ -2,7 +2,8 @@
 and its effect on the observables (pattern period, amplitude, oscillation period, steady state).
 
 Two questions, two scenes, 16 cells, 10 s simulated:
-  * pattern   - experiment 3 (docs/physics.md#experiments) at sigma 9/125 (push on alpha_8): which pattern, which period, which amplitude;
+  * pattern   - experiment 3 (docs/physics.md#experiments) at sigma 9/125 (push on alpha_8): which pattern,
+                which period, which amplitude;
   * stability - sigma 14/125, eta x1, a 50 mrad (3 encoder counts) uniform tilt of the alpha chain: does the
                 long-wave mode oscillate/grow or decay
                 (the inertial oscillation of docs/emulator.md), and at which period.
@@ -157,10 +158,8 @@ def run_fidelity(args, out) -> int:
                     fmt(d, 2),
                 ]
             )
-        print(
-            f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 50 mrad uniform tilt'}), "
-            "16 cells, 10 s =="
-        )
+        setup = "exp. 3 push, sigma 9/125" if question == "pattern" else "sigma 14/125, 50 mrad uniform tilt"
+        print(f"\n== fidelity, question '{question}' ({setup}), 16 cells, 10 s ==")
         print(
             table(
                 rows,

@@ -1,4 +1,5 @@
-"""Work-precision of the emulator's steppers against scipy solve_ivp (lattice), a fine-step hil run (hil) and py-pde (continuum).
+"""Work-precision of the emulator's steppers against scipy solve_ivp (lattice), a fine-step hil run (hil) and py-pde
+(continuum).
 
 Every method is run at several step sizes / tolerances; its error is the max |angle - reference| over all
 output samples (every 10 ms), cells and both chains, its cost the best wall time of a few runs on one
@@ -12,6 +13,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -26,7 +28,8 @@ PEERS = ("scipy", "py-pde", "diffrax", "CVODE")  # method-name prefixes that are
 
 # ---------------------------------------------------------------- lattice
 def lattice_scene(t_end_s=3.0, cells=16):
-    """experiment 3 (docs/physics.md#experiments) as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8 at 0.1-0.2 s."""
+    """experiment 3 (docs/physics.md#experiments) as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8
+    at 0.1-0.2 s."""
     from ..scene import load_scene
 
     return load_scene("exp3_single_sigma9", [f"t_end_s={t_end_s}", f"cells={cells}"])
@@ -140,7 +143,7 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
         if quick:
             grid = grid[::2]
         for dt in grid:
-            (x, h), w = best_time(lambda: run_ours(scene, st, dt), repeat=3)
+            (x, h), w = best_time(partial(run_ours, scene, st, dt), repeat=3)
             points.append(WPPoint(st, f"dt={h:.3g}", w, max_err(x, ref_x), extra={"limit_s": lim}))
     rhs = numpy_rhs(scene)
     rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8) if not quick else (1e-3, 1e-5, 1e-7)
@@ -148,7 +151,7 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
         for rtol in rtols:
             try:
                 (y, nf), w = best_time(
-                    lambda: solve_segments(rhs, y0, scene, t_eval, meth, rtol, rtol * 1e-2), repeat=2, budget_s=1.0
+                    partial(solve_segments, rhs, y0, scene, t_eval, meth, rtol, rtol * 1e-2), repeat=2, budget_s=1.0
                 )
                 err = max_err(y[:, :n2], ref_x)
             except RuntimeError as e:
@@ -202,15 +205,14 @@ def hil_workprecision(t_end_s=3.0, quick=False, log=print):
 
     scene = load_scene("default", [f"t_end_s={t_end_s}"])
     ref = run_hil(scene, "rk4", 64)
-    log(
-        f"  reference: the same hil loop, rk4, 64 plant steps per control tick ({1 / scene.params.control_rate_hz / 64:.3g} s)"
-    )
+    h_ref = 1 / scene.params.control_rate_hz / 64
+    log(f"  reference: the same hil loop, rk4, 64 plant steps per control tick ({h_ref:.3g} s)")
     points = []
     subs = (1, 2, 4, 8) if not quick else (1, 4)
     for st in HIL_STEPPERS:
         for m in subs:
             try:
-                x, w = best_time(lambda: run_hil(scene, st, m), repeat=3)
+                x, w = best_time(partial(run_hil, scene, st, m), repeat=3)
                 err = max_err(x, ref)
             except ValueError as e:  # sub-step above the stable limit
                 log(f"  hil {st} x{m}: {e}")

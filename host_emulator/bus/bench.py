@@ -1,4 +1,5 @@
-"""Benchmark: full-lattice sample rate the I2C bus allows (from the transaction bytes) vs what the compiled primary schedule reaches in the emulator.
+"""Benchmark: full-lattice sample rate the I2C bus allows (from the transaction bytes) vs what the compiled primary
+schedule reaches in the emulator.
 
 python -m host_emulator.bus.bench [--seconds 5]
 """

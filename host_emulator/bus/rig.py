@@ -1,4 +1,5 @@
-"""The emulated rig's data path: hil plant + compiled cells with their register handlers + compiled primary, on an I2C timing model.
+"""The emulated rig's data path: hil plant + compiled cells with their register handlers + compiled primary, on an I2C
+timing model.
 
 Time is integer microseconds of simulated time. Events, in time order:
   * control tick k at k * tick_us: every cell with a pending write runs
@@ -167,7 +168,7 @@ class EmulatedRig:
         lib, t = self.lib, self.txn
         if not lib.mc_primary_next(self.p, now & 0xFFFFFFFF, t):
             return False
-        j, addr, kind, nbytes = t.cell, t.addr, t.kind, t.len
+        j, kind, nbytes = t.cell, t.kind, t.len
         cell = j + 1
         tm = self.timing
         self.transactions += 1

@@ -1,4 +1,5 @@
-"""`python -m host_emulator serve [SCENE] --slcan`: run a hil scene paced to real time, the emulated primary speaking SLCAN on a pty.
+"""`python -m host_emulator serve [SCENE] --slcan`: run a hil scene paced to real time, the emulated primary speaking
+SLCAN on a pty.
 
 The first output line is ``slcan pty: <path>``; point python-can at it with
 ``-i slcan -c <path>@115200``. Runs until interrupted (or --duration seconds).

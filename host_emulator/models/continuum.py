@@ -1,4 +1,5 @@
-"""Continuum model: the reaction-diffusion PDE of docs/physics.md#linear-stability (inertia dropped, full non-linear psi') on a 1-D grid.
+"""Continuum model: the reaction-diffusion PDE of docs/physics.md#linear-stability (inertia dropped, full non-linear
+psi') on a 1-D grid.
 
 Equations (x in lattice units, i.e. cells, so k a^2 d^2/dx^2 with x = a * xbar becomes k d^2/dxbar^2)::
 

@@ -1,4 +1,5 @@
-"""Hardware-in-the-loop model: the lattice plant driven by the compiled cell firmware through motors, drivers and encoders."""
+"""Hardware-in-the-loop model: the lattice plant driven by the compiled cell firmware through motors, drivers and
+encoders."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Lattice model (docs/physics.md#equations-of-motion): discrete equations of motion with the ideal floating-point reaction, stepped in C."""
+"""Lattice model (docs/physics.md#equations-of-motion): discrete equations of motion with the ideal floating-point
+reaction, stepped in C."""
 
 from __future__ import annotations
 

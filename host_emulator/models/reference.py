@@ -1,4 +1,5 @@
-"""Reference plant in numpy, written independently from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
+"""Reference plant in numpy, written independently from docs/physics.md#equations-of-motion (vectorised, no shared code
+with the C plant).
 
 Used by the tests to check the compiled plant (forces and whole trajectories) and as executable
 documentation of the equations. Same conventions: x = [alpha_1..alpha_n, beta_1..beta_n],

@@ -1,4 +1,5 @@
-"""The bus glue (src/cell/bus_glue.cpp, src/primary/*.cpp) compiles against the library headers and stand-in Arduino/Wire headers."""
+"""The bus glue (src/cell/bus_glue.cpp, src/primary/*.cpp) compiles against the library headers and stand-in
+Arduino/Wire headers."""
 
 import shutil
 import subprocess

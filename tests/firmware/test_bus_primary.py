@@ -1,4 +1,5 @@
-"""Primary scheduler on the emulated bus: round-robin rate vs the I2C bound, fault isolation, command forwarding, rejection reports."""
+"""Primary scheduler on the emulated bus: round-robin rate vs the I2C bound, fault isolation, command forwarding,
+rejection reports."""
 
 import struct
 

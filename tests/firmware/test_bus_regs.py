@@ -1,4 +1,5 @@
-"""Cell register handler: writes validated (CRC-8, register, length, range) and applied only at a tick boundary; read blocks consistent."""
+"""Cell register handler: writes validated (CRC-8, register, length, range) and applied only at a tick boundary; read
+blocks consistent."""
 
 import struct
 

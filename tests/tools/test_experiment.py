@@ -1,4 +1,5 @@
-"""tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty (acceptance and every failure path)."""
+"""tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty (acceptance
+and every failure path)."""
 
 import json
 import math

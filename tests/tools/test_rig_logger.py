@@ -1,4 +1,5 @@
-"""Rig logger: decoding into arrays, gap reports from sequence counters, reconnects, scheduled commands (python-can virtual bus)."""
+"""Rig logger: decoding into arrays, gap reports from sequence counters, reconnects, scheduled commands (python-can
+virtual bus)."""
 
 import struct
 import threading

@@ -1,4 +1,5 @@
-"""Scene -> the rig's command plan: firmware parameters (wire units), perturbation commands (ticks), what the rig cannot set.
+"""Scene -> the rig's command plan: firmware parameters (wire units), perturbation commands (ticks), what the rig cannot
+set.
 
 Everything here is checked before the rig is touched: a scene that loads but cannot be
 expressed in the firmware's commands (torque or duration outside the PERTURB payload,

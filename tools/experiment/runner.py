@@ -1,4 +1,5 @@
-"""Run a scene on the rig through the primary (python-can): configure, zero, enable, perturb, log until steady, always disable.
+"""Run a scene on the rig through the primary (python-can): configure, zero, enable, perturb, log until steady, always
+disable.
 
 One `Experiment` owns the bus for the whole session. Every frame received (also while a
 command waits for its result) goes to the python-can writers and to the current repeat's

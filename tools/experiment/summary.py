@@ -1,4 +1,5 @@
-"""summary.json of a rig run: the keys of `python -m host_emulator run` (model = "rig") plus repeats, spread and every problem seen.
+"""summary.json of a rig run: the keys of `python -m host_emulator run` (model = "rig") plus repeats, spread and every
+problem seen.
 
 Top-level observables over N repeats: final_alpha_rad / final_beta_rad are the per-cell mean
 of the repeats' final angles (spread: *_std_rad, *_min_rad, *_max_rad); steady is true only if
@@ -40,7 +41,7 @@ def json_ready(v):
 
 
 def _longest_run(mask) -> slice:
-    best, start, cur = slice(0, 0), None, 0
+    best, start = slice(0, 0), None
     for i, m in enumerate(list(mask) + [False]):
         if m and start is None:
             start = i

@@ -41,7 +41,7 @@ def _fwcheck(source, target, env):
             roots += ["--root", r]
     rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots, cwd=project)
     if rc != 0:
-        print("fwcheck: FAILED on %s (exit %d)" % (elf, rc))
+        print(f"fwcheck: FAILED on {elf} (exit {rc})")
     return rc
 
 

@@ -21,6 +21,7 @@ import shutil
 import subprocess
 import tempfile
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -214,6 +215,11 @@ def _display(node: str) -> str:
     return node.split(":", 1)[1] if ":" in node else node
 
 
+def _node_name(obj: str, file_local: set[str], name: str) -> str:
+    """Graph node of a symbol: file-local functions are qualified by their object file, others are global."""
+    return f"{obj}:{name}" if name in file_local else name
+
+
 def call_graph(objs: list[Path]) -> CallGraph:
     g = CallGraph()
     per_obj = []
@@ -254,11 +260,7 @@ def call_graph(objs: list[Path]) -> CallGraph:
             if m and m.group(2) != "lr":
                 indirect[func] = indirect.get(func, 0) + 1
 
-        def node(name: str) -> str:
-            if name in local and name not in glob:
-                return f"{o.name}:{name}"
-            return name
-
+        node = partial(_node_name, o.name, local - glob)
         for name in glob | local:
             g.edges.setdefault(node(name), set())
             g.defined[node(name)] = o.name

@@ -1,4 +1,5 @@
-"""Run the cell library on an emulated Cortex-M0 (QEMU ``microbit``, semihosting): golden vectors and instruction counts.
+"""Run the cell library on an emulated Cortex-M0 (QEMU ``microbit``, semihosting): golden vectors and instruction
+counts.
 
 Two bare-metal programs are linked with the cross-compiled library objects:
 

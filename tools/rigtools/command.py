@@ -1,4 +1,5 @@
-"""Command tool: set parameters, enable drives, perturb cells and zero encoders through the primary (python-can, any interface).
+"""Command tool: set parameters, enable drives, perturb cells and zero encoders through the primary (python-can, any
+interface).
 
     python -m tools.rigtools.command -c /dev/ttyACM0@115200 set 8 sigma 0.072
     python -m tools.rigtools.command -c /dev/pts/3@115200 perturb 8 --torque 0.02 --duration 0.1
@@ -207,7 +208,8 @@ def main(argv=None) -> int:
             i, p = d["IDENT"], d["PARAMS"]
             print(
                 f"cell {j:2d}: addr 0x{i['addr']:02X} fw {i['fw_version'] >> 8}.{i['fw_version'] & 255} "
-                f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
+                f"build 0x{i['build']:08X} map 0x{i['map_id']:04X}"
+                f"{'' if i['map_id'] == proto.map_id() else ' (MISMATCH)'}"
                 f" | k_ab {p['k_ab'] * 1e-6:g} sigma {p['sigma'] * 1e-6:g} k1 {p['k1'] * 1e-6:g} k2 {p['k2'] * 1e-6:g} "
                 f"N*m/rad, alpha* {p['astar'] * 1e-6:g} rad, pwm limit {p['pwm_limit']}"
             )

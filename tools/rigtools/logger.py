@@ -1,4 +1,5 @@
-"""Rig logger on python-can: python-can log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports, reconnects.
+"""Rig logger on python-can: python-can log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports,
+reconnects.
 
     python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1 --duration 60
     python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf

@@ -1,4 +1,5 @@
-"""python-can's slcan interface with a buffered line reader, shared by the rig logger, the command tool and the experiment runner (same commands, same frame parsing, ~20x fewer system calls).
+"""python-can's slcan interface with a buffered line reader, shared by the rig logger, the command tool and the
+experiment runner (same commands, same frame parsing, ~20x fewer system calls).
 
 python-can 4.x's `slcanBus._read` takes one byte per `read(1)` (a select and a read per
 byte, ~22 per CELL_SAMPLE line): at the primary's 16 x 111 frames/s that is about half a

@@ -1,9 +1,12 @@
-"""hil model: agreement with the ideal lattice when quantisation is fine, encoders, motor cap, noise, perturbation paths."""
+"""hil model: agreement with the ideal lattice when quantisation is fine, encoders, motor cap, noise, perturbation
+paths."""
 
 import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host_emulator.analysis.observables import domain_walls
 from host_emulator.controller import run_solver
@@ -118,10 +121,6 @@ def test_bad_firmware_parameters_are_rejected_clearly():
         make_model("hil", Params(control_rate_hz=60000), [], ModelOptions())
     with pytest.raises(ValueError, match="reaction parameters"):
         make_model("hil", Params(sigma=0.3), [], ModelOptions())
-
-
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 
 @settings(max_examples=50, deadline=None)
