@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+from collections import OrderedDict
 from pathlib import Path
+from types import ModuleType
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -18,9 +20,11 @@ DBC = HERE / "metacell.dbc"
 TABLES = ROOT / "docs" / "datapath-map.md"
 
 
-def load_definition():
+def load_definition() -> ModuleType:
     """The definition module, loaded by path (protocol/ is not an installed package)."""
     spec = importlib.util.spec_from_file_location("metacell_protocol_definition", HERE / "definition.py")
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load {HERE / 'definition.py'}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -64,7 +68,7 @@ def offsets(fields, sizes):
 
 def render_header(d) -> str:
     sz = d.TYPE_SIZES
-    L = []
+    L: list[str] = []
     w = L.append
     w(
         "/* Wire formats of the rig (I2C registers/blocks, CAN ids): "
@@ -185,7 +189,7 @@ def build_database(d):
             byte_order="little_endian",
             is_signed=typ.startswith("i"),
             conversion=BaseConversion.factory(
-                scale=scale, offset=offset, choices=dict(table) if table else None, is_float=False
+                scale=scale, offset=offset, choices=OrderedDict(table) if table else None, is_float=False
             ),
             unit=unit or None,
             comment=comment or None,
