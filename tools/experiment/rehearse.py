@@ -49,17 +49,19 @@ class Serve:
             + list(extra)
         )
         self.startup_timeout_s = startup_timeout_s
-        self.proc = None
-        self.channel = None
-        self.pty = None
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.channel: str | None = None
+        self.pty: str | None = None
 
     def __enter__(self):
         self.err = tempfile.TemporaryFile(mode="w+")
         self.proc = subprocess.Popen(
             self.cmd, cwd=proto.ROOT, stdout=subprocess.PIPE, stderr=self.err, start_new_session=True
         )
+        out = self.proc.stdout
+        assert out is not None  # stdout=PIPE
         sel = selectors.DefaultSelector()
-        sel.register(self.proc.stdout, selectors.EVENT_READ)
+        sel.register(out, selectors.EVENT_READ)
         deadline = time.monotonic() + self.startup_timeout_s
         line = b""
         while not line.endswith(b"\n"):
@@ -67,7 +69,7 @@ class Serve:
             if left <= 0 or not sel.select(timeout=left):
                 self.stop()
                 raise ServeError(f"emulator server printed no pty path within {self.startup_timeout_s:g} s")
-            chunk = os.read(self.proc.stdout.fileno(), 1)
+            chunk = os.read(out.fileno(), 1)
             if not chunk:
                 break
             line += chunk

@@ -13,12 +13,14 @@ import dataclasses
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from host_emulator.analysis.observables import observables, spatial_period
 from host_emulator.cli import summarize
 from host_emulator.controller import RunResult
+from host_emulator.scene import Scene
 
 from .runner import Experiment, series
 
@@ -102,7 +104,9 @@ def repeat_result(rep, n_cells: int):
     return rec, s
 
 
-def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dict, object]:
+def build(
+    exp: Experiment, scene: Scene, wall_s: float, error: str | None
+) -> tuple[dict, tuple[Scene, RunResult] | None]:
     """(summary dict, (scene, RunResult) of the first repeat with data, for the plots, or None)."""
     n = len(exp.plan.cells)
     recs, first = [], None
@@ -137,7 +141,7 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
     fa = np.array([[np.nan if v is None else v for v in r["final_alpha_rad"]] for r in done]).reshape(-1, n)
     fb = np.array([[np.nan if v is None else v for v in r["final_beta_rad"]] for r in done]).reshape(-1, n)
     with np.errstate(all="ignore"), _quiet():
-        stats = {}
+        stats: dict[str, Any] = {}  # per-cell arrays, or None per cell without any repeat
         for key, x in (("alpha", fa), ("beta", fb)):
             stats[f"final_{key}_rad"] = np.nanmean(x, axis=0) if len(x) else [None] * n
             stats[f"final_{key}_std_rad"] = np.nanstd(x, axis=0) if len(x) else [None] * n

@@ -98,7 +98,7 @@ def cmd_inventory(args, lister, out) -> int:
         by_serial = {b.serial: b for b in boards}
     out(f"connected XIAO boards ({len(ports)}):")
     for p in ports:
-        b = by_serial.get(p.serial_number)
+        b = by_serial.get(p.serial_number) if p.serial_number else None
         mode = " [bootloader]" if p.in_bootloader else ""
         out(f"  {p.device:16s} serial {p.serial_number}{mode}: {b.name if b else 'UNASSIGNED'}")
     present = {p.serial_number for p in ports}
@@ -153,7 +153,7 @@ def cmd_identify(args, lister, out, query=query_identity) -> int:
             out(f"  {p.device:16s} serial {p.serial_number}: ERROR {exc}")
             problems += 1
             continue
-        b = by_serial.get(p.serial_number)
+        b = by_serial.get(p.serial_number) if p.serial_number else None
         if q.identity is None:
             out(f"  {p.device:16s} serial {p.serial_number}: no answer to ID?")
             problems += 1

@@ -61,8 +61,8 @@ def parse_identity(line: str) -> Identity:
     role = kv.pop("role", None)
     if role not in ROLES:
         raise IdentityError(f"role must be one of {ROLES}, got {role!r} in {line!r}")
-    fw = kv.pop("fw", None)
-    m = _FW_RE.match(fw or "")
+    fw = kv.pop("fw", "")
+    m = _FW_RE.match(fw)
     if not m or int(m.group(1)) > 255 or int(m.group(2)) > 255:
         raise IdentityError(f"fw must be major.minor (0..255 each), got {fw!r} in {line!r}")
     if role == "primary":

@@ -226,7 +226,8 @@ def call_graph(objs: list[Path]) -> CallGraph:
     global_defs: set[str] = set()
     for o in objs:
         syms = _run(["arm-none-eabi-nm", str(o)])
-        glob, local = set(), set()
+        glob: set[str] = set()
+        local: set[str] = set()
         for ln in syms.splitlines():
             parts = ln.split()
             if len(parts) == 3 and parts[1] in "TtWw":
@@ -235,7 +236,7 @@ def call_graph(objs: list[Path]) -> CallGraph:
         per_obj.append((o, glob, local, _run(["arm-none-eabi-objdump", "-dr", str(o)])))
 
     for o, glob, local, dis in per_obj:
-        sec_first: dict[str, str] = {}
+        sec_first: dict[str | None, str] = {}  # section name -> its first function
         raw: list[tuple[str, str]] = []  # (function, reloc target) in this object
         indirect: dict[str, int] = {}
         section = None

@@ -34,6 +34,8 @@ def api_names() -> list[str]:
     """Entry points in table order, parsed from the MCV_API X-macro."""
     text = HEADER.read_text()
     m = re.search(r"#define MCV_API\(X\)(.*?)\n\n", text, re.S)
+    if m is None:
+        raise ValueError(f"{HEADER}: no MCV_API(X) table")
     return re.findall(r"X\((\w+)\)", m.group(1))
 
 
@@ -98,6 +100,8 @@ def module():
     d = _publish(build, key, "hostvec")
     so = next(d.glob(f"{name}*.so"))
     spec = importlib.util.spec_from_file_location(name, so)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load the compiled module {so}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     _mod = mod

@@ -42,7 +42,7 @@ class RigClient:
         self.bus = bus
         self.timeout = timeout
         self.on_message = on_message  # gets every frame received while waiting
-        self.chunks = {}  # cell -> BLOCK_DATA payloads received
+        self.chunks: dict[int, list[bytes]] = {}  # cell -> BLOCK_DATA payloads received
         self.seq = int(time.time()) & 0xFF
 
     def command(self, cells, reg: str, **values) -> dict:
@@ -65,7 +65,7 @@ class RigClient:
             if self.on_message:
                 self.on_message(msg)
             kind, j = proto.frame_kind(msg.arbitration_id)
-            if kind == "BLOCK_DATA":
+            if kind == "BLOCK_DATA" and j is not None:  # per-cell frame: j is its cell
                 self.chunks.setdefault(j, []).append(bytes(msg.data))
             elif kind == "CMD_RESULT" and len(msg.data) >= 3 and msg.data[0] == rid and (j, msg.data[1]) in pending:
                 del pending[(j, msg.data[1])]
@@ -82,7 +82,7 @@ class RigClient:
     def info(self, cells) -> dict:
         """{cell: {"IDENT": {...}, "PARAMS": {...}}} read back through the primary (POINTER commands)."""
         self.chunks = {}
-        res = {}
+        res: dict[int, list[str]] = {}
         for name in ("IDENT", "PARAMS"):
             for j, r in self.command(cells, "POINTER", block=proto.D.BLOCKS[name]["id"]).items():
                 res.setdefault(j, []).append(r)

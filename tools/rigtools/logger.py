@@ -26,6 +26,7 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -71,31 +72,32 @@ class SampleDecoder:
         self.hold = hold
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.db = proto.database()
-        self.rows = []  # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
+        self.rows: list[tuple] = []  # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
         self.sink = sink or self.rows.extend
-        self.gaps = []  # (segment, cell, first missing cycle, missing count)
-        self.status = {}  # (frame kind, cell) -> last decoded dict
-        self.events = []  # (host time, text)
+        self.gaps: list[tuple[int, int, int, int]] = []  # (segment, cell, first missing cycle, missing count)
+        self.status: dict[tuple[str, int | None], dict] = {}  # (frame kind, cell) -> last decoded dict
+        self.events: list[tuple[float, str]] = []  # (host time, text)
         self.segment = 0
         self.n_rows = 0
         self.t_end = 0.0  # t_s of the last row
-        self.host_end = None  # host time of the last row
+        self.host_end: float | None = None  # host time of the last row
         self.t_base = 0.0  # t_s of the segment's time zero
-        self.per = None  # cycle period (128 us units), measured
+        self.per: float | None = None  # cycle period (128 us units), measured
         self.tx_drop = 0
         self._reset()
 
     def _reset(self):
-        self.u_last = None  # unwrapped time of the newest sample (128 us units)
-        self.t_raw = None  # its raw 16-bit time field
-        self.u0 = None
-        self.host0 = None  # host time of the segment's first sample
-        self.pending_hb = None  # (heartbeat time in 128 us units, host time) awaiting the next sample
-        self.off_min = None  # min(host - primary time) over confirmed samples, s
-        self.hb_off = None  # unwrapped time - heartbeat time (128 us units)
-        self.held = []  # [cell, seq, u, host, alpha, beta, flags]
-        self.prev = [None] * self.n  # (cycle, u) of each cell's last row
-        self.k_ref = None
+        self.u_last: int | None = None  # unwrapped time of the newest sample (128 us units)
+        self.t_raw: int | None = None  # its raw 16-bit time field
+        self.u0 = 0  # unwrapped time of the segment's first sample (set with it)
+        self.host0: float | None = None  # host time of the segment's first sample
+        # (heartbeat time in 128 us units, host time) awaiting the next sample
+        self.pending_hb: tuple[float, float | None] | None = None
+        self.off_min: float | None = None  # min(host - primary time) over confirmed samples, s
+        self.hb_off: float | None = None  # unwrapped time - heartbeat time (128 us units)
+        self.held: list[list[Any]] = []  # [cell, seq, u, host, alpha, beta, flags]
+        self.prev: list[tuple[int, int] | None] = [None] * self.n  # (cycle, u) of each cell's last row
+        self.k_ref: int | None = None
 
     def new_segment(self, host: float, why: str):
         self.finish()
@@ -169,6 +171,8 @@ class SampleDecoder:
         self.pending_hb = (uptime_ms * 1000 / 128, host)
 
     def _apply_hb(self):
+        # called by sample() only, after it has set u_last, with a heartbeat pending
+        assert self.pending_hb is not None and self.u_last is not None
         hb, host = self.pending_hb
         self.pending_hb = None
         if self.hb_off is None:
@@ -186,6 +190,7 @@ class SampleDecoder:
         """Add du to every held row from the one where the frames were lost: the row whose cell's
         cycle-counter step fits its time step worst (a lost wrap shows there as a cycle step that
         the time step does not explain); the largest time step if that is ambiguous."""
+        assert self.u_last is not None  # a correction needs a sample to correct
         last = {j + 1: (p[0] & 0xFF, p[1]) for j, p in enumerate(self.prev) if p is not None}
         steps = []  # (row index, cycle step modulo 256, time step) per held row
         for i, (j, seq, u, *_rest) in enumerate(self.held):
@@ -224,7 +229,7 @@ class SampleDecoder:
             f"(put right from the {'host' if evidence else 'primary heartbeat'} clock)"
         )
 
-    def _host_check(self, host_now):
+    def _host_check(self, host_now: float | None):
         """Whole wrap periods the held rows miss by the host clock (anchored on the least-delayed sample)."""
         if self.off_min is None or not host_now or self.u_last is None:
             return
@@ -316,7 +321,10 @@ def format_rows(rows) -> str:
 def rows_to_arrays(rows: np.ndarray, n: int, gaps) -> dict:
     """Cycle x cell arrays from an (m, 8) row table (segment, cycle, cell, t_s, host, alpha, beta, flags)."""
     seg_cyc = rows[:, :2].astype(np.int64)
-    keys, inv = np.unique(seg_cyc, axis=0, return_inverse=True) if len(rows) else (np.zeros((0, 2), np.int64), None)
+    if len(rows):
+        keys, inv = np.unique(seg_cyc, axis=0, return_inverse=True)
+    else:
+        keys, inv = np.zeros((0, 2), np.int64), np.zeros(0, np.intp)
     m = len(keys)
     a = np.full((m, n), np.nan)
     b = np.full((m, n), np.nan)
@@ -353,7 +361,7 @@ class CsvChunks:
         self.f = open(path, "w")
         self.f.write(CSV_HEADER)
         self.f.flush()
-        self.buf = []
+        self.buf: list[tuple] = []
 
     def __call__(self, rows):
         self.buf.extend(rows)
@@ -433,16 +441,16 @@ class RigLogger:
         self.reconnect_s, self.give_up_s = reconnect_s, give_up_s
         self.first_frame_s, self.wait_open_s = first_frame_s, wait_open_s
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
-        self.csv = None
+        self.csv: CsvChunks | None = None
         self.decoder = SampleDecoder(report=self.report, hold=True)
         self.open_bus = open_bus or self._open
         self.frames = 0
         self.reconnects = 0
         self.corrupt = 0
-        self.commands = []  # (seconds after the first frame, command-tool arguments)
-        self.command_log = []
-        self.stop_reason = None  # set by a signal handler
-        self.error = None
+        self.commands: list[tuple[float, str]] = []  # (seconds after the first frame, command-tool arguments)
+        self.command_log: list[tuple[float, str, dict]] = []  # (seconds, command, {cell: result})
+        self.stop_reason: str | None = None  # set by a signal handler
+        self.error: str | None = None
 
     def _open(self):
         from .slcanbus import open_bus
@@ -494,8 +502,8 @@ class RigLogger:
         import can
 
         self.prefix.parent.mkdir(parents=True, exist_ok=True)
-        self.csv = CsvChunks(self.prefix.with_suffix(".csv"))
-        self.decoder.sink = self.csv
+        csv = self.csv = CsvChunks(self.prefix.with_suffix(".csv"))
+        self.decoder.sink = csv
         writers = []
         old = {}
         for s in (signal.SIGTERM, signal.SIGHUP):
@@ -573,20 +581,20 @@ class RigLogger:
                     bus.shutdown()
                 except Exception:
                     pass
-            self._close(writers)
+            self._close(csv, writers)
         if self.error:
             raise RunFailed(self.error + "; files kept up to the last complete record")
         return self.frames
 
-    def _close(self, writers):
+    def _close(self, csv: CsvChunks, writers):
         try:
             self.decoder.finish()
-            self.csv.close()
+            csv.close()
         except OSError as e:
             self.error = self.error or f"write failed: {e.strerror or e}"
-            self.csv.buf = []
+            csv.buf = []
             try:
-                self.csv.f.close()
+                csv.f.close()
             except OSError:
                 pass
         for w in writers:

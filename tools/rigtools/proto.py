@@ -5,21 +5,26 @@ from __future__ import annotations
 import functools
 import importlib.util
 import struct
+from collections.abc import Iterable
 from pathlib import Path
+from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL_DIR = ROOT / "protocol"
 DBC_PATH = PROTOCOL_DIR / "metacell.dbc"
 
 
-def _load():
-    spec = importlib.util.spec_from_file_location("metacell_protocol_definition", PROTOCOL_DIR / "definition.py")
+def _load(name: str, path: Path) -> ModuleType:
+    """A module of protocol/ loaded by path (protocol/ is not an installed package)."""
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load {path}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
-D = _load()
+D = _load("metacell_protocol_definition", PROTOCOL_DIR / "definition.py")
 N_CELLS = D.N_CELLS
 REGISTERS = D.REGISTERS
 RESULTS = D.RESULTS
@@ -94,9 +99,9 @@ def database():
     return cantools.database.load_file(str(DBC_PATH))
 
 
-def reassemble_blocks(chunks) -> dict:
+def reassemble_blocks(chunks: Iterable[bytes]) -> dict:
     """{block name: decoded dict} from BLOCK_DATA payloads of one cell (CRC checked here too)."""
-    parts = {}
+    parts: dict[int, dict[int, bytes]] = {}
     for d in chunks:
         parts.setdefault(d[0] >> 4, {})[d[0] & 15] = bytes(d[1:8])
     names = {b["id"]: k for k, b in D.BLOCKS.items()}
@@ -114,9 +119,7 @@ def reassemble_blocks(chunks) -> dict:
 
 def map_id() -> int:
     """MC_PROTO_MAP_ID of this definition (what the cells' IDENT block must report)."""
-    spec = importlib.util.spec_from_file_location("metacell_protocol_generate", PROTOCOL_DIR / "generate.py")
-    gen = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(gen)
+    gen = _load("metacell_protocol_generate", PROTOCOL_DIR / "generate.py")
     return gen.map_id(D)
 
 

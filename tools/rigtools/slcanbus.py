@@ -13,6 +13,9 @@ ValueError, which the runner counts as a corrupt line) instead of an "I/O error"
 
 from __future__ import annotations
 
+from typing import Any
+
+import can
 from can.exceptions import error_check
 from can.interfaces.slcan import slcanBus
 
@@ -37,7 +40,7 @@ class BufferedSlcanBus(slcanBus):
         del buf[:i]
         return text
 
-    def _read(self, timeout):
+    def _read(self, timeout: float | None) -> str | None:
         deadline = Timeout(timeout)
         with error_check("Could not read from serial device"):
             while True:
@@ -52,11 +55,9 @@ class BufferedSlcanBus(slcanBus):
                     return None
 
 
-def open_bus(interface: str, channel: str, open_wait: float | None = None, plain: bool = False):
+def open_bus(interface: str, channel: str, open_wait: float | None = None, plain: bool = False) -> can.BusABC:
     """The runner's bus: BufferedSlcanBus for slcan (unless plain), else can.Bus(interface, channel)."""
-    import can
-
-    kw = {}
+    kw: dict[str, Any] = {}
     if interface == "slcan" and open_wait is not None:
         kw["sleep_after_open"] = open_wait
     if interface == "slcan" and not plain and hasattr(slcanBus, "_read") and Timeout is not None:
