@@ -122,7 +122,8 @@ def _run_hil_batch(scenes, keep, results, idx):
         info = s.info()
         info["batch_wall_s"] = wall
         info["cell_faults"] = s.faults()
-        if keep == "trajectory":
+        traj = outs[k]  # an array exactly when keep == "trajectory"
+        if traj is not None:
             t = np.concatenate(
                 [
                     [0.0],
@@ -130,8 +131,8 @@ def _run_hil_batch(scenes, keep, results, idx):
                     / s.model.rate_hz,
                 ]
             )
-            a = np.concatenate([x0[k][None, :n], outs[k][:, :n]])
-            b = np.concatenate([x0[k][None, n:], outs[k][:, n:]])
+            a = np.concatenate([x0[k][None, :n], traj[:, :n]])
+            b = np.concatenate([x0[k][None, n:], traj[:, n:]])
         else:
             t = np.array([s.t])
             a, b = s.x[None, :n].copy(), s.x[None, n:].copy()

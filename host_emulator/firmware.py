@@ -164,6 +164,8 @@ def _build(srcs: list[Path], key: str):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     spec = importlib.util.spec_from_file_location(name, so)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load the compiled module {so}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

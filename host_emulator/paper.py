@@ -26,6 +26,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,10 @@ SIGMAS = {
     "c": ("14/125", 14 / 125, "stable"),
 }
 # Fig. 2 a.ii-c.ii (one push on alpha_8) and Fig. 3 (rest, symmetric, antisymmetric loading)
-FIG2_RUNS = {"a": ("exp3_single_sigma9", [], 4), "b": ("exp3_single_sigma6", [], 2)}
+FIG2_RUNS: dict[str, tuple[str, list[str], int]] = {
+    "a": ("exp3_single_sigma9", [], 4),
+    "b": ("exp3_single_sigma6", [], 2),
+}
 FIG3_RUNS = {"a": ("exp5_rest", 0), "b": ("exp1_ccw_ccw", 2), "c": ("exp2_ccw_cw", 3)}
 
 
@@ -121,7 +125,7 @@ def fig2_theory(items):
 
 
 def fig2_runs(items):
-    runs = {}
+    runs: dict[str, Any] = {}
     for key, (scene, sets, z) in FIG2_RUNS.items():
         sc, res, o = _run(scene, sets)
         runs[key] = (sc, res)
@@ -172,7 +176,7 @@ def _noise_sets(seed):
 
 
 def fig3_runs(items, repeats):
-    runs = {}
+    runs: dict[str, Any] = {}
     for key, (scene, z) in FIG3_RUNS.items():
         obs, finals = [], []
         for r in range(repeats):

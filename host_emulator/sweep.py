@@ -75,9 +75,9 @@ def parse_grid(text: str) -> tuple[str, list]:
     if not key or not spec:
         raise SweepError(f"--grid {text!r}: empty key or values")
     if spec.count(":") == 2 and "," not in spec:
-        a, b, n = spec.split(":")
+        a_text, b_text, n_text = spec.split(":")
         try:
-            a, b, n = float(_value(a)), float(_value(b)), int(n)
+            a, b, n = float(_value(a_text)), float(_value(b_text)), int(n_text)
         except (TypeError, ValueError):
             raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
         if n < 1 or not (math.isfinite(a) and math.isfinite(b)):
@@ -342,7 +342,7 @@ def to_dataset(specs, axes, done, base, definition):
                 data[k][ix] = _num(r[k])
         for k in STRINGS:
             strs[k][ix] = str(r.get(k, "") or "")
-    vars_ = {k: (dims, v, {"units": u}) for k, v in data.items() for u in [OBSERVABLES[k]]}
+    vars_: dict[str, tuple] = {k: (dims, v, {"units": u}) for k, v in data.items() for u in [OBSERVABLES[k]]}
     vars_.update({k: (dims, v.astype(str)) for k, v in strs.items()})
     coords = {}
     for k, v in axes.items():

@@ -7,6 +7,7 @@ import dataclasses
 import json
 import math
 import sys
+from typing import Any
 
 from host_emulator.params import Params
 
@@ -20,7 +21,7 @@ KEYS = ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_p
 def parse_set(params: Params, items) -> Params:
     """Apply KEY=VALUE overrides (Params field names) with the field's type; ValueError/KeyError on bad input."""
     fields = {f.name: f for f in dataclasses.fields(params)}
-    kw = {}
+    kw: dict[str, Any] = {}
     for item in items or []:
         if "=" not in item:
             raise ValueError(f"--set {item!r}: expected KEY=VALUE")

@@ -132,7 +132,7 @@ def _crossings(t, y, band):
     """Times of zero crossings of y with hysteresis: y must leave [-band, band] on alternate sides."""
     out = []
     side = 0
-    last_idx = None
+    last_idx = 0  # index of the last sample outside the band (read only once side != 0)
     for i, v in enumerate(y):
         s = 1 if v > band else (-1 if v < -band else 0)
         if s == 0:

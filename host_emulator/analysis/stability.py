@@ -24,6 +24,7 @@ does not mix them, so the chain's linear modes are exactly the dispersion curve 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
@@ -147,7 +148,7 @@ def turing_conditions(params) -> dict:
     rad = kab * d * (k2 + s)
     rhs = 2.0 * math.sqrt(rad) if rad >= 0 else float("nan")
     c3_holds = bool(rad >= 0 and lhs > rhs)
-    out = {
+    out: dict[str, Any] = {
         "trace_negative": {"expr": "k_ab(1+1/gamma)+k2 > 0", "value": c1, "holds": bool(c1 > 0)},
         "det_positive": {"expr": "k_ab(k2+sigma) > 0", "value": c2, "holds": bool(c2 > 0)},
         "diffusion_driven": {
@@ -250,7 +251,7 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
 
     regime = classify_regime(float(re[0]), float(re.max()))
     osc = abs(s_best.imag)
-    out = {
+    out: dict[str, Any] = {
         "model": "discrete" if discrete else "continuum",
         "inertia": bool(inertia),
         "sigma": float(params.sigma),

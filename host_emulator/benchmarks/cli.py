@@ -8,6 +8,7 @@ import json
 import platform
 import time
 from pathlib import Path
+from typing import Any
 
 from .common import fmt, pin_one_core
 
@@ -44,8 +45,8 @@ def run_workprecision(args, out: Path) -> int:
     from . import workprecision as wp
 
     t_start = time.perf_counter()
-    summary = {}
-    panels = []
+    summary: dict[str, Any] = {}  # written as JSON
+    panels: list[tuple[str, list, float | None]] = []  # (title, points, target error) per figure panel
     status = 0
 
     print("== lattice: exp3_single_sigma9, 16 cells, sigma 9/125, push on alpha_8, 3 s simulated ==")
@@ -63,7 +64,7 @@ def run_workprecision(args, out: Path) -> int:
             f"{'met' if ratio >= LATTICE_RATIO_TARGET else 'NOT met'})"
         )
         status |= 0 if ratio >= LATTICE_RATIO_TARGET else 1
-    peer_ratios = {}
+    peer_ratios: dict[str, tuple[str, float, float]] = {}  # family: (setting, wall, ratio to ours)
     for fam in ("diffrax", "CVODE", "scipy"):
         _, _, fb = wp.summarize(pts, LATTICE_TARGET, ours_prefix=(fam,))
         if best and fb:

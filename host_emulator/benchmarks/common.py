@@ -57,7 +57,7 @@ def wall_at(points: list[WPPoint], target: float) -> float | None:
     """Wall time a method needs for max error `target`: log-log interpolation on its Pareto front
     (cheapest run reaching each error level). None when no run of the method reaches the target."""
     pts = sorted((p.wall_s, p.error) for p in points if math.isfinite(p.error) and p.error > 0)
-    front = []  # increasing wall, strictly decreasing error
+    front: list[tuple[float, float]] = []  # increasing wall, strictly decreasing error
     for w, e in pts:
         if not front or e < front[-1][1]:
             front.append((w, e))

@@ -93,7 +93,8 @@ def pypde_problem(scene, m):
     bk = p.k1 * p.alpha_star / (p.k1 - p.k2)
     # tri-linear psi'(a) = k1 a - k1 a* clip(a/b, -1, 1), clip(u) = (|u + 1| - |u - 1|)/2
     psi = f"({p.k1!r}*a - {p.k1 * p.alpha_star!r}*(Abs(a/{bk!r} + 1) - Abs(a/{bk!r} - 1))/2)"
-    fa, fb = [], []
+    fa: list[str] = []  # forcing terms of each chain's equation
+    fb: list[str] = []
     for q in scene.perturbations:
         # torque density T over the cell [cell-1, cell], on for start <= t < end (sign(0) = 0: half at the edge)
         w = (

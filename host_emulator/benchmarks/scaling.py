@@ -64,7 +64,7 @@ def scaling(quick=False, log=print):
     rows = []
     spreads = {}
     for model_name in ("lattice", "hil"):
-        per = [[], [], []]
+        per: list[list[float]] = [[], [], []]
         for n in CELLS if not quick else (16, 256, 4096):
             cs = 800.0 if model_name == "lattice" else 400.0  # cell-seconds per measurement
             t_end = round(cs / n, 3)

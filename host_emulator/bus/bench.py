@@ -10,10 +10,10 @@ import argparse
 import time
 
 from .i2c import I2CTiming, lattice_rate_limit
-from .rig import BusOptions, make_rig
+from .rig import BusOptions, EmulatedRig, make_rig
 
 
-def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, dict]:
+def measure(hz: int, seconds: float, **faults) -> tuple[float, float, EmulatedRig, dict[int, float]]:
     """(cycles per simulated second after a 0.5 s settle, wall seconds, rig, samples/s per cell)."""
     from tools.rigtools import proto
 
@@ -30,7 +30,7 @@ def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, di
         rig.advance_to(t)
         for fid, _ in rig.frames():
             kind, j = proto.frame_kind(fid)
-            if kind == "CELL_SAMPLE":
+            if kind == "CELL_SAMPLE" and j is not None:  # a per-cell frame: j is its cell
                 per_cell[j] += 1
     return ((rig.p.cycles - c0) / seconds, time.perf_counter() - t0, rig, {j: c / seconds for j, c in per_cell.items()})
 

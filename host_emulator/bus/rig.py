@@ -93,7 +93,7 @@ class EmulatedRig:
         self.next_tick_us = 0
         self.published_tick = [-1] * self.n
         self.bus_free_us = 0  # when the primary may start its next transaction
-        self.pending = []  # (time_us, kind, payload) of the transaction in flight
+        self.pending: list[tuple[int, str, tuple | None]] = []  # (time_us, kind, payload) of the transaction in flight
         self.ticks = 0
         self.band_stops = 0  # plant range stops turned into runaway faults
         self.transactions = 0
@@ -194,6 +194,8 @@ class EmulatedRig:
 
     def _bus_event(self):
         when, kind, arg = self.pending.pop(0)
+        if arg is None:  # a read's completion gets its data from the request event before it
+            raise RuntimeError(f"bus event {kind!r} at {when} us without its data")
         lib = self.lib
         if kind == "request":
             j, nbytes = arg

@@ -33,7 +33,7 @@ def _cells(text: str) -> tuple:
     if not text:
         return ()
     try:
-        cells = ()
+        cells: tuple[int, ...] = ()
         for part in (p.strip() for p in text.split(",")):
             lo, sep, hi = part.partition("-")  # "3-5" is cells 3, 4, 5
             a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))

@@ -196,12 +196,12 @@ def simulate_continuum(
     n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
     t_out = np.arange(n_out) * dt_out_s
     t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)  # t_end exactly, never beyond
-    cuts = {0.0, t_end_s}
+    edges = {0.0, t_end_s}
     for p in pert:
         for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
             if 0.0 < tb < t_end_s:
-                cuts.add(tb)
-    cuts = sorted(cuts)
+                edges.add(tb)
+    cuts = sorted(edges)
 
     ys = np.full((len(t_out), 2 * n), np.nan)
     ys[0] = y0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from .options import ModelOptions, Perturbation
@@ -11,7 +13,7 @@ from .plant import NumericalInstability
 class ContinuumModel:
     name = "continuum"
 
-    def __init__(self, params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(self, params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None):
         self.params = params
         self.n = params.cells
         self.options = options or ModelOptions()

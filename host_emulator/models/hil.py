@@ -4,6 +4,7 @@ encoders."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -42,7 +43,7 @@ class HilModel(LatticeModel):
     name = "hil"
     ideal_reaction = False
 
-    def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None):
         super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [], options)
         self.all_perturbations = list(perturbations)
         self.phys, self.drive_cfg = firmware_config(self.ffi, self.lib, params)
@@ -73,7 +74,8 @@ class HilModel(LatticeModel):
             lims.append(super().step_limit(stepper))
         return min(lims)
 
-    def solver(self, x0=None, v0=None) -> HilSolver:
+    # HilModel reuses the lattice physics (forces, step limit) but runs its own tick-based solver
+    def solver(self, x0=None, v0=None) -> HilSolver:  # type: ignore[override]
         return HilSolver(self, x0, v0)
 
 

@@ -3,6 +3,8 @@ reaction, stepped in C."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..params import Params
@@ -21,7 +23,7 @@ class LatticeModel:
     name = "lattice"
     ideal_reaction = True
 
-    def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None):
         from .. import firmware
 
         self.params = params

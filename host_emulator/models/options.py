@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 from .steppers import DEFAULT_STEPPER, STEPPERS
 
@@ -87,7 +88,7 @@ def parse_options(d: dict, prefix="model_options") -> ModelOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
     known = {f.name for f in fields(ModelOptions)}
-    kw = {}
+    kw: dict[str, Any] = {}
     for k, v in d.items():
         key = f"{prefix}.{k}"
         if k not in known:

@@ -12,6 +12,8 @@ from .options import ModelOptions, Perturbation
 class NumericalInstability(RuntimeError):
     """The integration left the finite/physical range; the message names the cause."""
 
+    samples: int | None = None  # output samples completed before the failure, when the solver knows
+
 
 def spreads(params: Params, options: ModelOptions, n: int):
     """Per-bond band-stiffness factors (2, n) and per-cell eta factors (2, n) from the seeded noise options.

@@ -8,6 +8,8 @@ I x'' = F(t, x) - C x'  (or C x' = F when overdamped).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from .. import params as P
@@ -22,7 +24,7 @@ class ReferencePlant:
         self,
         params,
         options: ModelOptions | None = None,
-        perturbations: list[Perturbation] = (),
+        perturbations: Sequence[Perturbation] = (),
         *,
         ideal_reaction=True,
     ):
@@ -121,14 +123,14 @@ class ReferencePlant:
             F, C = self.forces(t + E * h, x)
             return x + h * v, v + h * (F - C * v) / self.I
 
-        def f(tt, xx, vv):
+        def g(tt, xx, vv):
             F, C = self.forces(tt, xx)
             return vv, (F - C * vv) / self.I
 
-        a1, b1 = f(t + E * h, x, v)
-        a2, b2 = f(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
-        a3, b3 = f(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)
-        a4, b4 = f(t + h - E * h, x + h * a3, v + h * b3)
+        a1, b1 = g(t + E * h, x, v)
+        a2, b2 = g(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
+        a3, b3 = g(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)
+        a4, b4 = g(t + h - E * h, x + h * a3, v + h * b3)
         return x + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4), v + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
 
     def run(self, stepper, h, nsteps, x0=None, v0=None, record_every=1):
