@@ -7,7 +7,7 @@ out=build/fuzz
 mkdir -p "$out"
 srcs=$(find lib/metacell/src -name '*.c' | sort)
 for h in slcan regs; do
-    clang -g -O1 -std=c99 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
+    clang -g -O1 -std=c99 -pedantic -Wall -Wextra -Werror -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
         -Ilib/metacell/src "fuzz/fuzz_$h.c" $srcs -o "$out/fuzz_$h"
     mkdir -p "$out/new_$h"
     (cd "$out" && "./fuzz_$h" -max_total_time="$secs" -timeout=5 "new_$h" "../../fuzz/corpus/$h")

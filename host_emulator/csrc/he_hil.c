@@ -102,13 +102,6 @@ static int pert_active(const he_plant_t *p, double t)
     return 0;
 }
 
-static inline double band_g(const double *c, int slack_f0, double d)
-{
-    if (d > 0.0)
-        return c[0] + d * (c[1] + d * (c[2] + d * c[3]));
-    return slack_f0 ? c[0] : 0.0;
-}
-
 static inline void sympl_update(double F, double dt, double I, double den, double *x, double *v)
 {
     double vj = (*v + dt * F / I) / den;

@@ -178,6 +178,7 @@ def build_and_run_unity(tmp_path, header_text):
         [
             "cc",
             "-std=c99",
+            "-pedantic",
             "-O2",
             "-Wall",
             "-Wextra",

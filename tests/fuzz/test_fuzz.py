@@ -1,4 +1,5 @@
-"""libFuzzer (clang, ASan + UBSan) on the SLCAN link and the cell register handler, for a bounded time, seeded from fuzz/corpus/."""
+"""libFuzzer (clang, ASan + UBSan) on the SLCAN link and the cell register handler, for a bounded time,
+seeded from fuzz/corpus/; the harnesses and the library build warning-free (-Wall -Wextra -pedantic, -Werror)."""
 
 import os
 import shutil
@@ -9,6 +10,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 SECONDS = int(os.environ.get("MC_FUZZ_SECONDS", "20"))
+# as fuzz/run.sh builds them: sanitizers on, every warning an error
+CFLAGS = ["-g", "-O1", "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
+CFLAGS += ["-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=undefined"]
 
 
 @pytest.mark.slow
@@ -18,16 +22,26 @@ def test_fuzz_harness(harness, tmp_path):
     assert clang, "clang with libFuzzer is required (tools/setup.sh installs it)"
     srcs = sorted(str(p) for p in (ROOT / "lib" / "metacell" / "src").rglob("*.c"))
     exe = tmp_path / f"fuzz_{harness}"
-    subprocess.run([clang, "-g", "-O1", "-std=c99", "-fsanitize=fuzzer,address,undefined",
-                    "-fno-sanitize-recover=undefined", f"-I{ROOT / 'lib' / 'metacell' / 'src'}",
-                    str(ROOT / "fuzz" / f"fuzz_{harness}.c"), *srcs, "-o", str(exe)], check=True)
+    inc = f"-I{ROOT / 'lib' / 'metacell' / 'src'}"
+    subprocess.run([clang, *CFLAGS, inc, str(ROOT / "fuzz" / f"fuzz_{harness}.c"), *srcs, "-o", str(exe)], check=True)
     corpus = ROOT / "fuzz" / "corpus" / harness
     assert len(list(corpus.iterdir())) > 5
     new = tmp_path / "new"
     new.mkdir()
-    r = subprocess.run([str(exe), f"-max_total_time={SECONDS}", "-timeout=5", "-rss_limit_mb=2048",
-                        f"-artifact_prefix={tmp_path}/", str(new), str(corpus)],
-                       capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run(
+        [
+            str(exe),
+            f"-max_total_time={SECONDS}",
+            "-timeout=5",
+            "-rss_limit_mb=2048",
+            f"-artifact_prefix={tmp_path}/",
+            str(new),
+            str(corpus),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     crashes = list(tmp_path.glob("crash-*")) + list(tmp_path.glob("timeout-*")) + list(tmp_path.glob("leak-*"))
     assert r.returncode == 0 and not crashes, r.stderr[-3000:]
-    assert "Done" in r.stderr   # ran to the time limit
+    assert "Done" in r.stderr  # ran to the time limit

@@ -30,7 +30,16 @@ BUILD_ROOT = Path(os.environ.get("FWCHECK_BUILD_DIR", ROOT / "build" / "fwcheck"
 
 CC = "arm-none-eabi-gcc"
 CPU_FLAGS = ["-mcpu=cortex-m0plus", "-mthumb"]
-CFLAGS = CPU_FLAGS + ["-Os", "-std=c99", "-ffunction-sections", "-fdata-sections", "-Wall", "-Wextra", "-Werror"]
+CFLAGS = CPU_FLAGS + [
+    "-Os",
+    "-std=c99",
+    "-pedantic",
+    "-ffunction-sections",
+    "-fdata-sections",
+    "-Wall",
+    "-Wextra",
+    "-Werror",
+]
 
 #: Control-path entry points: the tick and the decoder ISR/snapshot.
 # The tick inlines the law, velocity and drive; their public wrappers are control

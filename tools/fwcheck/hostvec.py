@@ -84,6 +84,9 @@ def module():
     name = f"_mcvec_{key}"
 
     def build(tmp: Path) -> None:
+        from host_emulator.firmware import check_pedantic  # -pedantic for our source, not cffi's wrapper
+
+        check_pedantic([CSRC / "mc_vectors.c"], [CSRC, LIB_SRC], ("-DMCV_NO_TYPECHECK",))
         ffi = cffi.FFI()
         ffi.cdef(_cdef())
         ffi.set_source(

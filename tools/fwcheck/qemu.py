@@ -40,6 +40,7 @@ QEMU_TIMEOUT_S = 120
 HARNESS_CFLAGS = CPU_FLAGS + [
     "-Os",
     "-std=c99",
+    "-pedantic",
     "-ffreestanding",
     "-fno-builtin",
     "-fno-tree-loop-distribute-patterns",

@@ -8,12 +8,20 @@ int main(void);
 void reset_handler(void);
 void fault_handler(void);
 
-__attribute__((section(".vectors"), used)) static const void *const vectors[16] = {
-    &_stack_top, (const void *)reset_handler, (const void *)fault_handler,
-    (const void *)fault_handler, 0, 0, 0, 0, 0, 0, 0,
-    (const void *)fault_handler, 0, 0, (const void *)fault_handler,
-    (const void *)fault_handler,
+/* One word per entry: the initial stack pointer (data) or a handler (code); a union keeps both
+ * kinds without converting between object and function pointers (ISO C has no such conversion). */
+typedef union {
+    void (*handler)(void);
+    const uint32_t *sp;
+} vector_t;
+
+#define H(f) { .handler = (f) }
+__attribute__((section(".vectors"), used)) static const vector_t vectors[16] = {
+    { .sp = &_stack_top }, H(reset_handler), H(fault_handler), H(fault_handler),
+    H(0), H(0), H(0), H(0), H(0), H(0), H(0),
+    H(fault_handler), H(0), H(0), H(fault_handler), H(fault_handler),
 };
+#undef H
 
 void fault_handler(void)
 {
