@@ -1,7 +1,10 @@
 # Single entry point: `make demo` runs the default scene, `make test` runs every check.
 PY := .venv/bin/python
 
-.PHONY: setup demo test bench clean
+# Python code the linters hold to the style and typing rules (config in pyproject.toml)
+LINT_PATHS := host_emulator protocol tools tests
+
+.PHONY: setup demo lint test bench clean
 
 setup:
 	@bash tools/setup.sh
@@ -9,7 +12,13 @@ setup:
 demo: setup
 	$(PY) -m host_emulator run default --out out/default
 
-test: setup
+# each linter fails the run on its own; pytest runs only when all three pass
+lint: setup
+	.venv/bin/ruff check $(LINT_PATHS)
+	.venv/bin/ruff format --check $(LINT_PATHS)
+	.venv/bin/mypy
+
+test: lint
 	$(PY) -m pytest -q -n 2 tests
 
 bench: setup
