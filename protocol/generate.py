@@ -12,6 +12,10 @@ import sys
 from collections import OrderedDict
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from cantools.database.can import Database
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -39,7 +43,7 @@ def crc16_ccitt(data: bytes, crc: int = 0xFFFF) -> int:
     return crc
 
 
-def map_id(d) -> int:
+def map_id(d: ModuleType) -> int:
     """CRC-16 of a canonical text of every layout: changes whenever a layout does."""
     canon = repr(
         (
@@ -58,7 +62,7 @@ def map_id(d) -> int:
     return crc16_ccitt(canon.encode())
 
 
-def offsets(fields, sizes):
+def offsets(fields: list, sizes: dict[str, int]) -> tuple[list[tuple[str, str, int]], int]:
     off, out = 0, []
     for f in fields:
         out.append((f[0], f[1], off))
@@ -66,7 +70,7 @@ def offsets(fields, sizes):
     return out, off
 
 
-def render_header(d) -> str:
+def render_header(d: ModuleType) -> str:
     sz = d.TYPE_SIZES
     L: list[str] = []
     w = L.append
@@ -167,7 +171,7 @@ def render_header(d) -> str:
     return "\n".join(L) + "\n"
 
 
-def build_database(d):
+def build_database(d: ModuleType) -> Database:
     """cantools Database of every frame (per-cell frames expanded to j = 1..N)."""
     from cantools.database.can import Database, Message, Node, Signal
     from cantools.database.conversion import BaseConversion
@@ -252,11 +256,11 @@ def build_database(d):
     )
 
 
-def render_dbc(d) -> str:
+def render_dbc(d: ModuleType) -> str:
     return build_database(d).as_dbc_string()
 
 
-def render_tables(d) -> str:
+def render_tables(d: ModuleType) -> str:
     """Markdown tables of every layout (docs/datapath-map.md)."""
     sz = d.TYPE_SIZES
 
@@ -312,7 +316,7 @@ def render_tables(d) -> str:
     return "\n".join(L)
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     d = load_definition()
     outputs = {HEADER: render_header(d), DBC: render_dbc(d), TABLES: render_tables(d)}

@@ -40,7 +40,7 @@ def _arr(v) -> np.ndarray:
     return np.array([np.nan if x is None else float(x) for x in v], dtype=float)
 
 
-def finals(s: dict, chain: str):
+def finals(s: dict, chain: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(mean, low, high) per cell; low/high = min/max over repeats (= mean for one repeat or a simulation)."""
     m = _arr(s[f"final_{chain}_rad"])
     lo = _arr(s.get(f"final_{chain}_min_rad", s[f"final_{chain}_rad"]))

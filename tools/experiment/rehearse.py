@@ -16,18 +16,23 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from host_emulator.params import Params
 from tools.rigtools import proto
 
 from .plan import CONTROL_PARAMS, FIRMWARE_PARAMS
 
+if TYPE_CHECKING:
+    from host_emulator.scene import Scene
+
 
 class ServeError(RuntimeError):
     """The emulator server did not start (or said why it could not)."""
 
 
-def serve_overrides(scene, sets) -> list[str]:
+def serve_overrides(scene: Scene, sets: Sequence[str]) -> list[str]:
     """--set items for serve: the experiment's own, then model = hil, perturbation torques 0, and the
     firmware parameters at their defaults (the cells boot with them; the runner must set the scene's)."""
     base = Params()
@@ -42,7 +47,14 @@ def serve_overrides(scene, sets) -> list[str]:
 class Serve:
     """Context manager around one `python -m host_emulator serve` process; `.channel` is '<pty>@115200'."""
 
-    def __init__(self, scene_arg: str, overrides, extra=(), duration_s: float = 600.0, startup_timeout_s: float = 60.0):
+    def __init__(
+        self,
+        scene_arg: str,
+        overrides: Sequence[str],
+        extra: Sequence[str] = (),
+        duration_s: float = 600.0,
+        startup_timeout_s: float = 60.0,
+    ) -> None:
         self.cmd = (
             [sys.executable, "-m", "host_emulator", "serve", scene_arg, "--slcan", "--duration", f"{duration_s:g}"]
             + [x for s in overrides for x in ("--set", s)]
@@ -88,7 +100,7 @@ class Serve:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
-    def stop(self):
+    def stop(self) -> None:
         p = self.proc
         if p is None:
             return

@@ -19,9 +19,11 @@ import math
 import sys
 import time
 import warnings
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import can
 import numpy as np
 
 from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
@@ -31,7 +33,7 @@ from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 from .plan import ExperimentPlan
 
 
-def cells_text(cells) -> str:
+def cells_text(cells: Iterable[int]) -> str:
     """[1, 2, 3, 5] -> '1-3, 5'."""
     out: list[str] = []
     run: list[int] = []
@@ -83,7 +85,15 @@ class Repeat:
 class Experiment:
     """A session on one open python-can bus."""
 
-    def __init__(self, bus, plan: ExperimentPlan, out: Path, opts: Options | None = None, report=None, hook=None):
+    def __init__(
+        self,
+        bus: can.BusABC,
+        plan: ExperimentPlan,
+        out: Path,
+        opts: Options | None = None,
+        report: Callable[[str], None] | None = None,
+        hook: Callable[..., None] | None = None,
+    ) -> None:
         import can
 
         self.bus, self.plan, self.out = bus, plan, Path(out)
@@ -121,7 +131,7 @@ class Experiment:
                 "port closed, primary reset or USB lost"
             )
 
-    def pump(self, until_host: float):
+    def pump(self, until_host: float) -> None:
         """Receive and log frames until host time `until_host` (never longer: recv has a timeout)."""
         while True:
             left = until_host - time.time()
@@ -141,7 +151,7 @@ class Experiment:
                 self._take(msg)
 
     # ---- commands ------------------------------------------------------------
-    def command(self, cells, reg: str, values: dict, label: str, phase: str) -> dict:
+    def command(self, cells: Sequence[int], reg: str, values: dict, label: str, phase: str) -> dict:
         """Send reg to `cells`, wait for every CMD_RESULT (bounded); returns {cell: result name}."""
         try:
             res = self.client.command(list(cells), reg, **values)
@@ -211,7 +221,7 @@ class Experiment:
         dec = dec or self.decoder
         return dec.t_s if dec.t_raw is not None else None
 
-    def pump_primary(self, seconds: float, dec: SampleDecoder | None = None):
+    def pump_primary(self, seconds: float, dec: SampleDecoder | None = None) -> None:
         """Log until the primary's clock advanced `seconds` (bounded: 3 x seconds + silence_s of wall time)."""
         dec = dec or self.decoder
         wall_end = time.time() + 3 * seconds + self.opts.silence_s

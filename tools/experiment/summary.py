@@ -22,10 +22,10 @@ from host_emulator.cli import summarize
 from host_emulator.controller import RunResult
 from host_emulator.scene import Scene
 
-from .runner import Experiment, series
+from .runner import Experiment, Repeat, Series, series
 
 
-def json_ready(v):
+def json_ready(v: Any) -> Any:
     """numpy -> Python, non-finite floats -> None (a summary never holds NaN)."""
     if isinstance(v, dict):
         return {str(k): json_ready(x) for k, x in v.items()}
@@ -54,7 +54,7 @@ def _longest_run(mask) -> slice:
     return best
 
 
-def repeat_result(rep, n_cells: int):
+def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
     """(per-repeat record, Series or None) of one repeat."""
     arr = rep.decoder.arrays()
     rec = {
@@ -72,7 +72,7 @@ def repeat_result(rep, n_cells: int):
     rec["gaps"] = [{"cell": int(g[1]), "after_cycle": int(g[2] - 1), "lost": int(g[3])} for g in gaps]
     rec["samples_lost"] = int(gaps[:, 3].sum()) if len(gaps) else 0
     # the run is [enable acknowledged, stop decided]; frames after it (drive switching off) are logged, not analysed
-    s = series(arr, rep.t0, 0.0, rep.t_stop - rep.t0) if rep.t0 is not None else None
+    s = series(arr, rep.t0, 0.0, rep.t_stop - rep.t0) if rep.t0 is not None and rep.t_stop is not None else None
     if s is None or s.t.size < 2:
         rec.update(
             t_end_s=0.0,

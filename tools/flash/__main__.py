@@ -6,13 +6,17 @@ import argparse
 import os
 import shutil
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from . import inventory as inv
-from .boards import PortListError, port_lister, xiao_ports
-from .identity import IdentityError, expected_fw_version, query_identity
+from .boards import Port, PortListError, port_lister, xiao_ports
+from .identity import IdentityError, QueryResult, expected_fw_version, query_identity
 from .plan import ROOT, PlanError, describe, make_plan, parse_only
 from .runner import Flasher, summary
+
+Lister = Callable[[], list[Port]]  # lists the connected serial ports
+Out = Callable[..., None]  # prints one line for the user (err=True: an error)
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -74,7 +78,7 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-def cmd_inventory(args, lister, out) -> int:
+def cmd_inventory(args: argparse.Namespace, lister: Lister, out: Out) -> int:
     path = Path(args.inventory)
     boards = inv.load(path) if path.exists() else []
     ports = xiao_ports(lister())
@@ -108,7 +112,7 @@ def cmd_inventory(args, lister, out) -> int:
     return EXIT_OK
 
 
-def cmd_plan_or_flash(args, lister, out) -> int:
+def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int:
     boards = inv.load(args.inventory)
     plan = make_plan(
         boards,
@@ -137,7 +141,9 @@ def cmd_plan_or_flash(args, lister, out) -> int:
     return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
 
 
-def cmd_identify(args, lister, out, query=query_identity) -> int:
+def cmd_identify(
+    args: argparse.Namespace, lister: Lister, out: Out, query: Callable[[str], QueryResult] = query_identity
+) -> int:
     path = Path(args.inventory)
     by_serial = {b.serial: b for b in inv.load(path)} if path.exists() else {}
     claims: dict[int, list[str]] = {}
@@ -175,7 +181,7 @@ def cmd_identify(args, lister, out, query=query_identity) -> int:
     return EXIT_OK if problems == 0 else EXIT_FAILED
 
 
-def main(argv=None, out=None) -> int:
+def main(argv: list[str] | None = None, out: Out | None = None) -> int:
     def _out(msg, err=False):
         print(msg, file=sys.stderr if err else sys.stdout)
 

@@ -20,6 +20,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -305,7 +306,7 @@ class DivisionReport:
         return not self.violations and not self.indirect
 
 
-def division_check(objs: list[Path], roots=CONTROL_ROOTS) -> DivisionReport:
+def division_check(objs: list[Path], roots: Iterable[str] = CONTROL_ROOTS) -> DivisionReport:
     g = call_graph(objs)
     paths = g.reachable(list(roots))
     viol = [[_display(n) for n in p] for name, p in sorted(paths.items()) if DIVISION_RE.match(name)]
@@ -390,7 +391,7 @@ class LintReport:
         return bool(self.roots) and not (self.softfloat or self.division or self.indirect)
 
 
-def lint_elf(elf: Path, roots=CONTROL_ROOTS) -> LintReport:
+def lint_elf(elf: Path, roots: Iterable[str] = CONTROL_ROOTS) -> LintReport:
     """Soft-float or division helpers reachable from the control-path roots of a
     linked image (the Arduino core may use both elsewhere; only reachability counts).
     Roots absent from the image (e.g. inlined) are skipped; none present fails."""

@@ -13,6 +13,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -69,10 +70,10 @@ uint32_t mcv_xorshift32(uint32_t *state);
 """
 
 
-_mod = None
+_mod: ModuleType | None = None
 
 
-def module():
+def module() -> ModuleType:
     """The compiled generator module (cffi), built on first use and cached by hash."""
     global _mod
     if _mod is not None:

@@ -25,9 +25,11 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import can
 import numpy as np
 
 from . import proto
@@ -67,7 +69,13 @@ class SampleDecoder:
 
     HOLD_ROWS = 8192  # rows held at most while waiting for a heartbeat
 
-    def __init__(self, n_cells: int = proto.N_CELLS, report=None, sink=None, hold: bool = False):
+    def __init__(
+        self,
+        n_cells: int = proto.N_CELLS,
+        report: Callable[[str], None] | None = None,
+        sink: Callable[[list[tuple]], None] | None = None,
+        hold: bool = False,
+    ) -> None:
         self.n = n_cells
         self.hold = hold
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
@@ -99,7 +107,7 @@ class SampleDecoder:
         self.prev: list[tuple[int, int] | None] = [None] * self.n  # (cycle, u) of each cell's last row
         self.k_ref: int | None = None
 
-    def new_segment(self, host: float, why: str):
+    def new_segment(self, host: float, why: str) -> None:
         self.finish()
         self.events.append((host, why))
         self.report(f"segment {self.segment + 1}: {why}")
@@ -110,11 +118,11 @@ class SampleDecoder:
             self.t_base = self.t_end
         self._reset()
 
-    def feed(self, msg) -> None:
+    def feed(self, msg: can.Message) -> None:
         kind, j = proto.frame_kind(msg.arbitration_id)
         if kind == "UNKNOWN" or msg.is_extended_id or msg.is_remote_frame:
             return
-        if kind == "CELL_SAMPLE":
+        if kind == "CELL_SAMPLE" and j is not None:  # a per-cell frame
             try:
                 d = self.db.decode_message(
                     msg.arbitration_id, bytes(msg.data), decode_choices=False, scaling=False
@@ -133,7 +141,7 @@ class SampleDecoder:
             if kind == "PRIMARY_STATUS":
                 self.heartbeat(round(d["uptime_ms"] * 1000), d["tx_drop"], msg.timestamp)
 
-    def sample(self, j, seq, alpha, beta, t128, flags, host):
+    def sample(self, j: int, seq: int, alpha: int, beta: int, t128: int, flags: int, host: float) -> None:
         t128 = int(t128) % T_WRAP
         if self.u_last is None:
             u = t128
@@ -157,7 +165,7 @@ class SampleDecoder:
             return self.t_end
         return self.t_base + (self.u_last - self.u0) * T128_S
 
-    def heartbeat(self, uptime_ms: int, tx_drop: int = 0, host: float | None = None):
+    def heartbeat(self, uptime_ms: int, tx_drop: int = 0, host: float | None = None) -> None:
         """The primary's millisecond clock: confirms (or puts right) the held rows' time base at the
         next sample (a heartbeat may be the first frame after a gap: its time is compared with the
         sample that follows it, never with the one before)."""
@@ -237,17 +245,17 @@ class SampleDecoder:
         if miss > 0:
             self._rewrap(miss * T_WRAP, evidence=True)
 
-    def finish(self):
+    def finish(self) -> None:
         """End of the stream: rows after the last heartbeat are checked against the host clock, then flushed."""
         if self.held:
             self._host_check(self.held[-1][3])
         self.flush()
 
-    def prev_u_any(self):
+    def prev_u_any(self) -> int | None:
         us = [p[1] for p in self.prev if p is not None]
         return max(us) if us else None
 
-    def flush(self):
+    def flush(self) -> None:
         """Assign cycles to the held rows, report gaps, hand the rows to the sink."""
         if not self.held:
             return
@@ -314,11 +322,11 @@ class SampleDecoder:
         return [npz, csv]
 
 
-def format_rows(rows) -> str:
+def format_rows(rows: Iterable[tuple]) -> str:
     return "".join(f"{seg},{k},{j},{ts:.6f},{host:.6f},{al},{be},{fl}\n" for seg, k, j, ts, host, al, be, fl in rows)
 
 
-def rows_to_arrays(rows: np.ndarray, n: int, gaps) -> dict:
+def rows_to_arrays(rows: np.ndarray, n: int, gaps: list[tuple[int, int, int, int]]) -> dict:
     """Cycle x cell arrays from an (m, 8) row table (segment, cycle, cell, t_s, host, alpha, beta, flags)."""
     seg_cyc = rows[:, :2].astype(np.int64)
     if len(rows):
@@ -356,7 +364,7 @@ class CsvChunks:
 
     CHUNK = 2048
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path) -> None:
         self.path = path
         self.f = open(path, "w")
         self.f.write(CSV_HEADER)
@@ -368,14 +376,14 @@ class CsvChunks:
         if len(self.buf) >= self.CHUNK:
             self.write()
 
-    def write(self):
+    def write(self) -> None:
         if self.buf:
             text = format_rows(self.buf)
             self.buf = []
             self.f.write(text)
             self.f.flush()
 
-    def close(self):
+    def close(self) -> None:
         try:
             self.write()
         finally:
@@ -426,15 +434,15 @@ class RigLogger:
         interface: str,
         channel: str,
         prefix: Path,
-        formats=("asc",),
-        bitrate=None,
+        formats: Sequence[str] = ("asc",),
+        bitrate: int | None = None,
         reconnect_s: float = 1.0,
         give_up_s: float | None = None,
-        report=None,
-        open_bus=None,
+        report: Callable[[str], None] | None = None,
+        open_bus: Callable[[], can.BusABC] | None = None,
         first_frame_s: float = 30.0,
         wait_open_s: float = 0.0,
-    ):
+    ) -> None:
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
         self.prefix = Path(prefix)
         self.formats = [f.strip().lstrip(".") for f in formats if f.strip()]
@@ -614,7 +622,7 @@ class RigLogger:
             self.error = self.error or f"write failed: {e.strerror or e}"
 
 
-def check_out(prefix: Path, formats) -> str | None:
+def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
     """Why the output prefix cannot be written, or None (creates its directory)."""
     if prefix.name in ("", ".", ".."):
         return f"--out {prefix}: needs a file name prefix, e.g. out/run1"
@@ -631,7 +639,7 @@ def check_out(prefix: Path, formats) -> str | None:
     return None
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m tools.rigtools.logger",
         description=__doc__.split("\n\n")[0],

@@ -8,6 +8,7 @@ import struct
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL_DIR = ROOT / "protocol"
@@ -50,12 +51,12 @@ def crc8(data: bytes, crc: int = D.CRC8_INIT) -> int:
     return crc
 
 
-def layout(fields) -> tuple[str, list[str]]:
+def layout(fields: list) -> tuple[str, list[str]]:
     """struct format (little-endian) and field names of a block/payload/signal list."""
     return "<" + "".join(_FMT[f[1]] for f in fields), [f[0] for f in fields]
 
 
-def pack_payload(reg: str, **values) -> bytes:
+def pack_payload(reg: str, **values: int) -> bytes:
     r = REGISTERS[reg]
     fmt, names = layout(r["payload"])
     missing = set(names) - set(values)
@@ -84,7 +85,7 @@ def cmd_frame_id(j: int) -> int:
     return FRAMES["CMD"]["base"] + j
 
 
-def cmd_data(reg: str, seq: int, **values) -> bytes:
+def cmd_data(reg: str, seq: int, **values: int) -> bytes:
     """CAN CMD payload: reg, seq, register payload (DLC = 2 + payload length)."""
     if reg not in REGISTERS:
         raise ValueError(f"unknown command register {reg!r}; one of {sorted(REGISTERS)}")
@@ -92,7 +93,7 @@ def cmd_data(reg: str, seq: int, **values) -> bytes:
 
 
 @functools.lru_cache(maxsize=1)
-def database():
+def database() -> Any:  # a cantools Database; its decode results are typed as a union of message shapes
     """The shipped CAN database (cantools)."""
     import cantools
 
