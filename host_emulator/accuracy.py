@@ -19,6 +19,12 @@ continuum: the knob sets nothing (models/continuum.py runs scipy BDF at its own 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Collection, Sequence
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .models.options import ModelOptions, Perturbation
+    from .params import Params
 
 LEVELS = ("fast", "balanced", "exact")
 DEFAULT = "balanced"
@@ -35,7 +41,7 @@ HIL = {
 KNOB_KEYS = ("stepper", "dt", "substeps", "beta_geometry")
 
 
-def check_level(level) -> str:
+def check_level(level: object) -> str:
     if level not in LEVELS:
         from .models.options import ConfigError
 
@@ -43,7 +49,14 @@ def check_level(level) -> str:
     return level
 
 
-def resolve_options(model: str, params, perturbations, options, level: str, explicit=()):
+def resolve_options(
+    model: str,
+    params: Params,
+    perturbations: Sequence[Perturbation],
+    options: ModelOptions,
+    level: str,
+    explicit: Collection[str] = (),
+) -> ModelOptions:
     """ModelOptions with the preset of `level` applied to every knob key not in `explicit`."""
     check_level(level)
     explicit = set(explicit)
@@ -53,7 +66,7 @@ def resolve_options(model: str, params, perturbations, options, level: str, expl
         stepper, subs, geom = HIL[level]
     else:
         return options
-    kw = {}
+    kw: dict[str, Any] = {}
     if "stepper" not in explicit:
         kw["stepper"] = stepper
     if geom and "beta_geometry" not in explicit and options.bands == "cubic":

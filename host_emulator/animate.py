@@ -9,11 +9,25 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from .api import RunResult
+    from .scene import Scene
 
-def animate(run, path, *, fps=20, t_max=None, every=None, scene=None):
+
+def animate(
+    run: RunResult,
+    path: str | Path,
+    *,
+    fps: int = 20,
+    t_max: float | None = None,
+    every: int | None = None,
+    scene: Scene | None = None,
+) -> str | Path:
     """Write an animation of run (a RunResult) to path (.gif or .mp4); returns the path."""
     from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.figure import Figure
@@ -79,7 +93,7 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None):
     return path
 
 
-def animate_main(argv=None) -> int:
+def animate_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator animate",
         description=__doc__.split("\n\n")[0],

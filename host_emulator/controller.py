@@ -5,11 +5,16 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .models import NumericalInstability, make_model
 from .trackers import ProgressTracker, RecordTracker, Tracker
+
+if TYPE_CHECKING:
+    from .models import Solver
+    from .scene import Scene
 
 
 @dataclass
@@ -25,7 +30,7 @@ class RunResult:
         return float(self.t[-1] / self.wall_s) if self.wall_s > 0 else float("inf")
 
 
-def run_solver(solver, t_end_s: float, trackers: Sequence[Tracker] = ()) -> RunResult:
+def run_solver(solver: Solver, t_end_s: float, trackers: Sequence[Tracker] = ()) -> RunResult:
     """Sample at t = 0, dt_out, ..., t_end (rounded to whole output intervals)."""
     if not (t_end_s > 0 and np.isfinite(t_end_s)):
         raise ValueError(f"t_end_s = {t_end_s!r}: must be a positive number")
@@ -94,7 +99,7 @@ def _run_chunked(solver, n_out: int, trackers: Sequence[Tracker]):
         chunk = max(1, min(CHUNK_MAX_SAMPLES, int(CHUNK_WALL_S / per) if per > 0 else CHUNK_MAX_SAMPLES))
 
 
-def run_scene(scene, *, progress: bool = True, trackers: Sequence[Tracker] = ()) -> RunResult:
+def run_scene(scene: Scene, *, progress: bool = True, trackers: Sequence[Tracker] = ()) -> RunResult:
     """Build the scene's model, run it and return the recorded trajectories."""
     from .accuracy import resolve_options
 

@@ -19,6 +19,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 LIB_SRC = ROOT / "lib" / "metacell" / "src"
@@ -46,7 +47,7 @@ LDFLAGS = ["-O3", "-flto", "-flto-partition=one", "-ffp-contract=off", "-fno-tra
 PEDANTIC_FLAGS = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"]
 
 _lock = threading.Lock()
-_cache: dict[str, object] = {}
+_cache: dict[str, tuple[Any, Any]] = {}
 
 
 def _tracked_filter(paths: list[Path]) -> list[Path]:
@@ -117,7 +118,7 @@ RECHECK_S = 1.0
 _last: list = [float("-inf"), None]  # [monotonic time of the last check, its (ffi, lib)]
 
 
-def load():
+def load() -> tuple[Any, Any]:  # (cffi FFI, compiled library)
     """Return (ffi, lib) of the host build, compiling it on first use."""
     if not LIB_SRC.is_dir():
         raise RuntimeError(

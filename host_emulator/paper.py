@@ -24,9 +24,10 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -101,7 +102,7 @@ def _rounded_band(band):
     return band and [None if x is None else round(x, 2) for x in band]
 
 
-def fig2_theory(items):
+def fig2_theory(items: list[Item]) -> dict:
     """a.i-c.i: the regime of each sigma at the table k (as the source drew it) and at the rig's k."""
     curves = {}
     for key, (label, sigma, regime) in SIGMAS.items():
@@ -124,7 +125,7 @@ def fig2_theory(items):
     return curves
 
 
-def fig2_runs(items):
+def fig2_runs(items: list[Item]) -> dict[str, Any]:
     runs: dict[str, Any] = {}
     for key, (scene, sets, z) in FIG2_RUNS.items():
         sc, res, o = _run(scene, sets)
@@ -175,7 +176,7 @@ def _noise_sets(seed):
     return [f"model_options.noise.seed={seed}"] + [f"model_options.noise.{k}={v}" for k, v in NOISE.items()]
 
 
-def fig3_runs(items, repeats):
+def fig3_runs(items: list[Item], repeats: int) -> dict[str, Any]:
     runs: dict[str, Any] = {}
     for key, (scene, z) in FIG3_RUNS.items():
         obs, finals = [], []
@@ -206,7 +207,7 @@ def _figure(w, h):
     return Figure(figsize=(w, h), constrained_layout=True)
 
 
-def draw_fig2_theory(curves, path):
+def draw_fig2_theory(curves: dict, path: Path) -> None:
     from matplotlib.ticker import NullFormatter
 
     fig = _figure(12, 3.6)
@@ -265,7 +266,7 @@ def _spacetime(ax, res, title):
     return im
 
 
-def draw_fig2_runs(runs, path):
+def draw_fig2_runs(runs: dict[str, Any], path: Path) -> None:
     fig = _figure(14, 3.4)
     panels = [
         ("a", "2a.ii sigma 9/125"),
@@ -283,7 +284,7 @@ def draw_fig2_runs(runs, path):
     fig.savefig(path, dpi=110)
 
 
-def draw_fig3(runs, path):
+def draw_fig3(runs: dict[str, Any], path: Path) -> None:
     fig = _figure(12, 3.4)
     for i, (key, (scene, z)) in enumerate(FIG3_RUNS.items()):
         ax = fig.add_subplot(1, 3, i + 1)
@@ -348,7 +349,7 @@ def _short(v):
     return str(v)
 
 
-def print_table(doc, file=sys.stdout):
+def print_table(doc: dict, file: TextIO = sys.stdout) -> None:
     w = max(len(i["item"]) for i in doc["items"])
     print(f"{'fig':6s} {'item':<{w}s}  {'source':>22s}  {'ours':<40s} agree", file=file)
     for i in doc["items"]:
@@ -361,7 +362,7 @@ def print_table(doc, file=sys.stdout):
     print(f"{doc['agree']} of {doc['total']} items agree ({doc['repeats']} repeats, {doc['wall_s']:.1f} s)", file=file)
 
 
-def paper_main(argv) -> int:
+def paper_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator paper",
         description="Regenerate the source paper's Fig. 2 and Fig. 3 and compare item by item.",
@@ -405,7 +406,7 @@ ROBUST_DURATIONS_S = (0.05, 0.1, 0.2)
 ROBUST_JITTER_COUNTS = 0.5
 
 
-def selects(o, want) -> bool:
+def selects(o: dict, want: object) -> bool:
     """Does a run's observables show the source's result `want` (Z walls, "rest", or a period in s)?"""
     if want == "rest":
         return bool(o["at_rest"])
@@ -424,7 +425,12 @@ def _push_sets(scene, torque, duration):
     return out
 
 
-def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURATIONS_S, scenes=None) -> dict:
+def robustness(
+    seeds: int = 20,
+    torques: Sequence[float] = ROBUST_TORQUES_NM,
+    durations: Sequence[float] = ROBUST_DURATIONS_S,
+    scenes: Sequence[str] | None = None,
+) -> dict:
     """Per scene: the fraction of noise seeds (5 % band and viscosity spread; and the same with encoder jitter)
     and of hand pushes (every torque x duration, no noise) that select the source's result."""
     out = {}
@@ -460,7 +466,7 @@ def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURA
     return out
 
 
-def print_robustness(res, seeds, file=sys.stdout):
+def print_robustness(res: dict, seeds: int, file: TextIO = sys.stdout) -> None:
     print(
         f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file
     )
@@ -479,7 +485,7 @@ def print_robustness(res, seeds, file=sys.stdout):
     print(f"({seeds} seeds; pushes: {len(ROBUST_TORQUES_NM)} torques x {len(ROBUST_DURATIONS_S)} durations)", file=file)
 
 
-def robustness_main(argv) -> int:
+def robustness_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator robustness",
         description="Fraction of noise seeds and of hand pushes that select the source's result, per paper scene.",

@@ -8,7 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+FloatArray = float | np.ndarray  # a number, or a numpy array of them elementwise
 
 # ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
 LATTICE_M = 0.060  # a, lattice parameter
@@ -40,13 +46,13 @@ SIGMA_MAIN = 9 / 125
 SIGMA_REGIMES = {"conditional": 9 / 125, "unconditional": 6 / 125, "stable": 14 / 125}
 
 
-def band_force(coef, delta):
+def band_force(coef: Sequence[float], delta: FloatArray) -> FloatArray:
     """Cubic fit f(delta) [N] (works on floats and numpy arrays)."""
     c0, c1, c2, c3 = coef
     return c0 + delta * (c1 + delta * (c2 + delta * c3))
 
 
-def band_slope(coef, delta):
+def band_slope(coef: Sequence[float], delta: FloatArray) -> FloatArray:
     c0, c1, c2, c3 = coef
     return c1 + delta * (2 * c2 + delta * 3 * c3)
 
@@ -146,14 +152,14 @@ class Params:
         """Extra viscous coefficient of an uncompensated motor: Kt / S_L."""
         return self.kt / self.speed_const
 
-    def with_overrides(self, **kw) -> Params:
+    def with_overrides(self, **kw: Any) -> Params:
         names = {f.name for f in dataclasses.fields(self)}
         bad = sorted(set(kw) - names)
         if bad:
             raise KeyError(f"unknown parameter(s): {', '.join(bad)}; known: {', '.join(sorted(names))}")
         return dataclasses.replace(self, **kw)
 
-    def psi_prime(self, alpha):
+    def psi_prime(self, alpha: FloatArray) -> FloatArray:
         """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array)."""
         import numpy as np
 

@@ -20,6 +20,9 @@ import os
 import statistics
 import tempfile
 import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 
 def _specs(points, t_end):
@@ -35,7 +38,9 @@ def _noop():
     return None
 
 
-def measure(points=200, workers=(1, 2), t_end=10.0, repeat=5, big=1000):
+def measure(
+    points: int = 200, workers: Sequence[int] = (1, 2), t_end: float = 10.0, repeat: int = 5, big: int = 1000
+) -> dict:
     from distributed import Client, LocalCluster, as_completed
 
     from .sweep import evaluate_points, sweep
@@ -47,7 +52,7 @@ def measure(points=200, workers=(1, 2), t_end=10.0, repeat=5, big=1000):
         t0 = time.perf_counter()
         evaluate_points([specs[k % len(specs)]])
         one.append(time.perf_counter() - t0)
-    res = {"point_s": statistics.median(one), "t_end_s": t_end, "cores": os.cpu_count(), "rates": {}}
+    res: dict[str, Any] = {"point_s": statistics.median(one), "t_end_s": t_end, "cores": os.cpu_count(), "rates": {}}
     for w in workers:
         with (
             LocalCluster(
@@ -90,7 +95,7 @@ def measure(points=200, workers=(1, 2), t_end=10.0, repeat=5, big=1000):
     return res
 
 
-def plot(res, path):
+def plot(res: dict, path: str | Path) -> None:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 3.4), constrained_layout=True)
@@ -110,7 +115,7 @@ def plot(res, path):
     fig.savefig(path, dpi=110)
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator.sweep_bench",
         description=__doc__.split("\n\n")[0],

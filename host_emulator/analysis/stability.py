@@ -24,10 +24,16 @@ does not mix them, so the chain's linear modes are exactly the dispersion curve 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq, minimize_scalar
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from ..params import Params
 
 __all__ = [
     "reaction_jacobian",
@@ -68,20 +74,20 @@ def _check(params, inertia=False):
         raise ValueError("invalid parameters for stability analysis: " + "; ".join(bad))
 
 
-def q_of_kappa(kappa, discrete=True):
+def q_of_kappa(kappa: ArrayLike, discrete: bool = True) -> np.ndarray:
     """Laplacian symbol q(kappa): 2(1 - cos kappa) on the lattice, kappa^2 in the continuum."""
     k = np.asarray(kappa, dtype=float)
     return 2.0 * (1.0 - np.cos(k)) if discrete else k * k
 
 
 # ---- Jacobians ----------------------------------------------------------------
-def reaction_jacobian(params) -> np.ndarray:
+def reaction_jacobian(params: Params) -> np.ndarray:
     """dR/d(alpha, beta) at rest, N m / rad: [[-k_ab - k2, k_ab - sigma], [k_ab, -k_ab]] (psi''(0) = k2)."""
     kab, k2, s = params.k_ab, params.k2, params.sigma
     return np.array([[-kab - k2, kab - s], [kab, -kab]], dtype=float)
 
 
-def jacobian(params) -> np.ndarray:
+def jacobian(params: Params) -> np.ndarray:
     """the source's (docs/physics.md#linear-stability) J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma],
     [k_ab/gamma, -k_ab/gamma]].
 
@@ -100,7 +106,7 @@ def _sort_desc(ev: np.ndarray) -> np.ndarray:
     return np.take_along_axis(ev, order, axis=-1)
 
 
-def growth_rates(params, kappa, *, discrete=True, inertia=False) -> np.ndarray:
+def growth_rates(params: Params, kappa: ArrayLike, *, discrete: bool = True, inertia: bool = False) -> np.ndarray:
     """Growth rates s (1/s, complex) of mode kappa (rad per cell), shape (len(kappa), 2 or 4), Re descending."""
     _check(params, inertia)
     k = np.atleast_1d(np.asarray(kappa, dtype=float))
@@ -132,7 +138,7 @@ def _lead(params, kappa, discrete, inertia):
 
 
 # ---- Turing conditions -----------------------------------------------------------
-def turing_conditions(params) -> dict:
+def turing_conditions(params: Params) -> dict:
     """The three Turing conditions of docs/physics.md#linear-stability in their explicit form for this reaction law.
 
     tr J < 0  <=>  k_ab (1 + 1/gamma) + k2 > 0        (uniform state stable to uniform perturbations, 1)
@@ -200,7 +206,9 @@ def _fin(x):
     return x if math.isfinite(x) else None
 
 
-def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=2000) -> dict:
+def dispersion(
+    params: Params, *, inertia: bool = False, discrete: bool = True, n_cells: int | None = None, n_kappa: int = 2000
+) -> dict:
     """Dispersion relation summary of the uniform state; see module docstring for the equations.
 
     fastest_lambda_cells: wavelength of the mode with the largest Re s (None if that is the uniform mode);
@@ -294,7 +302,7 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
 
 
 # ---- plot -------------------------------------------------------------------------
-def plot_dispersion(params, ax=None, *, inertia=False):
+def plot_dispersion(params: Params, ax: Axes | None = None, *, inertia: bool = False) -> Axes:
     """Re s(lambda) for the lattice and the continuum (Im s dashed), band shaded, chain modes marked.
 
     Uses matplotlib's object API (no pyplot) so it is safe under any backend; returns the Axes.

@@ -14,17 +14,24 @@ torque density T applied to each of its M nodes. So the compiled steppers (he_st
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from functools import partial
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .common import WPPoint, best_time, max_err
 
+if TYPE_CHECKING:
+    from ..models.options import Perturbation
+    from ..params import Params
+    from ..scene import Scene
+
 PDE_DT_GRID = (2e-5, 1e-5, 5e-6, 2.5e-6)
 
 
-def centre_matrix(cells, m):
+def centre_matrix(cells: int, m: int) -> np.ndarray:
     """(cells, cells*m) linear interpolation of the grid x_i = (i + 1/2)/m to the cell centres j - 1/2
     (the same sampling as models/continuum.py)."""
     n = cells * m
@@ -34,7 +41,9 @@ def centre_matrix(cells, m):
     return np.stack([np.interp(xc, x, eye[j]) for j in range(n)], axis=1)
 
 
-def as_lattice(params, cells, m, perturbations):
+def as_lattice(
+    params: Params, cells: int, m: int, perturbations: Sequence[Perturbation]
+) -> tuple[Params, list[Perturbation]]:
     """(params, perturbations) of the equivalent overdamped lattice with cells*m nodes."""
     from ..models.options import Perturbation
 
@@ -47,7 +56,7 @@ def as_lattice(params, cells, m, perturbations):
     return p, perts
 
 
-def run_fast(scene, stepper, dt, m):
+def run_fast(scene: Scene, stepper: str, dt: float, m: int) -> tuple[np.ndarray, float, float]:
     """The continuum on the compiled lattice engine; (T, 2*cells) at the cell centres."""
     from ..models.lattice import LatticeModel
     from ..models.options import ModelOptions
@@ -68,7 +77,7 @@ def run_fast(scene, stepper, dt, m):
     return np.concatenate([out[:, :nn] @ S.T, out[:, nn:] @ S.T], axis=1), s.h, s.limit
 
 
-def run_bdf(scene, m, rtol, atol):
+def run_bdf(scene: Scene, m: int, rtol: float, atol: float) -> np.ndarray:
     from ..models.continuum import simulate_continuum
 
     _, a, b = simulate_continuum(
@@ -84,7 +93,7 @@ def run_bdf(scene, m, rtol, atol):
     return np.concatenate([a, b], axis=1)
 
 
-def pypde_problem(scene, m):
+def pypde_problem(scene: Scene, m: int) -> tuple[Any, Any]:  # (pde.PDE, pde.FieldCollection)
     """py-pde formulation of the same PDE (expressions, numba-compiled by py-pde), zero-flux boundaries."""
     import pde
 
@@ -112,7 +121,7 @@ def pypde_problem(scene, m):
     return eq, state
 
 
-def run_pypde(scene, m, solver, **kw):
+def run_pypde(scene: Scene, m: int, solver: str, **kw: Any) -> np.ndarray:
     import pde
 
     eq, state = pypde_problem(scene, m)
@@ -123,7 +132,9 @@ def run_pypde(scene, m, solver, **kw):
     return np.concatenate([data[:, 0] @ S.T, data[:, 1] @ S.T], axis=1)
 
 
-def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
+def continuum_workprecision(
+    t_end_s: float = 3.0, m: int = 4, quick: bool = False, log: Callable[..., None] = print
+) -> tuple[Scene, list[WPPoint], bool]:
     from ..scene import load_scene
 
     scene = load_scene("continuum_single", [f"t_end_s={t_end_s}", f"model_options.points_per_cell={m}"])

@@ -14,12 +14,18 @@ Every other row changes ONE component. Differences are against that reference.
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .common import best_time, fmt, table
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 TILT_RAD = 0.05
 
@@ -35,7 +41,7 @@ def _base(question):
     return replace(sc, options=opts)
 
 
-def variants(question):
+def variants(question: str) -> list[tuple[str, str, Scene]]:
     """(component, variant label, scene) rows; the first is the reference."""
     from ..models.options import NoiseOptions
 
@@ -105,7 +111,7 @@ def _x0(question, n):
     return None if question == "pattern" else np.r_[np.full(n, TILT_RAD), np.zeros(n)]
 
 
-def run_one(scene, question):
+def run_one(scene: Scene, question: str) -> tuple[dict | None, float, str]:
     from ..analysis.observables import observables
     from ..controller import run_solver
     from ..models import make_model
@@ -133,7 +139,7 @@ def run_one(scene, question):
     return observables(res.t, res.alpha, res.beta), w, ""
 
 
-def run_fidelity(args, out) -> int:
+def run_fidelity(args: argparse.Namespace, out: Path) -> int:
     for question in ("pattern", "stability"):
         rows = []
         ref = None

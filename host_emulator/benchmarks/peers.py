@@ -17,10 +17,15 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .common import WPPoint, best_time, clock, max_err
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
 RTOLS_QUICK = (1e-3, 1e-5, 1e-7)
@@ -47,7 +52,14 @@ def _pert_vector(scene, n, t):
 
 
 # ---------------------------------------------------------------- diffrax
-def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+def diffrax_points(
+    scene: Scene,
+    t_eval: np.ndarray,
+    y0: np.ndarray,
+    ref_x: np.ndarray,
+    quick: bool = False,
+    log: Callable[..., None] = print,
+) -> list[WPPoint]:
     try:
         import jax
 
@@ -153,7 +165,14 @@ def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
 
 
 # ---------------------------------------------------------------- CVODE
-def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+def cvode_points(
+    scene: Scene,
+    t_eval: np.ndarray,
+    y0: np.ndarray,
+    ref_x: np.ndarray,
+    quick: bool = False,
+    log: Callable[..., None] = print,
+) -> list[WPPoint]:
     try:
         from sksundae.cvode import CVODE
     except ImportError as e:
@@ -201,7 +220,14 @@ def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
     return points
 
 
-def peer_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+def peer_points(
+    scene: Scene,
+    t_eval: np.ndarray,
+    y0: np.ndarray,
+    ref_x: np.ndarray,
+    quick: bool = False,
+    log: Callable[..., None] = print,
+) -> list[WPPoint]:
     w0 = time.perf_counter()
     pts = diffrax_points(scene, t_eval, y0, ref_x, quick, log) + cvode_points(scene, t_eval, y0, ref_x, quick, log)
     log(f"  compiled peers: {len(pts)} points in {time.perf_counter() - w0:.1f} s")

@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 from .i2c import I2CTiming, lattice_rate_limit
 from .rig import BusOptions, EmulatedRig, make_rig
 
 
-def measure(hz: int, seconds: float, **faults) -> tuple[float, float, EmulatedRig, dict[int, float]]:
+def measure(hz: int, seconds: float, **faults: Any) -> tuple[float, float, EmulatedRig, dict[int, float]]:
     """(cycles per simulated second after a 0.5 s settle, wall seconds, rig, samples/s per cell)."""
     from tools.rigtools import proto
 
@@ -35,7 +36,7 @@ def measure(hz: int, seconds: float, **faults) -> tuple[float, float, EmulatedRi
     return ((rig.p.cycles - c0) / seconds, time.perf_counter() - t0, rig, {j: c / seconds for j, c in per_cell.items()})
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m host_emulator.bus.bench", description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per measurement")
     args = ap.parse_args(argv)

@@ -19,11 +19,17 @@ the primary's per-transaction timeout aborts it), `babble` (random bytes).
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from .. import firmware
 from ..models.plant import NumericalInstability
 from .i2c import I2CTiming
+
+if TYPE_CHECKING:
+    from ..models.hil import HilSolver
+    from ..scene import Scene
 
 
 @dataclass
@@ -45,7 +51,7 @@ class BusOptions:
 class EmulatedRig:
     """Compiled cells (mc_regs_t + the hil solver's mc_cell_t) and primary (mc_link_t) on the emulated bus."""
 
-    def __init__(self, solver, opts: BusOptions | None = None):
+    def __init__(self, solver: HilSolver, opts: BusOptions | None = None) -> None:
         self.opts = opts = opts or BusOptions()
         self.ffi, self.lib = firmware.load()
         ffi, lib = self.ffi, self.lib
@@ -212,7 +218,7 @@ class EmulatedRig:
             lib.mc_primary_complete(self.p, when & 0xFFFFFFFF, status, data, len(data))
             self.bus_free_us = when + self.opts.sw_overhead_us
 
-    def advance_to(self, t_end_us: int):
+    def advance_to(self, t_end_us: int) -> None:
         """Run ticks and bus events up to simulated time t_end_us."""
         while True:
             if not self.pending and self.bus_free_us <= self.next_tick_us and self.bus_free_us <= t_end_us:
@@ -252,7 +258,7 @@ class EmulatedRig:
                 self._early += self._drain()
         return bytes(out)
 
-    def session(self):
+    def session(self) -> None:
         """The host opened or closed the port: channel closed, stale frames and half line dropped."""
         self._early.clear()
         self.lib.mc_link_session(self.link)
@@ -271,7 +277,7 @@ class EmulatedRig:
                 return bytes(out)
             out += self.ffi.buffer(self.outbuf, n)
 
-    def frames(self):
+    def frames(self) -> list[tuple[int, bytes]]:
         """Pop queued frames as (id, bytes) without the SLCAN text layer."""
         f = self.ffi.new("mc_can_frame_t *")
         out = []
@@ -279,7 +285,7 @@ class EmulatedRig:
             out.append((f.id, bytes(f.data)[: f.dlc]))
         return out
 
-    def angles(self):
+    def angles(self) -> tuple[list[float], list[float]]:
         """Plant angles (alpha, beta) in counts."""
         import math
 
@@ -288,7 +294,9 @@ class EmulatedRig:
         return [x * k for x in self.solver.x[:n]], [x * k for x in self.solver.x[n:]]
 
 
-def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overrides=()):
+def make_rig(
+    scene_name: str = "default", opts: BusOptions | None = None, overrides: Sequence[str] = ()
+) -> tuple[EmulatedRig, Scene]:
     """EmulatedRig over the hil model of a scene (the scene must use model = "hil")."""
     from ..models.hil import HilModel
     from ..scene import load_scene

@@ -2,14 +2,28 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from .options import ConfigError, ModelOptions, NoiseOptions, Perturbation
 from .plant import NumericalInstability
 from .steppers import STEPPERS
 
 MODELS = ("continuum", "lattice", "hil")
 
+if TYPE_CHECKING:
+    from collections.abc import Sequence
 
-def make_model(name: str, params, perturbations=(), options: ModelOptions | None = None):
+    from ..params import Params
+    from .continuum_adapter import ContinuumSolver
+    from .hil import HilSolver
+    from .lattice import LatticeSolver
+
+    Solver = LatticeSolver | HilSolver | ContinuumSolver
+
+
+def make_model(
+    name: str, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None
+) -> Any:  # the model class `name` asks for (LatticeModel, HilModel or ContinuumModel)
     """Instantiate a model by name (the continuum model is imported lazily: it needs scipy only)."""
     if name == "lattice":
         from .lattice import LatticeModel

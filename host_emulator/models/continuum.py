@@ -24,10 +24,15 @@ Output is linearly interpolated to the cell centres.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
+
+if TYPE_CHECKING:
+    from ..params import Params
 
 __all__ = ["simulate_continuum", "ContinuumError", "validate_perturbations"]
 
@@ -38,7 +43,7 @@ class ContinuumError(RuntimeError):
     """The continuum integration failed or diverged; the message names the cause and the time."""
 
 
-def validate_perturbations(perturbations, cells):
+def validate_perturbations(perturbations: Sequence[dict] | None, cells: int) -> list[dict]:
     """Check a perturbation list (clear ValueError naming the entry and field); returns normalised copies."""
     out = []
     for n, p in enumerate(perturbations or []):
@@ -108,19 +113,19 @@ def _check_params(params):
 
 
 def simulate_continuum(
-    params,
-    cells,
-    t_end_s,
-    perturbations,
+    params: Params,
+    cells: int,
+    t_end_s: float,
+    perturbations: Sequence[dict] | None,
     *,
-    dt_out_s=0.01,
-    points_per_cell=4,
-    rtol=1e-6,
-    atol=1e-9,
-    initial=None,
-    max_angle_rad=1e4,
-    method="BDF",
-):
+    dt_out_s: float = 0.01,
+    points_per_cell: int = 4,
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    initial: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
+    max_angle_rad: float = 1e4,
+    method: str = "BDF",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate the PDE from rest (or ``initial``) and return (t, alpha, beta) sampled at the cell centres.
 
     t: (T,) s from 0 to t_end_s every dt_out_s (t_end_s included); alpha, beta: (T, cells) rad.

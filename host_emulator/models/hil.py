@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .. import params as P
 from ..params import Params
@@ -15,7 +17,7 @@ from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability, choose_step, error_text
 
 
-def firmware_config(ffi, lib, params: Params):
+def firmware_config(ffi: Any, lib: Any, params: Params) -> tuple[Any, Any]:  # cffi FFI/lib in, cdata out
     """(mc_reaction_phys_t, mc_drive_config_t) from Params: gains in uN*m/rad, a* in urad, volts in mV."""
     phys = ffi.new("mc_reaction_phys_t *")
     phys.k_ab_unm = round(params.k_ab * 1e6)
@@ -43,7 +45,9 @@ class HilModel(LatticeModel):
     name = "hil"
     ideal_reaction = False
 
-    def __init__(self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(
+        self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None
+    ) -> None:
         super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [], options)
         self.all_perturbations = list(perturbations)
         self.phys, self.drive_cfg = firmware_config(self.ffi, self.lib, params)
@@ -75,14 +79,14 @@ class HilModel(LatticeModel):
         return min(lims)
 
     # HilModel reuses the lattice physics (forces, step limit) but runs its own tick-based solver
-    def solver(self, x0=None, v0=None) -> HilSolver:  # type: ignore[override]
+    def solver(self, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> HilSolver:  # type: ignore[override]
         return HilSolver(self, x0, v0)
 
 
 class HilSolver:
     """Runs whole control ticks in C (he_hil_run); Python only applies firmware perturbation commands."""
 
-    def __init__(self, model: HilModel, x0=None, v0=None):
+    def __init__(self, model: HilModel, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> None:
         from .steppers import stepper_id
 
         self.model = model
@@ -184,7 +188,7 @@ class HilSolver:
     def faults(self) -> list[int]:
         return [int(self.cells[j].faults) for j in range(self.model.n)]
 
-    def state(self):
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()
 
@@ -204,7 +208,7 @@ class HilSolver:
             raise self._error(rc)
         self.tick += nt
 
-    def advance(self):
+    def advance(self) -> None:
         lib = self.model.lib
         end = self.tick + self.ticks_per_out
         while self.tick < end:
@@ -215,7 +219,7 @@ class HilSolver:
             self._run(nxt - self.tick)
         self.t = self.tick / self.model.rate_hz
 
-    def advance_many(self, k_max: int):
+    def advance_many(self, k_max: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Up to k_max output intervals, bit-identical to as many advance() calls: whole samples free of
         firmware perturbation commands run in one C call (he_hil_run_sampled); a sample with a command inside
         it goes through advance(). Stops early at the first sample that starts or contains a command, so each

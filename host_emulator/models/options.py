@@ -64,7 +64,7 @@ def _num(key, v, *, integer=False, positive=False, nonneg=False):
     return int(v) if integer else float(v)
 
 
-def parse_noise(d: dict, prefix="model_options.noise") -> NoiseOptions:
+def parse_noise(d: dict, prefix: str = "model_options.noise") -> NoiseOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
     known = {f.name for f in fields(NoiseOptions)}
@@ -84,7 +84,7 @@ def parse_noise(d: dict, prefix="model_options.noise") -> NoiseOptions:
     return NoiseOptions(**kw)
 
 
-def parse_options(d: dict, prefix="model_options") -> ModelOptions:
+def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
     known = {f.name for f in fields(ModelOptions)}

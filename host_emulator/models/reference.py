@@ -11,8 +11,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .. import params as P
+from ..params import Params
 from .options import ModelOptions, Perturbation
 from .plant import spreads
 
@@ -22,12 +24,12 @@ STAGE_EDGE = 1e-9  # = HE_STAGE_EDGE: stages at a step's ends are evaluated at t
 class ReferencePlant:
     def __init__(
         self,
-        params,
+        params: Params,
         options: ModelOptions | None = None,
         perturbations: Sequence[Perturbation] = (),
         *,
-        ideal_reaction=True,
-    ):
+        ideal_reaction: bool = True,
+    ) -> None:
         self.p = params
         self.o = options or ModelOptions()
         self.n = params.cells
@@ -44,7 +46,7 @@ class ReferencePlant:
         f0 = coef[0] if self.p.slack_f0 else 0.0
         return np.where(d > 0, P.band_force(coef, d), f0)
 
-    def bond_torque(self, chain: int, xs, xo):
+    def bond_torque(self, chain: int, xs: np.ndarray, xo: np.ndarray) -> np.ndarray:
         """tau(x_self, x_other) of docs/physics.md#band-torque for arrays of bonds (before the per-bond spread)."""
         if self.o.bands == "linear":
             return (self.p.ka_eff, self.p.kb_eff)[chain] * (xs - xo)
@@ -61,14 +63,14 @@ class ReferencePlant:
         a = P.LATTICE_M
         ds = np.sin(xs) - np.sin(xo)
         dc = np.cos(xs) - np.cos(xo)
-        total = 0.0
+        total = np.zeros_like(ds)
         for sgn in (+1.0, -1.0):
             Delta = np.hypot(a + sgn * L * ds, -sgn * L * dc) - a
             fT = self._g(coef, d0 + Delta) * (np.cos(xs) * (a + sgn * L * ds) - sgn * L * np.sin(xs) * dc) / (a + Delta)
             total = total + sgn * fT
         return self.p.band_scale * L * total
 
-    def band_torques(self, x):
+    def band_torques(self, x: np.ndarray) -> np.ndarray:
         """Net band torque on every cylinder: -tau(x_j, x_{j-1}) - tau(x_j, x_{j+1}), free ends."""
         n = self.n
         out = np.zeros(2 * n)
@@ -81,7 +83,9 @@ class ReferencePlant:
             o[1:] -= left
         return out
 
-    def forces(self, t, x, volt=None, mgain=None):
+    def forces(
+        self, t: float, x: np.ndarray, volt: np.ndarray | None = None, mgain: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         n = self.n
         F = self.band_torques(x)
         C = self.eta.copy()
@@ -99,7 +103,7 @@ class ReferencePlant:
         return F, C
 
     # ---- steppers (numpy mirrors of the registered ones) ------------------
-    def step(self, stepper, t, x, v, h):
+    def step(self, stepper: str, t: float, x: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
         E = STAGE_EDGE  # end stages just inside the step (he_step.h HE_STAGE_EDGE)
         if not self.o.inertia:
 
@@ -133,7 +137,15 @@ class ReferencePlant:
         a4, b4 = g(t + h - E * h, x + h * a3, v + h * b3)
         return x + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4), v + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
 
-    def run(self, stepper, h, nsteps, x0=None, v0=None, record_every=1):
+    def run(
+        self,
+        stepper: str,
+        h: float,
+        nsteps: int,
+        x0: ArrayLike | None = None,
+        v0: ArrayLike | None = None,
+        record_every: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray]:
         x = np.zeros(2 * self.n) if x0 is None else np.array(x0, float)
         v = np.zeros(2 * self.n) if v0 is None else np.array(v0, float)
         xs = [x.copy()]
