@@ -1,4 +1,5 @@
-"""The accuracy knob (`accuracy = "fast" | "balanced" | "exact"` in a scene, `run --accuracy`): stepper, step and model fidelity.
+"""The accuracy knob (`accuracy = "fast" | "balanced" | "exact"` in a scene, `run --accuracy`): stepper, step and model
+fidelity.
 
 Presets (chosen from the measured work-precision and fidelity tables, docs/accuracy.md). A model option the
 scene sets explicitly (model_options.stepper, .dt, .substeps, .beta_geometry) always wins over the preset.
@@ -18,6 +19,10 @@ continuum: the knob sets nothing (models/continuum.py runs scipy BDF at its own 
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    pass
 
 LEVELS = ("fast", "balanced", "exact")
 DEFAULT = "balanced"
@@ -34,7 +39,7 @@ HIL = {
 KNOB_KEYS = ("stepper", "dt", "substeps", "beta_geometry")
 
 
-def check_level(level) -> str:
+def check_level(level: object) -> str:
     if level not in LEVELS:
         from .models.options import ConfigError
 

@@ -114,7 +114,7 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
     return path
 
 
-def animate_main(argv=None) -> int:
+def animate_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator animate",
         description=__doc__.split("\n\n")[0],

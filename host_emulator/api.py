@@ -13,14 +13,28 @@ Nothing here selects a matplotlib backend: figures show inline in Jupyter and in
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from matplotlib.axes import Axes
+    from matplotlib.figure import FigureBase
+
+    from .scene import Scene
+    from .trackers import Tracker
 
 __all__ = ["RunResult", "run", "load_scene", "list_scenes"]
 
 
-def _override_list(overrides) -> list[str]:
+# {"params.sigma": 0.05, ...} or ["params.sigma=0.05", ...] (the keys of `run --set`), one "KEY=VALUE", or None
+Overrides = Mapping[str, object] | Sequence[str] | str | None
+
+
+def _override_list(overrides: Overrides) -> list[str]:
     if overrides is None:
         return []
     if isinstance(overrides, dict):
@@ -51,7 +65,7 @@ class RunResult:
     scene: the validated Scene the run used. wall_s: wall-clock seconds of the run.
     """
 
-    scene: object
+    scene: Scene
     time: np.ndarray
     alpha: np.ndarray
     beta: np.ndarray
@@ -63,7 +77,7 @@ class RunResult:
     def t(self) -> np.ndarray:
         return self.time
 
-    def to_xarray(self):
+    def to_xarray(self) -> xr.Dataset:
         """xarray.Dataset: alpha, beta (time x cell, rad); coords time (s), cell (1..N); attributes: units,
         every scene parameter (params.*, model_options.*, perturbation.*), the scalar observables and provenance."""
         import xarray as xr
@@ -82,7 +96,7 @@ class RunResult:
         ds.attrs.update(netcdf_attrs(self.scene, self.summary))
         return ds
 
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | None = None) -> FigureBase:
         """Space-time map of alpha and beta (a Figure); see plots.plot_spacetime."""
         from .plots import plot_spacetime
 
@@ -109,7 +123,7 @@ def _flat(prefix, v, out):
         out[prefix] = str(v)
 
 
-def netcdf_attrs(scene, summary: dict | None = None) -> dict:
+def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
     """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance."""
     from .provenance import provenance
 
@@ -150,7 +164,7 @@ def netcdf_attrs(scene, summary: dict | None = None) -> dict:
     return out
 
 
-def load_scene(scene, overrides=None, accuracy=None):
+def load_scene(scene: str | Scene, overrides: Overrides = None, accuracy: str | None = None) -> Scene:
     """A validated Scene from a shipped name / TOML path (or a Scene, returned with the overrides applied)."""
     from .scene import load_scene as _load
 
@@ -168,7 +182,14 @@ def list_scenes() -> list[str]:
     return [n for n, _, _ in _ls()]
 
 
-def run(scene="default", overrides=None, accuracy=None, *, progress=False, trackers=()) -> RunResult:
+def run(
+    scene: str | Scene = "default",
+    overrides: Overrides = None,
+    accuracy: str | None = None,
+    *,
+    progress: bool = False,
+    trackers: Sequence[Tracker] = (),
+) -> RunResult:
     """Run a scene (shipped name, .toml path or Scene) and return its RunResult.
 
     overrides: {"params.sigma": 0.05, "perturbation.1.torque_Nm": 0.01, "t_end_s": 2} or ["KEY=VALUE", ...]

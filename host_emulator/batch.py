@@ -20,11 +20,16 @@ import math
 import os
 import statistics
 import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .controller import RunResult, run_scene
 from .models.plant import NumericalInstability
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 KEEP = ("trajectory", "final")
 
@@ -51,7 +56,7 @@ def _build(scene):
     return solver, n_out
 
 
-def run_batch(scenes, *, keep: str = "trajectory", errors: str = "raise") -> list:
+def run_batch(scenes: Sequence[Scene], *, keep: str = "trajectory", errors: str = "raise") -> list:
     """RunResult per scene, as run_scene(scene, progress=False) would return it (bit-identical t/alpha/beta).
 
     keep: "trajectory" (every output sample) or "final" (t = [t_end], alpha/beta of shape (1, n)).
@@ -122,7 +127,8 @@ def _run_hil_batch(scenes, keep, results, idx):
         info = s.info()
         info["batch_wall_s"] = wall
         info["cell_faults"] = s.faults()
-        if keep == "trajectory":
+        traj = outs[k]  # an array exactly when keep == "trajectory"
+        if traj is not None:
             t = np.concatenate(
                 [
                     [0.0],
@@ -130,8 +136,8 @@ def _run_hil_batch(scenes, keep, results, idx):
                     / s.model.rate_hz,
                 ]
             )
-            a = np.concatenate([x0[k][None, :n], outs[k][:, :n]])
-            b = np.concatenate([x0[k][None, n:], outs[k][:, n:]])
+            a = np.concatenate([x0[k][None, :n], traj[:, :n]])
+            b = np.concatenate([x0[k][None, n:], traj[:, n:]])
         else:
             t = np.array([s.t])
             a, b = s.x[None, :n].copy(), s.x[None, n:].copy()
@@ -141,7 +147,7 @@ def _run_hil_batch(scenes, keep, results, idx):
 # ---- benchmark: the 1,000-point sweep of the default scene ------------------------------------------------
 
 
-def sweep_scenes(points: int, t_end_s: float = 10.0, base: str = "default"):
+def sweep_scenes(points: int, t_end_s: float = 10.0, base: str = "default") -> list[Scene]:
     """`points` variants of a scene: sigma, push cell and torque and the band-spread seed differ per point."""
     import tomllib
 
@@ -203,7 +209,7 @@ def bench_sweep(points: int, workers: int, t_end_s: float = 10.0, keep: str = "f
     }
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator.batch",
         description="Wall time of a sweep of the 16-cell hil default scene run as batches.",

@@ -9,7 +9,7 @@ import statistics
 import time
 
 
-def bench_main(argv=None) -> int:
+def bench_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator bench-speed",
         description="Print the real-time factor (simulated s per wall s) of a scene.",

@@ -7,8 +7,13 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .controller import RunResult
+    from .scene import Scene
 
 
 def _clean(v):
@@ -37,7 +42,7 @@ DISPERSION_KEYS = (
 )
 
 
-def summarize(scene, res) -> dict:
+def summarize(scene: Scene, res: RunResult) -> dict:
     """summary.json content: run figures, observables of the trajectories, dispersion of the scene's params."""
     from .analysis.observables import observables
 
@@ -69,7 +74,7 @@ def summarize(scene, res) -> dict:
     return _clean(out)
 
 
-def cmd_scenes(args) -> int:
+def cmd_scenes(args: argparse.Namespace) -> int:
     from .scene import list_scenes
 
     for name, model, desc in list_scenes():
@@ -77,7 +82,7 @@ def cmd_scenes(args) -> int:
     return 0
 
 
-def cmd_run(args) -> int:
+def cmd_run(args: argparse.Namespace) -> int:
     from .controller import run_scene
     from .models import ConfigError, NumericalInstability
     from .plots import plot_run
@@ -195,7 +200,7 @@ def cmd_bench(args) -> int:
     return bench_main(args.rest)
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
     from .firmware import FirmwareBuildError
 

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .models import NumericalInstability, Solver, make_model
 from .trackers import ProgressTracker, RecordTracker, Tracker
+
+if TYPE_CHECKING:
+    from .models import Solver
 
 
 @dataclass
@@ -24,7 +29,7 @@ class RunResult:
         return float(self.t[-1] / self.wall_s) if self.wall_s > 0 else float("inf")
 
 
-def run_solver(solver, t_end_s: float, trackers: list[Tracker] = ()) -> RunResult:
+def run_solver(solver: Solver, t_end_s: float, trackers: Sequence[Tracker] = ()) -> RunResult:
     """Sample at t = 0, dt_out, ..., t_end (rounded to whole output intervals)."""
     if not (t_end_s > 0 and np.isfinite(t_end_s)):
         raise ValueError(f"t_end_s = {t_end_s!r}: must be a positive number")
@@ -63,7 +68,7 @@ CHUNK_MAX_SAMPLES = 256  # output samples per compiled call at most
 CHUNK_WALL_S = 0.2  # ... and about this much wall time, so progress bars and live trackers keep moving
 
 
-def _run_chunked(solver, n_out: int, trackers: list[Tracker]):
+def _run_chunked(solver, n_out: int, trackers: Sequence[Tracker]):
     """n_out samples through solver.advance_many (many samples per C call), fed to the trackers per chunk.
 
     The chunk starts at 8 samples and then holds ~CHUNK_WALL_S of wall time (at most CHUNK_MAX_SAMPLES).

@@ -19,6 +19,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 PKG = Path(__file__).resolve().parent
 CHECKOUT = PKG.parent / "lib" / "metacell" / "src"  # a source checkout (also `pip install -e .`)
@@ -65,7 +66,7 @@ LDFLAGS = ["-O3", "-flto", "-flto-partition=one", "-ffp-contract=off", "-fno-tra
 PEDANTIC_FLAGS = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"]
 
 _lock = threading.Lock()
-_cache: dict[str, object] = {}
+_cache: dict[str, tuple[Any, Any]] = {}
 
 
 def _tracked_filter(paths: list[Path]) -> list[Path]:
@@ -136,7 +137,7 @@ RECHECK_S = 1.0
 _last: list = [float("-inf"), None]  # [monotonic time of the last check, its (ffi, lib)]
 
 
-def load():
+def load() -> tuple[Any, Any]:  # (cffi FFI, compiled library)
     """Return (ffi, lib) of the host build, compiling it on first use."""
     if not LIB_SRC.is_dir() or not any(LIB_SRC.rglob("*.c")):
         raise FirmwareBuildError(
@@ -206,6 +207,8 @@ def _build(srcs: list[Path], key: str):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     spec = importlib.util.spec_from_file_location(name, so)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load the compiled module {so}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

@@ -1,4 +1,5 @@
-"""Checks of a run's values before any work: finite, in range, fit the firmware's integers, memory and step count within the machine.
+"""Checks of a run's values before any work: finite, in range, fit the firmware's integers, memory and step count within
+the machine.
 
 `check_run(scene)` returns the first problem as one line (the CLI prints it and exits 2) or None.
 """
@@ -7,6 +8,10 @@ from __future__ import annotations
 
 import math
 import os
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 INT32 = 2**31
 MAX_CELL_STEPS = 1e10  # plant steps x cells: about an hour at the compiled loop's speed
@@ -32,7 +37,7 @@ def mem_available() -> float:
     return 8.0 * 2**30
 
 
-def check_run(scene) -> str | None:
+def check_run(scene: Scene) -> str | None:
     p, o = scene.params, scene.options
     for name in FIRMWARE_PARAMS:
         v = getattr(p, name, None)
@@ -73,7 +78,7 @@ def check_run(scene) -> str | None:
     return None
 
 
-def check_out_dir(path) -> str | None:
+def check_out_dir(path: str | os.PathLike) -> str | None:
     """Create the output directory now (before simulating); why not, or None."""
     from pathlib import Path
 

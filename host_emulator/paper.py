@@ -1,4 +1,5 @@
-"""`python -m host_emulator paper --out DIR`: the source paper's Fig. 2 and Fig. 3 regenerated, item by item against its numbers.
+"""`python -m host_emulator paper --out DIR`: the source paper's Fig. 2 and Fig. 3 regenerated, item by item against its
+numbers.
 
 Each item is one number the source reports (a regime, a pattern's wavelength, an oscillation's period, rest)
 beside ours, with an agreement rule written next to it:
@@ -13,7 +14,8 @@ beside ours, with an agreement rule written next to it:
 The repeats of Fig. 3 use the hil model with a realistic noise model (``NOISE``: 5 % spread of the band pairs'
 stiffness and of the honey cups' viscosity), each repeat its own seed, as the rig's ten hand-pushed repeats
 differ. No encoder jitter: an optical quadrature encoder at rest reads a steady count, and a jittering reading
-(0.5 count rms) is itself a push that grows a pattern out of rest at 9/125 (measured: 10 of 10 repeats). Figures are drawn with matplotlib's object API (no backend is chosen).
+(0.5 count rms) is itself a push that grows a pattern out of rest at 9/125 (measured: 10 of 10 repeats).
+Figures are drawn with matplotlib's object API (no backend is chosen).
 """
 
 from __future__ import annotations
@@ -22,8 +24,10 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -42,7 +46,10 @@ SIGMAS = {
     "c": ("14/125", 14 / 125, "stable"),
 }
 # Fig. 2 a.ii-c.ii (one push on alpha_8) and Fig. 3 (rest, symmetric, antisymmetric loading)
-FIG2_RUNS = {"a": ("exp3_single_sigma9", [], 4), "b": ("exp3_single_sigma6", [], 2)}
+FIG2_RUNS: dict[str, tuple[str, list[str], int]] = {
+    "a": ("exp3_single_sigma9", [], 4),
+    "b": ("exp3_single_sigma6", [], 2),
+}
 FIG3_RUNS = {"a": ("exp5_rest", 0), "b": ("exp1_ccw_ccw", 2), "c": ("exp2_ccw_cw", 3)}
 
 
@@ -90,7 +97,12 @@ def _walls_item(fig, what, z_source, obs_list):
     )
 
 
-def fig2_theory(items):
+def _rounded_band(band):
+    """The unstable band's edges (cells) to two decimals for a note; None (no band) and open edges stay None."""
+    return band and [None if x is None else round(x, 2) for x in band]
+
+
+def fig2_theory(items: list[Item]) -> dict:
     """a.i-c.i: the regime of each sigma at the table k (as the source drew it) and at the rig's k."""
     curves = {}
     for key, (label, sigma, regime) in SIGMAS.items():
@@ -107,14 +119,14 @@ def fig2_theory(items):
                     d["regime"],
                     d["regime"] == regime,
                     note=f"fastest {d['fastest_lambda_cells'] and round(d['fastest_lambda_cells'], 2)} cells, "
-                    f"band {d['unstable_band_cells'] and [None if x is None else round(x, 2) for x in d['unstable_band_cells']]}",
+                    f"band {_rounded_band(d['unstable_band_cells'])}",
                 )
             )
     return curves
 
 
-def fig2_runs(items):
-    runs = {}
+def fig2_runs(items: list[Item]) -> dict[str, Any]:
+    runs: dict[str, Any] = {}
     for key, (scene, sets, z) in FIG2_RUNS.items():
         sc, res, o = _run(scene, sets)
         runs[key] = (sc, res)
@@ -164,8 +176,8 @@ def _noise_sets(seed):
     return [f"model_options.noise.seed={seed}"] + [f"model_options.noise.{k}={v}" for k, v in NOISE.items()]
 
 
-def fig3_runs(items, repeats):
-    runs = {}
+def fig3_runs(items: list[Item], repeats: int) -> dict[str, Any]:
+    runs: dict[str, Any] = {}
     for key, (scene, z) in FIG3_RUNS.items():
         obs, finals = [], []
         for r in range(repeats):
@@ -195,7 +207,7 @@ def _figure(w, h):
     return Figure(figsize=(w, h), constrained_layout=True)
 
 
-def draw_fig2_theory(curves, path):
+def draw_fig2_theory(curves: dict, path: Path) -> None:
     from matplotlib.ticker import NullFormatter
 
     fig = _figure(12, 3.6)
@@ -254,7 +266,7 @@ def _spacetime(ax, res, title):
     return im
 
 
-def draw_fig2_runs(runs, path):
+def draw_fig2_runs(runs: dict[str, Any], path: Path) -> None:
     fig = _figure(14, 3.4)
     panels = [
         ("a", "2a.ii sigma 9/125"),
@@ -272,7 +284,7 @@ def draw_fig2_runs(runs, path):
     fig.savefig(path, dpi=110)
 
 
-def draw_fig3(runs, path):
+def draw_fig3(runs: dict[str, Any], path: Path) -> None:
     fig = _figure(12, 3.4)
     for i, (key, (scene, z)) in enumerate(FIG3_RUNS.items()):
         ax = fig.add_subplot(1, 3, i + 1)
@@ -337,7 +349,7 @@ def _short(v):
     return str(v)
 
 
-def print_table(doc, file=sys.stdout):
+def print_table(doc: dict, file: TextIO = sys.stdout) -> None:
     w = max(len(i["item"]) for i in doc["items"])
     print(f"{'fig':6s} {'item':<{w}s}  {'source':>22s}  {'ours':<40s} agree", file=file)
     for i in doc["items"]:
@@ -350,7 +362,7 @@ def print_table(doc, file=sys.stdout):
     print(f"{doc['agree']} of {doc['total']} items agree ({doc['repeats']} repeats, {doc['wall_s']:.1f} s)", file=file)
 
 
-def paper_main(argv) -> int:
+def paper_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator paper",
         description="Regenerate the source paper's Fig. 2 and Fig. 3 and compare item by item.",
@@ -394,7 +406,7 @@ ROBUST_DURATIONS_S = (0.05, 0.1, 0.2)
 ROBUST_JITTER_COUNTS = 0.5
 
 
-def selects(o, want) -> bool:
+def selects(o: dict, want: object) -> bool:
     """Does a run's observables show the source's result `want` (Z walls, "rest", or a period in s)?"""
     if want == "rest":
         return bool(o["at_rest"])
@@ -413,7 +425,12 @@ def _push_sets(scene, torque, duration):
     return out
 
 
-def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURATIONS_S, scenes=None) -> dict:
+def robustness(
+    seeds: int = 20,
+    torques: Sequence[float] = ROBUST_TORQUES_NM,
+    durations: Sequence[float] = ROBUST_DURATIONS_S,
+    scenes: Sequence[str] | None = None,
+) -> dict:
     """Per scene: the fraction of noise seeds (5 % band and viscosity spread; and the same with encoder jitter)
     and of hand pushes (every torque x duration, no noise) that select the source's result."""
     out = {}
@@ -449,7 +466,7 @@ def robustness(seeds: int = 20, torques=ROBUST_TORQUES_NM, durations=ROBUST_DURA
     return out
 
 
-def print_robustness(res, seeds, file=sys.stdout):
+def print_robustness(res: dict, seeds: int, file: TextIO = sys.stdout) -> None:
     print(
         f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file
     )
@@ -468,7 +485,7 @@ def print_robustness(res, seeds, file=sys.stdout):
     print(f"({seeds} seeds; pushes: {len(ROBUST_TORQUES_NM)} torques x {len(ROBUST_DURATIONS_S)} durations)", file=file)
 
 
-def robustness_main(argv) -> int:
+def robustness_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator robustness",
         description="Fraction of noise seeds and of hand pushes that select the source's result, per paper scene.",

@@ -9,8 +9,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from protocol import definition as _wire_units
+
+FloatArray = float | np.ndarray  # a number, or a numpy array of them elementwise
 
 # ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
 LATTICE_M = 0.060  # a, lattice parameter
@@ -141,7 +146,7 @@ class Params:
         """Extra viscous coefficient of an uncompensated motor: Kt / S_L."""
         return self.kt / self.speed_const
 
-    def with_overrides(self, **kw) -> Params:
+    def with_overrides(self, **kw: Any) -> Params:
         names = {f.name for f in dataclasses.fields(self)}
         bad = sorted(set(kw) - names)
         if bad:

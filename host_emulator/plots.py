@@ -10,11 +10,19 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, FigureBase
 
-def new_figure(figsize=(8, 6), **kw):
+    from .params import Params
+    from .scene import Scene
+
+
+def new_figure(figsize: tuple[float, float] = (8, 6), **kw: Any) -> Figure:
     """A Figure: through pyplot if the caller imported it (inline display in notebooks), else a bare Figure."""
     if "matplotlib.pyplot" in sys.modules:
         return sys.modules["matplotlib.pyplot"].figure(figsize=figsize, **kw)
@@ -62,7 +70,17 @@ def _title(scene=None, title=""):
     return (title or scene.name) + f"\nsigma = {p.sigma:.4g} N·m/rad; push: {push}"
 
 
-def plot_spacetime(run, alpha=None, beta=None, *, ax=None, axes=None, scene=None, title="", growth_panel=True):
+def plot_spacetime(
+    run: Any,
+    alpha: np.ndarray | None = None,
+    beta: np.ndarray | None = None,
+    *,
+    ax: Axes | None = None,
+    axes: Any = None,  # 2 Axes (alpha, beta), or 4 with the growth panel, in any nesting
+    scene: Scene | None = None,
+    title: str = "",
+    growth_panel: bool = True,
+) -> FigureBase:
     """Space-time maps of alpha and beta (cells x time); with growth_panel, a second column zooms on the
     growth phase (until the pattern reaches 90 % of its final amplitude, at least 0.5 s).
 
@@ -74,7 +92,7 @@ def plot_spacetime(run, alpha=None, beta=None, *, ax=None, axes=None, scene=None
         axes = [ax] if not isinstance(ax, (list, tuple, np.ndarray)) else list(np.ravel(ax))
     if axes is None:
         ncol = 2 if growth_panel else 1
-        fig = new_figure(figsize=(8 + 3 * (ncol - 1), 6), constrained_layout=True)
+        fig: FigureBase = new_figure(figsize=(8 + 3 * (ncol - 1), 6), constrained_layout=True)
         grid = fig.subplots(2, ncol, squeeze=False, gridspec_kw={"width_ratios": [2.2, 1] if ncol == 2 else [1]})
         axes = [grid[0, 0], grid[1, 0]] + ([grid[0, 1], grid[1, 1]] if ncol == 2 else [])
     else:
@@ -114,7 +132,15 @@ def plot_spacetime(run, alpha=None, beta=None, *, ax=None, axes=None, scene=None
     return fig
 
 
-def plot_final(run, alpha=None, beta=None, *, ax=None, scene=None, title=""):
+def plot_final(
+    run: Any,
+    alpha: np.ndarray | None = None,
+    beta: np.ndarray | None = None,
+    *,
+    ax: Axes | None = None,
+    scene: Scene | None = None,
+    title: str = "",
+) -> FigureBase:
     """Final alpha and beta profile against cell index. run: a RunResult, or final alpha with beta= (N,)."""
     if alpha is None and not hasattr(run, "alpha"):
         raise TypeError("plot_final(run) or plot_final(alpha_final, beta_final)")
@@ -124,8 +150,8 @@ def plot_final(run, alpha=None, beta=None, *, ax=None, scene=None, title=""):
     else:
         a, b = np.asarray(run, dtype=float), np.asarray(alpha, dtype=float)  # plot_final(alpha, beta)
     if ax is None:
-        fig = new_figure(figsize=(7, 3.8), constrained_layout=True)
-        ax = fig.add_subplot(111)
+        new: Figure = new_figure(figsize=(7, 3.8), constrained_layout=True)
+        ax = new.add_subplot(111)
     fig = ax.figure
     j = np.arange(1, len(a) + 1)
     ax.plot(j, a, "o-", label="alpha")
@@ -139,7 +165,9 @@ def plot_final(run, alpha=None, beta=None, *, ax=None, scene=None, title=""):
     return fig
 
 
-def plot_dispersion(params, *, ax=None, inertia=False, measured_period_s=None):
+def plot_dispersion(
+    params: Params, *, ax: Axes | None = None, inertia: bool = False, measured_period_s: float | None = None
+) -> FigureBase:
     """Growth rate against wavelength (analysis.stability.plot_dispersion); the measured period, if given,
     is marked as a horizontal line at its angular frequency 2 pi / T. Returns the Figure."""
     from .analysis.stability import plot_dispersion as _pd
@@ -157,7 +185,9 @@ def plot_dispersion(params, *, ax=None, inertia=False, measured_period_s=None):
     return ax.figure
 
 
-def plot_dispersion_png(params, path, *, inertia=False, measured_period_s=None):
+def plot_dispersion_png(
+    params: Params, path: str | Path, *, inertia: bool = False, measured_period_s: float | None = None
+) -> bool:
     """Write the dispersion plot to path; False (no file) if the analysis module is unavailable."""
     try:
         fig = plot_dispersion(params, inertia=inertia, measured_period_s=measured_period_s)
@@ -167,7 +197,7 @@ def plot_dispersion_png(params, path, *, inertia=False, measured_period_s=None):
     return True
 
 
-def plot_run(res, scene, outdir: Path, *, inertia=False) -> list[Path]:
+def plot_run(res: Any, scene: Scene, outdir: Path, *, inertia: bool = False) -> list[Path]:
     """The run's PNGs in outdir: spacetime.png, final_pattern.png, dispersion.png. Returns the paths."""
     outdir = Path(outdir)
     files = [outdir / "spacetime.png", outdir / "final_pattern.png"]

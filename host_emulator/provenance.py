@@ -16,6 +16,7 @@ import datetime as _dt
 import shlex
 import subprocess
 import sys
+from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
 
@@ -69,7 +70,7 @@ def _static() -> dict:
     }
 
 
-def provenance(command=None) -> dict:
+def provenance(command: Sequence[str] | None = None) -> dict:
     """Flat dict of strings naming the code version, library versions, UTC time and command line."""
     argv = sys.argv if command is None else command
     return {

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -50,7 +51,7 @@ class Scene:
         }
 
 
-def did_you_mean(word: str, choices) -> str:
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """' (did you mean X?)' for the closest of choices, or ''."""
     import difflib
 
@@ -179,7 +180,7 @@ def _value(text: str):
         return s
 
 
-def apply_overrides(d: dict, items) -> dict:
+def apply_overrides(d: dict, items: Iterable[str]) -> dict:
     """Apply KEY=VALUE (dotted keys: params.sigma, model_options.noise.seed, perturbation.1.torque_Nm, t_end_s)."""
     import copy
 
@@ -229,7 +230,7 @@ def resolve(name_or_path: str) -> Path:
     return f
 
 
-def load_scene(name_or_path: str, overrides=()) -> Scene:
+def load_scene(name_or_path: str, overrides: Iterable[str] = ()) -> Scene:
     """Load a shipped scene by name or a TOML file by path, apply --set overrides, validate."""
     f = resolve(name_or_path)
     try:

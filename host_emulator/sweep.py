@@ -35,9 +35,18 @@ import math
 import os
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from matplotlib.axes import Axes
+    from matplotlib.figure import FigureBase
+
+    from .scene import Scene
 
 OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report it)
     "domain_walls": "1",
@@ -75,9 +84,9 @@ def parse_grid(text: str) -> tuple[str, list]:
     if not key or not spec:
         raise SweepError(f"--grid {text!r}: empty key or values")
     if spec.count(":") == 2 and "," not in spec:
-        a, b, n = spec.split(":")
+        a_text, b_text, n_text = spec.split(":")
         try:
-            a, b, n = float(_value(a)), float(_value(b)), int(n)
+            a, b, n = float(_value(a_text)), float(_value(b_text)), int(n_text)
         except (TypeError, ValueError):
             raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
         if n < 1 or not (math.isfinite(a) and math.isfinite(b)):
@@ -99,7 +108,7 @@ def _fmt_value(v) -> str:
     return repr(v)
 
 
-def point_specs(scene: str, grid: dict, seeds: int | None, fixed=()) -> tuple[list[dict], dict]:
+def point_specs(scene: str, grid: dict, seeds: int | None, fixed: Sequence[str] = ()) -> tuple[list[dict], dict]:
     """Every grid point as a spec {"index", "scene", "overrides", "coords"}; and the coordinate axes."""
     axes = {k: list(v) for k, v in grid.items()}
     if seeds:
@@ -209,16 +218,16 @@ def sweep(
     grid: dict | None = None,
     *,
     seeds: int | None = None,
-    out="out/sweep",
-    fixed=(),
+    out: str | Path = "out/sweep",
+    fixed: Sequence[str] = (),
     scheduler: str | None = None,
     workers: int | None = None,
     chunk: int | None = None,
     progress: bool = True,
     retry_failed: bool = False,
     plots: bool = True,
-    map_keys=None,
-):
+    map_keys: Sequence[str] | None = None,
+) -> xr.Dataset:
     """Run the sweep (see module docstring) and return its xarray Dataset (also written to out/sweep.nc)."""
     from .api import load_scene
 
@@ -320,7 +329,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
             cluster.close()
 
 
-def to_dataset(specs, axes, done, base, definition):
+def to_dataset(specs: list[dict], axes: dict, done: dict, base: Scene, definition: dict) -> xr.Dataset:
     """The xarray Dataset of a sweep: dims = swept keys (+ seed), observables as variables."""
     import xarray as xr
 
@@ -342,7 +351,7 @@ def to_dataset(specs, axes, done, base, definition):
                 data[k][ix] = _num(r[k])
         for k in STRINGS:
             strs[k][ix] = str(r.get(k, "") or "")
-    vars_ = {k: (dims, v, {"units": u}) for k, v in data.items() for u in [OBSERVABLES[k]]}
+    vars_: dict[str, tuple] = {k: (dims, v, {"units": u}) for k, v in data.items() for u in [OBSERVABLES[k]]}
     vars_.update({k: (dims, v.astype(str)) for k, v in strs.items()})
     coords = {}
     for k, v in axes.items():
@@ -360,7 +369,9 @@ def to_dataset(specs, axes, done, base, definition):
 # ---- plots ----------------------------------------------------------------------------------------------
 
 
-def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
+def plot_phase_diagram(
+    ds: xr.Dataset, base: Scene | None = None, *, ax: Axes | None = None, inertia: bool | None = None
+) -> FigureBase:
     """Selected wavelength (2(N-1)/Z, cells) of every point against sigma, with the linear theory's unstable
     band (shaded) and fastest wavelength (line) of the base scene's parameters at each sigma. Returns the Figure."""
     from .analysis.stability import dispersion
@@ -409,7 +420,7 @@ def plot_phase_diagram(ds, base=None, *, ax=None, inertia=None):
 OUTCOMES = ("rest", "pattern", "moving", "failed")
 
 
-def outcome(ds):
+def outcome(ds: xr.Dataset) -> np.ndarray:
     """Per point: 0 rest, 1 pattern (steady, domain walls), 2 moving (not steady), 3 failed, -1 pending."""
     st = ds["status"].values.astype(str)
     rest = ds["at_rest"].values == 1
@@ -419,7 +430,7 @@ def outcome(ds):
     return code
 
 
-def plot_regime_map(ds, xkey, ykey, *, ax=None):
+def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = None) -> FigureBase:
     """The most frequent outcome (rest / pattern / moving / failed) over the other swept keys, on xkey x ykey,
     with the linear theory's regime of each point named in the title's legend. Returns the Figure."""
     from matplotlib.colors import ListedColormap
@@ -492,7 +503,7 @@ Re-running the same command resumes: points already in DIR/points.jsonl are skip
 Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2 bad input."""
 
 
-def sweep_main(argv=None) -> int:
+def sweep_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator sweep",
         epilog=EPILOG,

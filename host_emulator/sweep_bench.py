@@ -205,7 +205,7 @@ def plot(res: dict, path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator.sweep_bench",
         description=__doc__.split("\n\n")[0],

@@ -6,8 +6,12 @@ from __future__ import annotations
 import sys
 import time
 import warnings
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .models import Solver
 
 
 class Tracker:
@@ -16,56 +20,56 @@ class Tracker:
     The controller calls sample_many with a chunk of consecutive samples when the solver runs many samples per
     compiled call; the default passes them one by one to sample(), so a tracker need only define sample()."""
 
-    def start(self, solver, t_end_s: float, n_samples: int):
+    def start(self, solver: Solver, t_end_s: float, n_samples: int) -> None:
         pass
 
-    def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray):
+    def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray) -> None:
         pass
 
-    def sample_many(self, t: np.ndarray, alpha: np.ndarray, beta: np.ndarray):
+    def sample_many(self, t: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -> None:
         for k in range(len(t)):
             self.sample(t[k], alpha[k], beta[k])
 
-    def finish(self):
+    def finish(self) -> None:
         pass
 
 
 class RecordTracker(Tracker):
     """Stores every sample in preallocated arrays (t, alpha (T, N), beta (T, N))."""
 
-    def start(self, solver, t_end_s, n_samples):
+    def start(self, solver: Solver, t_end_s: float, n_samples: int) -> None:
         n = solver.model.n
         self.t = np.empty(n_samples)
         self.alpha = np.empty((n_samples, n))
         self.beta = np.empty((n_samples, n))
         self.i = 0
 
-    def sample(self, t, alpha, beta):
+    def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray) -> None:
         self.t[self.i] = t
         self.alpha[self.i] = alpha
         self.beta[self.i] = beta
         self.i += 1
 
-    def sample_many(self, t, alpha, beta):
+    def sample_many(self, t: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -> None:
         k = len(t)
         self.t[self.i : self.i + k] = t
         self.alpha[self.i : self.i + k] = alpha
         self.beta[self.i : self.i + k] = beta
         self.i += k
 
-    def result(self):
+    def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.t[: self.i], self.alpha[: self.i], self.beta[: self.i]
 
 
 class ProgressTracker(Tracker):
     """A tqdm bar in simulated seconds, shown only once the run has taken over `delay_s` of wall time."""
 
-    def __init__(self, delay_s: float = 1.0, file=None, disable: bool = False):
+    def __init__(self, delay_s: float = 1.0, file: TextIO | None = None, disable: bool = False) -> None:
         self.delay_s = delay_s
         self.file = file or sys.stderr
         self.disable = disable
 
-    def start(self, solver, t_end_s, n_samples):
+    def start(self, solver: Solver, t_end_s: float, n_samples: int) -> None:
         from tqdm import tqdm
 
         self.bar = tqdm(
@@ -79,31 +83,31 @@ class ProgressTracker(Tracker):
         )
         self.last = 0.0
 
-    def sample(self, t, alpha, beta):
+    def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray) -> None:
         if t > self.last:
             self.bar.update(t - self.last)
             self.last = t
 
-    def sample_many(self, t, alpha, beta):
+    def sample_many(self, t: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -> None:
         if len(t):
-            self.sample(float(t[-1]), None, None)
+            self.sample(float(t[-1]), alpha[-1], beta[-1])
 
-    def finish(self):
+    def finish(self) -> None:
         self.bar.close()
 
 
 class LiveTracker(Tracker):
     """Prints max |alpha|, |beta| every `every_s` simulated seconds (for watching a long run)."""
 
-    def __init__(self, every_s: float = 1.0, file=None):
+    def __init__(self, every_s: float = 1.0, file: TextIO | None = None) -> None:
         self.every_s = every_s
         self.file = file or sys.stdout
 
-    def start(self, solver, t_end_s, n_samples):
+    def start(self, solver: Solver, t_end_s: float, n_samples: int) -> None:
         self.next = 0.0
         self.t0 = time.perf_counter()
 
-    def sample(self, t, alpha, beta):
+    def sample(self, t: float, alpha: np.ndarray, beta: np.ndarray) -> None:
         if t + 1e-12 >= self.next:
             print(
                 f"t={t:7.3f} s  max|alpha|={np.abs(alpha).max():.4f}  max|beta|={np.abs(beta).max():.4f} rad",

@@ -7,6 +7,8 @@ import dataclasses
 import json
 import math
 import sys
+from collections.abc import Iterable
+from typing import Any
 
 from host_emulator.params import Params
 
@@ -17,10 +19,10 @@ __all__ = ["dispersion_main", "parse_set"]
 KEYS = ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s", "unstable_band_cells")
 
 
-def parse_set(params: Params, items) -> Params:
+def parse_set(params: Params, items: Iterable[str]) -> Params:
     """Apply KEY=VALUE overrides (Params field names) with the field's type; ValueError/KeyError on bad input."""
     fields = {f.name: f for f in dataclasses.fields(params)}
-    kw = {}
+    kw: dict[str, Any] = {}
     for item in items or []:
         if "=" not in item:
             raise ValueError(f"--set {item!r}: expected KEY=VALUE")
@@ -66,7 +68,7 @@ def _fmt(v, unit=""):
     return str(v)
 
 
-def dispersion_main(argv) -> int:
+def dispersion_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator dispersion",
         description="Linear stability of the uniform rest state (docs/physics.md#linear-stability).",

@@ -94,14 +94,21 @@ def _window(t, settle_window_s):
     return idx
 
 
-def is_steady(t, alpha, beta, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD) -> bool:
+def is_steady(
+    t: np.ndarray,
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    *,
+    settle_window_s: float | None = None,
+    tol_rad: float = DEFAULT_TOL_RAD,
+) -> bool:
     t, alpha, beta = _as_arrays(t, alpha, beta)
     idx = _window(t, settle_window_s)
     ptp = max(np.ptp(alpha[idx], axis=0).max(), np.ptp(beta[idx], axis=0).max())
     return bool(ptp < tol_rad)
 
 
-def spatial_period(profile, *, tol_rad=DEFAULT_TOL_RAD, n_grid=400):
+def spatial_period(profile: np.ndarray, *, tol_rad: float = DEFAULT_TOL_RAD, n_grid: int = 400) -> float | None:
     """Dominant wavelength (cells) of a 1-D profile sampled at x_j = j - 1/2, or None if flat."""
     u = np.asarray(profile, dtype=float)
     n = u.size
@@ -133,7 +140,7 @@ def _crossings(t, y, band):
     """Times of zero crossings of y with hysteresis: y must leave [-band, band] on alternate sides."""
     out = []
     side = 0
-    last_idx = None
+    last_idx = 0  # index of the last sample outside the band (read only once side != 0)
     for i, v in enumerate(y):
         s = 1 if v > band else (-1 if v < -band else 0)
         if s == 0:
@@ -151,7 +158,9 @@ def _crossings(t, y, band):
     return out
 
 
-def temporal_period(t, alpha, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD):
+def temporal_period(
+    t: np.ndarray, alpha: np.ndarray, *, settle_window_s: float | None = None, tol_rad: float = DEFAULT_TOL_RAD
+) -> float | None:
     """Temporal period (s) of the late motion, or None (see module docstring)."""
     t = np.asarray(t, dtype=float)
     alpha = np.asarray(alpha, dtype=float)
@@ -174,7 +183,7 @@ def temporal_period(t, alpha, *, settle_window_s=None, tol_rad=DEFAULT_TOL_RAD):
     return 2.0 * (cr[k] - cr[0]) / k
 
 
-def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
+def growth_rate(t: np.ndarray, alpha: np.ndarray, *, min_amplitude_rad: float = 1e-9) -> float | None:
     """Early exponential growth rate (1/s) of A(t) = max_j |alpha_j(t)|, or None."""
     t = np.asarray(t, dtype=float)
     alpha = np.asarray(alpha, dtype=float)
@@ -205,7 +214,7 @@ def growth_rate(t, alpha, *, min_amplitude_rad=1e-9):
     return float(slope)
 
 
-def domain_walls(profile, *, threshold_rad=WALL_THRESHOLD_RAD) -> int:
+def domain_walls(profile: np.ndarray, *, threshold_rad: float = WALL_THRESHOLD_RAD) -> int:
     """Sign changes of a profile among the cells with |u_j| > threshold_rad (see module docstring)."""
     if not (math.isfinite(threshold_rad) and threshold_rad >= 0):
         raise ValueError(f"threshold_rad={threshold_rad!r} must be finite and >= 0")
@@ -214,7 +223,7 @@ def domain_walls(profile, *, threshold_rad=WALL_THRESHOLD_RAD) -> int:
     return int(np.count_nonzero(s[1:] != s[:-1]))
 
 
-def dominant_mode(profile) -> int:
+def dominant_mode(profile: np.ndarray) -> int:
     """Index m of the largest orthonormal DCT-II coefficient: free-end chain mode cos(pi m (j - 1/2) / N)."""
     from scipy.fft import dct
 
@@ -222,7 +231,14 @@ def dominant_mode(profile) -> int:
     return int(np.argmax(np.abs(c)))
 
 
-def is_at_rest(t, alpha, beta, *, settle_window_s=None, rest_tol_rad=REST_TOL_RAD) -> bool:
+def is_at_rest(
+    t: np.ndarray,
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    *,
+    settle_window_s: float | None = None,
+    rest_tol_rad: float = REST_TOL_RAD,
+) -> bool:
     """Every |alpha_j|, |beta_j| within rest_tol_rad over the final window."""
     t, alpha, beta = _as_arrays(t, alpha, beta)
     idx = _window(t, settle_window_s)
@@ -230,14 +246,14 @@ def is_at_rest(t, alpha, beta, *, settle_window_s=None, rest_tol_rad=REST_TOL_RA
 
 
 def observables(
-    t,
-    alpha,
-    beta,
+    t: np.ndarray,
+    alpha: np.ndarray,
+    beta: np.ndarray,
     *,
-    settle_window_s=None,
-    tol_rad=DEFAULT_TOL_RAD,
-    wall_threshold_rad=WALL_THRESHOLD_RAD,
-    rest_tol_rad=REST_TOL_RAD,
+    settle_window_s: float | None = None,
+    tol_rad: float = DEFAULT_TOL_RAD,
+    wall_threshold_rad: float = WALL_THRESHOLD_RAD,
+    rest_tol_rad: float = REST_TOL_RAD,
 ) -> dict:
     """All observables of a run as a JSON-ready dict (see module docstring for definitions)."""
     if not (math.isfinite(tol_rad) and tol_rad > 0):

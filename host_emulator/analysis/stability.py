@@ -1,17 +1,19 @@
-"""Linear stability of the uniform rest state (docs/physics.md#linear-stability): growth rates, dispersion curve, band, regime, Turing conditions.
+"""Linear stability of the uniform rest state (docs/physics.md#linear-stability): growth rates, dispersion curve, band,
+regime, Turing conditions.
 
 Linearised about (alpha, beta) = (0, 0), a perturbation x = (alpha, beta) * exp(i kappa j + s t)
 obeys, per unit cell (dimensional: torques in N m, angles in rad, time in s)::
 
     I s^2 x + E s x = A(q) x,     A(q) = Jr - q K,
     Jr = [[-k_ab - psi''(0), k_ab - sigma], [k_ab, -k_ab]]       (reaction Jacobian, dR/dx)
-    K  = diag(ka_eff, kb_eff) = 2 band_scale diag(k_a, k_b) (the simulated band law's slope),  E = diag(eta_a, eta_b),  I = diag(I_a, I_b)
+    K  = diag(ka_eff, kb_eff) = 2 band_scale diag(k_a, k_b)     (the simulated band law's slope)
+    E  = diag(eta_a, eta_b),  I = diag(I_a, I_b)
     q  = kappa^2                 (continuum, kappa in rad per cell: lambda = 2 pi / kappa cells)
     q  = 2 (1 - cos kappa)       (discrete lattice, nearest-neighbour bands)
 
-Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals the source's (docs/physics.md#linear-stability)
-(J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(ka_eff, kb_eff / gamma). With inertia they are
-the four roots of det(I s^2 + E s - A(q)) = 0, i.e. the eigenvalues of the companion matrix
+Without inertia the growth rates are the eigenvalues of E^-1 A(q); this equals the source's
+(docs/physics.md#linear-stability) (J - q D) / eta_a with J = diag(1, 1/gamma) Jr and D = diag(ka_eff, kb_eff / gamma).
+With inertia they are the four roots of det(I s^2 + E s - A(q)) = 0, i.e. the eigenvalues of the companion matrix
 [[0, 1], [I^-1 A(q), -I^-1 E]].
 
 A free-end chain of n cells (a missing neighbour pushes nothing) has the graph Laplacian of a path,
@@ -22,11 +24,18 @@ does not mix them, so the chain's linear modes are exactly the dispersion curve 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq, minimize_scalar
 
 from ..physics import reaction_jacobian as _physics_jacobian
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from ..params import Params
 
 __all__ = [
     "reaction_jacobian",
@@ -67,7 +76,7 @@ def _check(params, inertia=False):
         raise ValueError("invalid parameters for stability analysis: " + "; ".join(bad))
 
 
-def q_of_kappa(kappa, discrete=True):
+def q_of_kappa(kappa: ArrayLike, discrete: bool = True) -> np.ndarray:
     """Laplacian symbol q(kappa): 2(1 - cos kappa) on the lattice, kappa^2 in the continuum."""
     k = np.asarray(kappa, dtype=float)
     return 2.0 * (1.0 - np.cos(k)) if discrete else k * k
@@ -81,8 +90,9 @@ def reaction_jacobian(params) -> np.ndarray:
     return _physics_jacobian(params)
 
 
-def jacobian(params) -> np.ndarray:
-    """the source's (docs/physics.md#linear-stability) J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma], [k_ab/gamma, -k_ab/gamma]].
+def jacobian(params: Params) -> np.ndarray:
+    """the source's (docs/physics.md#linear-stability) J (N m / rad, scaled by eta_a): [[-k_ab - k2, k_ab - sigma],
+    [k_ab/gamma, -k_ab/gamma]].
 
     J = diag(1, 1/gamma) @ reaction_jacobian; growth rates without inertia are eig(J - q D) / eta_a with
     D = diag(ka_eff, kb_eff / gamma) (gamma = eta_b / eta_a).
@@ -99,7 +109,7 @@ def _sort_desc(ev: np.ndarray) -> np.ndarray:
     return np.take_along_axis(ev, order, axis=-1)
 
 
-def growth_rates(params, kappa, *, discrete=True, inertia=False) -> np.ndarray:
+def growth_rates(params: Params, kappa: ArrayLike, *, discrete: bool = True, inertia: bool = False) -> np.ndarray:
     """Growth rates s (1/s, complex) of mode kappa (rad per cell), shape (len(kappa), 2 or 4), Re descending."""
     _check(params, inertia)
     k = np.atleast_1d(np.asarray(kappa, dtype=float))
@@ -131,7 +141,7 @@ def _lead(params, kappa, discrete, inertia):
 
 
 # ---- Turing conditions -----------------------------------------------------------
-def turing_conditions(params) -> dict:
+def turing_conditions(params: Params) -> dict:
     """The three Turing conditions of docs/physics.md#linear-stability in their explicit form for this reaction law.
 
     tr J < 0  <=>  k_ab (1 + 1/gamma) + k2 > 0        (uniform state stable to uniform perturbations, 1)
@@ -147,7 +157,7 @@ def turing_conditions(params) -> dict:
     rad = kab * d * (k2 + s)
     rhs = 2.0 * math.sqrt(rad) if rad >= 0 else float("nan")
     c3_holds = bool(rad >= 0 and lhs > rhs)
-    out = {
+    out: dict[str, Any] = {
         "trace_negative": {"expr": "k_ab(1+1/gamma)+k2 > 0", "value": c1, "holds": bool(c1 > 0)},
         "det_positive": {"expr": "k_ab(k2+sigma) > 0", "value": c2, "holds": bool(c2 > 0)},
         "diffusion_driven": {
@@ -199,7 +209,9 @@ def _fin(x):
     return x if math.isfinite(x) else None
 
 
-def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=2000) -> dict:
+def dispersion(
+    params: Params, *, inertia: bool = False, discrete: bool = True, n_cells: int | None = None, n_kappa: int = 2000
+) -> dict:
     """Dispersion relation summary of the uniform state; see module docstring for the equations.
 
     fastest_lambda_cells: wavelength of the mode with the largest Re s (None if that is the uniform mode);
@@ -250,7 +262,7 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
 
     regime = classify_regime(float(re[0]), float(re.max()))
     osc = abs(s_best.imag)
-    out = {
+    out: dict[str, Any] = {
         "model": "discrete" if discrete else "continuum",
         "inertia": bool(inertia),
         "sigma": float(params.sigma),
@@ -293,7 +305,7 @@ def dispersion(params, *, inertia=False, discrete=True, n_cells=None, n_kappa=20
 
 
 # ---- plot -------------------------------------------------------------------------
-def plot_dispersion(params, ax=None, *, inertia=False):
+def plot_dispersion(params: Params, ax: Axes | None = None, *, inertia: bool = False) -> Axes:
     """Re s(lambda) for the lattice and the continuum (Im s dashed), band shaded, chain modes marked.
 
     Uses matplotlib's object API (no pyplot) so it is safe under any backend; returns the Axes.

@@ -5,9 +5,13 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
+
+T = TypeVar("T")
 
 
 def pin_one_core() -> str:
@@ -25,19 +29,19 @@ def clock() -> float:
     return time.process_time()
 
 
-def best_time(fn, repeat: int = 3, budget_s: float = 2.0):
+def best_time(fn: Callable[[], T], repeat: int = 3, budget_s: float = 2.0) -> tuple[T, float]:
     """(result of the last call, smallest time in s on `clock`) over up to `repeat` calls (fewer when slow)."""
-    best = math.inf
-    out = None
-    spent = 0.0
-    for _ in range(max(1, repeat)):
+    t0 = clock()
+    out = fn()
+    best = spent = clock() - t0
+    for _ in range(max(1, repeat) - 1):
+        if spent > budget_s:
+            break
         t0 = clock()
         out = fn()
         w = clock() - t0
         best = min(best, w)
         spent += w
-        if spent > budget_s:
-            break
     return out, best
 
 
@@ -57,7 +61,7 @@ def wall_at(points: list[WPPoint], target: float) -> float | None:
     """Wall time a method needs for max error `target`: log-log interpolation on its Pareto front
     (cheapest run reaching each error level). None when no run of the method reaches the target."""
     pts = sorted((p.wall_s, p.error) for p in points if math.isfinite(p.error) and p.error > 0)
-    front = []  # increasing wall, strictly decreasing error
+    front: list[tuple[float, float]] = []  # increasing wall, strictly decreasing error
     for w, e in pts:
         if not front or e < front[-1][1]:
             front.append((w, e))
@@ -83,7 +87,7 @@ def table(rows: list[list], header: list[str]) -> str:
     return "\n".join(lines)
 
 
-def fmt(v, nd=3):
+def fmt(v: object, nd: int = 3) -> str:
     if v is None:
         return "-"
     if isinstance(v, float):

@@ -1,4 +1,5 @@
-"""Continuum (continuum PDE, docs/physics.md#linear-stability) work-precision: our compiled lattice engine and scipy-BDF path against py-pde, same grid.
+"""Continuum (continuum PDE, docs/physics.md#linear-stability) work-precision: our compiled lattice engine and scipy-BDF
+path against py-pde, same grid.
 
 The method-of-lines continuum with M points per cell (models/continuum.py) is, node by node,
 
@@ -13,17 +14,25 @@ torque density T applied to each of its M nodes. So the compiled steppers (csrc/
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import replace
+from functools import partial
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..physics import pypde_reaction
 from .common import WPPoint, best_time, max_err
 
+if TYPE_CHECKING:
+    from ..models.options import Perturbation
+    from ..params import Params
+    from ..scene import Scene
+
 PDE_DT_GRID = (2e-5, 1e-5, 5e-6, 2.5e-6)
 
 
-def centre_matrix(cells, m):
+def centre_matrix(cells: int, m: int) -> np.ndarray:
     """(cells, cells*m) linear interpolation of the grid x_i = (i + 1/2)/m to the cell centres j - 1/2
     (the same sampling as models/continuum.py)."""
     n = cells * m
@@ -33,7 +42,9 @@ def centre_matrix(cells, m):
     return np.stack([np.interp(xc, x, eye[j]) for j in range(n)], axis=1)
 
 
-def as_lattice(params, cells, m, perturbations):
+def as_lattice(
+    params: Params, cells: int, m: int, perturbations: Sequence[Perturbation]
+) -> tuple[Params, list[Perturbation]]:
     """(params, perturbations) of the equivalent overdamped lattice with cells*m nodes."""
     from ..models.options import Perturbation
 
@@ -46,7 +57,7 @@ def as_lattice(params, cells, m, perturbations):
     return p, perts
 
 
-def run_fast(scene, stepper, dt, m):
+def run_fast(scene: Scene, stepper: str, dt: float, m: int) -> tuple[np.ndarray, float, float]:
     """The continuum on the compiled lattice engine; (T, 2*cells) at the cell centres."""
     from ..models import make_model
     from ..models.options import ModelOptions
@@ -70,7 +81,7 @@ def run_fast(scene, stepper, dt, m):
     return np.concatenate([out[:, :nn] @ S.T, out[:, nn:] @ S.T], axis=1), s.h, s.limit
 
 
-def run_bdf(scene, m, rtol, atol):
+def run_bdf(scene: Scene, m: int, rtol: float, atol: float) -> np.ndarray:
     from ..models.continuum import simulate_continuum
 
     _, a, b = simulate_continuum(
@@ -86,7 +97,7 @@ def run_bdf(scene, m, rtol, atol):
     return np.concatenate([a, b], axis=1)
 
 
-def pypde_problem(scene, m):
+def pypde_problem(scene: Scene, m: int) -> tuple[Any, Any]:  # (pde.PDE, pde.FieldCollection)
     """py-pde formulation of the same PDE (expressions, numba-compiled by py-pde), zero-flux boundaries."""
     import pde
 
@@ -111,7 +122,7 @@ def pypde_problem(scene, m):
     return eq, state
 
 
-def run_pypde(scene, m, solver, **kw):
+def run_pypde(scene: Scene, m: int, solver: str, **kw: Any) -> np.ndarray:
     import pde
 
     eq, state = pypde_problem(scene, m)
@@ -122,7 +133,9 @@ def run_pypde(scene, m, solver, **kw):
     return np.concatenate([data[:, 0] @ S.T, data[:, 1] @ S.T], axis=1)
 
 
-def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
+def continuum_workprecision(
+    t_end_s: float = 3.0, m: int = 4, quick: bool = False, log: Callable[..., None] = print
+) -> tuple[Scene, list[WPPoint], bool]:
     from ..scene import load_scene
 
     scene = load_scene("continuum_single", [f"t_end_s={t_end_s}", f"model_options.points_per_cell={m}"])
@@ -140,13 +153,13 @@ def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
     ):
         for dt in grid[::2] if quick else grid:
             try:
-                (x, h, lim), w = best_time(lambda: run_fast(scene, st, dt, m), repeat=3)
+                (x, h, lim), w = best_time(partial(run_fast, scene, st, dt, m), repeat=3)
             except ValueError as e:
                 log(f"  continuum {st} dt {dt:g}: {e}")
                 continue
             points.append(WPPoint(f"lattice-engine {st}", f"dt={h:.3g}", w, max_err(x, ref)))
     for rtol in (1e-4, 1e-6, 1e-8) if not quick else (1e-4, 1e-7):
-        x, w = best_time(lambda: run_bdf(scene, m, rtol, rtol * 1e-3), repeat=2, budget_s=3.0)
+        x, w = best_time(partial(run_bdf, scene, m, rtol, rtol * 1e-3), repeat=2, budget_s=3.0)
         points.append(WPPoint("continuum.py BDF", f"rtol={rtol:g}", w, max_err(x, ref)))
     try:
         import pde  # noqa: F401
@@ -167,7 +180,7 @@ def continuum_workprecision(t_end_s=3.0, m=4, quick=False, log=print):
                 "the rows below are warm calls"
             )
             warmed.add(solver)
-        x, w = best_time(lambda: run_pypde(scene, m, solver, **kw), repeat=1)
+        x, w = best_time(partial(run_pypde, scene, m, solver, **kw), repeat=1)
         setting = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in kw.items())
         points.append(WPPoint(f"py-pde {solver}", setting, w, max_err(x, ref)))
     return scene, points, True

@@ -2,7 +2,8 @@
 and its effect on the observables (pattern period, amplitude, oscillation period, steady state).
 
 Two questions, two scenes, 16 cells, 10 s simulated:
-  * pattern   - experiment 3 (docs/physics.md#experiments) at sigma 9/125 (push on alpha_8): which pattern, which period, which amplitude;
+  * pattern   - experiment 3 (docs/physics.md#experiments) at sigma 9/125 (push on alpha_8): which pattern,
+                which period, which amplitude;
   * stability - sigma 14/125, eta x1, a 50 mrad (3 encoder counts) uniform tilt of the alpha chain: does the
                 long-wave mode oscillate/grow or decay
                 (the inertial oscillation of docs/emulator.md), and at which period.
@@ -13,12 +14,18 @@ Every other row changes ONE component. Differences are against that reference.
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .common import best_time, fmt, table
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 TILT_RAD = 0.05
 
@@ -34,7 +41,7 @@ def _base(question):
     return replace(sc, options=opts)
 
 
-def variants(question):
+def variants(question: str) -> list[tuple[str, str, Scene]]:
     """(component, variant label, scene) rows; the first is the reference."""
     from ..models.options import NoiseOptions
 
@@ -104,7 +111,7 @@ def _x0(question, n):
     return None if question == "pattern" else np.r_[np.full(n, TILT_RAD), np.zeros(n)]
 
 
-def run_one(scene, question):
+def run_one(scene: Scene, question: str) -> tuple[dict | None, float, str]:
     from ..analysis.observables import observables
     from ..controller import build_solver, run_solver
 
@@ -129,7 +136,7 @@ def run_one(scene, question):
     return observables(res.t, res.alpha, res.beta), w, ""
 
 
-def run_fidelity(args, out) -> int:
+def run_fidelity(args: argparse.Namespace, out: Path) -> int:
     for question in ("pattern", "stability"):
         rows = []
         ref = None
@@ -154,10 +161,8 @@ def run_fidelity(args, out) -> int:
                     fmt(d, 2),
                 ]
             )
-        print(
-            f"\n== fidelity, question '{question}' ({'exp. 3 push, sigma 9/125' if question == 'pattern' else 'sigma 14/125, 50 mrad uniform tilt'}), "
-            "16 cells, 10 s =="
-        )
+        setup = "exp. 3 push, sigma 9/125" if question == "pattern" else "sigma 14/125, 50 mrad uniform tilt"
+        print(f"\n== fidelity, question '{question}' ({setup}), 16 cells, 10 s ==")
         print(
             table(
                 rows,

@@ -17,10 +17,15 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .common import WPPoint, best_time, clock, max_err
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
 RTOLS_QUICK = (1e-3, 1e-5, 1e-7)
@@ -47,7 +52,14 @@ def _pert_vector(scene, n, t):
 
 
 # ---------------------------------------------------------------- diffrax
-def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+def diffrax_points(
+    scene: Scene,
+    t_eval: np.ndarray,
+    y0: np.ndarray,
+    ref_x: np.ndarray,
+    quick: bool = False,
+    log: Callable[..., None] = print,
+) -> list[WPPoint]:
     try:
         import jax
 
@@ -101,36 +113,41 @@ def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
     perts = [jnp.asarray(_pert_vector(scene, n, a)) for a, _, _ in segs]
     points = []
     solvers = {"Tsit5": diffrax.Tsit5(), "Dopri8": diffrax.Dopri8()}
+
+    def make_run(solver, ctrl):
+        """The whole restarted solve for one solver and step controller (bound here, not from the loop)."""
+
+        @jax.jit
+        def seg_solve(y, pert, t0, t1, ts):
+            sol = diffrax.diffeqsolve(
+                diffrax.ODETerm(rhs),
+                solver,
+                t0,
+                t1,
+                None,
+                y,
+                args=pert,
+                saveat=diffrax.SaveAt(ts=ts),
+                stepsize_controller=ctrl,
+                max_steps=2_000_000,
+            )
+            return sol.ys
+
+        def run():
+            y = jnp.asarray(y0)
+            ys = [np.asarray(y0)]
+            for (a, b, te), pv in zip(segs, perts):
+                out = seg_solve(y, pv, a, b, jnp.asarray(te))
+                out.block_until_ready()
+                ys.extend(np.asarray(out))
+                y = out[-1]
+            return np.array(ys)
+
+        return run
+
     for name, solver in solvers.items():
         for rtol in RTOLS_QUICK if quick else RTOLS:
-            ctrl = diffrax.PIDController(rtol=rtol, atol=rtol * 1e-2)
-
-            @jax.jit
-            def seg_solve(y, pert, t0, t1, ts):
-                sol = diffrax.diffeqsolve(
-                    diffrax.ODETerm(rhs),
-                    solver,
-                    t0,
-                    t1,
-                    None,
-                    y,
-                    args=pert,
-                    saveat=diffrax.SaveAt(ts=ts),
-                    stepsize_controller=ctrl,
-                    max_steps=2_000_000,
-                )
-                return sol.ys
-
-            def run():
-                y = jnp.asarray(y0)
-                ys = [np.asarray(y0)]
-                for (a, b, te), pv in zip(segs, perts):
-                    out = seg_solve(y, pv, a, b, jnp.asarray(te))
-                    out.block_until_ready()
-                    ys.extend(np.asarray(out))
-                    y = out[-1]
-                return np.array(ys)
-
+            run = make_run(solver, diffrax.PIDController(rtol=rtol, atol=rtol * 1e-2))
             try:
                 t0 = clock()
                 run()
@@ -148,7 +165,14 @@ def diffrax_points(scene, t_eval, y0, ref_x, quick=False, log=print):
 
 
 # ---------------------------------------------------------------- CVODE
-def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+def cvode_points(
+    scene: Scene,
+    t_eval: np.ndarray,
+    y0: np.ndarray,
+    ref_x: np.ndarray,
+    quick: bool = False,
+    log: Callable[..., None] = print,
+) -> list[WPPoint]:
     try:
         from sksundae.cvode import CVODE
     except ImportError as e:
@@ -163,23 +187,29 @@ def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
         yp[:] = rhs(t, y)
 
     segs = _segments(scene, t_eval)
+
+    def make_run(method, rtol):
+        """The whole restarted solve for one method and tolerance (bound here, not from the loop)."""
+
+        def run():
+            y = np.asarray(y0, float)
+            ys = [y]
+            for a, _, te in segs:
+                sol = CVODE(f, method=method, rtol=rtol, atol=rtol * 1e-2, max_num_steps=10_000_000).solve(
+                    np.concatenate([[a], te]), y
+                )
+                if not sol.success:
+                    raise RuntimeError(sol.message)
+                ys.extend(sol.y[1:])
+                y = sol.y[-1]
+            return np.array(ys)
+
+        return run
+
     points = []
     for method in ("Adams", "BDF"):
         for rtol in RTOLS_QUICK if quick else RTOLS:
-
-            def run():
-                y = np.asarray(y0, float)
-                ys = [y]
-                for a, b, te in segs:
-                    sol = CVODE(f, method=method, rtol=rtol, atol=rtol * 1e-2, max_num_steps=10_000_000).solve(
-                        np.concatenate([[a], te]), y
-                    )
-                    if not sol.success:
-                        raise RuntimeError(sol.message)
-                    ys.extend(sol.y[1:])
-                    y = sol.y[-1]
-                return np.array(ys)
-
+            run = make_run(method, rtol)
             try:
                 y, w = best_time(run, repeat=2, budget_s=1.0)
                 err = max_err(y[:, :n2], ref_x)
@@ -190,7 +220,14 @@ def cvode_points(scene, t_eval, y0, ref_x, quick=False, log=print):
     return points
 
 
-def peer_points(scene, t_eval, y0, ref_x, quick=False, log=print):
+def peer_points(
+    scene: Scene,
+    t_eval: np.ndarray,
+    y0: np.ndarray,
+    ref_x: np.ndarray,
+    quick: bool = False,
+    log: Callable[..., None] = print,
+) -> list[WPPoint]:
     w0 = time.perf_counter()
     pts = diffrax_points(scene, t_eval, y0, ref_x, quick, log) + cvode_points(scene, t_eval, y0, ref_x, quick, log)
     log(f"  compiled peers: {len(pts)} points in {time.perf_counter() - w0:.1f} s")

@@ -8,6 +8,8 @@ constant cost per cell-second; the spread max/min over the sizes is printed.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from .common import clock, fmt, table
 
 CELLS = (16, 64, 256, 1024, 4096)
@@ -20,7 +22,7 @@ def _scene(model, cells, t_end_s, dt_out=0.01):
     return load_scene(name, [f"t_end_s={t_end_s}", f"cells={cells}", f"model_options.dt_out={dt_out}"])
 
 
-def kernel_time(model_name, cells, t_end_s):
+def kernel_time(model_name: str, cells: int, t_end_s: float) -> float:
     """Wall time of the compiled loop alone over t_end_s (one C call), best of 3."""
     from ..controller import build_solver
 
@@ -43,7 +45,7 @@ def kernel_time(model_name, cells, t_end_s):
     return min(go() for _ in range(5))
 
 
-def e2e_time(model_name, cells, t_end_s, dt_out=0.01, repeat=5):
+def e2e_time(model_name: str, cells: int, t_end_s: float, dt_out: float = 0.01, repeat: int = 5) -> float:
     """Wall time of the controller run (run_solver: chunks of output samples per C call); the model and solver
     construction (a per-cell setup cost, not a per-cell-second one) is outside the timing. Best of `repeat`."""
     from ..controller import build_solver, run_solver
@@ -58,11 +60,11 @@ def e2e_time(model_name, cells, t_end_s, dt_out=0.01, repeat=5):
     return best
 
 
-def scaling(quick=False, log=print):
+def scaling(quick: bool = False, log: Callable[..., None] = print) -> tuple[str, str, dict]:
     rows = []
     spreads = {}
     for model_name in ("lattice", "hil"):
-        per = [[], [], []]
+        per: list[list[float]] = [[], [], []]
         for n in CELLS if not quick else (16, 256, 4096):
             cs = 800.0 if model_name == "lattice" else 400.0  # cell-seconds per measurement
             t_end = round(cs / n, 3)

@@ -1,4 +1,5 @@
-"""Work-precision of the emulator's steppers against scipy solve_ivp (lattice), a fine-step hil run (hil) and py-pde (continuum).
+"""Work-precision of the emulator's steppers against scipy solve_ivp (lattice), a fine-step hil run (hil) and py-pde
+(continuum).
 
 Every method is run at several step sizes / tolerances; its error is the max |angle - reference| over all
 output samples (every 10 ms), cells and both chains, its cost the best wall time of a few runs on one
@@ -11,11 +12,17 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .common import WPPoint, best_time, fmt, max_err, table, wall_at
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 LATTICE_STEPPERS = ("euler", "symplectic_euler", "imex_euler", "noh_bathe", "rk4")
 DT_GRID = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5, 3.125e-5)
@@ -25,14 +32,15 @@ PEERS = ("scipy", "py-pde", "diffrax", "CVODE")  # method-name prefixes that are
 
 
 # ---------------------------------------------------------------- lattice
-def lattice_scene(t_end_s=3.0, cells=16):
-    """experiment 3 (docs/physics.md#experiments) as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8 at 0.1-0.2 s."""
+def lattice_scene(t_end_s: float = 3.0, cells: int = 16) -> Scene:
+    """experiment 3 (docs/physics.md#experiments) as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8
+    at 0.1-0.2 s."""
     from ..scene import load_scene
 
     return load_scene("exp3_single_sigma9", [f"t_end_s={t_end_s}", f"cells={cells}"])
 
 
-def output_times(t_end_s, dt_out):
+def output_times(t_end_s: float, dt_out: float) -> np.ndarray:
     n = int(round(t_end_s / dt_out))
     return np.arange(n + 1) * dt_out
 
@@ -48,7 +56,7 @@ def _sampled_states(solver, t_end_s, n):
     return out
 
 
-def run_ours(scene, stepper, dt):
+def run_ours(scene: Scene, stepper: str, dt: float) -> tuple[np.ndarray, float]:
     """Trajectory (T, 2n) of the compiled lattice at the output times, stepper and largest step dt."""
     from ..controller import build_solver
 
@@ -65,7 +73,15 @@ def _cuts(scene):
     return sorted(cuts)
 
 
-def solve_segments(rhs, y0, scene, t_eval, method, rtol, atol):
+def solve_segments(
+    rhs: Callable[[float, np.ndarray], np.ndarray],
+    y0: np.ndarray,
+    scene: Scene,
+    t_eval: np.ndarray,
+    method: str,
+    rtol: float,
+    atol: float,
+) -> tuple[np.ndarray, int]:
     """solve_ivp restarted at every perturbation edge (what a careful researcher does: no step across a jump)."""
     from scipy.integrate import solve_ivp
 
@@ -84,7 +100,7 @@ def solve_segments(rhs, y0, scene, t_eval, method, rtol, atol):
     return np.array(ys), nfev
 
 
-def numpy_rhs(scene):
+def numpy_rhs(scene: Scene) -> Callable[[float, np.ndarray], np.ndarray]:
     """First-order rhs y = [x, v] of the numpy reference plant (models/reference.py): what a researcher writes."""
     from ..models.reference import ReferencePlant
 
@@ -100,7 +116,7 @@ def numpy_rhs(scene):
     return rhs
 
 
-def compiled_rhs(scene):
+def compiled_rhs(scene: Scene) -> Callable[[float, np.ndarray], np.ndarray]:
     """The same rhs on the compiled plant (he_plant_forces): the reference is solved on exactly our physics."""
     from ..models.lattice import LatticeModel
 
@@ -116,7 +132,9 @@ def compiled_rhs(scene):
     return rhs
 
 
-def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
+def lattice_workprecision(
+    t_end_s: float = 3.0, quick: bool = False, log: Callable[..., None] = print, peers: bool = True
+) -> tuple[Scene, list[WPPoint], float]:
     scene = lattice_scene(t_end_s)
     n2 = 2 * scene.cells
     t_eval = output_times(scene.t_end_s, scene.options.dt_out)
@@ -139,7 +157,7 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
         if quick:
             grid = grid[::2]
         for dt in grid:
-            (x, h), w = best_time(lambda: run_ours(scene, st, dt), repeat=3)
+            (x, h), w = best_time(partial(run_ours, scene, st, dt), repeat=3)
             points.append(WPPoint(st, f"dt={h:.3g}", w, max_err(x, ref_x), extra={"limit_s": lim}))
     rhs = numpy_rhs(scene)
     rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8) if not quick else (1e-3, 1e-5, 1e-7)
@@ -147,7 +165,7 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
         for rtol in rtols:
             try:
                 (y, nf), w = best_time(
-                    lambda: solve_segments(rhs, y0, scene, t_eval, meth, rtol, rtol * 1e-2), repeat=2, budget_s=1.0
+                    partial(solve_segments, rhs, y0, scene, t_eval, meth, rtol, rtol * 1e-2), repeat=2, budget_s=1.0
                 )
                 err = max_err(y[:, :n2], ref_x)
             except RuntimeError as e:
@@ -165,7 +183,9 @@ def lattice_workprecision(t_end_s=3.0, quick=False, log=print, peers=True):
     return scene, points, ref_check
 
 
-def summarize(points, target=TARGET, ours_prefix=("scipy", "py-pde")):
+def summarize(
+    points: list[WPPoint], target: float = TARGET, ours_prefix: tuple[str, ...] = ("scipy", "py-pde")
+) -> tuple[dict[str, float | None], tuple[str, float] | None, tuple[str, float] | None]:
     """{method: wall at target} and the best of ours / of the peers."""
     methods = sorted({p.method for p in points})
     at = {m: wall_at([p for p in points if p.method == m], target) for m in methods}
@@ -176,7 +196,7 @@ def summarize(points, target=TARGET, ours_prefix=("scipy", "py-pde")):
     return at, best_ours, best_peer
 
 
-def points_table(points):
+def points_table(points: list[WPPoint]) -> str:
     rows = [[p.method, p.setting, fmt(p.wall_s * 1e3), fmt(p.error, 2)] for p in points]
     return table(rows, ["method", "setting", "cpu ms", "max error rad"])
 
@@ -193,22 +213,23 @@ def run_hil(scene, stepper, substeps):
     return _sampled_states(s, scene.t_end_s, s.model.n)
 
 
-def hil_workprecision(t_end_s=3.0, quick=False, log=print):
+def hil_workprecision(
+    t_end_s: float = 3.0, quick: bool = False, log: Callable[..., None] = print
+) -> tuple[Scene, list[WPPoint]]:
     """The default hil scene (16 cells, 2 kHz firmware) with 1..8 plant steps per control tick, against the
     same loop at 64 RK4 plant steps per tick (the firmware is discrete: the control rate stays)."""
     from ..scene import load_scene
 
     scene = load_scene("default", [f"t_end_s={t_end_s}"])
     ref = run_hil(scene, "rk4", 64)
-    log(
-        f"  reference: the same hil loop, rk4, 64 plant steps per control tick ({1 / scene.params.control_rate_hz / 64:.3g} s)"
-    )
+    h_ref = 1 / scene.params.control_rate_hz / 64
+    log(f"  reference: the same hil loop, rk4, 64 plant steps per control tick ({h_ref:.3g} s)")
     points = []
     subs = (1, 2, 4, 8) if not quick else (1, 4)
     for st in HIL_STEPPERS:
         for m in subs:
             try:
-                x, w = best_time(lambda: run_hil(scene, st, m), repeat=3)
+                x, w = best_time(partial(run_hil, scene, st, m), repeat=3)
                 err = max_err(x, ref)
             except ValueError as e:  # sub-step above the stable limit
                 log(f"  hil {st} x{m}: {e}")

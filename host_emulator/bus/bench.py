@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 from protocol import wire
 
 from .i2c import I2CTiming, lattice_rate_limit
-from .rig import BusOptions, make_rig
+from .rig import BusOptions, EmulatedRig, make_rig
 
 
-def measure(hz: int, seconds: float, **faults) -> tuple[float, float, object, dict]:
+def measure(hz: int, seconds: float, **faults: Any) -> tuple[float, float, EmulatedRig, dict[int, float]]:
     """(cycles per simulated second after a 0.5 s settle, wall seconds, rig, samples/s per cell)."""
     rig, _ = make_rig("exp5_rest", BusOptions(i2c_hz=hz, **faults))
     rig.advance_to(500_000)

@@ -1,4 +1,5 @@
-"""The emulated rig's data path: hil plant + compiled cells with their register handlers + compiled primary, on an I2C timing model.
+"""The emulated rig's data path: hil plant + compiled cells with their register handlers + compiled primary, on an I2C
+timing model.
 
 Time is integer microseconds of simulated time. Events, in time order:
   * control tick k at k * tick_us: every cell with a pending write runs
@@ -19,10 +20,14 @@ from __future__ import annotations
 
 import random
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from .. import firmware
 from ..models.plant import NumericalInstability
 from .i2c import I2CTiming
+
+if TYPE_CHECKING:
+    from ..models.hil import HilSolver
 
 
 @dataclass
@@ -44,7 +49,7 @@ class BusOptions:
 class EmulatedRig:
     """Compiled cells (mc_regs_t + the hil solver's mc_cell_t) and primary (mc_link_t) on the emulated bus."""
 
-    def __init__(self, solver, opts: BusOptions | None = None):
+    def __init__(self, solver: HilSolver, opts: BusOptions | None = None) -> None:
         self.opts = opts = opts or BusOptions()
         self.ffi, self.lib = firmware.load()
         ffi, lib = self.ffi, self.lib
@@ -92,7 +97,7 @@ class EmulatedRig:
         self.next_tick_us = 0
         self.published_tick = [-1] * self.n
         self.bus_free_us = 0  # when the primary may start its next transaction
-        self.pending = []  # (time_us, kind, payload) of the transaction in flight
+        self.pending: list[tuple[int, str, tuple | None]] = []  # (time_us, kind, payload) of the transaction in flight
         self.ticks = 0
         self.band_stops = 0  # plant range stops turned into runaway faults
         self.transactions = 0
@@ -165,7 +170,7 @@ class EmulatedRig:
         lib, t = self.lib, self.txn
         if not lib.mc_primary_next(self.p, now & 0xFFFFFFFF, t):
             return False
-        j, addr, kind, nbytes = t.cell, t.addr, t.kind, t.len
+        j, kind, nbytes = t.cell, t.kind, t.len
         cell = j + 1
         tm = self.timing
         self.transactions += 1
@@ -191,6 +196,8 @@ class EmulatedRig:
 
     def _bus_event(self):
         when, kind, arg = self.pending.pop(0)
+        if arg is None:  # a read's completion gets its data from the request event before it
+            raise RuntimeError(f"bus event {kind!r} at {when} us without its data")
         lib = self.lib
         if kind == "request":
             j, nbytes = arg
@@ -207,7 +214,7 @@ class EmulatedRig:
             lib.mc_primary_complete(self.p, when & 0xFFFFFFFF, status, data, len(data))
             self.bus_free_us = when + self.opts.sw_overhead_us
 
-    def advance_to(self, t_end_us: int):
+    def advance_to(self, t_end_us: int) -> None:
         """Run ticks and bus events up to simulated time t_end_us."""
         while True:
             if not self.pending and self.bus_free_us <= self.next_tick_us and self.bus_free_us <= t_end_us:
@@ -247,7 +254,7 @@ class EmulatedRig:
                 self._early += self._drain()
         return bytes(out)
 
-    def session(self):
+    def session(self) -> None:
         """The host opened or closed the port: channel closed, stale frames and half line dropped."""
         self._early.clear()
         self.lib.mc_link_session(self.link)
@@ -266,7 +273,7 @@ class EmulatedRig:
                 return bytes(out)
             out += self.ffi.buffer(self.outbuf, n)
 
-    def frames(self):
+    def frames(self) -> list[tuple[int, bytes]]:
         """Pop queued frames as (id, bytes) without the SLCAN text layer."""
         f = self.ffi.new("mc_can_frame_t *")
         out = []
@@ -274,7 +281,7 @@ class EmulatedRig:
             out.append((f.id, bytes(f.data)[: f.dlc]))
         return out
 
-    def angles(self):
+    def angles(self) -> tuple[list[float], list[float]]:
         """Plant angles (alpha, beta) in counts."""
         import math
 

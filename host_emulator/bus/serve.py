@@ -33,7 +33,7 @@ def _cells(text: str) -> tuple:
     if not text:
         return ()
     try:
-        cells = ()
+        cells: tuple[int, ...] = ()
         for part in (p.strip() for p in text.split(",")):
             lo, sep, hi = part.partition("-")  # "3-5" is cells 3, 4, 5
             a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
@@ -78,7 +78,7 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
-def open_pty():
+def open_pty() -> tuple[int, int, str]:
     """(master fd, slave fd, slave path) of a raw pty. The caller closes the slave: with no
     client holding it, reads of the master fail with EIO, which is how a client's close is seen."""
     master, slave = os.openpty()
@@ -87,7 +87,7 @@ def open_pty():
     return master, slave, os.ttyname(slave)
 
 
-def check_args(args) -> str | None:
+def check_args(args: argparse.Namespace) -> str | None:
     """The first problem with the numeric arguments, or None."""
     if not (math.isfinite(args.speed) and 1e-3 <= args.speed <= 1e3):
         return f"--speed must be a finite number in 0.001..1000, got {args.speed}"
@@ -98,7 +98,7 @@ def check_args(args) -> str | None:
     return None
 
 
-def serve_main(argv=None) -> int:
+def serve_main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     problem = check_args(args)
     if problem:
@@ -117,7 +117,6 @@ def serve_main(argv=None) -> int:
         return 2
     master, slave, path = open_pty()
     os.close(slave)
-    slave = None
     client = False  # a client holds the pty open (reads of the master do not fail with EIO)
     sessions = 0
     if args.link:

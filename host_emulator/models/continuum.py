@@ -1,4 +1,5 @@
-"""Continuum model: the reaction-diffusion PDE of docs/physics.md#linear-stability (inertia dropped, full non-linear psi') on a 1-D grid.
+"""Continuum model: the reaction-diffusion PDE of docs/physics.md#linear-stability (inertia dropped, full non-linear
+psi') on a 1-D grid.
 
 Equations (x in lattice units, i.e. cells, so k a^2 d^2/dx^2 with x = a * xbar becomes k d^2/dxbar^2)::
 
@@ -23,11 +24,13 @@ Output is linearly interpolated to the cell centres.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
+from ..params import Params
 from ..physics import reaction, reaction_jacobian
 
 __all__ = ["simulate_continuum", "ContinuumError", "validate_perturbations"]
@@ -39,7 +42,7 @@ class ContinuumError(RuntimeError):
     """The continuum integration failed or diverged; the message names the cause and the time."""
 
 
-def validate_perturbations(perturbations, cells):
+def validate_perturbations(perturbations: Sequence[dict] | None, cells: int) -> list[dict]:
     """Check a perturbation list (clear ValueError naming the entry and field); returns normalised copies."""
     out = []
     for n, p in enumerate(perturbations or []):
@@ -98,19 +101,19 @@ def _check_params(params):
 
 
 def simulate_continuum(
-    params,
-    cells,
-    t_end_s,
-    perturbations,
+    params: Params,
+    cells: int,
+    t_end_s: float,
+    perturbations: Sequence[dict] | None,
     *,
-    dt_out_s=0.01,
-    points_per_cell=4,
-    rtol=1e-6,
-    atol=1e-9,
-    initial=None,
-    max_angle_rad=1e4,
-    method="BDF",
-):
+    dt_out_s: float = 0.01,
+    points_per_cell: int = 4,
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    initial: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
+    max_angle_rad: float = 1e4,
+    method: str = "BDF",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate the PDE from rest (or ``initial``) and return (t, alpha, beta) sampled at the cell centres.
 
     t: (T,) s from 0 to t_end_s every dt_out_s (t_end_s included); alpha, beta: (T, cells) rad.
@@ -185,12 +188,12 @@ def simulate_continuum(
     n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
     t_out = np.arange(n_out) * dt_out_s
     t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)  # t_end exactly, never beyond
-    cuts = {0.0, t_end_s}
+    edges = {0.0, t_end_s}
     for p in pert:
         for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
             if 0.0 < tb < t_end_s:
-                cuts.add(tb)
-    cuts = sorted(cuts)
+                edges.add(tb)
+    cuts = sorted(edges)
 
     ys = np.full((len(t_out), 2 * n), np.nan)
     ys[0] = y0

@@ -2,23 +2,31 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability
 from .solver import Solver
 
+if TYPE_CHECKING:
+    from ..params import Params
+
 
 class ContinuumModel:
     name = "continuum"
 
-    def __init__(self, params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(
+        self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None
+    ) -> None:
         self.params = params
         self.n = params.cells
         self.options = options or ModelOptions()
         self.perturbations = list(perturbations)
 
-    def solver(self):
+    def solver(self) -> ContinuumSolver:
         return ContinuumSolver(self)
 
 
@@ -38,7 +46,7 @@ class ContinuumSolver(Solver):
             "points_per_cell": self.model.options.points_per_cell,
         }
 
-    def run_all(self, t_end_s: float):
+    def run_all(self, t_end_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         try:
             from .continuum import simulate_continuum
         except ImportError as e:  # pragma: no cover - only while the module is missing

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from protocol import codec
 
@@ -50,7 +52,9 @@ class HilModel(LatticeModel):
     name = "hil"
     ideal_reaction = False
 
-    def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(
+        self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None
+    ) -> None:
         super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [], options)
         self.all_perturbations = list(perturbations)
         self.phys, self.drive_cfg = firmware_config(self.ffi, self.lib, params)
@@ -83,14 +87,15 @@ class HilModel(LatticeModel):
             lims.append(super().step_limit(stepper))
         return min(lims)
 
-    def solver(self, x0=None, v0=None) -> HilSolver:
+    # HilModel reuses the lattice physics (forces, step limit) but runs its own tick-based solver
+    def solver(self, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> HilSolver:  # type: ignore[override]
         return HilSolver(self, x0, v0)
 
 
 class HilSolver(Solver):
     """Runs whole control ticks in C (he_hil_run); Python only applies firmware perturbation commands."""
 
-    def __init__(self, model: HilModel, x0=None, v0=None):
+    def __init__(self, model: HilModel, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> None:
         from .steppers import stepper_id
 
         self.model = model
@@ -194,7 +199,7 @@ class HilSolver(Solver):
     def faults(self) -> list[int]:
         return [int(self.cells[j].faults) for j in range(self.model.n)]
 
-    def state(self):
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()
 

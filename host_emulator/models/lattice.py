@@ -1,8 +1,12 @@
-"""Lattice model (docs/physics.md#equations-of-motion): discrete equations of motion with the ideal floating-point reaction, stepped in C."""
+"""Lattice model (docs/physics.md#equations-of-motion): discrete equations of motion with the ideal floating-point
+reaction, stepped in C."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..params import Params
 from .options import ModelOptions, Perturbation
@@ -21,7 +25,9 @@ class LatticeModel:
     name = "lattice"
     ideal_reaction = True
 
-    def __init__(self, params: Params, perturbations: list[Perturbation] = (), options: ModelOptions | None = None):
+    def __init__(
+        self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None
+    ) -> None:
         from .. import firmware
 
         self.params = params
@@ -53,14 +59,14 @@ class LatticeModel:
         sid = stepper_id(self.lib, stepper or self.options.stepper)
         return step_limit(self.ffi, self.lib, self.plant, sid)
 
-    def solver(self, x0=None, v0=None) -> LatticeSolver:
+    def solver(self, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> LatticeSolver:
         return LatticeSolver(self, x0, v0)
 
 
 class LatticeSolver(Solver):
     """Advances a LatticeModel one output interval at a time with the chosen compiled stepper."""
 
-    def __init__(self, model: LatticeModel, x0=None, v0=None):
+    def __init__(self, model: LatticeModel, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> None:
         self.model = model
         opt = model.options
         self.stepper = opt.stepper
@@ -88,7 +94,7 @@ class LatticeSolver(Solver):
             "dt_out_s": self.dt_out,
         }
 
-    def state(self):
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()
 
@@ -102,7 +108,7 @@ class LatticeSolver(Solver):
         err.samples = samples
         raise err
 
-    def advance(self):
+    def advance(self) -> None:
         """One output interval."""
         self.k += 1
         self._pt[0] = (self.k - 1) * self.dt_out
@@ -111,7 +117,7 @@ class LatticeSolver(Solver):
             self._raise(rc, self._pt[0])
         self.t = self.k * self.dt_out
 
-    def advance_many(self, k_max: int):
+    def advance_many(self, k_max: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Up to k_max output intervals in one C call (he_advance_sampled), bit-identical to k_max advance() calls.
 
         Returns (t (k,), alpha (k, n), beta (k, n)) of the samples done. On an unstable run raises

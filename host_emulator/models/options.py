@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 from .steppers import DEFAULT_STEPPER, STEPPERS
 
@@ -63,7 +64,7 @@ def _num(key, v, *, integer=False, positive=False, nonneg=False):
     return int(v) if integer else float(v)
 
 
-def parse_noise(d: dict, prefix="model_options.noise") -> NoiseOptions:
+def parse_noise(d: dict, prefix: str = "model_options.noise") -> NoiseOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
     known = {f.name for f in fields(NoiseOptions)}
@@ -83,11 +84,11 @@ def parse_noise(d: dict, prefix="model_options.noise") -> NoiseOptions:
     return NoiseOptions(**kw)
 
 
-def parse_options(d: dict, prefix="model_options") -> ModelOptions:
+def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
     known = {f.name for f in fields(ModelOptions)}
-    kw = {}
+    kw: dict[str, Any] = {}
     for k, v in d.items():
         key = f"{prefix}.{k}"
         if k not in known:

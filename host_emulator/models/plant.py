@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import weakref
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -17,8 +19,10 @@ _keepalive: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 class NumericalInstability(RuntimeError):
     """The integration left the finite/physical range; the message names the cause."""
 
+    samples: int | None = None  # output samples completed before the failure, when the solver knows
 
-def spreads(params: Params, options: ModelOptions, n: int):
+
+def spreads(params: Params, options: ModelOptions, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-bond band-stiffness factors (2, n) and per-cell eta factors (2, n) from the seeded noise options.
 
     Factor = max(0.2, 1 + s * N(0, 1)). Honey (eta_spread) is on the alpha chain only.
@@ -35,8 +39,15 @@ def spreads(params: Params, options: ModelOptions, n: int):
 
 
 def build_plant(
-    ffi, lib, params: Params, options: ModelOptions, n: int, perturbations: list[Perturbation], *, ideal_reaction: bool
-):
+    ffi: Any,
+    lib: Any,
+    params: Params,
+    options: ModelOptions,
+    n: int,
+    perturbations: Sequence[Perturbation],
+    *,
+    ideal_reaction: bool,
+) -> Any:  # cffi FFI/lib in, the he_plant_t cdata out
     """A new he_plant_t (cffi owned) for n cells. Raises ValueError if the C side rejects it."""
     if not 1 <= n <= lib.HE_MAX_CELLS:
         raise ValueError(f"cells = {n}: must be in 1..{lib.HE_MAX_CELLS}")
@@ -88,14 +99,14 @@ def build_plant(
     return p
 
 
-def step_limit(ffi, lib, plant, stepper: int) -> tuple[float, str]:
+def step_limit(ffi: Any, lib: Any, plant: Any, stepper: int) -> tuple[float, str]:
     """(largest stable step in s, which chain limits it)."""
     ch = ffi.new("int *")
     h = lib.he_step_limit(plant, stepper, ch)
     return float(h), ("alpha", "beta", "none")[ch[0]] if ch[0] >= 0 else "none"
 
 
-def error_text(lib, rc: int) -> str:
+def error_text(lib: Any, rc: int) -> str:
     return {
         lib.HE_ERR_NONFINITE: "state became NaN/inf",
         lib.HE_ERR_DIVERGED: f"state diverged (|angle| > {lib.HE_ANGLE_LIMIT_RAD} rad or "

@@ -1,4 +1,4 @@
-"""Reference plant in numpy, written from docs/physics.md#equations-of-motion (vectorised, no shared code with the C plant).
+"""Reference plant in numpy, from docs/physics.md#equations-of-motion (vectorised, no code shared with the C plant).
 
 The band and reaction laws are physics.py's (the one Python copy, checked against an independent float
 reference in tests/host_emulator/test_physics.py); the assembly, geometry and stepping here are independent.
@@ -10,9 +10,13 @@ I x'' = F(t, x) - C x'  (or C x' = F when overdamped).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .. import params as P
+from ..params import Params
 from ..physics import band_force, reaction
 from .options import ModelOptions, Perturbation
 from .plant import spreads
@@ -23,12 +27,12 @@ STAGE_EDGE = 1e-9  # = HE_STAGE_EDGE: stages at a step's ends are evaluated at t
 class ReferencePlant:
     def __init__(
         self,
-        params,
+        params: Params,
         options: ModelOptions | None = None,
-        perturbations: list[Perturbation] = (),
+        perturbations: Sequence[Perturbation] = (),
         *,
-        ideal_reaction=True,
-    ):
+        ideal_reaction: bool = True,
+    ) -> None:
         self.p = params
         self.o = options or ModelOptions()
         self.n = params.cells
@@ -45,7 +49,7 @@ class ReferencePlant:
         f0 = coef[0] if self.p.slack_f0 else 0.0
         return np.where(d > 0, band_force(coef, d), f0)
 
-    def bond_torque(self, chain: int, xs, xo):
+    def bond_torque(self, chain: int, xs: np.ndarray, xo: np.ndarray) -> np.ndarray:
         """tau(x_self, x_other) of docs/physics.md#band-torque for arrays of bonds (before the per-bond spread)."""
         if self.o.bands == "linear":
             return (self.p.ka_eff, self.p.kb_eff)[chain] * (xs - xo)
@@ -62,14 +66,14 @@ class ReferencePlant:
         a = P.LATTICE_M
         ds = np.sin(xs) - np.sin(xo)
         dc = np.cos(xs) - np.cos(xo)
-        total = 0.0
+        total = np.zeros_like(ds)
         for sgn in (+1.0, -1.0):
             Delta = np.hypot(a + sgn * L * ds, -sgn * L * dc) - a
             fT = self._g(coef, d0 + Delta) * (np.cos(xs) * (a + sgn * L * ds) - sgn * L * np.sin(xs) * dc) / (a + Delta)
             total = total + sgn * fT
         return self.p.band_scale * L * total
 
-    def band_torques(self, x):
+    def band_torques(self, x: np.ndarray) -> np.ndarray:
         """Net band torque on every cylinder: -tau(x_j, x_{j-1}) - tau(x_j, x_{j+1}), free ends."""
         n = self.n
         out = np.zeros(2 * n)
@@ -82,7 +86,9 @@ class ReferencePlant:
             o[1:] -= left
         return out
 
-    def forces(self, t, x, volt=None, mgain=None):
+    def forces(
+        self, t: float, x: np.ndarray, volt: np.ndarray | None = None, mgain: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         n = self.n
         F = self.band_torques(x)
         C = self.eta.copy()
@@ -101,7 +107,7 @@ class ReferencePlant:
         return F, C
 
     # ---- steppers (numpy mirrors of the registered ones) ------------------
-    def step(self, stepper, t, x, v, h):
+    def step(self, stepper: str, t: float, x: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
         E = STAGE_EDGE  # end stages just inside the step (he_step.h HE_STAGE_EDGE)
         if not self.o.inertia:
 
@@ -125,17 +131,25 @@ class ReferencePlant:
             F, C = self.forces(t + E * h, x)
             return x + h * v, v + h * (F - C * v) / self.I
 
-        def f(tt, xx, vv):
+        def g(tt, xx, vv):
             F, C = self.forces(tt, xx)
             return vv, (F - C * vv) / self.I
 
-        a1, b1 = f(t + E * h, x, v)
-        a2, b2 = f(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
-        a3, b3 = f(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)
-        a4, b4 = f(t + h - E * h, x + h * a3, v + h * b3)
+        a1, b1 = g(t + E * h, x, v)
+        a2, b2 = g(t + h / 2, x + h / 2 * a1, v + h / 2 * b1)
+        a3, b3 = g(t + h / 2, x + h / 2 * a2, v + h / 2 * b2)
+        a4, b4 = g(t + h - E * h, x + h * a3, v + h * b3)
         return x + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4), v + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
 
-    def run(self, stepper, h, nsteps, x0=None, v0=None, record_every=1):
+    def run(
+        self,
+        stepper: str,
+        h: float,
+        nsteps: int,
+        x0: ArrayLike | None = None,
+        v0: ArrayLike | None = None,
+        record_every: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray]:
         x = np.zeros(2 * self.n) if x0 is None else np.array(x0, float)
         v = np.zeros(2 * self.n) if v0 is None else np.array(v0, float)
         xs = [x.copy()]

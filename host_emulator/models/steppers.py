@@ -1,8 +1,9 @@
-"""Registry of the compiled plant's time steppers, by name (C: host_emulator/csrc/he_step.h ids, one file per method)."""
+"""Registry of the compiled plant's time steppers by name (C: host_emulator/csrc/he_step.h ids, a file per method)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ register(
 DEFAULT_STEPPER = "symplectic_euler"
 
 
-def stepper_id(lib, name: str) -> int:
+def stepper_id(lib: Any, name: str) -> int:
     """The compiled id of a registered stepper; ValueError naming the known ones otherwise."""
     try:
         info = STEPPERS[name]

@@ -1,4 +1,5 @@
-"""Independent floating-point reference of the cell library, written from docs/physics.md#reaction-torques and #actuators."""
+"""Independent floating-point reference of the cell library, written from docs/physics.md#reaction-torques and
+#actuators."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ def clamp(x, lo, hi):
 
 
 def psi_prime_piecewise(g1, g2, astar_counts, x):
-    """docs/physics.md#reaction-torques tri-linear psi' with its breakpoint b = k1 a*/(k1 - k2), in TU for x in counts."""
+    """docs/physics.md#reaction-torques tri-linear psi' with its breakpoint b = k1 a*/(k1 - k2),
+    in TU for x in counts."""
     b = g1 * astar_counts / (g1 - g2)
     if x < -b:
         return g1 * (x + astar_counts)

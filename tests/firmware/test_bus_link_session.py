@@ -1,4 +1,5 @@
-"""Primary link: sessions drop stale frames and half lines; command answers are never dropped silently (emulated bus, compiled C)."""
+"""Primary link: sessions drop stale frames and half lines; command answers are never dropped silently (emulated bus,
+compiled C)."""
 
 import re
 

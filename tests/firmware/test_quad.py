@@ -82,7 +82,10 @@ def test_velocity_observer_matches_float_reference(fw, a0, b0, steps):
     """The fixed-point observer (Q16 states, floor shifts) stays within one output LSB
     (1/64 count/tick) of the real-valued observer, inputs clamped to +-2048."""
     ffi, lib = fw
-    clamp = lambda x: max(-2048, min(2048, x))
+
+    def clamp(x):
+        return max(-2048, min(2048, x))
+
     vel = ffi.new("mc_vel_t*")
     lib.mc_vel_reset(vel, a0, b0)
     out = ffi.new("int32_t[2]")

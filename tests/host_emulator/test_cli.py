@@ -1,4 +1,5 @@
-"""`python -m host_emulator`: scenes listing, run writes a complete summary.json (never NaN), NPZ and plots; errors exit non-zero."""
+"""`python -m host_emulator`: scenes listing, run writes a complete summary.json (never NaN), NPZ and plots; errors exit
+non-zero."""
 
 import json
 import math

@@ -17,7 +17,8 @@ PUSH = [Perturbation(8, "alpha", 0.02, 0.1, 0.1)]
 
 
 def lattice_matrix(p, inertia=True):
-    """Linearised free-end lattice (linear bands, inner psi' branch) from docs/physics.md#equations-of-motion, state (x, v) or x."""
+    """Linearised free-end lattice (linear bands, inner psi' branch) from docs/physics.md#equations-of-motion, state (x,
+    v) or x."""
     n = p.cells
     lap = np.zeros((n, n))
     for j in range(n - 1):
@@ -32,8 +33,8 @@ def lattice_matrix(p, inertia=True):
     eta = np.r_[np.full(n, p.eta_alpha), np.full(n, p.eta_beta)]
     if not inertia:
         return (J - K) / eta[:, None]
-    I = np.r_[np.full(n, p.I_a), np.full(n, p.I_b)]
-    return np.block([[np.zeros((2 * n, 2 * n)), np.eye(2 * n)], [(J - K) / I[:, None], -np.diag(eta / I)]])
+    moi = np.r_[np.full(n, p.I_a), np.full(n, p.I_b)]
+    return np.block([[np.zeros((2 * n, 2 * n)), np.eye(2 * n)], [(J - K) / moi[:, None], -np.diag(eta / moi)]])
 
 
 def max_growth(p, inertia=True):
@@ -325,11 +326,11 @@ def test_sigma_at_unconditional_boundary_uniform_mode(inertia, eta_scale):
     for s, sign in ((0.06 * 0.97, 1), (0.06 * 1.03, -1)):
         p = Params(cells=8, sigma=s, eta_scale=eta_scale)
         A2 = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab, -p.k_ab]])
-        eta, I = np.array([p.eta_alpha, p.eta_beta]), np.array([p.I_a, p.I_b])
+        eta, moi = np.array([p.eta_alpha, p.eta_beta]), np.array([p.I_a, p.I_b])
         B = (
             A2 / eta[:, None]
             if not inertia
-            else np.block([[np.zeros((2, 2)), np.eye(2)], [A2 / I[:, None], -np.diag(eta / I)]])
+            else np.block([[np.zeros((2, 2)), np.eye(2)], [A2 / moi[:, None], -np.diag(eta / moi)]])
         )
         w, V = np.linalg.eig(B)
         k = int(np.argmax(w.real))

@@ -1,4 +1,5 @@
-"""Every CLI value is checked before any work: bounded time, one-line error, exit code 2 (bad input) or 3 (run failed)."""
+"""Every CLI value is checked before any work: bounded time, one-line error, exit code 2 (bad input)
+or 3 (run failed)."""
 
 import subprocess
 import sys

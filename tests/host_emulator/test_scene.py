@@ -1,6 +1,8 @@
 """Scene files: every shipped scene loads; bad keys and values give errors naming the key; --set overrides."""
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host_emulator.models import ConfigError
 from host_emulator.scene import list_scenes, load_scene, scene_from_dict
@@ -99,9 +101,6 @@ def test_scene_from_path(tmp_path):
     with pytest.raises(ConfigError, match="invalid TOML"):
         load_scene(str(f))
 
-
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 _ident = st.text(alphabet="abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=12)
 

@@ -796,7 +796,8 @@ def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text, pi
             "if '--help' in sys.argv:\n"
             f"    print({'lint report' if checker != 'no_lint' else 'report'!r}); sys.exit(0)\n"
             f"want = {WANT_ARGS[pioenv]!r}\n"
-            "assert sys.argv[1:4] == ['lint', '--role', want[0]] and sys.argv[4] == '--elf' and sys.argv[6:] == want[1:], sys.argv\n"
+            "assert sys.argv[1:4] == ['lint', '--role', want[0]] and sys.argv[4] == '--elf', sys.argv\n"
+            "assert sys.argv[6:] == want[1:], sys.argv\n"
             f"print('lint ok' if {rc} == 0 else 'lint bad'); sys.exit({rc})\n"
         )
     env, fn = _load_hook(tmp_path, pioenv)

@@ -1,4 +1,5 @@
-"""Rig logger under stalls, signals, write errors and bad input: time and cycles never go backwards or overwrite, files stay readable."""
+"""Rig logger under stalls, signals, write errors and bad input: time and cycles never go backwards or overwrite, files
+stay readable."""
 
 import resource
 import signal

@@ -16,8 +16,15 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from host_emulator.scene import Scene
+
+    from .plan import ExperimentPlan
+    from .runner import Options
 
 LOG_FORMATS = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
 EXIT_OK, EXIT_PROBLEMS, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -241,12 +248,12 @@ def _options(args):
 
 
 def execute(
-    scene,
-    plan,
+    scene: Scene,
+    plan: ExperimentPlan,
     channel: str,
     interface: str,
     out: Path,
-    opts,
+    opts: Options,
     *,
     open_wait=None,
     plots=True,
@@ -344,7 +351,7 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def print_summary(s: dict, out: Path):
+def print_summary(s: dict, out: Path) -> None:
     print(
         f"scene {s['scene']} (rig): {s['repeats_completed']}/{s['repeats']} repeat(s) completed, "
         f"{s['wall_s']:.1f} s wall" + (f"; ABORTED: {s['aborted']}" if s["aborted"] else "")
@@ -382,7 +389,9 @@ def print_summary(s: dict, out: Path):
     print(f"  wrote {out}/summary.json, " + ", ".join(s["files"][1:]))
 
 
-def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
+def cmd_run(
+    args: argparse.Namespace, channel: str | None = None, interface: str | None = None, open_wait: float | None = None
+) -> int:
     from .plan import PlanError
 
     try:
@@ -415,7 +424,7 @@ def cmd_run(args, channel=None, interface=None, open_wait=None) -> int:
     return rc
 
 
-def cmd_rehearse(args) -> int:
+def cmd_rehearse(args: argparse.Namespace) -> int:
     from .plan import PlanError
     from .rehearse import Serve, ServeError, serve_overrides
 
@@ -440,7 +449,7 @@ def cmd_rehearse(args) -> int:
         return EXIT_ABORTED
 
 
-def cmd_compare(args) -> int:
+def cmd_compare(args: argparse.Namespace) -> int:
     from .compare import CompareError, compare
 
     try:
@@ -453,6 +462,6 @@ def cmd_compare(args) -> int:
     return EXIT_OK
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)

@@ -1,4 +1,5 @@
-"""Overlay a rig (or rehearsal) run and an emulator run of one scene: final angles per cell, emulator as lines, rig as markers with the spread over repeats.
+"""Overlay a rig (or rehearsal) run and an emulator run of one scene: final angles per cell, emulator as lines, rig as
+markers with the spread over repeats.
 
 Both directories hold a summary.json (`python -m tools.experiment run|rehearse` and
 `python -m host_emulator run`). Rig markers are the per-cell mean over repeats, error
@@ -39,7 +40,7 @@ def _arr(v) -> np.ndarray:
     return np.array([np.nan if x is None else float(x) for x in v], dtype=float)
 
 
-def finals(s: dict, chain: str):
+def finals(s: dict, chain: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(mean, low, high) per cell; low/high = min/max over repeats (= mean for one repeat or a simulation)."""
     m = _arr(s[f"final_{chain}_rad"])
     lo = _arr(s.get(f"final_{chain}_min_rad", s[f"final_{chain}_rad"]))
@@ -67,7 +68,10 @@ def table(rig: dict, emu: dict) -> str:
         )
     da, db = ra - ea, rb - eb
     ok = np.isfinite(da)
-    rms = lambda x: float(np.sqrt(np.mean(x[np.isfinite(x)] ** 2))) if np.isfinite(x).any() else float("nan")
+
+    def rms(x):
+        return float(np.sqrt(np.mean(x[np.isfinite(x)] ** 2))) if np.isfinite(x).any() else float("nan")
+
     lines.append(f" rms difference: alpha {rms(da):.3f} rad, beta {rms(db):.3f} rad over {int(ok.sum())} cell(s)")
 
     def p(s, k, unit):

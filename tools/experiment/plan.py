@@ -10,11 +10,15 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from host_emulator.params import Params
 from protocol import codec
 from tools.rigtools import proto
 from tools.rigtools.command import CTRL_RATE_HZ
+
+if TYPE_CHECKING:
+    from host_emulator.scene import Scene
 
 RIG_PWM_TOP = 2400  # TCC0 period of the cell build (docs/hardware.md, MC_PWM_TOP)
 # scene params the runner sends to every cell: Params field -> register (values SI: N*m/rad, rad)
@@ -100,7 +104,7 @@ def perturb_payload(chain: str, torque_Nm: float, duration_s: float, rate_hz: in
 
 
 def make_plan(
-    scene,
+    scene: Scene,
     *,
     t_end_s: float | None = None,
     ctrl_rate_hz: int = CTRL_RATE_HZ,

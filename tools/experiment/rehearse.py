@@ -16,18 +16,23 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from host_emulator.params import Params
 from tools.rigtools import proto
 
 from .plan import CONTROL_PARAMS, FIRMWARE_PARAMS
 
+if TYPE_CHECKING:
+    from host_emulator.scene import Scene
+
 
 class ServeError(RuntimeError):
     """The emulator server did not start (or said why it could not)."""
 
 
-def serve_overrides(scene, sets) -> list[str]:
+def serve_overrides(scene: Scene, sets: Sequence[str]) -> list[str]:
     """--set items for serve: the experiment's own, then model = hil, perturbation torques 0, and the
     firmware parameters at their defaults (the cells boot with them; the runner must set the scene's)."""
     base = Params()
@@ -42,24 +47,33 @@ def serve_overrides(scene, sets) -> list[str]:
 class Serve:
     """Context manager around one `python -m host_emulator serve` process; `.channel` is '<pty>@115200'."""
 
-    def __init__(self, scene_arg: str, overrides, extra=(), duration_s: float = 600.0, startup_timeout_s: float = 60.0):
+    def __init__(
+        self,
+        scene_arg: str,
+        overrides: Sequence[str],
+        extra: Sequence[str] = (),
+        duration_s: float = 600.0,
+        startup_timeout_s: float = 60.0,
+    ) -> None:
         self.cmd = (
             [sys.executable, "-m", "host_emulator", "serve", scene_arg, "--slcan", "--duration", f"{duration_s:g}"]
             + [x for s in overrides for x in ("--set", s)]
             + list(extra)
         )
         self.startup_timeout_s = startup_timeout_s
-        self.proc = None
-        self.channel = None
-        self.pty = None
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.channel: str | None = None
+        self.pty: str | None = None
 
     def __enter__(self):
         self.err = tempfile.TemporaryFile(mode="w+")
         self.proc = subprocess.Popen(
             self.cmd, cwd=proto.ROOT, stdout=subprocess.PIPE, stderr=self.err, start_new_session=True
         )
+        out = self.proc.stdout
+        assert out is not None  # stdout=PIPE
         sel = selectors.DefaultSelector()
-        sel.register(self.proc.stdout, selectors.EVENT_READ)
+        sel.register(out, selectors.EVENT_READ)
         deadline = time.monotonic() + self.startup_timeout_s
         line = b""
         while not line.endswith(b"\n"):
@@ -67,7 +81,7 @@ class Serve:
             if left <= 0 or not sel.select(timeout=left):
                 self.stop()
                 raise ServeError(f"emulator server printed no pty path within {self.startup_timeout_s:g} s")
-            chunk = os.read(self.proc.stdout.fileno(), 1)
+            chunk = os.read(out.fileno(), 1)
             if not chunk:
                 break
             line += chunk
@@ -86,7 +100,7 @@ class Serve:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
-    def stop(self):
+    def stop(self) -> None:
         p = self.proc
         if p is None:
             return

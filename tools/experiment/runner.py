@@ -19,9 +19,11 @@ import math
 import sys
 import time
 import warnings
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import can
 import numpy as np
 
 from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
@@ -31,9 +33,10 @@ from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 from .plan import ExperimentPlan
 
 
-def cells_text(cells) -> str:
+def cells_text(cells: Iterable[int]) -> str:
     """[1, 2, 3, 5] -> '1-3, 5'."""
-    out, run = [], []
+    out: list[str] = []
+    run: list[int] = []
     for j in sorted(cells):
         if run and j == run[-1] + 1:
             run.append(j)
@@ -92,7 +95,6 @@ class Experiment:
         hook=None,
         live=None,
     ):
-        import can
 
         self.bus, self.plan, self.out = bus, plan, Path(out)
         self.opts = opts or Options()
@@ -107,8 +109,8 @@ class Experiment:
         self.frames = 0
         self.corrupt = 0  # SLCAN lines python-can could not parse
         self.last_frame = time.monotonic()
-        self.commands = []  # every command: {phase, reg, label, results}
-        self.failures = []  # (phase, reg, cell, result) of every non-OK answer
+        self.commands: list[dict] = []  # every command: {phase, reg, label, results}
+        self.failures: list[dict] = []  # {phase, reg, label, cell, result} of every non-OK answer
         self.repeats: list[Repeat] = []
         self.safe = None  # result of the final ENABLE off
         self.identity: dict = {}  # {cell: IDENT block fields, or {"error": ...}} read before the first repeat
@@ -131,7 +133,7 @@ class Experiment:
                 "port closed, primary reset or USB lost"
             )
 
-    def pump(self, until_host: float):
+    def pump(self, until_host: float) -> None:
         """Receive and log frames until host time `until_host` (never longer: recv has a timeout)."""
         while True:
             left = until_host - time.time()
@@ -151,7 +153,7 @@ class Experiment:
                 self._take(msg)
 
     # ---- commands ------------------------------------------------------------
-    def command(self, cells, reg: str, values: dict, label: str, phase: str) -> dict:
+    def command(self, cells: Sequence[int], reg: str, values: dict, label: str, phase: str) -> dict:
         """Send reg to `cells`, wait for every CMD_RESULT (bounded); returns {cell: result name}."""
         try:
             res = self.client.command(list(cells), reg, **values)
@@ -171,7 +173,7 @@ class Experiment:
         for j, r in sorted(bad.items()):
             self.failures.append({"phase": phase, "reg": reg, "label": label, "cell": int(j), "result": r})
         if bad:
-            by = {}
+            by: dict[str, list[int]] = {}
             for j, r in sorted(bad.items()):
                 by.setdefault(r, []).append(j)
             self.report(
@@ -221,7 +223,7 @@ class Experiment:
         dec = dec or self.decoder
         return dec.t_s if dec.t_raw is not None else None
 
-    def pump_primary(self, seconds: float, dec: SampleDecoder | None = None):
+    def pump_primary(self, seconds: float, dec: SampleDecoder | None = None) -> None:
         """Log until the primary's clock advanced `seconds` (bounded: 3 x seconds + silence_s of wall time)."""
         dec = dec or self.decoder
         wall_end = time.time() + 3 * seconds + self.opts.silence_s
@@ -231,7 +233,7 @@ class Experiment:
             now = self.clock(dec)
             if start is None:
                 start = now
-            elif now - start >= seconds:
+            elif now is not None and now - start >= seconds:
                 return
 
     # ---- identity ----------------------------------------------------------------
@@ -339,9 +341,10 @@ class Experiment:
         ok = [j for j in ok if zero.get(j) == "OK"]
         en = self.command(ok, "ENABLE", {"on": 1}, "drive on", phase)
         rep.enabled_cells = [j for j in ok if en.get(j) == "OK"]
-        rep.t0 = self.clock(rep.decoder)
-        if rep.t0 is None:
+        rep.t0 = t0 = self.clock(rep.decoder)
+        if t0 is None:
             raise LinkError(f"{phase}: no sample from any cell during the setup")
+        # from here on rep.decoder has a time base: its t_s is the primary clock (self.clock never None)
         wall_limit = time.time() + 3 * self.plan.t_end_s + 30
         self.report(
             f"{phase}: drive enabled on {len(rep.enabled_cells)} cell(s); running up to {self.plan.t_end_s:g} s"
@@ -352,7 +355,7 @@ class Experiment:
         next_check = self.plan.last_perturbation_end_s + self.opts.settle_s
         rep.stopped = "t_end"
         while True:
-            now = self.clock(rep.decoder) - rep.t0
+            now = rep.decoder.t_s - t0
             if now >= self.plan.t_end_s:
                 break
             if time.time() > wall_limit:  # frames arrive but the primary's clock hardly moves
@@ -362,11 +365,11 @@ class Experiment:
             if due:
                 pending = [p for p in pending if p.start_s > now]
                 # one round of frames per identical payload: simultaneous pushes leave together
-                groups = {}
+                groups: dict[tuple, list] = {}
                 for p in due:
                     groups.setdefault(tuple(sorted(p.values.items())), []).append(p)
                 for _, ps in groups.items():
-                    sent = self.clock(rep.decoder) - rep.t0
+                    sent = rep.decoder.t_s - t0
                     res = self.command(
                         [p.cell for p in ps], "PERTURB", ps[0].values, "; ".join(p.label for p in ps), phase
                     )
@@ -383,7 +386,7 @@ class Experiment:
                 continue
             if self.opts.early_stop and now >= next_check:
                 next_check = now + 0.5
-                s = series(tail_arrays(rep.decoder, self.opts.settle_s + 0.05), rep.t0)
+                s = series(tail_arrays(rep.decoder, self.opts.settle_s + 0.05), t0)
                 if s is not None and s.present.any():
                     w = s.t >= s.t[-1] - self.opts.settle_s
                     if (
@@ -436,8 +439,8 @@ class Experiment:
         self.safe = left
         for rep in self.repeats:
             if rep.t0 is not None and rep.t_stop is None:
-                rep.t_stop = self.clock(rep.decoder)
-                rep.stopped = f"aborted at t = {rep.t_stop - rep.t0:.2f} s"
+                rep.t_stop = t_stop = rep.decoder.t_s  # the decoder has a time base since t0
+                rep.stopped = f"aborted at t = {t_stop - rep.t0:.2f} s"
                 rep.decoder.save(self.out / f"repeat_{rep.index:02d}")
         for w in self.writers:
             w.stop()

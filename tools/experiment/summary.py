@@ -13,17 +13,19 @@ import dataclasses
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from host_emulator.analysis.observables import observables, spatial_period
 from host_emulator.cli import summarize
 from host_emulator.controller import RunResult
+from host_emulator.scene import Scene
 
-from .runner import Experiment, series
+from .runner import Experiment, Repeat, Series, series
 
 
-def json_ready(v):
+def json_ready(v: Any) -> Any:
     """numpy -> Python, non-finite floats -> None (a summary never holds NaN)."""
     if isinstance(v, dict):
         return {str(k): json_ready(x) for k, x in v.items()}
@@ -52,7 +54,7 @@ def _longest_run(mask) -> slice:
     return best
 
 
-def repeat_result(rep, n_cells: int):
+def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
     """(per-repeat record, Series or None) of one repeat."""
     arr = rep.decoder.arrays()
     rec = {
@@ -70,7 +72,7 @@ def repeat_result(rep, n_cells: int):
     rec["gaps"] = [{"cell": int(g[1]), "after_cycle": int(g[2] - 1), "lost": int(g[3])} for g in gaps]
     rec["samples_lost"] = int(gaps[:, 3].sum()) if len(gaps) else 0
     # the run is [enable acknowledged, stop decided]; frames after it (drive switching off) are logged, not analysed
-    s = series(arr, rep.t0, 0.0, rep.t_stop - rep.t0) if rep.t0 is not None else None
+    s = series(arr, rep.t0, 0.0, rep.t_stop - rep.t0) if rep.t0 is not None and rep.t_stop is not None else None
     if s is None or s.t.size < 2:
         rec.update(
             t_end_s=0.0,
@@ -109,7 +111,9 @@ def repeat_result(rep, n_cells: int):
     return rec, s
 
 
-def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dict, object]:
+def build(
+    exp: Experiment, scene: Scene, wall_s: float, error: str | None
+) -> tuple[dict, tuple[Scene, RunResult] | None]:
     """(summary dict, (scene, RunResult) of the first repeat with data, for the plots, or None)."""
     n = len(exp.plan.cells)
     recs, first = [], None
@@ -144,7 +148,7 @@ def build(exp: Experiment, scene, wall_s: float, error: str | None) -> tuple[dic
     fa = np.array([[np.nan if v is None else v for v in r["final_alpha_rad"]] for r in done]).reshape(-1, n)
     fb = np.array([[np.nan if v is None else v for v in r["final_beta_rad"]] for r in done]).reshape(-1, n)
     with np.errstate(all="ignore"), _quiet():
-        stats = {}
+        stats: dict[str, Any] = {}  # per-cell arrays, or None per cell without any repeat
         for key, x in (("alpha", fa), ("beta", fb)):
             stats[f"final_{key}_rad"] = np.nanmean(x, axis=0) if len(x) else [None] * n
             stats[f"final_{key}_std_rad"] = np.nanstd(x, axis=0) if len(x) else [None] * n

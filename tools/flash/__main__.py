@@ -6,13 +6,17 @@ import argparse
 import os
 import shutil
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from . import inventory as inv
-from .boards import PortListError, port_lister, xiao_ports
-from .identity import IdentityError, expected_fw_version, query_identity
+from .boards import Port, PortListError, port_lister, xiao_ports
+from .identity import IdentityError, QueryResult, expected_fw_version, query_identity
 from .plan import ROOT, PlanError, describe, make_plan, parse_only
 from .runner import Flasher, summary
+
+Lister = Callable[[], list[Port]]  # lists the connected serial ports
+Out = Callable[..., None]  # prints one line for the user (err=True: an error)
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -115,7 +119,7 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-def cmd_inventory(args, lister, out) -> int:
+def cmd_inventory(args: argparse.Namespace, lister: Lister, out: Out) -> int:
     path = Path(args.inventory)
     boards = inv.load(path) if path.exists() else []
     ports = xiao_ports(lister())
@@ -139,7 +143,7 @@ def cmd_inventory(args, lister, out) -> int:
         by_serial = {b.serial: b for b in boards}
     out(f"connected XIAO boards ({len(ports)}):")
     for p in ports:
-        b = by_serial.get(p.serial_number)
+        b = by_serial.get(p.serial_number) if p.serial_number else None
         mode = " [bootloader]" if p.in_bootloader else ""
         out(f"  {p.device:16s} serial {p.serial_number}{mode}: {b.name if b else 'UNASSIGNED'}")
     present = {p.serial_number for p in ports}
@@ -149,7 +153,7 @@ def cmd_inventory(args, lister, out) -> int:
     return EXIT_OK
 
 
-def cmd_plan_or_flash(args, lister, out) -> int:
+def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int:
     boards = inv.load(args.inventory)
     plan = make_plan(
         boards,
@@ -178,7 +182,9 @@ def cmd_plan_or_flash(args, lister, out) -> int:
     return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
 
 
-def cmd_identify(args, lister, out, query=query_identity) -> int:
+def cmd_identify(
+    args: argparse.Namespace, lister: Lister, out: Out, query: Callable[[str], QueryResult] = query_identity
+) -> int:
     path = Path(args.inventory)
     by_serial = {b.serial: b for b in inv.load(path)} if path.exists() else {}
     claims: dict[int, list[str]] = {}
@@ -194,7 +200,7 @@ def cmd_identify(args, lister, out, query=query_identity) -> int:
             out(f"  {p.device:16s} serial {p.serial_number}: ERROR {exc}")
             problems += 1
             continue
-        b = by_serial.get(p.serial_number)
+        b = by_serial.get(p.serial_number) if p.serial_number else None
         if q.identity is None:
             out(f"  {p.device:16s} serial {p.serial_number}: no answer to ID?")
             problems += 1
@@ -216,7 +222,7 @@ def cmd_identify(args, lister, out, query=query_identity) -> int:
     return EXIT_OK if problems == 0 else EXIT_FAILED
 
 
-def main(argv=None, out=None) -> int:
+def main(argv: list[str] | None = None, out: Out | None = None) -> int:
     def _out(msg, err=False):
         print(msg, file=sys.stderr if err else sys.stdout)
 

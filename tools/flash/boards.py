@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,7 +93,7 @@ def system_ports() -> list[Port]:
     ]
 
 
-def port_lister(ports_json: str | Path | None = None):
+def port_lister(ports_json: str | Path | None = None) -> Callable[[], list[Port]]:
     """A zero-argument callable listing ports: the fake file (re-read each call) or the OS."""
     if ports_json is None:
         return system_ports

@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import serial
 
 from .addresses import CELL_COUNT, RESERVED
 
@@ -61,8 +66,8 @@ def parse_identity(line: str) -> Identity:
     role = kv.pop("role", None)
     if role not in ROLES:
         raise IdentityError(f"role must be one of {ROLES}, got {role!r} in {line!r}")
-    fw = kv.pop("fw", None)
-    m = _FW_RE.match(fw or "")
+    fw = kv.pop("fw", "")
+    m = _FW_RE.match(fw)
     if not m or int(m.group(1)) > 255 or int(m.group(2)) > 255:
         raise IdentityError(f"fw must be major.minor (0..255 each), got {fw!r} in {line!r}")
     if role == "primary":
@@ -97,7 +102,7 @@ def expected_fw_version(header: Path | None = None) -> str:
     return f"{v >> 8}.{v & 0xFF}"
 
 
-def open_serial(device: str, timeout: float = 0.2):
+def open_serial(device: str, timeout: float = 0.2) -> serial.Serial:
     """Open a board's USB CDC port for data (never at 1200 baud)."""
     import serial  # pyserial
 
@@ -107,12 +112,16 @@ def open_serial(device: str, timeout: float = 0.2):
 class QueryResult:
     """What a board answered: its identity (or None) and any `MC error=` lines."""
 
-    def __init__(self, identity: Identity | None, errors: list[str], raw: list[str]):
+    def __init__(self, identity: Identity | None, errors: list[str], raw: list[str]) -> None:
         self.identity, self.errors, self.raw = identity, errors, raw
 
 
 def query_identity(
-    device: str, opener=open_serial, timeout: float = 3.0, retry_every: float = 0.5, clock=time.monotonic
+    device: str,
+    opener: Callable[..., Any] = open_serial,
+    timeout: float = 3.0,
+    retry_every: float = 0.5,
+    clock: Callable[[], float] = time.monotonic,
 ) -> QueryResult:
     """Send `ID?` (again every retry_every s) until an identity line arrives or timeout.
 

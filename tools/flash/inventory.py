@@ -24,7 +24,7 @@ class Board:
 
     @property
     def addr(self) -> int | None:
-        return cell_address(self.cell) if self.role == "cell" else None
+        return cell_address(self.cell) if self.role == "cell" and self.cell is not None else None
 
     @property
     def name(self) -> str:
@@ -89,7 +89,7 @@ def load(path: str | Path) -> list[Board]:
     for i, e in enumerate(raw):
         if not isinstance(e, dict) or set(e) - {"serial", "role", "cell", "note"}:
             raise InventoryError(f"{path}: boards[{i}] must be an object with serial, role[, cell, note]")
-        boards.append(Board(e.get("serial"), e.get("role"), e.get("cell")))
+        boards.append(Board(e.get("serial", ""), e.get("role", ""), e.get("cell")))
     return validate(boards)
 
 
@@ -100,7 +100,7 @@ def save(path: str | Path, boards: list[Board]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     entries = []
     for b in boards:
-        e = {"serial": b.serial, "role": b.role}
+        e: dict[str, str | int | None] = {"serial": b.serial, "role": b.role}
         if b.role == "cell":
             e["cell"] = b.cell
         entries.append(e)

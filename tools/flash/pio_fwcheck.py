@@ -7,7 +7,7 @@
 import os
 import subprocess
 
-Import("env")  # noqa: F821  (SCons injects Import)
+Import("env")  # type: ignore[name-defined]  # noqa: F821  (SCons injects Import and env)
 
 # Interrupt entry points of the cell glue (src/cell/samd21_hw.h), checked in addition
 # to the library's control-path roots; roots absent from an image (primary) are skipped.
@@ -16,7 +16,7 @@ GLUE_ROOTS = ("TC3_Handler", "hw_isr_encoder_alpha", "hw_isr_encoder_beta")
 
 def _python(project_dir):
     venv = os.path.join(project_dir, ".venv", "bin", "python")
-    return venv if os.path.exists(venv) else env.subst("$PYTHONEXE")  # noqa: F821
+    return venv if os.path.exists(venv) else env.subst("$PYTHONEXE")  # type: ignore[name-defined]  # noqa: F821
 
 
 def _fwcheck(source, target, env):
@@ -41,8 +41,8 @@ def _fwcheck(source, target, env):
             roots += ["--root", r]
     rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots, cwd=project)
     if rc != 0:
-        print("fwcheck: FAILED on %s (exit %d)" % (elf, rc))
+        print(f"fwcheck: FAILED on {elf} (exit {rc})")
     return rc
 
 
-env.AddPostAction("$BUILD_DIR/${PROGNAME}.elf", _fwcheck)  # noqa: F821
+env.AddPostAction("$BUILD_DIR/${PROGNAME}.elf", _fwcheck)  # type: ignore[name-defined]  # noqa: F821

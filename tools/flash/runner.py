@@ -5,11 +5,13 @@ from __future__ import annotations
 import os
 import subprocess
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from .boards import Port
-from .identity import Identity, IdentityError, query_identity
+from .identity import Identity, IdentityError, QueryResult, query_identity
 from .plan import Plan, Step
 
 OK = "ok"
@@ -41,7 +43,12 @@ def check_identity(step: Step, ident: Identity, fw: str) -> str:
 
 
 def wait_for_app_port(
-    serial: str, list_ports, timeout: float, poll: float = 0.5, sleep=time.sleep, clock=time.monotonic
+    serial: str,
+    list_ports: Callable[[], list[Port]],
+    timeout: float,
+    poll: float = 0.5,
+    sleep: Callable[[float], None] = time.sleep,
+    clock: Callable[[], float] = time.monotonic,
 ) -> Port | None:
     """The application-mode port of the board with this USB serial number, once it is back."""
     end = clock() + timeout
@@ -59,18 +66,18 @@ class Flasher:
 
     def __init__(
         self,
-        list_ports,
+        list_ports: Callable[[], list[Port]],
         *,
         expected_fw: str,
-        run=subprocess.run,
-        query=query_identity,
+        run: Callable[..., Any] = subprocess.run,
+        query: Callable[[str], QueryResult] = query_identity,
         log_dir: Path | str = Path(".pio") / "flash-logs",
         upload_timeout: float = 600.0,
         reappear_timeout: float = 20.0,
-        sleep=time.sleep,
-        clock=time.monotonic,
-        out=print,
-    ):
+        sleep: Callable[[float], None] = time.sleep,
+        clock: Callable[[], float] = time.monotonic,
+        out: Callable[[str], None] = print,
+    ) -> None:
         self.list_ports, self.expected_fw, self.run, self.query = list_ports, expected_fw, run, query
         self.log_dir, self.upload_timeout = Path(log_dir), upload_timeout
         self.reappear_timeout, self.sleep, self.clock, self.out = reappear_timeout, sleep, clock, out

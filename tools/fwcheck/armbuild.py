@@ -20,7 +20,9 @@ import re
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -223,13 +225,19 @@ def _display(node: str) -> str:
     return node.split(":", 1)[1] if ":" in node else node
 
 
+def _node_name(obj: str, file_local: set[str], name: str) -> str:
+    """Graph node of a symbol: file-local functions are qualified by their object file, others are global."""
+    return f"{obj}:{name}" if name in file_local else name
+
+
 def call_graph(objs: list[Path]) -> CallGraph:
     g = CallGraph()
     per_obj = []
     global_defs: set[str] = set()
     for o in objs:
         syms = _run(["arm-none-eabi-nm", str(o)])
-        glob, local = set(), set()
+        glob: set[str] = set()
+        local: set[str] = set()
         for ln in syms.splitlines():
             parts = ln.split()
             if len(parts) == 3 and parts[1] in "TtWw":
@@ -238,7 +246,7 @@ def call_graph(objs: list[Path]) -> CallGraph:
         per_obj.append((o, glob, local, _run(["arm-none-eabi-objdump", "-dr", str(o)])))
 
     for o, glob, local, dis in per_obj:
-        sec_first: dict[str, str] = {}
+        sec_first: dict[str | None, str] = {}  # section name -> its first function
         raw: list[tuple[str, str]] = []  # (function, reloc target) in this object
         indirect: dict[str, int] = {}
         section = None
@@ -263,11 +271,7 @@ def call_graph(objs: list[Path]) -> CallGraph:
             if m and m.group(2) != "lr":
                 indirect[func] = indirect.get(func, 0) + 1
 
-        def node(name: str) -> str:
-            if name in local and name not in glob:
-                return f"{o.name}:{name}"
-            return name
-
+        node = partial(_node_name, o.name, local - glob)
         for name in glob | local:
             g.edges.setdefault(node(name), set())
             g.defined[node(name)] = o.name
@@ -302,7 +306,7 @@ class DivisionReport:
         return not self.violations and not self.indirect
 
 
-def division_check(objs: list[Path], roots=CONTROL_ROOTS) -> DivisionReport:
+def division_check(objs: list[Path], roots: Iterable[str] = CONTROL_ROOTS) -> DivisionReport:
     g = call_graph(objs)
     paths = g.reachable(list(roots))
     viol = [[_display(n) for n in p] for name, p in sorted(paths.items()) if DIVISION_RE.match(name)]
@@ -387,7 +391,7 @@ class LintReport:
         return bool(self.roots) and not (self.softfloat or self.division or self.indirect)
 
 
-def lint_elf(elf: Path, roots=CONTROL_ROOTS) -> LintReport:
+def lint_elf(elf: Path, roots: Iterable[str] = CONTROL_ROOTS) -> LintReport:
     """Soft-float or division helpers reachable from the control-path roots of a
     linked image (the Arduino core may use both elsewhere; only reachability counts).
     Roots absent from the image (e.g. inlined) are skipped; none present fails."""

@@ -13,6 +13,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -34,6 +35,8 @@ def api_names() -> list[str]:
     """Entry points in table order, parsed from the MCV_API X-macro."""
     text = HEADER.read_text()
     m = re.search(r"#define MCV_API\(X\)(.*?)\n\n", text, re.S)
+    if m is None:
+        raise ValueError(f"{HEADER}: no MCV_API(X) table")
     return re.findall(r"X\((\w+)\)", m.group(1))
 
 
@@ -67,10 +70,10 @@ uint32_t mcv_xorshift32(uint32_t *state);
 """
 
 
-_mod = None
+_mod: ModuleType | None = None
 
 
-def module():
+def module() -> ModuleType:
     """The compiled generator module (cffi), built on first use and cached by hash."""
     global _mod
     if _mod is not None:
@@ -101,6 +104,8 @@ def module():
     d = _publish(build, key, "hostvec")
     so = next(d.glob(f"{name}*.so"))
     spec = importlib.util.spec_from_file_location(name, so)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load the compiled module {so}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     _mod = mod

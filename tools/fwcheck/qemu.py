@@ -1,4 +1,5 @@
-"""Run the cell library on an emulated Cortex-M0 (QEMU ``microbit``, semihosting): golden vectors and instruction counts.
+"""Run the cell library on an emulated Cortex-M0 (QEMU ``microbit``, semihosting): golden vectors and instruction
+counts.
 
 Two bare-metal programs are linked with the cross-compiled library objects:
 
@@ -244,7 +245,9 @@ class TickStats:
     quad_update: list[int]
     snapshot: list[int]
 
-    def select(self, enabled=None, fault=None, pert=None, bemf=None) -> list[int]:
+    def select(
+        self, enabled: bool | None = None, fault: bool | None = None, pert: bool | None = None, bemf: bool | None = None
+    ) -> list[int]:
         out = []
         for n, t in zip(self.ticks, self.tags):
             faults = t >> 16

@@ -17,6 +17,9 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Callable, Iterable
+
+import can
 
 from protocol import codec
 
@@ -38,17 +41,17 @@ def physical_to_wire(name: str, value: float) -> int:
 class RigClient:
     """Send CMD frames and wait for the matching CMD_RESULT on an open python-can bus."""
 
-    def __init__(self, bus, timeout: float = 1.0, on_message=None):
+    def __init__(
+        self, bus: can.BusABC, timeout: float = 1.0, on_message: Callable[[can.Message], None] | None = None
+    ) -> None:
         self.bus = bus
         self.timeout = timeout
         self.on_message = on_message  # gets every frame received while waiting
-        self.chunks = {}  # cell -> BLOCK_DATA payloads received
+        self.chunks: dict[int, list[bytes]] = {}  # cell -> BLOCK_DATA payloads received
         self.seq = int(time.time()) & 0xFF
 
-    def command(self, cells, reg: str, **values) -> dict:
+    def command(self, cells: Iterable[int], reg: str, **values: int) -> dict:
         """Send reg to every cell in `cells`; returns {cell: result name}."""
-        import can
-
         pending = {}
         for j in cells:
             self.seq = (self.seq + 1) & 0xFF
@@ -64,12 +67,18 @@ class RigClient:
                 continue
             if self.on_message:
                 self.on_message(msg)
-            kind, j = proto.frame_kind(msg.arbitration_id)
-            if kind == "BLOCK_DATA":
-                self.chunks.setdefault(j, []).append(bytes(msg.data))
-            elif kind == "CMD_RESULT" and len(msg.data) >= 3 and msg.data[0] == rid and (j, msg.data[1]) in pending:
-                del pending[(j, msg.data[1])]
-                out[j] = proto.RESULT_NAMES.get(msg.data[2], f"0x{msg.data[2]:02X}")
+            kind, cell = proto.frame_kind(msg.arbitration_id)
+            if kind == "BLOCK_DATA" and cell is not None:  # a per-cell frame
+                self.chunks.setdefault(cell, []).append(bytes(msg.data))
+            elif (
+                kind == "CMD_RESULT"
+                and cell is not None
+                and len(msg.data) >= 3
+                and msg.data[0] == rid
+                and (cell, msg.data[1]) in pending
+            ):
+                del pending[(cell, msg.data[1])]
+                out[cell] = proto.RESULT_NAMES.get(msg.data[2], f"0x{msg.data[2]:02X}")
             elif kind == "PRIMARY_REJECT":
                 print(
                     f"primary rejected a frame: {proto.database().decode_message(msg.arbitration_id, msg.data)}",
@@ -178,7 +187,7 @@ def parser():
     return ap
 
 
-def build(args) -> tuple[str, dict]:
+def build(args: argparse.Namespace) -> tuple[str, dict]:
     """(register, payload values) for parsed arguments; ValueError on out-of-range input."""
     if args.cmd == "set":
         return PARAM_REGS[args.name], {"value": physical_to_wire(args.name, args.value)}
@@ -206,7 +215,7 @@ def build(args) -> tuple[str, dict]:
     return "PWM_LIMIT", {"ticks": args.ticks}
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         reg, values = build(args)

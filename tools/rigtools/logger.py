@@ -24,8 +24,11 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
+import can
 import numpy as np
 
 from protocol.codec import RAD_PER_COUNT
@@ -71,40 +74,47 @@ class SampleDecoder:
 
     HOLD_ROWS = 8192  # rows held at most while waiting for a heartbeat
 
-    def __init__(self, n_cells: int = proto.N_CELLS, report=None, sink=None, hold: bool = False):
+    def __init__(
+        self,
+        n_cells: int = proto.N_CELLS,
+        report: Callable[[str], None] | None = None,
+        sink: Callable[[list[tuple]], None] | None = None,
+        hold: bool = False,
+    ) -> None:
         self.n = n_cells
         self.hold = hold
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.db = proto.database()
-        self.rows = []  # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
+        self.rows: list[tuple] = []  # (segment, cycle, cell, t_s, host, alpha, beta, flags) without a sink
         self.sink = sink or self.rows.extend
-        self.gaps = []  # (segment, cell, first missing cycle, missing count)
-        self.status = {}  # (frame kind, cell) -> last decoded dict
-        self.events = []  # (host time, text)
+        self.gaps: list[tuple[int, int, int, int]] = []  # (segment, cell, first missing cycle, missing count)
+        self.status: dict[tuple[str, int | None], dict] = {}  # (frame kind, cell) -> last decoded dict
+        self.events: list[tuple[float, str]] = []  # (host time, text)
         self.segment = 0
         self.n_rows = 0
         self.t_end = 0.0  # t_s of the last row
-        self.host_end = None  # host time of the last row
+        self.host_end: float | None = None  # host time of the last row
         self.t_base = 0.0  # t_s of the segment's time zero
-        self.per = None  # cycle period (128 us units), measured
+        self.per: float | None = None  # cycle period (128 us units), measured
         self.tx_drop = 0
         self.usb_lost = 0  # bytes the primary's USB port did not take (PRIMARY_HEALTH, cumulative)
         self.primary_reset_cause = None  # PRIMARY_HEALTH.reset_cause, names
         self._reset()
 
     def _reset(self):
-        self.u_last = None  # unwrapped time of the newest sample (128 us units)
-        self.t_raw = None  # its raw 16-bit time field
-        self.u0 = None
-        self.host0 = None  # host time of the segment's first sample
-        self.pending_hb = None  # (heartbeat time in 128 us units, host time) awaiting the next sample
-        self.off_min = None  # min(host - primary time) over confirmed samples, s
-        self.hb_off = None  # unwrapped time - heartbeat time (128 us units)
-        self.held = []  # [cell, seq, u, host, alpha, beta, flags]
-        self.prev = [None] * self.n  # (cycle, u) of each cell's last row
-        self.k_ref = None
+        self.u_last: int | None = None  # unwrapped time of the newest sample (128 us units)
+        self.t_raw: int | None = None  # its raw 16-bit time field
+        self.u0 = 0  # unwrapped time of the segment's first sample (set with it)
+        self.host0: float | None = None  # host time of the segment's first sample
+        # (heartbeat time in 128 us units, host time) awaiting the next sample
+        self.pending_hb: tuple[float, float | None] | None = None
+        self.off_min: float | None = None  # min(host - primary time) over confirmed samples, s
+        self.hb_off: float | None = None  # unwrapped time - heartbeat time (128 us units)
+        self.held: list[list[Any]] = []  # [cell, seq, u, host, alpha, beta, flags]
+        self.prev: list[tuple[int, int] | None] = [None] * self.n  # (cycle, u) of each cell's last row
+        self.k_ref: int | None = None
 
-    def new_segment(self, host: float, why: str):
+    def new_segment(self, host: float, why: str) -> None:
         self.finish()
         self.events.append((host, why))
         self.report(f"segment {self.segment + 1}: {why}")
@@ -115,11 +125,11 @@ class SampleDecoder:
             self.t_base = self.t_end
         self._reset()
 
-    def feed(self, msg) -> None:
+    def feed(self, msg: can.Message) -> None:
         kind, j = proto.frame_kind(msg.arbitration_id)
         if kind == "UNKNOWN" or msg.is_extended_id or msg.is_remote_frame:
             return
-        if kind == "CELL_SAMPLE":
+        if kind == "CELL_SAMPLE" and j is not None:  # a per-cell frame
             try:
                 d = self.db.decode_message(
                     msg.arbitration_id, bytes(msg.data), decode_choices=False, scaling=False
@@ -140,7 +150,7 @@ class SampleDecoder:
             elif kind == "PRIMARY_HEALTH":
                 self.health(int(d["reset_cause"]), int(d["usb_lost"]))
 
-    def sample(self, j, seq, alpha, beta, t128, flags, host):
+    def sample(self, j: int, seq: int, alpha: int, beta: int, t128: int, flags: int, host: float) -> None:
         t128 = int(t128) % T_WRAP
         if self.u_last is None:
             u = t128
@@ -194,6 +204,8 @@ class SampleDecoder:
         self.pending_hb = (uptime_ms * 1000 / 128, host)
 
     def _apply_hb(self):
+        # called by sample() only, after it has set u_last, with a heartbeat pending
+        assert self.pending_hb is not None and self.u_last is not None
         hb, host = self.pending_hb
         self.pending_hb = None
         if self.hb_off is None:
@@ -211,6 +223,7 @@ class SampleDecoder:
         """Add du to every held row from the one where the frames were lost: the row whose cell's
         cycle-counter step fits its time step worst (a lost wrap shows there as a cycle step that
         the time step does not explain); the largest time step if that is ambiguous."""
+        assert self.u_last is not None  # a correction needs a sample to correct
         last = {j + 1: (p[0] & 0xFF, p[1]) for j, p in enumerate(self.prev) if p is not None}
         steps = []  # (row index, cycle step modulo 256, time step) per held row
         for i, (j, seq, u, *_rest) in enumerate(self.held):
@@ -249,7 +262,7 @@ class SampleDecoder:
             f"(put right from the {'host' if evidence else 'primary heartbeat'} clock)"
         )
 
-    def _host_check(self, host_now):
+    def _host_check(self, host_now: float | None):
         """Whole wrap periods the held rows miss by the host clock (anchored on the least-delayed sample)."""
         if self.off_min is None or not host_now or self.u_last is None:
             return
@@ -257,17 +270,17 @@ class SampleDecoder:
         if miss > 0:
             self._rewrap(miss * T_WRAP, evidence=True)
 
-    def finish(self):
+    def finish(self) -> None:
         """End of the stream: rows after the last heartbeat are checked against the host clock, then flushed."""
         if self.held:
             self._host_check(self.held[-1][3])
         self.flush()
 
-    def prev_u_any(self):
+    def prev_u_any(self) -> int | None:
         us = [p[1] for p in self.prev if p is not None]
         return max(us) if us else None
 
-    def flush(self):
+    def flush(self) -> None:
         """Assign cycles to the held rows, report gaps, hand the rows to the sink."""
         if not self.held:
             return
@@ -334,14 +347,17 @@ class SampleDecoder:
         return [npz, csv]
 
 
-def format_rows(rows) -> str:
+def format_rows(rows: Iterable[tuple]) -> str:
     return "".join(f"{seg},{k},{j},{ts:.6f},{host:.6f},{al},{be},{fl}\n" for seg, k, j, ts, host, al, be, fl in rows)
 
 
-def rows_to_arrays(rows: np.ndarray, n: int, gaps) -> dict:
+def rows_to_arrays(rows: np.ndarray, n: int, gaps: list[tuple[int, int, int, int]]) -> dict:
     """Cycle x cell arrays from an (m, 8) row table (segment, cycle, cell, t_s, host, alpha, beta, flags)."""
     seg_cyc = rows[:, :2].astype(np.int64)
-    keys, inv = np.unique(seg_cyc, axis=0, return_inverse=True) if len(rows) else (np.zeros((0, 2), np.int64), None)
+    if len(rows):
+        keys, inv = np.unique(seg_cyc, axis=0, return_inverse=True)
+    else:
+        keys, inv = np.zeros((0, 2), np.int64), np.zeros(0, np.intp)
     m = len(keys)
     a = np.full((m, n), np.nan)
     b = np.full((m, n), np.nan)
@@ -373,26 +389,26 @@ class CsvChunks:
 
     CHUNK = 2048
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path) -> None:
         self.path = path
         self.f = open(path, "w")
         self.f.write(CSV_HEADER)
         self.f.flush()
-        self.buf = []
+        self.buf: list[tuple] = []
 
     def __call__(self, rows):
         self.buf.extend(rows)
         if len(self.buf) >= self.CHUNK:
             self.write()
 
-    def write(self):
+    def write(self) -> None:
         if self.buf:
             text = format_rows(self.buf)
             self.buf = []
             self.f.write(text)
             self.f.flush()
 
-    def close(self):
+    def close(self) -> None:
         try:
             self.write()
         finally:
@@ -443,31 +459,31 @@ class RigLogger:
         interface: str,
         channel: str,
         prefix: Path,
-        formats=("asc",),
-        bitrate=None,
+        formats: Sequence[str] = ("asc",),
+        bitrate: int | None = None,
         reconnect_s: float = 1.0,
         give_up_s: float | None = None,
-        report=None,
-        open_bus=None,
+        report: Callable[[str], None] | None = None,
+        open_bus: Callable[[], can.BusABC] | None = None,
         first_frame_s: float = 30.0,
         wait_open_s: float = 0.0,
-    ):
+    ) -> None:
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
         self.prefix = Path(prefix)
         self.formats = [f.strip().lstrip(".") for f in formats if f.strip()]
         self.reconnect_s, self.give_up_s = reconnect_s, give_up_s
         self.first_frame_s, self.wait_open_s = first_frame_s, wait_open_s
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
-        self.csv = None
+        self.csv: CsvChunks | None = None
         self.decoder = SampleDecoder(report=self.report, hold=True)
         self.open_bus = open_bus or self._open
         self.frames = 0
         self.reconnects = 0
         self.corrupt = 0
-        self.commands = []  # (seconds after the first frame, command-tool arguments)
-        self.command_log = []
-        self.stop_reason = None  # set by a signal handler
-        self.error = None
+        self.commands: list[tuple[float, str]] = []  # (seconds after the first frame, command-tool arguments)
+        self.command_log: list[tuple[float, str, dict]] = []  # (seconds, command, {cell: result})
+        self.stop_reason: str | None = None  # set by a signal handler
+        self.error: str | None = None
 
     def _open(self):
         from .slcanbus import open_bus
@@ -519,8 +535,8 @@ class RigLogger:
         import can
 
         self.prefix.parent.mkdir(parents=True, exist_ok=True)
-        self.csv = CsvChunks(self.prefix.with_suffix(".csv"))
-        self.decoder.sink = self.csv
+        csv = self.csv = CsvChunks(self.prefix.with_suffix(".csv"))
+        self.decoder.sink = csv
         writers = []
         old = {}
         for s in (signal.SIGTERM, signal.SIGHUP):
@@ -598,20 +614,20 @@ class RigLogger:
                     bus.shutdown()
                 except Exception:
                     pass
-            self._close(writers)
+            self._close(csv, writers)
         if self.error:
             raise RunFailed(self.error + "; files kept up to the last complete record")
         return self.frames
 
-    def _close(self, writers):
+    def _close(self, csv: CsvChunks, writers):
         try:
             self.decoder.finish()
-            self.csv.close()
+            csv.close()
         except OSError as e:
             self.error = self.error or f"write failed: {e.strerror or e}"
-            self.csv.buf = []
+            csv.buf = []
             try:
-                self.csv.f.close()
+                csv.f.close()
             except OSError:
                 pass
         for w in writers:
@@ -631,7 +647,7 @@ class RigLogger:
             self.error = self.error or f"write failed: {e.strerror or e}"
 
 
-def check_out(prefix: Path, formats) -> str | None:
+def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
     """Why the output prefix cannot be written, or None (creates its directory)."""
     if prefix.name in ("", ".", ".."):
         return f"--out {prefix}: needs a file name prefix, e.g. out/run1"
@@ -648,7 +664,7 @@ def check_out(prefix: Path, formats) -> str | None:
     return None
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m tools.rigtools.logger",
         description=__doc__.split("\n\n")[0],

@@ -1,4 +1,5 @@
-"""python-can's slcan interface with a buffered line reader, shared by the rig logger, the command tool and the experiment runner (same commands, same frame parsing, ~20x fewer system calls).
+"""python-can's slcan interface with a buffered line reader, shared by the rig logger, the command tool and the
+experiment runner (same commands, same frame parsing, ~20x fewer system calls).
 
 python-can 4.x's `slcanBus._read` takes one byte per `read(1)` (a select and a read per
 byte, ~22 per CELL_SAMPLE line): at the primary's 16 x 111 frames/s that is about half a
@@ -12,6 +13,9 @@ ValueError, which the runner counts as a corrupt line) instead of an "I/O error"
 
 from __future__ import annotations
 
+from typing import Any
+
+import can
 from can.exceptions import error_check
 from can.interfaces.slcan import slcanBus
 
@@ -36,7 +40,7 @@ class BufferedSlcanBus(slcanBus):
         del buf[:i]
         return text
 
-    def _read(self, timeout):
+    def _read(self, timeout: float | None) -> str | None:
         deadline = Timeout(timeout)
         with error_check("Could not read from serial device"):
             while True:
@@ -51,11 +55,9 @@ class BufferedSlcanBus(slcanBus):
                     return None
 
 
-def open_bus(interface: str, channel: str, open_wait: float | None = None, plain: bool = False):
+def open_bus(interface: str, channel: str, open_wait: float | None = None, plain: bool = False) -> can.BusABC:
     """The runner's bus: BufferedSlcanBus for slcan (unless plain), else can.Bus(interface, channel)."""
-    import can
-
-    kw = {}
+    kw: dict[str, Any] = {}
     if interface == "slcan" and open_wait is not None:
         kw["sleep_after_open"] = open_wait
     if interface == "slcan" and not plain and hasattr(slcanBus, "_read") and Timeout is not None:

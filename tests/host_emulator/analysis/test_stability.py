@@ -15,7 +15,8 @@ SIGMAS = {"conditionally_unstable": 9 / 125, "unconditionally_unstable": 6 / 125
 
 
 def omega_closed_form(p, kappa, discrete):
-    """docs/physics.md#linear-stability as written: Omega = (tr J_k +- sqrt(tr^2 - 4 det)) / 2 / eta_a, J_k = J - q diag(k_a, k_b/gamma)."""
+    """docs/physics.md#linear-stability as written: Omega = (tr J_k +- sqrt(tr^2 - 4 det)) / 2 / eta_a, J_k = J - q
+    diag(k_a, k_b/gamma)."""
     g = p.gamma
     j = np.array([[-p.k_ab - p.k2, p.k_ab - p.sigma], [p.k_ab / g, -p.k_ab / g]])
     q = 2 * (1 - np.cos(kappa)) if discrete else kappa**2

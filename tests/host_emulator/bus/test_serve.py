@@ -1,4 +1,5 @@
-"""Acceptance: python-can's slcan interface on the pty of `python -m host_emulator serve` gets all 16 cells (DBC-decodable), and a write changes a cell's behaviour."""
+"""Acceptance: python-can's slcan interface on the pty of `python -m host_emulator serve` gets all 16 cells
+(DBC-decodable), and a write changes a cell's behaviour."""
 
 import re
 import signal

@@ -21,7 +21,10 @@ def mode_growth(p, m, t_end, eps=1e-3, ppc=8):
     i = int(np.argmax(w.real))
     assert abs(w[i].imag) < 1e-12
     vec = v[:, i].real / np.abs(v[:, i].real).max()
-    init = lambda x: (eps * vec[0] * np.cos(kappa * x), eps * vec[1] * np.cos(kappa * x))
+
+    def init(x):
+        return eps * vec[0] * np.cos(kappa * x), eps * vec[1] * np.cos(kappa * x)
+
     t, al, be = simulate_continuum(
         p, N, t_end, [], dt_out_s=t_end / 50, points_per_cell=ppc, initial=init, rtol=1e-8, atol=1e-13
     )
@@ -163,7 +166,10 @@ def test_observed_growth_rate_of_a_single_mode_run():
     w, v = np.linalg.eig(a / np.array([p.eta_alpha, p.eta_beta])[:, None])
     vec = v[:, int(np.argmax(w.real))].real
     vec /= np.abs(vec).max()
-    init = lambda x: (1e-5 * vec[0] * np.cos(kappa * x), 1e-5 * vec[1] * np.cos(kappa * x))
+
+    def init(x):
+        return 1e-5 * vec[0] * np.cos(kappa * x), 1e-5 * vec[1] * np.cos(kappa * x)
+
     t, al, be = simulate_continuum(p, N, 1.5, [], dt_out_s=0.005, points_per_cell=8, initial=init)
     o = observables(t, al, be)
     pred = growth_rates(p, [kappa], discrete=False)[0, 0].real

@@ -12,14 +12,15 @@ J_CENTRES = np.arange(N) + 0.5
 
 
 def mode_block(p, m, inertia):
-    """Linearised dynamics of free-end mode m (cos(kappa (j - 1/2)), kappa = m pi / N), written from docs/physics.md#equations-of-motion."""
+    """Linearised dynamics of free-end mode m (cos(kappa (j - 1/2)), kappa = m pi / N), written from
+    docs/physics.md#equations-of-motion."""
     q = 2 * (1 - np.cos(np.pi * m / N))
     A2 = np.array([[-p.k_ab - p.k2 - q * p.ka_eff, p.k_ab - p.sigma], [p.k_ab, -p.k_ab - q * p.kb_eff]])
     eta = np.array([p.eta_alpha, p.eta_beta])
     if not inertia:
         return A2 / eta[:, None]
-    I = np.array([p.I_a, p.I_b])
-    return np.block([[np.zeros((2, 2)), np.eye(2)], [A2 / I[:, None], -np.diag(eta / I)]])
+    moi = np.array([p.I_a, p.I_b])
+    return np.block([[np.zeros((2, 2)), np.eye(2)], [A2 / moi[:, None], -np.diag(eta / moi)]])
 
 
 def measured_growth(p, m, inertia):
