@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import copy
+import functools
 import json
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 if TYPE_CHECKING:
     from .controller import RunResult
+    from .params import Params
     from .scene import Scene
 
 
@@ -42,6 +45,16 @@ DISPERSION_KEYS = (
 )
 
 
+@functools.lru_cache(maxsize=256)
+def _dispersion_summary(params: Params, inertia: bool, cells: int) -> tuple[tuple[str, Any], ...]:
+    """The dispersion keys of summary.json for one parameter set, cached: a sweep over seeds and pushes asks for the
+    same parameters many times, and the linear theory costs as much as the 10 s run itself (Params is frozen)."""
+    from .analysis.stability import dispersion
+
+    d = dispersion(params, inertia=inertia, n_cells=cells)
+    return tuple((k, d.get(k)) for k in DISPERSION_KEYS) + (("inertia", inertia),)
+
+
 def summarize(scene: Scene, res: RunResult) -> dict:
     """summary.json content: run figures, observables of the trajectories, dispersion of the scene's params."""
     from .analysis.observables import observables
@@ -49,10 +62,8 @@ def summarize(scene: Scene, res: RunResult) -> dict:
     obs = observables(res.t, res.alpha, res.beta)
     inertia = scene.options.inertia and scene.model != "continuum"
     try:
-        from .analysis.stability import dispersion
-
-        disp = dispersion(scene.params, inertia=inertia, n_cells=scene.cells)
-        disp = {k: disp.get(k) for k in DISPERSION_KEYS} | {"inertia": inertia}
+        # copies: the cached values (lists among them) must not be shared between summaries
+        disp = {k: copy.deepcopy(v) for k, v in _dispersion_summary(scene.params, inertia, scene.cells)}
     except ImportError:
         disp = None
     out = {

@@ -37,8 +37,10 @@ def git_describe() -> str:
     return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else "unknown"
 
 
+@lru_cache(maxsize=1)
 def firmware_build() -> str:
-    """Hash of the firmware + emulator C sources (the build key); "unknown" if the sources are not present."""
+    """Hash of the firmware + emulator C sources (the build key, once per process: the library a process loads
+    does not change under it); "unknown" if the sources are not present."""
     try:
         from . import firmware
 

@@ -124,7 +124,13 @@ def spatial_period(profile: np.ndarray, *, tol_rad: float = DEFAULT_TOL_RAD, n_g
         return 1.0 - (r @ r) / (u @ u)
 
     ks = np.linspace(math.pi / n, math.pi, n_grid)
-    ev = np.array([explained(k) for k in ks])
+    # explained() at every grid k in one batched least-squares solve: B_k = [cos kx, sin kx, 1] (n_grid, n, 3),
+    # coef = pinv(B_k) u (rank-deficient at k = pi, where cos kx = 0, as lstsq allows), same cutoff as lstsq's
+    kx = ks[:, None] * x[None, :]
+    basis_all = np.stack([np.cos(kx), np.sin(kx), np.ones_like(kx)], axis=-1)
+    coef_all = np.linalg.pinv(basis_all, rcond=np.finfo(float).eps * max(n, 3)) @ u
+    resid = u[None, :] - np.einsum("mnj,mj->mn", basis_all, coef_all)
+    ev = 1.0 - np.einsum("mn,mn->m", resid, resid) / (u @ u)
     i = int(np.argmax(ev))
     k = ks[i]
     if 0 < i < ks.size - 1:
