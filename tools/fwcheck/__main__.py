@@ -7,6 +7,7 @@ ticks          instructions per mc_cell_tick under QEMU (median/max per class)
 profile [-v]   where the instructions of one enabled tick go (per function; -v: trace)
 golden-header  regenerate test/test_native_vectors/golden_vectors.h from the host build
 lint --elf F   soft-float/division helpers reachable from the control path of a linked image
+cpu-budget     worst-case cycles of the cell's interrupts (tick, encoder edges) in its linked image
 """
 
 from __future__ import annotations
@@ -130,6 +131,32 @@ def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
     return 0 if rep.ok else 1
 
 
+def _cpu_budget(elf: str | None, limit: float) -> int:
+    from pathlib import Path
+
+    from . import cpubudget
+
+    path = Path(elf) if elf else cpubudget.DEFAULT_ELF
+    if not path.is_file():
+        print(
+            f"fwcheck cpu-budget: no linked image at {path} (build it with `pio run -e cell`, or pass --elf)",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        image = cpubudget.parse_disassembly(cpubudget.disassemble(path))
+        b = cpubudget.cell_budget(image)
+        core = cpubudget.cell_budget(image, cpubudget.CORE_ONLY)
+    except (cpubudget.AnalysisError, cpubudget.UnsupportedInsn) as e:
+        print(f"fwcheck cpu-budget: {e}", file=sys.stderr)
+        return 2
+    print(cpubudget.format_budget(b, str(path)))
+    print(f"  (core timings only, zero-wait memory: total {core.total:.1%})")
+    ok = b.total <= limit
+    print(f"  limit {limit:.0%}: " + ("within" if ok else "OVER"))
+    return 0 if ok else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m tools.fwcheck",
@@ -139,19 +166,26 @@ def main(argv: list[str] | None = None) -> int:
         "  python -m tools.fwcheck report                     # every check, as in the README table\n"
         "  python -m tools.fwcheck ticks --cflags -O2         # instructions per tick at another optimisation\n"
         "  python -m tools.fwcheck profile -v\n"
-        "  python -m tools.fwcheck lint --elf .pio/build/cell/firmware.elf --role cell",
+        "  python -m tools.fwcheck lint --elf .pio/build/cell/firmware.elf --role cell\n"
+        "  python -m tools.fwcheck cpu-budget --elf .pio/build/cell/firmware.elf",
     )
     ap.add_argument(
         "command",
         nargs="?",
         default="report",
-        choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile"],
+        choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile", "cpu-budget"],
         help="what to check (default report; each is described above)",
     )
     ap.add_argument("--lib-src", help="ticks/profile/size: measure a variant copy of lib/metacell/src")
     ap.add_argument("--cflags", help="ticks/profile/size: optimisation flags instead of -Os")
     ap.add_argument("-v", "--verbose", action="store_true", help="profile: print the trace")
-    ap.add_argument("--elf", help="lint: linked image to check")
+    ap.add_argument("--elf", help="lint: linked image to check; cpu-budget: cell image (default .pio/build/cell)")
+    ap.add_argument(
+        "--limit",
+        type=float,
+        default=None,
+        help="cpu-budget: largest allowed fraction of the 48 MHz CPU for the interrupts (default 0.5)",
+    )
     ap.add_argument("--root", action="append", help="lint: extra control-path entry point")
     ap.add_argument(
         "--role",
@@ -176,6 +210,10 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if a.command == "lint":
             return _lint(a.elf, a.root or [], a.role)
+        if a.command == "cpu-budget":
+            from .cpubudget import BUDGET_LIMIT
+
+            return _cpu_budget(a.elf, BUDGET_LIMIT if a.limit is None else a.limit)
         objs, bench_elf = _variant(a.lib_src, a.cflags)
         if a.command == "profile":
             _profile(bench_elf, a.verbose)

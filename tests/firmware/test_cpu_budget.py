@@ -1,0 +1,162 @@
+"""CPU budget of the cell's interrupts: the static analyser on hand-written disassembly, then on the real image."""
+
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from tests.firmware.test_pio_build import build_log  # noqa: F401  (the shared, locked real build)
+from tools.fwcheck import armbuild, cpubudget
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# A leaf, and a caller with an APB store and a counted loop around a call. Hand costs under the default model
+# (core + 1 fetch wait each; +1 refill per flow change; +1 literal; +3 APB) are in the right-hand comments.
+SNIPPET = """
+00000100 <leaf>:
+     100:\tmovs\tr0, #1
+     102:\tbx\tlr
+
+00000104 <f>:
+     104:\tpush\t{r4, lr}
+     106:\tmovs\tr4, #0
+     108:\tldr\tr3, [pc, #20]\t@ (120 <f+0x1c>)
+     10a:\tstrb\tr4, [r3, #14]
+     10c:\tadds\tr4, #1
+     10e:\tcmp\tr4, #3
+     110:\tbeq.n\t11a <f+0x16>
+     112:\tbl\t100 <leaf>
+     116:\tstr\tr0, [sp, #4]
+     118:\tb.n\t10c <f+0x8>
+     11a:\tpop\t{r4, pc}
+     11c:\tnop\t\t\t@ (mov r8, r8)
+     11e:\tnop\t\t\t@ (mov r8, r8)
+     120:\t.word\t0x42002c00
+
+00000124 <diamond>:
+     124:\tcmp\tr0, #0
+     126:\tbeq.n\t130 <diamond+0xc>
+     128:\tmovs\tr1, #1
+     12a:\tmovs\tr2, #2
+     12c:\tmovs\tr3, #3
+     12e:\tbx\tlr
+     130:\tstr\tr1, [r0, #0]
+     132:\tstr\tr1, [r0, #4]
+     134:\tbx\tlr
+
+00000138 <spin>:
+     138:\tldr\tr3, [r0, #0]
+     13a:\tcmp\tr3, #0
+     13c:\tbne.n\t138 <spin>
+     13e:\tbx\tlr
+
+00000140 <via_pointer>:
+     140:\tpush\t{r4, lr}
+     142:\tblx\tr3
+     144:\tpop\t{r4, pc}
+"""
+LEAF = 2 + 4  # movs 1+1; bx lr 2+1+1
+ENTRY = 4 + 2 + 4 + 6  # push {r4, lr} 1+2+1; movs 2; ldr literal 2+1+1; strb to 0x42002c0e 2+1+3
+PASS = 2 + 2 + 2 + (5 + LEAF) + 3 + 4  # adds, cmp, beq not taken, bl 3+1+1 + leaf, str to the stack 2+1, b 2+1+1
+EXIT = 2 + 2 + 4 + 7  # adds, cmp, beq taken 2+1+1, pop {r4, pc} 3+2+1+1
+
+
+def image():
+    return cpubudget.parse_disassembly(SNIPPET)
+
+
+@given(st.integers(min_value=0, max_value=60))
+def test_loop_is_charged_bound_worst_passes_plus_the_way_out(bound):
+    a = cpubudget.Analyser(image(), loop_bounds={"f": bound})
+    got = a.worst("f")
+    assert got.cycles == ENTRY + bound * PASS + EXIT
+    assert got.insns == 4 + (6 + 2) * bound + 4  # the pass runs the leaf's two
+
+
+def test_leaf_and_literal_words_are_parsed():
+    img = image()
+    assert img.words == {0x120: 0x42002C00}
+    assert [i.mnem for i in img.functions["f"].insns][-3:] == ["pop", "nop", "nop"]
+    assert cpubudget.Analyser(img).worst("leaf") == cpubudget.Cost(LEAF, 2)
+
+
+def test_the_metric_decides_which_arm_is_worst():
+    """Three register moves (more instructions) against two stores through an unproven pointer (more cycles)."""
+    img = image()
+    head = 2 + 2  # cmp; beq not taken
+    by_cycles = cpubudget.Analyser(img).worst("diamond")
+    by_insns = cpubudget.Analyser(img, metric="insns").worst("diamond")
+    assert by_cycles == cpubudget.Cost(2 + 4 + 6 + 6 + 4, 5)  # cmp, beq taken 2+1+1, two APB-charged str, bx lr
+    assert by_insns == cpubudget.Cost(head + 3 * 2 + 4, 6)
+
+
+def test_a_loop_without_a_stated_bound_is_an_error():
+    with pytest.raises(cpubudget.AnalysisError, match="spin: loop"):
+        cpubudget.Analyser(image()).worst("spin")
+    assert cpubudget.Analyser(image(), loop_bounds={"spin": 0}).worst("spin").insns == 4
+
+
+def test_an_unresolved_indirect_call_is_an_error_and_a_resolved_one_charges_its_worst_target():
+    with pytest.raises(cpubudget.AnalysisError, match="indirect call"):
+        cpubudget.Analyser(image()).worst("via_pointer")
+    a = cpubudget.Analyser(image(), indirect={"via_pointer": ("leaf", "diamond")})
+    own = 4 + (2 + 1 + 1) + 7  # push, blx 2+1+1, pop {r4, pc}
+    assert a.worst("via_pointer").cycles == own + max(a.worst("leaf").cycles, a.worst("diamond").cycles)
+
+
+def test_the_edge_rate_is_the_no_load_speed_times_the_counts():
+    rev_s = 49.8 * 5.86 / (2 * math.pi)
+    assert rev_s == pytest.approx(46.4, abs=0.05)
+    assert cpubudget.max_edge_rate_hz() == pytest.approx(2 * 400 * rev_s)
+    assert 37_000 < cpubudget.max_edge_rate_hz() < 37_300
+
+
+# ---------------------------------------------------------------------------- the real image
+
+ELF = ROOT / ".pio" / "build" / "cell" / "firmware.elf"
+
+
+def test_real_cell_image_interrupts_stay_within_the_budget(build_log):  # noqa: F811
+    img = cpubudget.parse_disassembly(cpubudget.disassemble(ELF))
+    b = cpubudget.cell_budget(img)
+    tick, edge = b.isrs
+    # cycles can never be fewer than instructions plus the exception entry and exit
+    for isr in b.isrs:
+        assert isr.cycles >= isr.insns + b.model.exc_entry + b.model.exc_exit
+    assert tick.rate_hz == 2000 and edge.rate_hz == cpubudget.max_edge_rate_hz()
+    assert b.total == pytest.approx(sum(i.cycles * i.rate_hz for i in b.isrs) / 48e6)
+    assert b.total < cpubudget.BUDGET_LIMIT, cpubudget.format_budget(b, str(ELF))
+    r = subprocess.run(
+        [sys.executable, "-m", "tools.fwcheck", "cpu-budget", "--elf", str(ELF)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "limit 50%: within" in r.stdout
+
+
+@pytest.mark.skipif(
+    shutil.which(armbuild.CC) is None or shutil.which("qemu-system-arm") is None,
+    reason="arm-none-eabi-gcc / qemu-system-arm missing (tools/setup.sh installs them)",
+)
+def test_static_worst_instructions_bound_every_tick_counted_under_qemu():
+    """Cross-check without PlatformIO: on the QEMU bench image, the longest path by instructions is at least
+    the most instructions any traced mc_cell_tick / mc_quad_update / mc_quad_snapshot executed."""
+    from tools.fwcheck import qemu
+
+    elf = qemu.build_image("bench")
+    s = qemu.tick_stats(elf)
+    a = cpubudget.Analyser(
+        cpubudget.parse_disassembly(cpubudget.disassemble(elf)),
+        loop_bounds=cpubudget.CELL_LOOP_BOUNDS,
+        metric="insns",
+    )
+    assert a.worst("mc_cell_tick").insns >= max(s.ticks)
+    assert a.worst("mc_quad_update").insns >= max(s.quad_update)
+    assert a.worst("mc_quad_snapshot").insns >= max(s.snapshot)
