@@ -275,6 +275,13 @@ def _save(fig, path):
         sys.modules["matplotlib.pyplot"].close(fig)
 
 
+def chunk_size(points: int, workers: int) -> int:
+    """Points per Dask task: whole rounds of tasks (a multiple of the worker count, >= 4 per worker, <= ~32 points
+    each), so no worker is left running an odd last chunk alone (400 points on 2 workers: 14 tasks of <= 29)."""
+    rounds = max(4, math.ceil(points / (workers * 32)))
+    return max(1, math.ceil(points / (workers * rounds)))
+
+
 def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
     import logging
 
@@ -297,7 +304,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         client = Client(cluster)
     try:
         nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
-        size = int(chunk) if chunk else max(1, min(32, math.ceil(len(todo) / (4 * nw))))
+        size = int(chunk) if chunk else chunk_size(len(todo), nw)
         chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
         tag = f"{os.getpid()}-{time.time_ns()}"
         futs = {

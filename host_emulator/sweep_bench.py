@@ -42,7 +42,9 @@ def _noop() -> None:
 
 
 def _chunks(specs: list[dict], workers: int) -> list[list[dict]]:
-    size = max(1, min(32, math.ceil(len(specs) / (4 * workers))))  # as host_emulator.sweep chunks them
+    from .sweep import chunk_size
+
+    size = chunk_size(len(specs), workers)  # as host_emulator.sweep chunks them
     return [specs[i : i + size] for i in range(0, len(specs), size)]
 
 

@@ -1,17 +1,32 @@
 """The sweep benchmark runs end to end on a tiny problem and reports what it measured (no timing asserted)."""
 
 import json
+import math
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from host_emulator import sweep_bench
+from host_emulator.sweep import chunk_size
 
 
 def test_chunks_follow_the_sweep_rule():
     specs = list(range(400))
     ch = sweep_bench._chunks(specs, 2)
-    assert [len(c) for c in ch] == [32] * 12 + [16] and sum(ch, []) == specs
+    # 14 tasks: 7 rounds of 2, so neither worker runs a last chunk alone (13 tasks of 32 used to split 7/6)
+    assert [len(c) for c in ch] == [29] * 13 + [23] and sum(ch, []) == specs
     assert [len(c) for c in sweep_bench._chunks(list(range(10)), 2)] == [2] * 5  # ceil(10 / 8) = 2
+
+
+@given(st.integers(1, 5000), st.integers(1, 8))
+def test_chunk_size_bounds(points, workers):
+    size = chunk_size(points, workers)
+    tasks = math.ceil(points / size)
+    assert 1 <= size <= 32
+    assert size <= math.ceil(points / (4 * workers))  # a task is at most a quarter of a worker's even share
+    # the busiest worker does at most one chunk more than an even share
+    assert math.ceil(tasks / workers) * size <= points / workers + size
 
 
 @pytest.mark.slow
