@@ -26,6 +26,9 @@ import os
 import statistics
 import tempfile
 import time
+from typing import TypeVar
+
+_T = TypeVar("_T")
 
 
 def _specs(points: int, t_end: float) -> list[dict]:
@@ -41,7 +44,7 @@ def _noop() -> None:
     return None
 
 
-def _chunks(specs: list[dict], workers: int) -> list[list[dict]]:
+def _chunks(specs: list[_T], workers: int) -> list[list[_T]]:
     size = max(1, min(32, math.ceil(len(specs) / (4 * workers))))  # as host_emulator.sweep chunks them
     return [specs[i : i + size] for i in range(0, len(specs), size)]
 
