@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from .controller import RunResult
     from .params import Params
     from .scene import Scene
+    from .trackers import PlotTracker, Tracker
 
 
 def _clean(v):
@@ -141,13 +142,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _live_trackers(args, scene, out: Path) -> tuple[list, object]:
+def _live_trackers(args, scene, out: Path) -> tuple[list[Tracker], PlotTracker | None]:
     """Trackers for --print-every and --live; the PlotTracker (or None). On a non-interactive matplotlib
     backend the live figure goes to --live-png (default OUT/live.png), said once on stderr."""
     from .trackers import LiveTracker, PlotTracker
 
-    live: list = [LiveTracker(args.print_every)] if args.print_every else []
-    plot = None
+    live: list[Tracker] = [LiveTracker(args.print_every)] if args.print_every else []
+    plot: PlotTracker | None = None
     if args.live is not None:
         plot = PlotTracker(args.live, args.live_window, png=args.live_png, title=scene.name)
         plot.setup(scene.cells, scene.t_end_s)  # opens the window before the run starts

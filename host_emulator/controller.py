@@ -114,7 +114,7 @@ def build_solver(scene, *, resolve: bool = True, options=None, perturbations=Non
     return model.solver() if x0 is None else model.solver(x0=x0)
 
 
-def run_scene(scene, *, progress: bool = True, trackers: list[Tracker] = ()) -> RunResult:
+def run_scene(scene, *, progress: bool = True, trackers: Sequence[Tracker] = ()) -> RunResult:
     """Build the scene's model, run it and return the recorded trajectories."""
     solver = build_solver(scene)
     extra = list(trackers)

@@ -26,6 +26,9 @@ import os
 import statistics
 import tempfile
 import time
+from typing import TypeVar
+
+_T = TypeVar("_T")
 
 
 def _specs(points: int, t_end: float) -> list[dict]:
@@ -41,7 +44,7 @@ def _noop() -> None:
     return None
 
 
-def _chunks(specs: list[dict], workers: int) -> list[list[dict]]:
+def _chunks(specs: list[_T], workers: int) -> list[list[_T]]:
     from .sweep import chunk_size
 
     size = chunk_size(len(specs), workers)  # as host_emulator.sweep chunks them

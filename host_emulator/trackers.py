@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 if TYPE_CHECKING:
+    from matplotlib.image import AxesImage
+
     from .models import Solver
 
 
@@ -150,10 +152,10 @@ class PlotTracker(Tracker):
         self.title = title
         self.max_rows = int(max_rows)
         self.draws = 0
-        self.image = None
+        self.image: AxesImage | None = None  # the space-time map, made by setup()
 
     # ---- set-up ----------------------------------------------------------------------------------------------
-    def start(self, solver, t_end_s, n_samples):
+    def start(self, solver: Solver, t_end_s: float, n_samples: int) -> None:
         self.setup(solver.model.n, t_end_s)
 
     def setup(self, n_cells: int, t_end_s: float | None = None) -> None:
@@ -236,12 +238,15 @@ class PlotTracker(Tracker):
         t, a, b = self.window()
         if len(t) == 0:
             return
+        image = self.image
+        if image is None:
+            raise RuntimeError("PlotTracker: setup() (or start()) before update()")
         self._next = float(t[-1]) + self.interval_s
-        self.image.set_data(a)
+        image.set_data(a)
         lo, hi = float(t[0]), float(t[-1])
-        self.image.set_extent((0.5, self.n + 0.5, lo, hi if hi > lo else lo + 1e-6))
+        image.set_extent((0.5, self.n + 0.5, lo, hi if hi > lo else lo + 1e-6))
         lim = float(np.abs(a).max()) or 1e-3
-        self.image.set_clim(-lim, lim)
+        image.set_clim(-lim, lim)
         self.line_a.set_ydata(a[-1])
         self.line_b.set_ydata(b[-1])
         plim = max(float(np.abs(a[-1]).max()), float(np.abs(b[-1]).max())) or 1e-3

@@ -11,6 +11,39 @@ All multi-byte fields are little-endian. Types: u8 i8 u16 i16 u32 i32.
 """
 
 import math as _math
+from typing import NotRequired, TypedDict
+
+
+# Shapes of the tables below (for the type checker; the tables stay plain dict and tuple literals).
+class Block(TypedDict):
+    id: int
+    doc: str
+    fields: list[tuple[str, str, str]]  # (name, type, description)
+
+
+class Unit(TypedDict):
+    si: str
+    micro: NotRequired[int]
+    lsb: NotRequired[float]
+    text: NotRequired[str]
+
+
+class Register(TypedDict):
+    id: int
+    payload: list[tuple[str, str, str | None]]  # (name, type, unit key of UNITS or None)
+    range: NotRequired[dict[str, tuple[int, int]]]
+    doc: str
+
+
+class Frame(TypedDict):
+    base: int
+    per_cell: bool
+    sender: str
+    dlc: int | None
+    doc: str
+    signals: NotRequired[list[tuple[str, str, float, float, str, str]]]  # (name, type, scale, offset, unit, text)
+    multiplexed: NotRequired[bool]
+
 
 PROTO_VERSION = 1
 
@@ -38,7 +71,7 @@ CRC8_INIT = 0x00
 #
 # Read blocks. Byte 0 of every block is its tag = (PROTO_VERSION << 4) | block id,
 # byte 1 the cell address; the last byte is CRC-8 of all bytes before it.
-BLOCKS = {
+BLOCKS: dict[str, Block] = {
     "SNAPSHOT": {
         "id": 0,
         "doc": "one consistent sample taken at a single control tick",
@@ -135,7 +168,7 @@ LIMITS = {
 
 # unit -> {"si": SI unit, and either "micro": LSB in millionths of the SI unit (the codec computes
 # round(x * 1e6 / micro), exact for micro = 1) or "lsb": SI value of one LSB; "text": how docs name it}.
-UNITS = {
+UNITS: dict[str, Unit] = {
     "uN*m/rad": {"si": "N*m/rad", "micro": 1},
     "urad": {"si": "rad", "micro": 1},
     "uN*m": {"si": "N*m", "micro": 1},
@@ -152,7 +185,7 @@ UNITS = {
 # checks the same LIMITS and rejects anything else (RESULT RANGE/SHAPE/CONFIG).
 _K = LIMITS["K_MAX_UNM"]
 _T = LIMITS["PERTURB_MAX_UNM"] // TORQUE_WIRE_UNM  # largest |torque| on the wire the cell accepts
-REGISTERS = {
+REGISTERS: dict[str, Register] = {
     "POINTER": {
         "id": 0x01,
         "payload": [("block", "u8", None)],
@@ -219,7 +252,7 @@ RESULTS = {
 # CAN frames on the SLCAN link (11-bit ids). "{j}" frames exist per cell j=1..16
 # at base + j. Signals: (name, type, scale, offset, unit, comment).
 # Signals are packed little-endian in order, starting at byte 0.
-FRAMES = {
+FRAMES: dict[str, Frame] = {
     "CELL_SAMPLE": {
         "base": 0x100,
         "per_cell": True,
@@ -356,7 +389,7 @@ TYPE_SIZES = {"u8": 1, "i8": 1, "u16": 2, "i16": 2, "u32": 4, "i32": 4, "b7": 7}
 # code that wants the raw wire integers decodes with scaling=False, decode_choices=False. Every register field and
 # frame signal whose unit is in UNITS is shown in its SI unit; DBC_PHYSICAL overrides single signals
 # ((frame, signal) -> (scale, offset, unit); "CMD" signals are named <REGISTER>_<field>).
-DBC_PHYSICAL = {}
+DBC_PHYSICAL: dict[tuple[str, str], tuple[float, float, str]] = {}
 
 # (frame, signal) -> {raw value: name}: value tables of the enumerations. CELL_SAMPLE.flags is a bit field:
 # its table names the single-bit values (a combination decodes as its number).

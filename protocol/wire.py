@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import struct
+from collections.abc import Iterable
 from pathlib import Path
 
 from . import definition as D
@@ -156,9 +157,9 @@ def database():
     return cantools.database.load_file(str(DBC_PATH))
 
 
-def reassemble_blocks(chunks) -> dict:
+def reassemble_blocks(chunks: Iterable[bytes]) -> dict:
     """{block name: decoded dict} from BLOCK_DATA payloads of one cell (CRC checked here too)."""
-    parts = {}
+    parts: dict[int, dict[int, bytes]] = {}
     for d in chunks:
         parts.setdefault(d[0] >> 4, {})[d[0] & 15] = bytes(d[1:8])
     names = {b["id"]: k for k, b in BLOCKS.items()}

@@ -104,7 +104,8 @@ def pypde_problem(scene: Scene, m: int) -> tuple[Any, Any]:  # (pde.PDE, pde.Fie
     p = scene.params
     ea, eb = p.eta_alpha, p.eta_beta
     ra, rb = pypde_reaction(p)  # the reaction law as py-pde expressions, built by physics.py
-    fa, fb = [], []
+    fa: list[str] = []
+    fb: list[str] = []
     for q in scene.perturbations:
         # torque density T over the cell [cell-1, cell], on for start <= t < end (sign(0) = 0: half at the edge)
         w = (

@@ -114,12 +114,15 @@ def _x0(question, n):
 def run_one(scene: Scene, question: str) -> tuple[dict | None, float, str]:
     from ..analysis.observables import observables
     from ..controller import build_solver, run_solver
+    from ..models.hil import HilSolver
 
     def go():
         perts = scene.perturbations if question == "pattern" else []
         x0 = None if scene.model == "hil" else _x0(question, scene.cells)
         s = build_solver(scene, resolve=False, perturbations=perts, x0=x0)
         if question != "pattern" and scene.model == "hil":
+            if not isinstance(s, HilSolver):
+                raise TypeError(f"model hil built a {type(s).__name__}")
             # the same tilt after the encoders' zero (the firmware sees it as a real deflection)
             s.x[: scene.cells] = TILT_RAD
         return run_solver(s, scene.t_end_s)

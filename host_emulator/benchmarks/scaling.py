@@ -25,20 +25,24 @@ def _scene(model, cells, t_end_s, dt_out=0.01):
 def kernel_time(model_name: str, cells: int, t_end_s: float) -> float:
     """Wall time of the compiled loop alone over t_end_s (one C call), best of 3."""
     from ..controller import build_solver
+    from ..models.hil import HilSolver
+    from ..models.lattice import LatticeSolver
 
     sc = _scene(model_name, cells, t_end_s)
 
-    def go():
+    def go() -> float:
         s = build_solver(sc, resolve=False)
-        m = s.model
+        if not isinstance(s, (LatticeSolver, HilSolver)):
+            raise TypeError(f"{model_name}: no compiled loop to time in {type(s).__name__}")
+        lib = s.model.lib
         t0 = clock()
-        if model_name == "lattice":
+        if isinstance(s, LatticeSolver):  # s.h: the plant step (s)
             n = int(round(t_end_s / s.h))
-            rc = m.lib.he_advance(m.plant, s.sid, s.h, n, s._pt, s._px, s._pv)
-        else:
-            n = int(round(t_end_s * m.rate_hz))
-            rc = m.lib.he_hil_run(s.h, n, s._pt, s._px, s._pv)
-        if rc != m.lib.HE_OK:
+            rc = lib.he_advance(s.model.plant, s.sid, s.h, n, s._pt, s._px, s._pv)
+        else:  # s.h: the he_hil_t of the loop
+            n = int(round(t_end_s * s.model.rate_hz))
+            rc = lib.he_hil_run(s.h, n, s._pt, s._px, s._pv)
+        if rc != lib.HE_OK:
             raise RuntimeError(f"{model_name} {cells} cells: rc {rc}")
         return clock() - t0
 

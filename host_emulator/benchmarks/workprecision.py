@@ -22,6 +22,8 @@ import numpy as np
 from .common import WPPoint, best_time, fmt, max_err, table, wall_at
 
 if TYPE_CHECKING:
+    from ..models.hil import HilSolver
+    from ..models.lattice import LatticeSolver
     from ..scene import Scene
 
 LATTICE_STEPPERS = ("euler", "symplectic_euler", "imex_euler", "noh_bathe", "rk4")
@@ -45,7 +47,7 @@ def output_times(t_end_s: float, dt_out: float) -> np.ndarray:
     return np.arange(n + 1) * dt_out
 
 
-def _sampled_states(solver, t_end_s, n):
+def _sampled_states(solver: LatticeSolver | HilSolver, t_end_s: float, n: int) -> np.ndarray:
     """States (T, 2n) of a compiled solver at t = 0, dt_out, ..., t_end."""
     n_out = int(round(t_end_s / solver.dt_out))
     out = np.empty((n_out + 1, 2 * n))
@@ -59,8 +61,11 @@ def _sampled_states(solver, t_end_s, n):
 def run_ours(scene: Scene, stepper: str, dt: float) -> tuple[np.ndarray, float]:
     """Trajectory (T, 2n) of the compiled lattice at the output times, stepper and largest step dt."""
     from ..controller import build_solver
+    from ..models.lattice import LatticeSolver
 
     s = build_solver(scene, resolve=False, options=replace(scene.options, stepper=stepper, dt=dt))
+    if not isinstance(s, LatticeSolver):
+        raise TypeError(f"scene {scene.name!r} (model {scene.model!r}) is not a lattice scene")
     return _sampled_states(s, scene.t_end_s, s.model.n), s.h
 
 
@@ -205,11 +210,14 @@ def points_table(points: list[WPPoint]) -> str:
 HIL_STEPPERS = ("symplectic_euler", "imex_euler", "noh_bathe", "rk4")
 
 
-def run_hil(scene, stepper, substeps):
+def run_hil(scene: Scene, stepper: str, substeps: int) -> np.ndarray:
     from ..controller import build_solver
+    from ..models.hil import HilSolver
 
     opts = replace(scene.options, stepper=stepper, substeps=substeps, dt=None)
     s = build_solver(scene, resolve=False, options=opts)
+    if not isinstance(s, HilSolver):
+        raise TypeError(f"scene {scene.name!r} (model {scene.model!r}) is not a hil scene")
     return _sampled_states(s, scene.t_end_s, s.model.n)
 
 

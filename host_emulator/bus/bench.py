@@ -32,7 +32,7 @@ def measure(hz: int, seconds: float, **faults: Any) -> tuple[float, float, Emula
         rig.advance_to(t)
         for fid, _ in rig.frames():
             kind, j = wire.frame_kind(fid)
-            if kind == "CELL_SAMPLE":
+            if kind == "CELL_SAMPLE" and j is not None:  # a per-cell frame always has its cell
                 per_cell[j] += 1
     return ((rig.p.cycles - c0) / seconds, time.perf_counter() - t0, rig, {j: c / seconds for j, c in per_cell.items()})
 

@@ -294,9 +294,13 @@ def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overri
     """EmulatedRig over the hil model of a scene (the scene must use model = "hil"), built as a run builds it
     (controller.build_solver: the scene's accuracy preset applies)."""
     from ..controller import build_solver
+    from ..models.hil import HilSolver
     from ..scene import load_scene
 
     sc = load_scene(scene_name, overrides)
     if sc.model != "hil":
         raise ValueError(f'scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = "hil"')
-    return EmulatedRig(build_solver(sc), opts), sc
+    solver = build_solver(sc)
+    if not isinstance(solver, HilSolver):
+        raise TypeError(f"model hil built a {type(solver).__name__}")
+    return EmulatedRig(solver, opts), sc

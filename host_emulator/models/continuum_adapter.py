@@ -33,6 +33,8 @@ class ContinuumModel:
 class ContinuumSolver(Solver):
     """Batch solver: the whole run happens in one call (scipy BDF inside simulate_continuum)."""
 
+    model: ContinuumModel
+
     whole_run = True
 
     def __init__(self, model: ContinuumModel):

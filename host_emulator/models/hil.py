@@ -95,6 +95,8 @@ class HilModel(LatticeModel):
 class HilSolver(Solver):
     """Runs whole control ticks in C (he_hil_run); Python only applies firmware perturbation commands."""
 
+    model: HilModel
+
     def __init__(self, model: HilModel, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> None:
         from .steppers import stepper_id
 

@@ -66,6 +66,8 @@ class LatticeModel:
 class LatticeSolver(Solver):
     """Advances a LatticeModel one output interval at a time with the chosen compiled stepper."""
 
+    model: LatticeModel
+
     def __init__(self, model: LatticeModel, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> None:
         self.model = model
         opt = model.options

@@ -2,7 +2,17 @@
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
+
+
+class Model(Protocol):
+    """What the controller, the trackers and the benchmarks read of any solver's model (each solver class narrows
+    ``model`` to its own model class)."""
+
+    name: str
+    n: int  # cells
 
 
 class Solver:
@@ -17,7 +27,7 @@ class Solver:
     """
 
     whole_run = False
-    model = None
+    model: Model  # set by every solver's __init__
     dt_out: float = 0.0
     t: float = 0.0
 

@@ -112,7 +112,7 @@ class Experiment:
         self.commands: list[dict] = []  # every command: {phase, reg, label, results}
         self.failures: list[dict] = []  # {phase, reg, label, cell, result} of every non-OK answer
         self.repeats: list[Repeat] = []
-        self.safe = None  # result of the final ENABLE off
+        self.safe: list[int] | None = None  # result of the final ENABLE off
         self.identity: dict = {}  # {cell: IDENT block fields, or {"error": ...}} read before the first repeat
         self.live = live  # tools.experiment.live.RigLive or None: live plot fed from the logged frames
         self.t_session = time.time()
@@ -406,9 +406,9 @@ class Experiment:
             )
             self.pump(time.time() + min(0.05, max(0.005, nxt - now)))
             self._live("poll", rep.decoder, rep.t0)
-        rep.t_stop = self.clock(rep.decoder)
+        rep.t_stop = t_stop = rep.decoder.t_s  # = self.clock(rep.decoder): the decoder has a time base since t0
         self._live("finish", rep.decoder, rep.t0)
-        self.report(f"{phase}: stopped ({rep.stopped}) at t = {rep.t_stop - rep.t0:.2f} s")
+        self.report(f"{phase}: stopped ({rep.stopped}) at t = {t_stop - t0:.2f} s")
         left = self.disable_all(phase)
         driving = [j for j in left if j in rep.enabled_cells]
         if driving:  # we switched these on and cannot switch them off: stop everything

@@ -17,7 +17,7 @@ import argparse
 import math
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 
 import can
 
@@ -88,11 +88,11 @@ class RigClient:
             out[j] = "NO_ANSWER"
         return out
 
-    def info(self, cells, blocks=("IDENT", "PARAMS")) -> dict:
+    def info(self, cells: Sequence[int], blocks: Iterable[str] = ("IDENT", "PARAMS")) -> dict:
         """{cell: {"IDENT": {...}, "PARAMS": {...}, "results": [...]}} read back through the primary (POINTER
         commands), one entry per block in `blocks` that arrived whole (CRC checked)."""
         self.chunks = {}
-        res = {}
+        res: dict[int, list[str]] = {}
         for name in blocks:
             for j, r in self.command(cells, "POINTER", block=proto.D.BLOCKS[name]["id"]).items():
                 res.setdefault(j, []).append(r)

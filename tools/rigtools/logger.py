@@ -98,7 +98,7 @@ class SampleDecoder:
         self.per: float | None = None  # cycle period (128 us units), measured
         self.tx_drop = 0
         self.usb_lost = 0  # bytes the primary's USB port did not take (PRIMARY_HEALTH, cumulative)
-        self.primary_reset_cause = None  # PRIMARY_HEALTH.reset_cause, names
+        self.primary_reset_cause: list[str] | None = None  # PRIMARY_HEALTH.reset_cause, names
         self._reset()
 
     def _reset(self):
