@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 
 # Python code the linters hold to the style and typing rules (config in pyproject.toml)
-LINT_PATHS := host_emulator protocol tools tests
+LINT_PATHS := host_emulator protocol metacell_tools tests
 
 .PHONY: setup demo lint test bench clean proto
 
@@ -27,13 +27,13 @@ bench: setup
 	$(PY) -m host_emulator bench
 	$(PY) -m host_emulator.batch --points 1000 --workers 1 2
 	$(PY) -m host_emulator.bus.bench
-	$(PY) -m tools.fwcheck report
+	$(PY) -m metacell_tools.fwcheck report
 
 # After editing protocol/definition.py: regenerate the C headers, DBC and tables, and (a unit or limit changes the
 # library's behaviour) the native golden vectors. The test suite fails while either is stale.
 proto: setup
 	$(PY) -m protocol.generate
-	$(PY) -m tools.fwcheck golden-header
+	$(PY) -m metacell_tools.fwcheck golden-header
 
 clean:
 	rm -rf build out .pio

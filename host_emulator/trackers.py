@@ -127,7 +127,8 @@ class PlotTracker(Tracker):
     headless machine) no window can appear, so give `png=` to have the figure written there at every redraw.
 
     Used by the emulator (`python -m host_emulator run SCENE --live`, through the controller) and by the rig
-    (`python -m tools.experiment run ... --live`, fed with `setup()` and `sample_many()` from the logged frames).
+    (`python -m metacell_tools.experiment run ... --live`, fed with `setup()` and `sample_many()` from the logged
+    frames).
     After a draw, `image.get_array()` is the alpha window drawn (rows: time, oldest first; columns: cells) and
     `window()` returns the (t, alpha, beta) it came from."""
 

@@ -4,7 +4,7 @@ Outputs: lib/metacell/src/bus/mc_proto.h, lib/metacell/src/mc_units.h, protocol/
 
 Usage:  python -m protocol.generate          # rewrite every generated file
         python -m protocol.generate --check  # exit 1 if any generated file is stale
-(`make proto` runs the first, then `python -m tools.fwcheck golden-header`: a changed unit or limit changes the
+(`make proto` runs the first, then `python -m metacell_tools.fwcheck golden-header`: a changed unit or limit changes the
 library's behaviour, which the native golden vectors record; tests/firmware/test_bus_proto.py runs the check.)
 """
 

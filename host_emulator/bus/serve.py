@@ -56,7 +56,7 @@ def parser() -> argparse.ArgumentParser:
         epilog="examples:\n"
         "  python -m host_emulator serve default --slcan              # prints 'slcan pty: /dev/pts/N'\n"
         "  python -m host_emulator serve exp1_ccw_ccw --slcan --link /tmp/rig --absent 3,7\n"
-        "  python -m tools.rigtools.logger -c /dev/pts/N@115200 --out out/log   # in another shell",
+        "  python -m metacell_tools.rigtools.logger -c /dev/pts/N@115200 --out out/log   # in another shell",
     )
     ap.add_argument("scene", nargs="?", default="default", help="hil scene name or .toml path (default: default)")
     ap.add_argument("--slcan", action="store_true", help="speak SLCAN on a pty (the only mode; accepted for clarity)")

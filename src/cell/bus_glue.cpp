@@ -18,7 +18,7 @@ extern "C" {
  * takes effect between two ticks and the snapshot is that of exactly one tick.
  */
 #ifndef MC_BUILD_ID
-#define MC_BUILD_ID 0u   /* tools/flash may pass e.g. the git hash prefix */
+#define MC_BUILD_ID 0u   /* metacell_tools/flash may pass e.g. the git hash prefix */
 #endif
 
 static mc_regs_t g_regs;

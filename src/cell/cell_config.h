@@ -3,9 +3,9 @@
 #define CELL_CONFIG_H
 
 /*
- * Identity. tools/flash builds one image per cell and passes both values
+ * Identity. metacell_tools/flash builds one image per cell and passes both values
  * (PLATFORMIO_BUILD_SRC_FLAGS="-DMC_CELL_INDEX=j -DMC_CELL_ADDR=0x..."); the
- * cell -> address mapping itself lives only in tools/flash/addresses.py.
+ * cell -> address mapping itself lives only in metacell_tools/flash/addresses.py.
  * A plain `pio run -e cell` gives an unaddressed image (cell 0: the I2C hooks
  * are not started, the identity line says addr=none).
  */

@@ -34,7 +34,7 @@ void hw_tick_mask(void);
 void hw_tick_unmask(void);
 /*
  * Interrupt entry points, all direct calls (no function pointers) so that
- * `python -m tools.fwcheck lint` can follow the whole control path from them:
+ * `python -m metacell_tools.fwcheck lint` can follow the whole control path from them:
  *   TC3_Handler -> hw_tick_handler (provided by the program: main.cpp)
  *   EIC (Arduino core) -> hw_isr_encoder_alpha / _beta -> mc_quad_update
  */

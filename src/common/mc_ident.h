@@ -9,7 +9,7 @@ extern "C" {
 #endif
 
 /*
- * Wire format (ASCII, the single definition; tools/flash/identity.py parses it and
+ * Wire format (ASCII, the single definition; metacell_tools/flash/identity.py parses it and
  * tests/tools/test_flash.py checks the parser against this formatter):
  *
  *   request:  "ID?" then CR or LF (any mix of CR/LF; other lines are ignored)

@@ -17,7 +17,7 @@ extern "C" {
  *   USB DTR edge (the laptop opened or closed the port) -> mc_link_session
  * The watchdog (src/common/samd21_sys.h) is fed once per loop pass; the reset cause
  * read at boot, the bus recoveries and the USB bytes lost go out in PRIMARY_HEALTH.
- * "ID?" lines are answered with the identity line (tools/flash); the SLCAN parser
+ * "ID?" lines are answered with the identity line (metacell_tools/flash); the SLCAN parser
  * also sees them and counts them as malformed, but its BEL reply is suppressed.
  */
 #ifndef MC_I2C_HZ

@@ -2,8 +2,8 @@
 #include <unity.h>
 #include "mc_cell.h"
 #include "golden_vectors.h"
-/* the shared generator, compiled into the test (one implementation, in tools/fwcheck) */
-#include "../../tools/fwcheck/csrc/mc_vectors.c"
+/* the shared generator, compiled into the test (one implementation, in metacell_tools/fwcheck) */
+#include "../../metacell_tools/fwcheck/csrc/mc_vectors.c"
 
 static const mcv_api_t api = MCV_API_DIRECT;
 static mcv_sink_t sink;

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tools.fwcheck import armbuild
+from metacell_tools.fwcheck import armbuild
 
 pytestmark = pytest.mark.skipif(
     shutil.which(armbuild.CC) is None, reason="arm-none-eabi-gcc missing (tools/setup.sh installs it)"

@@ -4,7 +4,7 @@ compiled C)."""
 import re
 
 from host_emulator.bus.rig import make_rig
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 R = proto.RESULTS
 RESULT_BASE = proto.FRAMES["CMD_RESULT"]["base"]

@@ -6,8 +6,8 @@ import pytest
 
 from host_emulator.bus.i2c import I2CTiming, lattice_rate_limit
 from host_emulator.bus.rig import BusOptions, make_rig
+from metacell_tools.rigtools import proto
 from tests.firmware.vectors import primary as pv
-from tools.rigtools import proto
 
 D = proto.D
 R = D.RESULTS

@@ -53,7 +53,7 @@ def test_c_constants_follow_definition(fw):
 
 
 def test_definition_uses_the_flash_tool_address_mapping(fw):
-    from tools.flash import addresses
+    from metacell_tools.flash import addresses
 
     _, lib = fw
     assert (D.ADDR_BASE, D.N_CELLS) == (addresses.ADDR_BASE, addresses.CELL_COUNT)

@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from metacell_tools.rigtools import proto
 from tests.firmware.vectors import regs as rv
-from tools.rigtools import proto
 
 D = proto.D
 J = rv.J

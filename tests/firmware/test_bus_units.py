@@ -108,7 +108,7 @@ def test_firmware_gain_and_astar_limits_match_the_codec(fw):
 def test_emulator_does_not_import_the_laptop_tools():
     code = (
         "import sys, host_emulator.bus.rig, host_emulator.bus.serve, host_emulator.bus.bench, host_emulator.models.hil;"
-        "bad = sorted(m for m in sys.modules if m == 'tools' or m.startswith('tools.'));"
+        "bad = sorted(m for m in sys.modules if m == 'metacell_tools' or m.startswith('metacell_tools.'));"
         "assert not bad, bad"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
@@ -128,7 +128,7 @@ GENERATED = {"lib/metacell/src/bus/mc_proto.h", "lib/metacell/src/mc_units.h"}
 
 def test_no_code_outside_protocol_restates_a_wire_fact():
     files = subprocess.run(
-        ["git", "ls-files", "lib", "host_emulator", "tools"], capture_output=True, text=True, cwd=ROOT
+        ["git", "ls-files", "lib", "host_emulator", "metacell_tools"], capture_output=True, text=True, cwd=ROOT
     )
     hits = []
     for rel in files.stdout.split():

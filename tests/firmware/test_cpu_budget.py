@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from metacell_tools.fwcheck import armbuild, cpubudget
 from tests.firmware.test_pio_build import build_log  # noqa: F401  (the shared, locked real build)
-from tools.fwcheck import armbuild, cpubudget
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -132,7 +132,7 @@ def test_real_cell_image_interrupts_stay_within_the_budget(build_log):  # noqa: 
     assert b.total == pytest.approx(sum(i.cycles * i.rate_hz for i in b.isrs) / 48e6)
     assert b.total < cpubudget.BUDGET_LIMIT, cpubudget.format_budget(b, str(ELF))
     r = subprocess.run(
-        [sys.executable, "-m", "tools.fwcheck", "cpu-budget", "--elf", str(ELF)],
+        [sys.executable, "-m", "metacell_tools.fwcheck", "cpu-budget", "--elf", str(ELF)],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -148,7 +148,7 @@ def test_real_cell_image_interrupts_stay_within_the_budget(build_log):  # noqa: 
 def test_static_worst_instructions_bound_every_tick_counted_under_qemu():
     """Cross-check without PlatformIO: on the QEMU bench image, the longest path by instructions is at least
     the most instructions any traced mc_cell_tick / mc_quad_update / mc_quad_snapshot executed."""
-    from tools.fwcheck import qemu
+    from metacell_tools.fwcheck import qemu
 
     elf = qemu.build_image("bench")
     s = qemu.tick_stats(elf)

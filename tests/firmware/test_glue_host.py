@@ -76,7 +76,7 @@ def test_encoder_pins_are_sampled_continuously(programs):
 
 
 def test_cell_watchdog_and_boot_block(programs):
-    from tools.rigtools import proto
+    from metacell_tools.rigtools import proto
 
     r = results(programs[1])
     assert (int(r["wdt_enabled"]), int(r["wdt_per"]), int(r["wdt_fed"])) == (1, 7, 1)  # PER 0x7 = 1024 clocks

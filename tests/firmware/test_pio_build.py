@@ -99,7 +99,7 @@ def test_post_link_lint_ran_on_both_images(build_log):
     assert re.search(r"fwcheck lint \S*cell/firmware\.elf: roots mc_cell_tick", build_log)
     assert re.search(r"fwcheck lint \S*primary/firmware\.elf: roots mc_primary_next", build_log)
     assert "helpers on the control path: none" in build_log
-    assert "fwcheck: FAILED" not in build_log and "WARNING `python -m tools.fwcheck lint`" not in build_log
+    assert "fwcheck: FAILED" not in build_log and "WARNING `python -m metacell_tools.fwcheck lint`" not in build_log
 
 
 SUITES = sorted(p.name for p in (ROOT / "test").glob("test_*") if (p / "test_main.c").is_file())

@@ -6,8 +6,8 @@ import struct
 import can
 
 from host_emulator.bus.rig import make_rig
-from tools.rigtools import proto
-from tools.rigtools.logger import SampleDecoder, reset_cause_names
+from metacell_tools.rigtools import proto
+from metacell_tools.rigtools.logger import SampleDecoder, reset_cause_names
 
 HEALTH = proto.FRAMES["PRIMARY_HEALTH"]["base"]
 

@@ -5,7 +5,7 @@ import shutil
 import numpy as np
 import pytest
 
-from tools.fwcheck import armbuild, hostvec, qemu
+from metacell_tools.fwcheck import armbuild, hostvec, qemu
 
 pytestmark = pytest.mark.skipif(
     shutil.which(armbuild.CC) is None or shutil.which(qemu.QEMU) is None,
@@ -161,15 +161,15 @@ def test_lint_flags_a_linked_image_that_divides_or_floats(tmp_path):
 
 @pytest.fixture(scope="module")
 def fresh_header():
-    from tools.fwcheck import golden
+    from metacell_tools.fwcheck import golden
 
     return golden.header_text()
 
 
 def test_golden_header_is_current(fresh_header):
-    from tools.fwcheck import golden
+    from metacell_tools.fwcheck import golden
 
     assert golden.HEADER_PATH.read_text() == fresh_header, (
         "test/test_native_vectors/golden_vectors.h is stale: the library's behaviour changed. "
-        "If intended, run `.venv/bin/python -m tools.fwcheck golden-header` and commit it."
+        "If intended, run `.venv/bin/python -m metacell_tools.fwcheck golden-header` and commit it."
     )

@@ -46,8 +46,8 @@ def build_and_run(tmp_path: Path, suite: str, headers: Path, golden: str | None 
     if golden is not None:
         tdir = tmp_path / "test" / suite
         tdir.mkdir(parents=True)
-        (tmp_path / "tools" / "fwcheck").mkdir(parents=True)
-        (tmp_path / "tools" / "fwcheck" / "csrc").symlink_to(ROOT / "tools" / "fwcheck" / "csrc")
+        (tmp_path / "metacell_tools" / "fwcheck").mkdir(parents=True)
+        (tmp_path / "metacell_tools" / "fwcheck" / "csrc").symlink_to(ROOT / "metacell_tools" / "fwcheck" / "csrc")
         (tdir / "test_main.c").write_text(main.read_text())
         (tdir / "golden_vectors.h").write_text(golden)
         main = tdir / "test_main.c"
@@ -103,7 +103,7 @@ def test_a_broken_vector_fails_its_suite(tmp_path, monkeypatch, suite):
 
 
 def test_a_wrong_golden_value_fails_in_its_family(tmp_path, headers):
-    from tools.fwcheck import golden
+    from metacell_tools.fwcheck import golden
 
     text = golden.HEADER_PATH.read_text()
     line = next(ln for ln in text.splitlines() if ln.startswith("static const uint32_t golden_fam_fnv"))

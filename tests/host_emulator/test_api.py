@@ -64,7 +64,7 @@ def test_plots_take_ax_and_leave_the_backend_alone(tmp_path):
 def test_package_never_selects_a_backend():
     hits = [
         str(p)
-        for d in ("host_emulator", "tools")
+        for d in ("host_emulator", "metacell_tools")
         for p in (ROOT / d).rglob("*.py")
         if re.search(r"matplotlib\.use\(|pyplot\.switch_backend|plt\.switch_backend", p.read_text())
     ]

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from host_emulator.limits import check_run
 from host_emulator.scene import list_scenes, load_scene
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 ROOT = proto.ROOT
 

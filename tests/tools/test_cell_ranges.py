@@ -6,7 +6,7 @@ import pytest
 
 
 def test_command_cells_accept_ranges():
-    from tools.rigtools.command import _cells
+    from metacell_tools.rigtools.command import _cells
 
     assert _cells("1-4,7") == [1, 2, 3, 4, 7]
     assert _cells("1-16") == list(range(1, 17)) == _cells("all")

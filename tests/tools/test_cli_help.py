@@ -17,11 +17,11 @@ def entry_points() -> list[tuple[str, str]]:
     eps = [("host_emulator.cli", "main")]
     eps += [("host_emulator" + m if m.startswith(".") else m, f) for m, f in SUBCOMMANDS.values()]
     eps += [
-        ("tools.rigtools.logger", "main"),
-        ("tools.rigtools.command", "main"),
-        ("tools.experiment.cli", "main"),
-        ("tools.flash.__main__", "main"),
-        ("tools.fwcheck.__main__", "main"),
+        ("metacell_tools.rigtools.logger", "main"),
+        ("metacell_tools.rigtools.command", "main"),
+        ("metacell_tools.experiment.cli", "main"),
+        ("metacell_tools.flash.__main__", "main"),
+        ("metacell_tools.fwcheck.__main__", "main"),
         ("host_emulator.sweep_bench", "main"),
         ("host_emulator.bus.bench", "main"),
     ]

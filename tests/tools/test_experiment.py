@@ -1,4 +1,4 @@
-"""tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty.
+"""metacell_tools.experiment: plan arithmetic, time series, comparison; rehearsals through the emulator's SLCAN pty.
 
 The rehearsals cover the acceptance run and every failure path.
 """
@@ -19,14 +19,14 @@ from hypothesis import strategies as st
 
 from host_emulator.analysis.observables import domain_walls
 from host_emulator.scene import list_scenes, load_scene
+from metacell_tools.experiment import cli
+from metacell_tools.experiment.compare import CompareError, compare
+from metacell_tools.experiment.plan import PlanError, make_plan, perturb_payload, pwm_limit_ticks, wire_param
+from metacell_tools.experiment.rehearse import Serve, serve_overrides
+from metacell_tools.experiment.runner import Options, cells_text, series, tail_arrays
+from metacell_tools.rigtools import proto
+from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 from protocol import codec
-from tools.experiment import cli
-from tools.experiment.compare import CompareError, compare
-from tools.experiment.plan import PlanError, make_plan, perturb_payload, pwm_limit_ticks, wire_param
-from tools.experiment.rehearse import Serve, serve_overrides
-from tools.experiment.runner import Options, cells_text, series, tail_arrays
-from tools.rigtools import proto
-from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
 ROOT = proto.ROOT
 ENABLED = 1 << proto.CELL_FLAGS["ENABLED"]
@@ -359,7 +359,7 @@ def test_ctrl_c_switches_the_drive_off(served, tmp_path):
         [
             sys.executable,
             "-m",
-            "tools.experiment",
+            "metacell_tools.experiment",
             "run",
             "exp1_ccw_ccw",
             "--channel",
@@ -509,7 +509,7 @@ class QuietBus:
 
 
 def _experiment(tmp_path, scene_sets, cells, **opts):
-    from tools.experiment.runner import Experiment
+    from metacell_tools.experiment.runner import Experiment
 
     sc = load_scene("exp5_rest", scene_sets)
     exp = Experiment(QuietBus(), make_plan(sc), tmp_path, Options(**opts), report=lambda t: None)
@@ -538,8 +538,8 @@ def test_setup_reports_a_genuine_shape_error_and_the_failing_cells(tmp_path):
 
 
 def test_summary_counts_sequence_gaps(tmp_path):
-    from tools.experiment.runner import Repeat
-    from tools.experiment.summary import repeat_result
+    from metacell_tools.experiment.runner import Repeat
+    from metacell_tools.experiment.summary import repeat_result
 
     dec = SampleDecoder(n_cells=16, report=lambda t: None)
     for k in range(40):
@@ -637,7 +637,7 @@ def test_buffered_slcan_reads_what_python_can_reads(frames, chunks):
     from can.interfaces.slcan import slcanBus
 
     from host_emulator.bus.serve import open_pty
-    from tools.experiment.fastslcan import BufferedSlcanBus
+    from metacell_tools.experiment.fastslcan import BufferedSlcanBus
 
     lines = b"".join(b"t%03X%d%s\r" % (i, len(d), d.hex().upper().encode()) for i, d in frames)
     lines += b"\a" + b"T1234567821ABCD\r" + b"r1230\r" + b"z\r"  # error BEL, extended, remote, unknown
@@ -671,7 +671,7 @@ def test_rig_live_plot_draws_the_series_of_the_logged_frames():
     from matplotlib.figure import Figure
 
     from host_emulator.trackers import PlotTracker
-    from tools.experiment.live import RigLive
+    from metacell_tools.experiment.live import RigLive
 
     dec = SampleDecoder(n_cells=3, report=lambda t: None)
     tr = PlotTracker(interval_ms=50, window_s=10.0, fig=Figure())
@@ -698,7 +698,7 @@ def test_rig_live_plot_draws_the_series_of_the_logged_frames():
 def test_rehearsal_records_cell_identity_and_draws_live(fw, tmp_path, capsys):
     """The rig run reads every cell's IDENT block (firmware version, map id) from the emulated bus into the
     summary and its provenance; --live under Agg writes OUT/live.png."""
-    from tools.experiment.summary import identity_provenance
+    from metacell_tools.experiment.summary import identity_provenance
 
     out = tmp_path / "rig"
     rc = cli.main(

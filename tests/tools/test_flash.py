@@ -14,12 +14,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tools.flash import __main__ as cli
-from tools.flash import inventory as inv
-from tools.flash import runner as rn
-from tools.flash.addresses import CELL_ADDRESSES, RESERVED, address_cell, cell_address
-from tools.flash.boards import XIAO_PID_APP, XIAO_PID_BOOT, XIAO_VID, Port, PortListError, ports_from_json, xiao_ports
-from tools.flash.identity import (
+from metacell_tools.flash import __main__ as cli
+from metacell_tools.flash import inventory as inv
+from metacell_tools.flash import runner as rn
+from metacell_tools.flash.addresses import CELL_ADDRESSES, RESERVED, address_cell, cell_address
+from metacell_tools.flash.boards import (
+    XIAO_PID_APP,
+    XIAO_PID_BOOT,
+    XIAO_VID,
+    Port,
+    PortListError,
+    ports_from_json,
+    xiao_ports,
+)
+from metacell_tools.flash.identity import (
     REQUEST,
     SAFE_BAUD,
     Identity,
@@ -30,7 +38,7 @@ from tools.flash.identity import (
     parse_identity,
     query_identity,
 )
-from tools.flash.plan import PlanError, describe, make_plan, parse_only
+from metacell_tools.flash.plan import PlanError, describe, make_plan, parse_only
 
 ROOT = Path(__file__).resolve().parents[2]
 IDENT_H = ROOT / "src" / "common" / "mc_ident.h"
@@ -762,7 +770,7 @@ class _FakeSconsEnv:
 
 def _load_hook(project, pioenv="cell"):
     env = _FakeSconsEnv(project, pioenv)
-    code = (ROOT / "tools" / "flash" / "pio_fwcheck.py").read_text()
+    code = (ROOT / "metacell_tools" / "flash" / "pio_fwcheck.py").read_text()
     exec(compile(code, "pio_fwcheck.py", "exec"), {"Import": lambda name: None, "env": env})
     ((target, fn),) = env.actions
     assert target == "$BUILD_DIR/${PROGNAME}.elf"
@@ -784,10 +792,10 @@ def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text, pi
     image from its own steady path (--role primary: it holds no control law, which used to fail every build)."""
     monkeypatch.delenv("MC_FWCHECK", raising=False)
     # a project whose own `tools` package (first on sys.path for `python -m`) shadows ours
-    (tmp_path / "tools").mkdir()
-    (tmp_path / "tools" / "__init__.py").write_text("")
+    (tmp_path / "metacell_tools").mkdir()
+    (tmp_path / "metacell_tools" / "__init__.py").write_text("")
     if checker:
-        pkg = tmp_path / "tools" / "fwcheck"
+        pkg = tmp_path / "metacell_tools" / "fwcheck"
         pkg.mkdir()
         (pkg / "__init__.py").write_text("")
         rc = 3 if checker == "lint_fails" else 0

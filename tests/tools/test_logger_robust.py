@@ -12,8 +12,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tools.rigtools import proto
-from tools.rigtools.logger import SampleDecoder, read_rows, rows_to_arrays, truncate_to_last_line
+from metacell_tools.rigtools import proto
+from metacell_tools.rigtools.logger import SampleDecoder, read_rows, rows_to_arrays, truncate_to_last_line
 
 ROOT = proto.ROOT
 SAMPLE = proto.FRAMES["CELL_SAMPLE"]["base"]
@@ -99,7 +99,7 @@ def test_truncate_to_last_line(tmp_path):
 
 def run_logger(args, timeout=60, **kw):
     return subprocess.run(
-        [sys.executable, "-m", "tools.rigtools.logger", *args],
+        [sys.executable, "-m", "metacell_tools.rigtools.logger", *args],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -126,12 +126,21 @@ def test_logger_bad_input_is_a_one_line_error(tmp_path):
 
 
 def test_command_tool_bad_values_and_missing_port():
-    from tools.rigtools import command
+    from metacell_tools.rigtools import command
 
     assert command.main(["-c", "x", "perturb", "8", "--torque", "inf", "--duration", "0.1"]) == 2
     assert command.main(["-c", "x", "set", "3", "sigma", "1e9"]) == 2
     r = subprocess.run(
-        [sys.executable, "-m", "tools.rigtools.command", "-c", "/dev/nonexistent-port@115200", "enable", "3", "on"],
+        [
+            sys.executable,
+            "-m",
+            "metacell_tools.rigtools.command",
+            "-c",
+            "/dev/nonexistent-port@115200",
+            "enable",
+            "3",
+            "on",
+        ],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -176,7 +185,7 @@ def test_full_disk_ends_with_one_line_and_readable_files(tmp_path):
             [
                 sys.executable,
                 "-m",
-                "tools.rigtools.logger",
+                "metacell_tools.rigtools.logger",
                 "-c",
                 f"{link}@115200",
                 "-o",

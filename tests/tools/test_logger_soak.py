@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 ROOT = proto.ROOT
 SAMPLE = proto.FRAMES["CELL_SAMPLE"]["base"]
@@ -64,7 +64,7 @@ def test_logger_soak_stalls_kill_restart(tmp_path):
             [
                 sys.executable,
                 "-m",
-                "tools.rigtools.logger",
+                "metacell_tools.rigtools.logger",
                 "-c",
                 f"{link}@115200",
                 "-o",

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host_emulator.bus.rig import make_rig
-from tools.rigtools import command, proto
-from tools.rigtools.logger import RigLogger, SampleDecoder
+from metacell_tools.rigtools import command, proto
+from metacell_tools.rigtools.logger import RigLogger, SampleDecoder
 
 BASE = proto.FRAMES["CELL_SAMPLE"]["base"]
 

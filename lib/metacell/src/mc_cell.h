@@ -43,7 +43,7 @@ enum {
  * lattice follows its own dynamics up to the 5.86 V cap (docs/firmware-proof.md
  * says which the rig should use).
  *
- * Cost (Cortex-M0+, -Os, measured under QEMU by `python -m tools.fwcheck ticks`):
+ * Cost (Cortex-M0+, -Os, measured under QEMU by `python -m metacell_tools.fwcheck ticks`):
  * at most 200 instructions per tick in the default configuration, at most 240
  * with back-EMF compensation on.
  */

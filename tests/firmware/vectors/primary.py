@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import struct
 
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 from . import regs
 

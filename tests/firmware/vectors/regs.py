@@ -5,7 +5,7 @@ from __future__ import annotations
 import random
 import struct
 
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 D = proto.D
 J = 5  # the cell under test

@@ -10,7 +10,7 @@ import time
 import can
 import pytest
 
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 ROOT = proto.ROOT
 

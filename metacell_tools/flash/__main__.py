@@ -1,4 +1,4 @@
-"""CLI: python -m tools.flash inventory|plan|flash|identify (see docs/hardware.md)."""
+"""CLI: python -m metacell_tools.flash inventory|plan|flash|identify (see docs/hardware.md)."""
 
 from __future__ import annotations
 
@@ -33,15 +33,15 @@ def default_pio() -> str:
 
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
-        prog="python -m tools.flash",
+        prog="python -m metacell_tools.flash",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m tools.flash inventory --assign 1 --serial <USB serial>   # once per board\n"
-        "  python -m tools.flash plan                                         # what flash would do\n"
-        "  python -m tools.flash flash --only 1-4,primary\n"
-        "  python -m tools.flash identify\n"
-        "  python -m tools.flash SUBCOMMAND --help",
+        "  python -m metacell_tools.flash inventory --assign 1 --serial <USB serial>   # once per board\n"
+        "  python -m metacell_tools.flash plan                                         # what flash would do\n"
+        "  python -m metacell_tools.flash flash --only 1-4,primary\n"
+        "  python -m metacell_tools.flash identify\n"
+        "  python -m metacell_tools.flash SUBCOMMAND --help",
     )
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument(
@@ -57,9 +57,9 @@ def _parser() -> argparse.ArgumentParser:
         parents=[common],
         help="show connected boards; --assign one to a cell or the primary",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  python -m tools.flash inventory\n"
-        "  python -m tools.flash inventory --assign primary --serial 8A1B2C3D\n"
-        "  python -m tools.flash inventory --assign 5 --replace       # a new board in slot 5",
+        epilog="examples:\n  python -m metacell_tools.flash inventory\n"
+        "  python -m metacell_tools.flash inventory --assign primary --serial 8A1B2C3D\n"
+        "  python -m metacell_tools.flash inventory --assign 5 --replace       # a new board in slot 5",
     )
     p.add_argument("--assign", metavar="N|primary", help="record a board as cell N or the primary")
     p.add_argument("--serial", help="which board to assign (default: the only unassigned one connected)")
@@ -74,7 +74,7 @@ def _parser() -> argparse.ArgumentParser:
             parents=[common],
             help=helptext,
             formatter_class=argparse.RawDescriptionHelpFormatter,
-            epilog="examples:\n" + "\n".join(f"  python -m tools.flash {e}" for e in examples),
+            epilog="examples:\n" + "\n".join(f"  python -m metacell_tools.flash {e}" for e in examples),
         )
         p.add_argument("--only", help="boards to include, e.g. '1-4,7,primary' (default: all)")
         p.add_argument(
@@ -114,7 +114,7 @@ def _parser() -> argparse.ArgumentParser:
         "identify",
         parents=[common],
         help="ask every connected XIAO for its identity; flag duplicate addresses",
-        epilog="example: python -m tools.flash identify",
+        epilog="example: python -m metacell_tools.flash identify",
     )
     return ap
 
@@ -178,7 +178,7 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
     out(summary(outcomes))
     for b in plan.missing:
         out(f"NOT FLASHED (not connected): {b.name} serial {b.serial}")
-    out("check the whole bus with: python -m tools.flash identify")
+    out("check the whole bus with: python -m metacell_tools.flash identify")
     return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
 
 

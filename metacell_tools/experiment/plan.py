@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from host_emulator.params import Params
+from metacell_tools.rigtools import proto
+from metacell_tools.rigtools.command import CTRL_RATE_HZ
 from protocol import codec
-from tools.rigtools import proto
-from tools.rigtools.command import CTRL_RATE_HZ
 
 if TYPE_CHECKING:
     from host_emulator.scene import Scene

@@ -3,8 +3,8 @@ always disable.
 
 One `Experiment` owns the bus for the whole session. Every frame received (also while a
 command waits for its result) goes to the python-can writers and to the current repeat's
-`SampleDecoder` (tools/rigtools/logger.py), which finds the gaps in the sequence counters.
-Every command goes through `RigClient` (tools/rigtools/command.py) and its per-cell result
+`SampleDecoder` (metacell_tools/rigtools/logger.py), which finds the gaps in the sequence counters.
+Every command goes through `RigClient` (metacell_tools/rigtools/command.py) and its per-cell result
 is checked and kept. Experiment time (perturbation starts, t_end, settle and relax windows)
 runs on the primary's clock as carried by the samples, so a rehearsal on an emulator that
 runs slower than real time keeps the experiment's timing; every wait is also bounded in
@@ -27,8 +27,8 @@ import can
 import numpy as np
 
 from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
-from tools.rigtools.command import RigClient
-from tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
+from metacell_tools.rigtools.command import RigClient
+from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
 from .plan import ExperimentPlan
 
@@ -114,7 +114,7 @@ class Experiment:
         self.repeats: list[Repeat] = []
         self.safe: list[int] | None = None  # result of the final ENABLE off
         self.identity: dict = {}  # {cell: IDENT block fields, or {"error": ...}} read before the first repeat
-        self.live = live  # tools.experiment.live.RigLive or None: live plot fed from the logged frames
+        self.live = live  # metacell_tools.experiment.live.RigLive or None: live plot fed from the logged frames
         self.t_session = time.time()
 
     # ---- frames --------------------------------------------------------------
@@ -242,7 +242,7 @@ class Experiment:
 
         Returns {cell: record}; a cell that did not send its block gets {"error": ...}. A map id that differs
         from this protocol definition's is reported (the cell would read our frames with another layout)."""
-        from tools.rigtools import proto
+        from metacell_tools.rigtools import proto
 
         try:
             info = self.client.info(list(self.plan.cells), blocks=("IDENT",))
@@ -270,7 +270,7 @@ class Experiment:
             self.report(
                 f"cell(s) {cells_text(bad)} report protocol map id "
                 f"{', '.join(sorted({out[j]['map_id'] for j in bad}))}, this tool speaks 0x{want:04X}: "
-                "reflash them (python -m tools.flash flash)"
+                "reflash them (python -m metacell_tools.flash flash)"
             )
         self.identity = out
         self.hook("identity", identity=out)

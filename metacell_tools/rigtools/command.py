@@ -1,9 +1,10 @@
 """Command tool: set parameters, enable drives, perturb cells, zero encoders through the primary (python-can, any bus).
 
-    python -m tools.rigtools.command -c /dev/ttyACM0@115200 set 8 sigma 0.072
-    python -m tools.rigtools.command -c /dev/pts/3@115200 perturb 8 --torque 0.02 --duration 0.1
-    python -m tools.rigtools.command -c ... enable all on | zero all | bemf 3 off | pwm-limit 5 1200 | clear-faults all
-    python -m tools.rigtools.command -c ... info all      # identity, protocol map id and parameters in force
+    python -m metacell_tools.rigtools.command -c /dev/ttyACM0@115200 set 8 sigma 0.072
+    python -m metacell_tools.rigtools.command -c /dev/pts/3@115200 perturb 8 --torque 0.02 --duration 0.1
+    python -m metacell_tools.rigtools.command -c ... enable all on | zero all | bemf 3 off | pwm-limit 5 1200
+    python -m metacell_tools.rigtools.command -c ... clear-faults all
+    python -m metacell_tools.rigtools.command -c ... info all      # identity, protocol map id and parameters in force
 
 A serial port has one reader: while the logger runs, schedule commands with its --do option.
 Every command waits for the primary's CMD_RESULT (the cell's verdict, or NACK/TIMEOUT/
@@ -131,9 +132,9 @@ def _onoff(text: str) -> int:
 
 
 def parser():
-    pre = "python -m tools.rigtools.command -c /dev/ttyACM0@115200"
+    pre = "python -m metacell_tools.rigtools.command -c /dev/ttyACM0@115200"
     ap = argparse.ArgumentParser(
-        prog="python -m tools.rigtools.command",
+        prog="python -m metacell_tools.rigtools.command",
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
@@ -141,7 +142,7 @@ def parser():
         f"  {pre} perturb 8 --torque 0.02 --duration 0.1\n"
         f"  {pre} enable 1-16 on\n"
         f"  {pre} info all\n"
-        "  python -m tools.rigtools.command SUBCOMMAND --help     # one command's arguments\n"
+        "  python -m metacell_tools.rigtools.command SUBCOMMAND --help     # one command's arguments\n"
         "exit codes: 0 every addressed cell answered OK, 1 some cell did not, 2 bad input, 3 port not opened.",
     )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")

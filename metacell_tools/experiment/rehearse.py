@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from host_emulator.params import Params
-from tools.rigtools import proto
+from metacell_tools.rigtools import proto
 
 from .plan import CONTROL_PARAMS, FIRMWARE_PARAMS
 

@@ -1,4 +1,5 @@
-"""Command line: `python -m tools.experiment run SCENE --channel PORT@BAUD | rehearse SCENE | compare RIG_DIR EMU_DIR`.
+"""Command line: `python -m metacell_tools.experiment run SCENE --channel PORT@BAUD | rehearse SCENE |
+compare RIG_DIR EMU_DIR`.
 
 Exit status: 0 done cleanly, 1 done with problems (failed commands under --keep-going,
 missing cells, lost samples, a cell whose drive-off was not confirmed, a cell reporting
@@ -145,14 +146,14 @@ def make_live(args, scene, out: Path):
 
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
-        prog="python -m tools.experiment",
+        prog="python -m metacell_tools.experiment",
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m tools.experiment rehearse exp1_ccw_ccw --repeats 2            # no hardware: the emulator\n"
-        "  python -m tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200 --repeats 3 --live\n"
-        "  python -m tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw\n"
-        "  python -m tools.experiment SUBCOMMAND --help\n" + __doc__.split("\n\n", 1)[1],
+        "  python -m metacell_tools.experiment rehearse exp1_ccw_ccw --repeats 2   # no hardware: the emulator\n"
+        "  python -m metacell_tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200 --repeats 3 --live\n"
+        "  python -m metacell_tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw\n"
+        "  python -m metacell_tools.experiment SUBCOMMAND --help\n" + __doc__.split("\n\n", 1)[1],
     )
     sub = ap.add_subparsers(dest="cmd", required=True, metavar="SUBCOMMAND", help="what to do")
     r = sub.add_parser(
@@ -161,10 +162,10 @@ def parser() -> argparse.ArgumentParser:
         description="Run a scene on the rig through the primary; summary.json, logs and plots in --out.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200\n"
-        "  python -m tools.experiment run default -c /dev/ttyACM0@115200 --set params.sigma=6/125 --repeats 5 "
+        "  python -m metacell_tools.experiment run exp1_ccw_ccw -c /dev/ttyACM0@115200\n"
+        "  python -m metacell_tools.experiment run default -c /dev/ttyACM0@115200 --set params.sigma=6/125 --repeats 5 "
         "--live 100\n"
-        "  python -m tools.experiment run exp5_rest -c /dev/ttyACM0@115200 --t-end 20 --no-early-stop "
+        "  python -m metacell_tools.experiment run exp5_rest -c /dev/ttyACM0@115200 --t-end 20 --no-early-stop "
         "--formats asc,blf",
     )
     _common(r)
@@ -183,8 +184,8 @@ def parser() -> argparse.ArgumentParser:
         description="The same run against the emulated primary (python -m host_emulator serve) on a pty.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m tools.experiment rehearse exp1_ccw_ccw --set t_end_s=4 --repeats 2\n"
-        "  python -m tools.experiment rehearse default --absent 3,7 --keep-going --live",
+        "  python -m metacell_tools.experiment rehearse exp1_ccw_ccw --set t_end_s=4 --repeats 2\n"
+        "  python -m metacell_tools.experiment rehearse default --absent 3,7 --keep-going --live",
     )
     _common(h)
     for name in ("absent", "stuck", "babble"):
@@ -200,7 +201,8 @@ def parser() -> argparse.ArgumentParser:
         "compare",
         help="overlay a rig (or rehearsal) run and an emulator run of the same scene",
         description="Table and plot of the final angles of a rig run against an emulator run of the same scene.",
-        epilog="example: python -m tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw --out cmp.png",
+        epilog="example:\n  python -m metacell_tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw "
+        "--out cmp.png",
     )
     c.add_argument("rig_dir", help="output directory of `run` or `rehearse` (holds summary.json)")
     c.add_argument("emu_dir", help="output directory of `python -m host_emulator run` of the same scene")

@@ -1,4 +1,4 @@
-"""Command line: `python -m tools.fwcheck report|size|vectors|ticks|golden-header|lint --elf X`.
+"""Command line: `python -m metacell_tools.fwcheck report|size|vectors|ticks|golden-header|lint --elf X`.
 
 report         soft-float check, division check, code size, QEMU bit-exact count, instructions/tick
 size           code size of the cross-compiled library
@@ -159,15 +159,15 @@ def _cpu_budget(elf: str | None, limit: float) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m tools.fwcheck",
+        prog="python -m metacell_tools.fwcheck",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m tools.fwcheck report                     # every check, as in the README table\n"
-        "  python -m tools.fwcheck ticks --cflags -O2         # instructions per tick at another optimisation\n"
-        "  python -m tools.fwcheck profile -v\n"
-        "  python -m tools.fwcheck lint --elf .pio/build/cell/firmware.elf --role cell\n"
-        "  python -m tools.fwcheck cpu-budget --elf .pio/build/cell/firmware.elf",
+        "  python -m metacell_tools.fwcheck report                     # every check, as in the README table\n"
+        "  python -m metacell_tools.fwcheck ticks --cflags -O2         # instructions per tick at another -O\n"
+        "  python -m metacell_tools.fwcheck profile -v\n"
+        "  python -m metacell_tools.fwcheck lint --elf .pio/build/cell/firmware.elf --role cell\n"
+        "  python -m metacell_tools.fwcheck cpu-budget --elf .pio/build/cell/firmware.elf",
     )
     ap.add_argument(
         "command",

@@ -1,7 +1,7 @@
 """Rig logger on python-can: log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports, reconnects.
 
-    python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1 --duration 60
-    python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
+    python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1 --duration 60
+    python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
 
 Writes <out>.<fmt> for every python-can format asked for (asc blf csv db log trc txt),
 <out>.csv (one row per cell sample, streamed to disk in chunks while logging) and, at the
@@ -666,13 +666,13 @@ def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m tools.rigtools.logger",
+        prog="python -m metacell_tools.rigtools.logger",
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1                 # until Ctrl-C\n"
-        "  python -m tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run2 --duration 30 --formats asc,blf\n"
-        '  python -m tools.rigtools.logger -c /dev/pts/3@115200 -o out/run3 --do "2:perturb 8 --torque 0.02 '
+        "  python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1                 # until Ctrl-C\n"
+        "  python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run2 --duration 30 --formats asc\n"
+        '  python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/run3 --do "2:perturb 8 --torque 0.02 '
         '--duration 0.1"\n'
         "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
         "3 run failed (port, no frames, write error).",

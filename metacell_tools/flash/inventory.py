@@ -76,7 +76,7 @@ def load(path: str | Path) -> list[Board]:
         data = json.loads(path.read_text())
     except FileNotFoundError as exc:
         raise InventoryError(
-            f"no inventory at {path}: create it with `python -m tools.flash inventory --assign ...`"
+            f"no inventory at {path}: create it with `python -m metacell_tools.flash inventory --assign ...`"
         ) from exc
     except (OSError, json.JSONDecodeError) as exc:
         raise InventoryError(f"cannot read inventory {path}: {exc}") from exc

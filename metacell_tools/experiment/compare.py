@@ -1,7 +1,7 @@
 """Overlay a rig (or rehearsal) run and an emulator run of one scene: final angles per cell, emulator as lines, rig as
 markers with the spread over repeats.
 
-Both directories hold a summary.json (`python -m tools.experiment run|rehearse` and
+Both directories hold a summary.json (`python -m metacell_tools.experiment run|rehearse` and
 `python -m host_emulator run`). Rig markers are the per-cell mean over repeats, error
 bars span min..max of the repeats (a single repeat: no bar). The table gives, per cell,
 both values and rig - emulator, and the pattern period of each run.
@@ -26,7 +26,7 @@ def load(d: Path) -> dict:
         s = json.loads(f.read_text())
     except FileNotFoundError:
         raise CompareError(
-            f"{f}: not found (run `python -m tools.experiment run` or `python -m host_emulator run` first)"
+            f"{f}: not found (run `python -m metacell_tools.experiment run` or `python -m host_emulator run` first)"
         ) from None
     except json.JSONDecodeError as e:
         raise CompareError(f"{f}: not valid JSON: {e}") from None

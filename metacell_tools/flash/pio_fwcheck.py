@@ -1,4 +1,4 @@
-"""PlatformIO post-build hook (extra_scripts): `python -m tools.fwcheck lint --elf <firmware.elf>`."""
+"""PlatformIO post-build hook (extra_scripts): `python -m metacell_tools.fwcheck lint --elf <firmware.elf>`."""
 
 # Klipper-style build-time guard: the project's own checker looks for soft-float and
 # division helpers in the control path of the linked image. The hook is fatal when the
@@ -25,10 +25,12 @@ def _fwcheck(source, target, env):
         print("fwcheck: skipped (MC_FWCHECK=skip)")
         return 0
     python = _python(project)
-    probe = subprocess.run([python, "-m", "tools.fwcheck", "--help"], cwd=project, capture_output=True, text=True)
+    probe = subprocess.run(
+        [python, "-m", "metacell_tools.fwcheck", "--help"], cwd=project, capture_output=True, text=True
+    )
     if probe.returncode != 0 or "lint" not in probe.stdout:
         print(
-            "fwcheck: WARNING `python -m tools.fwcheck lint` is not available; "
+            "fwcheck: WARNING `python -m metacell_tools.fwcheck lint` is not available; "
             "soft-float/division check of the image NOT run"
         )
         return 0
@@ -39,7 +41,9 @@ def _fwcheck(source, target, env):
     if role == "cell":
         for r in GLUE_ROOTS:
             roots += ["--root", r]
-    rc = subprocess.call([python, "-m", "tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots, cwd=project)
+    rc = subprocess.call(
+        [python, "-m", "metacell_tools.fwcheck", "lint", "--role", role, "--elf", elf] + roots, cwd=project
+    )
     if rc != 0:
         print(f"fwcheck: FAILED on {elf} (exit {rc})")
     return rc
