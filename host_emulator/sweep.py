@@ -43,6 +43,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     import xarray as xr
+    from distributed import LocalCluster
     from matplotlib.axes import Axes
     from matplotlib.figure import FigureBase
 
@@ -275,6 +276,22 @@ def _save(fig, path):
         sys.modules["matplotlib.pyplot"].close(fig)
 
 
+def local_cluster(workers: int) -> LocalCluster:
+    """The cluster a sweep starts when given no scheduler: one single-threaded worker process per core."""
+    import logging
+
+    from distributed import LocalCluster
+
+    return LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard": False},
+        silence_logs=logging.ERROR,
+    )
+
+
 def chunk_size(points: int, workers: int) -> int:
     """Points per Dask task: whole rounds of tasks (a multiple of the worker count, >= 4 per worker, <= ~32 points
     each), so no worker is left running an odd last chunk alone (400 points on 2 workers: 14 tasks of <= 29)."""
@@ -283,24 +300,14 @@ def chunk_size(points: int, workers: int) -> int:
 
 
 def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
-    import logging
-
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
     from tqdm import tqdm
 
     cluster = None
     if scheduler:
         client = Client(scheduler, timeout="20s")
     else:
-        n = int(workers or os.cpu_count() or 1)
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            scheduler_kwargs={"dashboard": False},
-            silence_logs=logging.ERROR,
-        )
+        cluster = local_cluster(int(workers or os.cpu_count() or 1))
         client = Client(cluster)
     try:
         nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))

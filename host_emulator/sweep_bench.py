@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import math
 import multiprocessing as mp
 import os
@@ -55,26 +54,13 @@ def _stats(values: list[float]) -> dict:
     return {"median": statistics.median(values), "min": min(values), "max": max(values), "runs": list(values)}
 
 
-def _cluster(workers: int):
-    from distributed import LocalCluster
-
-    return LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        scheduler_kwargs={"dashboard": False},
-        silence_logs=logging.ERROR,
-    )
-
-
 def measure(
     points: int = 400, workers=(1, 2), t_end: float = 10.0, repeat: int = 3, big: int = 1000, baseline: bool = True
 ) -> dict:
     """Every figure of the benchmark as a dict (seconds, points per second); see the module docstring."""
     from distributed import Client, as_completed
 
-    from .sweep import evaluate_points, sweep
+    from .sweep import evaluate_points, local_cluster, sweep
 
     specs = _specs(points, t_end)
     evaluate_points(specs[:1])  # compile / import outside the timing
@@ -94,7 +80,7 @@ def measure(
     }
     for w in workers:
         chunks = _chunks(specs, w)
-        with _cluster(w) as cl, Client(cl) as c:
+        with local_cluster(w) as cl, Client(cl) as c:
             c.run(lambda: evaluate_points(_specs(1, 0.1)))  # warm every worker
             if w == min(workers):
                 rt = []
