@@ -117,25 +117,25 @@ def spatial_period(profile: np.ndarray, *, tol_rad: float = DEFAULT_TOL_RAD, n_g
     x = np.arange(n) + 0.5
     u = u - u.mean()
 
-    def explained(k):
-        basis = np.column_stack([np.cos(k * x), np.sin(k * x), np.ones(n)])
-        coef, *_ = np.linalg.lstsq(basis, u, rcond=None)
-        r = u - basis @ coef
-        return 1.0 - (r @ r) / (u @ u)
+    def explained(ks: np.ndarray) -> np.ndarray:
+        """Share of u's variance fitted by [cos kx, sin kx, 1], for each k in ks, in one batched least-squares
+        solve: coef = pinv(B_k) u (rank-deficient at k = pi, where cos kx = 0, as lstsq allows; lstsq's cutoff)."""
+        kx = ks[:, None] * x[None, :]
+        basis = np.stack([np.cos(kx), np.sin(kx), np.ones_like(kx)], axis=-1)  # (len(ks), n, 3)
+        coef = np.linalg.pinv(basis, rcond=np.finfo(float).eps * max(n, 3)) @ u
+        resid = u[None, :] - np.einsum("mnj,mj->mn", basis, coef)
+        return 1.0 - np.einsum("mn,mn->m", resid, resid) / (u @ u)
 
     ks = np.linspace(math.pi / n, math.pi, n_grid)
-    # explained() at every grid k in one batched least-squares solve: B_k = [cos kx, sin kx, 1] (n_grid, n, 3),
-    # coef = pinv(B_k) u (rank-deficient at k = pi, where cos kx = 0, as lstsq allows), same cutoff as lstsq's
-    kx = ks[:, None] * x[None, :]
-    basis_all = np.stack([np.cos(kx), np.sin(kx), np.ones_like(kx)], axis=-1)
-    coef_all = np.linalg.pinv(basis_all, rcond=np.finfo(float).eps * max(n, 3)) @ u
-    resid = u[None, :] - np.einsum("mnj,mj->mn", basis_all, coef_all)
-    ev = 1.0 - np.einsum("mn,mn->m", resid, resid) / (u @ u)
+    ev = explained(ks)
     i = int(np.argmax(ev))
     k = ks[i]
     if 0 < i < ks.size - 1:
         r = minimize_scalar(
-            lambda kk: -explained(kk), bounds=(ks[i - 1], ks[i + 1]), method="bounded", options={"xatol": 1e-9}
+            lambda kk: -explained(np.array([kk]))[0],
+            bounds=(ks[i - 1], ks[i + 1]),
+            method="bounded",
+            options={"xatol": 1e-9},
         )
         if -r.fun >= ev[i]:
             k = float(r.x)
