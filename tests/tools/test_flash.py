@@ -813,36 +813,3 @@ def test_fwcheck_hook(tmp_path, capfd, monkeypatch, checker, expect_rc, text, pi
     assert text in capfd.readouterr().out
     monkeypatch.setenv("MC_FWCHECK", "skip")
     assert fn(None, [tmp_path / "firmware.elf"], env) == 0
-
-
-# ---- the register-free glue still compiles against the library's current API ------------
-
-
-@pytest.mark.skipif(not shutil.which("g++"), reason="no host C++ compiler")
-@pytest.mark.parametrize("src", ["src/cell/main.cpp", "src/cell/bus_glue_weak.cpp", "src/primary/main.cpp"])
-@pytest.mark.parametrize("defines", [[], ["-DMC_CELL_INDEX=16", "-DMC_CELL_ADDR=0x1f"]])
-def test_glue_compiles_against_the_library_headers(src, defines):
-    """pio cannot build here; this catches API drift between lib/metacell and src/
-    (samd21_hw.cpp needs the SAMD21 CMSIS headers and is checked where PlatformIO runs)."""
-    res = subprocess.run(
-        [
-            "g++",
-            "-std=gnu++11",
-            "-fsyntax-only",
-            "-Wall",
-            "-Wextra",
-            "-Werror",
-            "-I",
-            str(ROOT / "tests/stubs/arduino"),
-            "-I",
-            str(ROOT / "lib/metacell/src"),
-            "-I",
-            str(ROOT / "src"),
-            *defines,
-            str(ROOT / src),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert res.returncode == 0, res.stderr
