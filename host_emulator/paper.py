@@ -333,6 +333,16 @@ def build(out: Path, repeats: int = 10) -> dict:
     return doc
 
 
+def paper_budget(repeats: int) -> str | None:
+    """The runs of `paper` (Fig. 2's five, Fig. 3's three panels x repeats) against the batch limit."""
+    from .limits import batch_budget, scene_cost
+
+    names = [s for s, _, _ in FIG2_RUNS.values()] + ["exp3_single_sigma14", "exp3_single_sigma14", "exp4_stable_eta10"]
+    fixed = sum(scene_cost(load_scene(n)) for n in names)
+    per = sum(scene_cost(load_scene(n, ["model=hil"])) for n, _ in FIG3_RUNS.values())
+    return batch_budget(fixed + repeats * per, f"paper --repeats {repeats}")
+
+
 def _json_default(v):
     if isinstance(v, (np.floating, np.integer, np.bool_)):
         return v.item()
@@ -377,8 +387,11 @@ def paper_main(argv: list[str] | None) -> int:
         print(f"paper: error: --repeats {args.repeats}: must be in 1..1000", file=sys.stderr)
         return 2
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"paper: error: --out {out}: exists and is not a directory", file=sys.stderr)
+    from .outpaths import check_out_dir
+
+    problem = check_out_dir(out) or paper_budget(args.repeats)
+    if problem:
+        print(f"paper: error: {problem}", file=sys.stderr)
         return 2
     doc = build(out, args.repeats)
     print_table(doc)
@@ -466,6 +479,25 @@ def robustness(
     return out
 
 
+def robustness_budget(
+    seeds: int,
+    scenes: Sequence[str] | None = None,
+    torques: Sequence[float] = ROBUST_TORQUES_NM,
+    durations: Sequence[float] = ROBUST_DURATIONS_S,
+) -> str | None:
+    """robustness's runs (per scene: seeds, seeds with jitter on hil, every push) x their cost, against the batch
+    limit, before any run: one line with the figure, or None."""
+    from .limits import batch_budget, scene_cost
+
+    total = 0.0
+    for name in scenes or ROBUST_SCENES:
+        model, _ = ROBUST_SCENES[name]
+        scene = load_scene(name, [f"model={model}"])
+        runs = seeds * (2 if model == "hil" else 1) + (len(torques) * len(durations) if scene.perturbations else 0)
+        total += runs * scene_cost(scene)
+    return batch_budget(total, f"robustness --seeds {seeds}")
+
+
 def print_robustness(res: dict, seeds: int, file: TextIO = sys.stdout) -> None:
     print(
         f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file
@@ -504,11 +536,16 @@ def robustness_main(argv: list[str] | None) -> int:
     if not 1 <= args.seeds <= 10000:
         print(f"robustness: error: --seeds {args.seeds}: must be in 1..10000", file=sys.stderr)
         return 2
+    from .outpaths import check_out_dir
+
+    problem = (check_out_dir(args.out) if args.out else None) or robustness_budget(args.seeds, args.scene)
+    if problem:
+        print(f"robustness: error: {problem}", file=sys.stderr)
+        return 2
     res = robustness(args.seeds, scenes=args.scene)
     print_robustness(res, args.seeds)
     if args.out:
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
         doc = {
             "seeds": args.seeds,
             "noise": NOISE,

@@ -29,6 +29,7 @@ waves), theory_fastest_growth_per_s. Units are attributes of each variable.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import itertools
 import json
 import math
@@ -66,10 +67,17 @@ OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report 
     "wall_s": "s",
 }
 STRINGS = ("regime", "status", "error")
+MAX_POINTS = 1_000_000  # grid points x seeds: the point list, the store and the dataset stay within memory
+COST_SAMPLE = 8  # points whose solver is built to estimate the sweep's cost before any cluster starts
 
 
 class SweepError(ValueError):
     """A bad sweep definition (grid syntax, keys, output directory)."""
+
+
+class SweepFailed(RuntimeError):
+    """The sweep could not run on (scheduler unreachable, cluster failed to start, interrupted); points already
+    finished stay in points.jsonl and a re-run resumes."""
 
 
 # ---- the grid -------------------------------------------------------------------------------------------
@@ -92,6 +100,8 @@ def parse_grid(text: str) -> tuple[str, list]:
             raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
         if n < 1 or not (math.isfinite(a) and math.isfinite(b)):
             raise SweepError(f"--grid {text!r}: NUM must be >= 1 and START, STOP finite")
+        if n > MAX_POINTS:
+            raise SweepError(f"--grid {text!r}: NUM = {n} exceeds the sweep's {MAX_POINTS} points")
         return key, [float(v) for v in np.linspace(a, b, n)]
     vals = [_value(v) for v in spec.split(",") if v.strip()]
     if not vals:
@@ -145,6 +155,7 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
     other models one by one), so a point costs no Python per control tick."""
     from .batch import run_batch
     from .cli import summarize
+    from .limits import scene_cost
     from .scene import load_scene
 
     out: list[dict] = []
@@ -152,7 +163,9 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
     for spec in specs:
         r = {"index": spec["index"], "status": "ok", "error": ""}
         try:
-            loaded.append((r, load_scene(spec["scene"], spec["overrides"])))
+            sc = load_scene(spec["scene"], spec["overrides"])
+            scene_cost(sc)  # the point's own guard: a point too long is recorded as failed, with the figure
+            loaded.append((r, sc))
         except Exception as e:  # noqa: BLE001 - a failing point is recorded, never dropped
             r["status"], r["error"], r["wall_s"] = "failed", f"{type(e).__name__}: {e}", 0.0
         out.append(r)
@@ -238,12 +251,25 @@ def sweep(
             raise SweepError(f"grid[{k!r}]: expected a non-empty list of values")
     if seeds is not None and (isinstance(seeds, bool) or int(seeds) < 1):
         raise SweepError(f"seeds = {seeds!r}: expected a positive integer")
+    n_points = math.prod(len(v) for v in grid.values()) * int(seeds or 1)
+    if n_points > MAX_POINTS:
+        raise SweepError(
+            f"the grid is {' x '.join(str(len(v)) for v in grid.values())}{f' x {seeds} seeds' if seeds else ''} = "
+            f"{n_points} points (limit {MAX_POINTS}): fewer values or seeds"
+        )
     scene_name = str(scene)
     specs, axes = point_specs(scene_name, grid, seeds, list(fixed))
     base = load_scene(scene_name, list(fixed))
-    load_scene(scene_name, specs[0]["overrides"])  # a bad key fails here, before any cluster starts
+    load_scene(scene_name, specs[0]["overrides"])  # a bad key fails here, before anything is written
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    from .outpaths import check_out_dir
+
+    problem = check_out_dir(out)
+    if problem:
+        raise SweepError(problem)
+    cost = estimate_cost(specs)  # a bad key, a point too long or a sweep too large fails here, before any cluster
+    if progress:
+        print(f"sweep: {len(specs)} points, about {cost:.3g} cell steps in all", file=sys.stderr)
     definition = {"scene": scene_name, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}
     dfile = out / "sweep.json"
     if dfile.exists():
@@ -268,6 +294,34 @@ def sweep(
         if len(keys) == 2:
             _save(plot_regime_map(ds, keys[0], keys[1]), out / "regime_map.png")
     return ds
+
+
+def estimate_cost(specs: list[dict]) -> float:
+    """The sweep's cell steps, from COST_SAMPLE points spread over the grid (first and last included), each built
+    as its run would be (limits.scene_cost: every preset and automatic step resolved). Raises RunTooLarge for a
+    sampled point that is too long on its own or a sweep over the batch limit (the figure in the message)."""
+    from .limits import RunTooLarge, batch_budget, scene_cost
+    from .scene import load_scene
+
+    n = len(specs)
+    k = min(n, COST_SAMPLE)
+    picks = sorted({round(i * (n - 1) / max(1, k - 1)) for i in range(k)})
+    costs = []
+    for i in picks:
+        try:
+            costs.append(scene_cost(load_scene(specs[i]["scene"], specs[i]["overrides"])))
+        except RunTooLarge as e:
+            raise SweepError(f"point {i} {specs[i]['coords']}: {e}") from None
+        except (KeyError, ValueError):  # a bad point is recorded as failed when it runs, as every bad point is
+            continue
+    if not costs:
+        load_scene(specs[0]["scene"], specs[0]["overrides"])  # every sampled point is bad: say why (bad key...)
+        return 0.0
+    total = sum(costs) / len(costs) * n
+    problem = batch_budget(total, f"the sweep of {n} points (about {total / n:.3g} cell steps each)")
+    if problem:
+        raise RunTooLarge(problem)
+    return total
 
 
 def _save(fig, path):
@@ -305,10 +359,20 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
 
     cluster = None
     if scheduler:
-        client = Client(scheduler, timeout="20s")
+        _probe_scheduler(scheduler)
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as e:
+            raise SweepFailed(f"--scheduler {scheduler}: cannot connect: {_first_line(e)}") from None
     else:
-        cluster = local_cluster(int(workers or os.cpu_count() or 1))
-        client = Client(cluster)
+        try:
+            cluster = local_cluster(int(workers or os.cpu_count() or 1))
+            client = Client(cluster)
+        except Exception as e:  # noqa: BLE001 - a worker killed while starting, no ports, ...
+            if cluster is not None:
+                with contextlib.suppress(Exception):
+                    cluster.close()
+            raise SweepFailed(f"the local Dask cluster did not start: {type(e).__name__}: {_first_line(e)}") from None
     try:
         nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
         size = int(chunk) if chunk else chunk_size(len(todo), nw)
@@ -337,10 +401,44 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
                 fh.flush()
                 bar.update(len(results))
         bar.close()
+    except KeyboardInterrupt:
+        import logging
+
+        # Ctrl-C: the cluster's own shutdown chatter (asyncio cancellations) is no news to the user
+        for name in ("distributed", "asyncio", "tornado"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        raise
     finally:
-        client.close()
+        with contextlib.suppress(Exception):
+            client.close()
         if cluster is not None:
-            cluster.close()
+            with contextlib.suppress(Exception):
+                cluster.close()
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
+
+
+def _probe_scheduler(address: str, timeout_s: float = 5.0) -> None:
+    """Fail at once (SweepFailed) on a tcp:// scheduler nobody listens at, instead of the client's 20 s wait."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return
+    u = urlsplit(address)
+    try:
+        host, port = u.hostname, u.port
+    except ValueError:
+        raise SweepError(f"--scheduler {address}: expected tcp://HOST:PORT") from None
+    if not host or not port:
+        raise SweepError(f"--scheduler {address}: expected tcp://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=timeout_s).close()
+    except OSError as e:
+        raise SweepFailed(f"--scheduler {address}: cannot connect: {e.strerror or e}") from None
 
 
 def to_dataset(specs: list[dict], axes: dict, done: dict, base: Scene, definition: dict) -> xr.Dataset:
@@ -514,7 +612,9 @@ EPILOG = """examples:
   python -m host_emulator sweep default --grid params.sigma=0.04:0.12:9 --scheduler tcp://127.0.0.1:8786 --out out/s3
 
 Re-running the same command resumes: points already in DIR/points.jsonl are skipped.
-Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2 bad input."""
+Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2 bad input (grid, keys, output
+directory, a sweep over the size limits: the figure is given), 3 the sweep could not run on (scheduler unreachable,
+cluster did not start, interrupted, write error; finished points are kept and a re-run resumes)."""
 
 
 def sweep_main(argv: list[str] | None = None) -> int:
@@ -597,8 +697,20 @@ def sweep_main(argv: list[str] | None = None) -> int:
             map_keys=args.map,
         )
     except (SweepError, ConfigError, KeyError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", file=sys.stderr)
         return 2
+    except SweepFailed as e:
+        print(f"error: sweep failed: {e}; finished points are kept in {args.out}/points.jsonl", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print(
+            f"sweep: interrupted; finished points are kept in {args.out}/points.jsonl (the same command resumes)",
+            file=sys.stderr,
+        )
+        return 3
+    except OSError as e:
+        print(f"error: sweep failed: cannot write {args.out}: {e.strerror or e}", file=sys.stderr)
+        return 3
     st = ds["status"].values.astype(str)
     failed = int((st == "failed").sum())
     print(f"sweep: {st.size} points, {int((st == 'ok').sum())} ok, {failed} failed; wrote {args.out}/sweep.nc")

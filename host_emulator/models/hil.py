@@ -195,6 +195,9 @@ class HilSolver(Solver):
             "glitches_injected": int(self.h.glitches),
         }
 
+    def plant_step_s(self) -> float:
+        return 1.0 / self.model.rate_hz / self.substeps
+
     def encoder_errors(self) -> int:
         return int(sum(self.quad[i].errors for i in range(2 * self.model.n)))
 

@@ -96,6 +96,9 @@ class LatticeSolver(Solver):
             "dt_out_s": self.dt_out,
         }
 
+    def plant_step_s(self) -> float:
+        return float(self.h)
+
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()
