@@ -106,9 +106,14 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     from .limits import check_out_dir, check_run
+    from .outpaths import check_out_file
 
     out = Path(args.out or Path("out") / scene.name)
-    problem = check_run(scene) or check_out_dir(out)
+    problem = (
+        check_run(scene)
+        or check_out_dir(out)
+        or (check_out_file(args.live_png, "--live-png") if args.live_png else None)
+    )
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2

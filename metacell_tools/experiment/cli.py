@@ -403,6 +403,14 @@ def cmd_run(
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
     out = Path(args.out or Path("out") / "rig" / scene.name)
+    from host_emulator.outpaths import check_out_dir, check_out_file, first_problem
+
+    problem = first_problem(
+        check_out_dir(out), check_out_file(args.live_png, "--live-png") if getattr(args, "live_png", None) else None
+    )
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return EXIT_USAGE
     live = make_live(args, scene, out)
     rc, summary = execute(
         scene,
@@ -435,6 +443,12 @@ def cmd_rehearse(args: argparse.Namespace) -> int:
         _options(args)
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    from host_emulator.outpaths import check_out_dir
+
+    problem = check_out_dir(Path(args.out or Path("out") / "rig" / scene.name))
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
         return EXIT_USAGE
     extra = []
     for name in ("absent", "stuck", "babble"):

@@ -21,15 +21,25 @@ class CompareError(ValueError):
 
 
 def load(d: Path) -> dict:
-    f = Path(d) / "summary.json"
+    d = Path(d)
+    if d.exists() and not d.is_dir():
+        raise CompareError(
+            f"{d}: not a directory (give the output directory of `python -m metacell_tools.experiment run` or "
+            "`python -m host_emulator run`, which holds summary.json; a logger's .npz is not a run)"
+        )
+    f = d / "summary.json"
     try:
         s = json.loads(f.read_text())
     except FileNotFoundError:
         raise CompareError(
             f"{f}: not found (run `python -m metacell_tools.experiment run` or `python -m host_emulator run` first)"
         ) from None
-    except json.JSONDecodeError as e:
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise CompareError(f"{f}: not valid JSON: {e}") from None
+    except OSError as e:
+        raise CompareError(f"{f}: cannot read it: {e.strerror or e}") from None
+    if not isinstance(s, dict):
+        raise CompareError(f"{f}: not a run summary")
     for k in ("scene", "final_alpha_rad", "final_beta_rad"):
         if k not in s:
             raise CompareError(f"{f}: no {k!r} key (not a run summary)")
@@ -130,5 +140,9 @@ def compare(rig_dir: Path, emu_dir: Path, out: Path | None = None) -> tuple[str,
     if len(rig["final_alpha_rad"]) != len(emu["final_alpha_rad"]):
         raise CompareError(f"different cell counts: {len(rig['final_alpha_rad'])} vs {len(emu['final_alpha_rad'])}")
     out = Path(out) if out else Path(rig_dir) / "compare.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    from host_emulator.outpaths import check_out_file
+
+    problem = check_out_file(out, "--out")
+    if problem:
+        raise CompareError(problem)
     return table(rig, emu), plot(rig, emu, out)
