@@ -201,6 +201,21 @@ def _print_summary(s, out, files):
     )
 
 
+def unexpected(e: BaseException, prog: str) -> int:
+    """An error no check foresaw (a numerical library's LinAlgError, an OS error of a dependency...): one line
+    naming it, exit 3; the traceback only with MC_DEBUG=1."""
+    import os
+
+    if os.environ.get("MC_DEBUG"):
+        raise e
+    from numpy.linalg import LinAlgError
+
+    what = "numerical failure" if isinstance(e, (ArithmeticError, LinAlgError)) else "run failed"
+    text = " ".join(str(e).split()) or "(no message)"
+    print(f"{prog}: error: {what}: {type(e).__name__}: {text[:300]} (MC_DEBUG=1 shows the traceback)", file=sys.stderr)
+    return 3
+
+
 def _positive_float(text: str) -> float:
     try:
         v = float(text)
@@ -226,6 +241,11 @@ def main(argv: list[str] | None = None) -> int:
     except FirmwareBuildError as e:  # no sources, no compiler: say what is missing, not a traceback
         print(f"error: {e}", file=sys.stderr)
         return 3
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 3
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        return unexpected(e, "host_emulator")
     except BrokenPipeError:  # e.g. `dispersion --json | head`: the reader left, not an error
         import os
 

@@ -480,4 +480,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
+    try:
+        return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        from host_emulator.cli import unexpected
+
+        return unexpected(e, "experiment")

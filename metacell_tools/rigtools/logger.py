@@ -844,6 +844,15 @@ def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        from host_emulator.cli import unexpected
+
+        return unexpected(e, "logger")
+
+
+def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m metacell_tools.rigtools.logger",
         description=__doc__.split("\n\n")[0],
