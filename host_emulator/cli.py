@@ -241,16 +241,16 @@ def main(argv: list[str] | None = None) -> int:
     except FirmwareBuildError as e:  # no sources, no compiler: say what is missing, not a traceback
         print(f"error: {e}", file=sys.stderr)
         return 3
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 3
-    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
-        return unexpected(e, "host_emulator")
     except BrokenPipeError:  # e.g. `dispersion --json | head`: the reader left, not an error
         import os
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 3
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        return unexpected(e, "host_emulator")
 
 
 # subcommands with their own argument parsers: name -> (module, entry point), imported only when used

@@ -388,7 +388,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         with open(pf, "a") as fh:
             if cut:
                 fh.write("\n")  # a line cut by a crash stays alone (ignored when read)
-            for fut in as_completed(list(futs)):
+            for fut in _closing(bar, as_completed(list(futs))):
                 c = futs[fut]
                 try:
                     results = fut.result()
@@ -414,6 +414,15 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         if cluster is not None:
             with contextlib.suppress(Exception):
                 cluster.close()
+
+
+def _closing(bar, items):
+    """Iterate items; the progress bar is closed however the loop ends (Ctrl-C), so it never prints after the
+    last line."""
+    try:
+        yield from items
+    finally:
+        bar.close()
 
 
 def _first_line(e: BaseException) -> str:

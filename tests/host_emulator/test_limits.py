@@ -93,3 +93,135 @@ def test_check_run_never_raises_and_refuses_what_it_cannot_bound(key, value):
         return
     msg = check_run(sc)
     assert msg is None or key.split(".")[-1] in msg or "GiB" in msg or "cell steps" in msg
+
+
+# ---- one guard for every path to a run (issue: substeps, tiny inertia, huge sweeps) ---------------------------
+
+
+@pytest.mark.parametrize(
+    "sets,needle",
+    [
+        (["model_options.substeps=1000000"], "model_options.substeps = 1000000"),
+        (["model=lattice", "params.I_a=1e-15"], "automatic plant step"),
+    ],
+)
+def test_run_refuses_a_resolved_step_count_it_cannot_finish(sets, needle, tmp_path):
+    args = ["run", "default", "--quiet", "--no-plots", "--out", str(tmp_path / "o")]
+    for s in sets:
+        args += ["--set", s]
+    r = run(*args, timeout=300)
+    assert r.returncode == 2 and needle in r.stderr and "cell steps" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_the_api_refuses_the_same_run():
+    import host_emulator as he
+    from host_emulator.limits import RunTooLarge
+    from host_emulator.models import ConfigError
+
+    with pytest.raises(RunTooLarge, match="substeps") as e:
+        he.run("default", {"model_options.substeps": 1_000_000})
+    assert isinstance(e.value, ConfigError)
+
+
+def test_serve_refuses_a_step_it_cannot_pace():
+    r = run("serve", "default", "--duration", "60", "--set", "model_options.substeps=1000", timeout=300)
+    assert r.returncode == 2 and "real time" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+@pytest.mark.parametrize(
+    "grid,needle",
+    [
+        (["--grid", "params.sigma=0.04:0.12:100000000"], "exceeds"),
+        (["--grid", "params.sigma=0.04:0.12:10000", "--grid", "params.k1=0.06,0.07", "--seeds", "100"], "points"),
+        (["--grid", "params.sigma=0.04:0.12:1000", "--seeds", "1000"], "cell steps in all"),
+        (["--grid", "model_options.substeps=1,1000000"], "model_options.substeps = 1000000"),
+    ],
+)
+def test_sweep_refuses_what_it_cannot_finish_before_any_cluster(grid, needle, tmp_path):
+    r = run("sweep", "default", "--quiet", "--out", str(tmp_path / "s"), *grid, timeout=300)
+    assert r.returncode == 2 and needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "s" / "points.jsonl").exists()
+
+
+def test_sweep_unreachable_scheduler_is_one_line_exit_3(tmp_path):
+    import socket
+
+    with socket.socket() as s:  # a port nobody listens at
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    r = run(
+        "sweep", "default", "--quiet", "--grid", "params.sigma=0.05", "--out", str(tmp_path / "s"),
+        "--scheduler", f"tcp://127.0.0.1:{port}", timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 3 and "cannot connect" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_sweep_interrupted_is_one_line_exit_3_and_resumable(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "s"
+    p = subprocess.Popen(
+        [sys.executable, "-m", "host_emulator", "sweep", "default", "--grid", "params.sigma=0.04:0.12:400",
+         "--workers", "1", "--chunk", "4", "--out", str(out)],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    pf = out / "points.jsonl"
+    deadline = time.monotonic() + 300  # event-driven: the first finished chunk, however slow the machine
+    while not (pf.exists() and pf.stat().st_size) and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert p.poll() is None, "the sweep ended before it could be interrupted"
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 3 and "Traceback" not in err, err
+    assert err.strip().splitlines()[-1].startswith("sweep: interrupted"), err
+    done = len(pf.read_text().splitlines())
+    r = run("sweep", "default", "--quiet", "--grid", "params.sigma=0.04:0.12:400", "--workers", "1",
+            "--out", str(out), timeout=900)  # fmt: skip
+    assert r.returncode == 0 and 0 < done < 400 and len(pf.read_text().splitlines()) == 400, r.stderr
+
+
+def test_pathological_scene_files_are_one_line(tmp_path):
+    deep = tmp_path / "deep.toml"
+    deep.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    junk = tmp_path / "junk.toml"
+    junk.write_bytes(bytes(range(256)) * 4)
+    for f in (deep, junk):
+        r = run("run", str(f), "--quiet", "--out", str(tmp_path / "o"), timeout=300)
+        assert r.returncode == 2 and str(f) in r.stderr and "Traceback" not in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_an_integer_too_big_for_the_firmware_names_its_key(tmp_path):
+    r = run("run", "default", "--quiet", "--no-plots", "--out", str(tmp_path / "o"),
+            "--set", "params.pwm_top=99999999999999999999999", timeout=300)  # fmt: skip
+    assert r.returncode == 2 and "params.pwm_top" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_compare_on_a_logger_npz_is_one_line(tmp_path):
+    import numpy as np
+
+    npz = tmp_path / "run.npz"
+    np.savez(npz, a=np.zeros(3))
+    r = subprocess.run(
+        [sys.executable, "-m", "metacell_tools.experiment", "compare", str(npz), str(tmp_path)],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 2 and "not a directory" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_an_unforeseen_error_is_one_line_exit_3(monkeypatch, capsys):
+    from numpy.linalg import LinAlgError
+
+    import host_emulator.cli as cli
+
+    def boom(*a, **k):
+        raise LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(cli, "cmd_scenes", boom)
+    monkeypatch.delenv("MC_DEBUG", raising=False)
+    assert cli.main(["scenes"]) == 3
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "numerical failure: LinAlgError: Singular matrix" in err
