@@ -3,6 +3,13 @@
 import os
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+# The suite must pass on a machine whose cores are saturated: no hypothesis example has a wall-clock deadline and
+# slow data generation is not an error (the property is what is tested, not the speed). Tests that set their own
+# settings inherit these defaults for what they leave out.
+settings.register_profile("loaded-machine", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("loaded-machine")
 
 # No window from any test (live plots included); subprocesses inherit it. The package itself never selects
 # a backend: this is the test environment's choice.

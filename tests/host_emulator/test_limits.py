@@ -15,7 +15,7 @@ from metacell_tools.rigtools import proto
 ROOT = proto.ROOT
 
 
-def run(*args, timeout=60):
+def run(*args, timeout=600):
     r = subprocess.run(
         [sys.executable, "-m", "host_emulator", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout
     )
@@ -41,7 +41,7 @@ def test_every_shipped_scene_passes_the_checks():
     ],
 )
 def test_run_refuses_unbounded_or_unrepresentable_values(scene, override, needle, tmp_path):
-    r = run("run", scene, "--quiet", "--no-plots", "--out", str(tmp_path / "o"), "--set", override, timeout=60)
+    r = run("run", scene, "--quiet", "--no-plots", "--out", str(tmp_path / "o"), "--set", override, timeout=600)
     assert r.returncode == 2, r.stderr
     assert needle in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
@@ -50,7 +50,7 @@ def test_run_checks_the_output_path_before_simulating(tmp_path):
     f = tmp_path / "file"
     f.write_text("")
     for out in (f, f / "sub", "/proc/forbidden/out"):
-        r = run("run", "default", "--quiet", "--no-plots", "--out", str(out), "--set", "t_end_s=1000", timeout=30)
+        r = run("run", "default", "--quiet", "--no-plots", "--out", str(out), "--set", "t_end_s=1000", timeout=600)
         assert r.returncode == 2 and "--out" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
@@ -63,7 +63,7 @@ def test_dispersion_into_a_closed_pipe_is_not_an_error():
         stderr=subprocess.PIPE,
         text=True,
     )
-    o, e = p.communicate(timeout=60)
+    o, e = p.communicate(timeout=600)
     assert "Traceback" not in e and "BrokenPipe" not in e, e
 
 

@@ -18,7 +18,6 @@ from metacell_tools.rigtools import logger as L
 from metacell_tools.rigtools import proto
 
 ROOT = proto.ROOT
-SAMPLE = proto.FRAMES["CELL_SAMPLE"]["base"]
 
 
 def _blf(path: Path, n: int, container: int = 4096) -> list[can.Message]:
@@ -165,7 +164,9 @@ def test_a_killed_logger_leaves_files_every_reader_opens(tmp_path):
         srv.wait(30)
     df = pd.read_csv(csv)  # a cut last line is tolerated by no reader: the logger writes whole lines
     assert list(df.columns) == L.CSV_HEADER.strip().split(",") and len(df) > 5000
-    asc = [m for m in can.ASCReader(str(out.with_suffix(".asc"))) if m.arbitration_id & ~0xF == SAMPLE & ~0xF]
+    asc = [
+        m for m in can.ASCReader(str(out.with_suffix(".asc"))) if proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE"
+    ]
     r = subprocess.run(
         [sys.executable, "-m", "metacell_tools.rigtools.logger", "--repair", str(out)],
         cwd=ROOT,
@@ -174,7 +175,9 @@ def test_a_killed_logger_leaves_files_every_reader_opens(tmp_path):
         timeout=300,
     )
     assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
-    blf = [m for m in can.BLFReader(str(out.with_suffix(".blf"))) if m.arbitration_id & ~0xF == SAMPLE & ~0xF]
+    blf = [
+        m for m in can.BLFReader(str(out.with_suffix(".blf"))) if proto.frame_kind(m.arbitration_id)[0] == "CELL_SAMPLE"
+    ]
     arr = np.load(out.with_suffix(".npz"))
     n_npz = int(np.sum(~np.isnan(arr["alpha_counts"])))
     assert n_npz == len(df)
