@@ -4,8 +4,10 @@
     python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
 
 Writes <out>.<fmt> for every python-can format asked for (asc blf csv db log trc txt),
-<out>.csv (one row per cell sample, streamed to disk in chunks while logging) and, at the
-end, <out>.npz (cycle x cell arrays, see docs/datapath.md). Every gap in a cell's
+<out>.csv (one row per cell sample, on disk within 1.5 s of its frame) and, at the end,
+<out>.npz (cycle x cell arrays, written to a temporary name and renamed; see docs/datapath.md).
+`--repair PREFIX` puts the files of a killed or full-disk run right (BLF cut to its last
+object, NPZ rebuilt from the CSV). A port another program holds is refused. Every gap in a cell's
 sequence counter is reported on stderr with its length as it happens and kept in the NPZ;
 a link silent for more than a second is reported; a lost connection is reported, retried
 every second, and logged as a new segment. --duration counts from the first frame.
@@ -347,7 +349,7 @@ class SampleDecoder:
         prefix.parent.mkdir(parents=True, exist_ok=True)
         arr = self.arrays()
         npz = prefix.with_suffix(".npz")
-        np.savez_compressed(npz, **arr)
+        save_npz_atomic(npz, arr)
         csv = prefix.with_suffix(".csv")
         with open(csv, "w") as f:
             f.write(CSV_HEADER)
@@ -650,6 +652,8 @@ class RigLogger:
         self.stop_reason: str | None = None  # set by a signal handler
         self.error: str | None = None
         self._flushed = 0.0
+        self._watched = 0.0
+        self.others: set[int] = set()  # pids of other programs seen holding the port while logging
 
     def _open(self):
         from .slcanbus import open_bus
@@ -702,6 +706,24 @@ class RigLogger:
             self._flushed = now
             for w in writers:
                 flush_writer(w)
+        if now - self._watched >= self.WATCH_S:
+            self._watched = now
+            self._watch_port()
+
+    WATCH_S = 2.0
+
+    def _watch_port(self) -> None:
+        """A program that opens the port after us (python-can's own logger takes no lock) splits the bytes with us:
+        say so once per program, and count it in the summary line."""
+        from .portlock import device_of, holders
+
+        dev = device_of(self.channel) if self.interface == "slcan" else None
+        if dev is None:
+            return
+        new = {pid: cmd for pid, cmd in holders(dev).items() if pid not in self.others}
+        for pid, cmd in new.items():
+            self.others.add(pid)
+            self.report(f"another program opened {dev} (pid {pid}: {cmd}): both lose samples (one reader per port)")
 
     def _on_signal(self, signum, frame):
         self.stop_reason = signal.Signals(signum).name
@@ -964,7 +986,9 @@ def _main(argv: list[str] | None = None) -> int:
     print(
         f"{n} frames; samples per cell min {per_cell.min() if len(per_cell) else 0} max "
         f"{per_cell.max() if len(per_cell) else 0}; {len(arr['gaps'])} gaps ({lost} samples lost); "
-        f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; wrote {args.out}.npz/.csv and "
+        f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; "
+        + (f"{len(log.others)} other program(s) read the port too; " if log.others else "")
+        + f"wrote {args.out}.npz/.csv and "
         f"{','.join(formats)}{why}"
     )
     return 0

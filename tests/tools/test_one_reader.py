@@ -119,3 +119,46 @@ def test_serve_counts_a_second_client():
         srv.send_signal(signal.SIGTERM)
         out, _ = srv.communicate(timeout=120)
     assert re.search(r"1 second-client events \(most programs on the pty at once: 2\)", out), out
+
+
+def test_the_logger_reports_a_program_that_opens_its_port_later(tmp_path):
+    """python -m can.logger takes no lock: opened after the logger, it is seen and reported (and counted)."""
+    srv = subprocess.Popen(
+        [sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--duration", "600"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    other = log = None
+    try:
+        pty = re.match(r"slcan pty: (\S+)", srv.stdout.readline()).group(1)
+        log = subprocess.Popen(
+            [sys.executable, "-m", "metacell_tools.rigtools.logger", "-c", f"{pty}@115200", "-o", str(tmp_path / "l")],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        csv = tmp_path / "l.csv"
+        deadline = time.monotonic() + 300  # event-driven: the logger is logging once rows reach its CSV
+        while not (csv.exists() and csv.stat().st_size > 1000) and time.monotonic() < deadline:
+            assert log.poll() is None, log.communicate()
+            time.sleep(0.2)
+        other = hold(pty)
+        line = ""
+        deadline = time.monotonic() + 300
+        while "another program opened" not in line and time.monotonic() < deadline:
+            line = log.stderr.readline()
+            assert line or log.poll() is None, "the logger exited"
+        assert f"pid {other.pid}" in line, line
+        log.send_signal(signal.SIGTERM)
+        out, _ = log.communicate(timeout=300)
+    finally:
+        for p in (other, log):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()
+        srv.send_signal(signal.SIGTERM)
+        srv.communicate(timeout=120)
+    assert log.returncode == 0 and "1 other program(s) read the port too" in out, out
