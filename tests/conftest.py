@@ -16,6 +16,14 @@ settings.load_profile("loaded-machine")
 os.environ["MPLBACKEND"] = "Agg"
 
 
+def ctrl_c_default() -> None:
+    """preexec_fn for a child that a test interrupts with SIGINT: Ctrl-C's default action, even when the suite itself
+    runs with SIGINT ignored (a background job of a non-interactive shell), which Python children would inherit."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.fixture(scope="session")
 def fw():
     """(ffi, lib) of the host build of lib/metacell (and the emulator C)."""

@@ -162,11 +162,13 @@ def test_sweep_interrupted_is_one_line_exit_3_and_resumable(tmp_path):
     import signal
     import time
 
+    from tests.conftest import ctrl_c_default
+
     out = tmp_path / "s"
     p = subprocess.Popen(
         [sys.executable, "-m", "host_emulator", "sweep", "default", "--grid", "params.sigma=0.04:0.12:400",
          "--workers", "1", "--chunk", "4", "--out", str(out)],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_default,
     )  # fmt: skip
     pf = out / "points.jsonl"
     deadline = time.monotonic() + 300  # event-driven: the first finished chunk, however slow the machine

@@ -163,7 +163,7 @@ def test_full_disk_ends_with_one_line_and_readable_files(tmp_path):
             "exp5_rest",
             "--slcan",
             "--duration",
-            "60",
+            "1200",  # stopped at the end of the test; long enough for a loaded machine
             "--link",
             str(link),
         ],
@@ -191,7 +191,7 @@ def test_full_disk_ends_with_one_line_and_readable_files(tmp_path):
                 "--formats",
                 "asc",
                 "--duration",
-                "60",
+                "600",
             ],
             cwd=ROOT,
             capture_output=True,

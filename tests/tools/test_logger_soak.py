@@ -30,7 +30,7 @@ def start_server(link):
             "exp5_rest",
             "--slcan",
             "--duration",
-            "120",
+            "1200",  # stopped by the test; long enough for a loaded machine
             "--link",
             str(link),
         ],
@@ -98,7 +98,7 @@ def test_logger_soak_stalls_kill_restart(tmp_path):
         log.send_signal(signal.SIGCONT)
         time.sleep(2.0)
         srv.send_signal(signal.SIGSTOP)  # the server stalls: the link goes silent
-        time.sleep(1.5)
+        time.sleep(3.0)  # well over the logger's 1 s silence threshold, even if the logger itself is slowed
         srv.send_signal(signal.SIGCONT)
         time.sleep(1.5)
         srv.kill()  # the server dies and comes back on the same link

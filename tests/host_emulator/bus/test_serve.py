@@ -11,6 +11,7 @@ import can
 import pytest
 
 from metacell_tools.rigtools import proto
+from tests.conftest import ctrl_c_default
 
 ROOT = proto.ROOT
 
@@ -18,7 +19,8 @@ ROOT = proto.ROOT
 @pytest.fixture(scope="module")
 def server():
     p = subprocess.Popen(
-        [sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "60"],
+        # a module's worth of tests on a loaded machine can outlast a minute: run on until SIGTERM at teardown
+        [sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--duration", "3600"],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -126,6 +128,7 @@ def test_python_can_logger_records_the_emulator(server, tmp_path):
         cwd=tmp_path,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
+        preexec_fn=ctrl_c_default,
     )
     want = {proto.FRAMES["CELL_SAMPLE"]["base"] + j for j in range(1, 17)}
 
