@@ -87,7 +87,11 @@ void attachInterrupt(uint32_t pin, void (*isr)(void), uint32_t mode)
     if (pin < 32)
         stub.attached |= 1u << pin;
 }
-void NVIC_SetPriority(IRQn_Type, uint32_t) {}
+void NVIC_SetPriority(IRQn_Type irq, uint32_t prio)
+{
+    if ((unsigned)irq < 32)
+        stub.prio[irq] = (int)prio;
+}
 void NVIC_ClearPendingIRQ(IRQn_Type) {}
 void NVIC_EnableIRQ(IRQn_Type) {}
 void NVIC_DisableIRQ(IRQn_Type) {}

@@ -16,6 +16,7 @@ typedef struct {
     char log[256];             /* line states: '0' + (scl << 1 | sda) at each change */
     int n_log;
     uint32_t attached;
+    int prio[32];              /* NVIC priority per IRQ as last set (a driver presets -1: never set) */
     /* USB serial */
     const char *in;
     size_t in_len, in_pos;

@@ -164,7 +164,7 @@ extern TcStub *const TC3;
 #define TC_CTRLA_PRESCALER_DIV1024 (7u << 8)
 #define TC_INTFLAG_OVF 0x01u
 #define TC_INTENSET_OVF 0x01u
-enum IRQn_Type { TC3_IRQn = 18 };
+enum IRQn_Type { EIC_IRQn = 4, USB_IRQn = 7, SERCOM2_IRQn = 11, TC3_IRQn = 18 };
 void NVIC_SetPriority(IRQn_Type irq, uint32_t prio);
 void NVIC_ClearPendingIRQ(IRQn_Type irq);
 void NVIC_EnableIRQ(IRQn_Type irq);
