@@ -117,6 +117,7 @@ void setup()
     }
     if (MC_CELL_INDEX != 0)
         bus_setup(MC_CELL_ADDR);
+    hw_irq_priorities();   /* last: USB below the encoders, the tick and the bus */
 }
 
 void loop()

@@ -236,6 +236,37 @@ uint32_t hw_tick_start(uint32_t rate_hz)
     return period;
 }
 
+/* ---- interrupt priorities ----------------------------------------------------- */
+
+/*
+ * NVIC priorities of the cell, 0 = most urgent (the Cortex-M0+ has four levels, and an
+ * interrupt cannot pre-empt one of equal priority). The core leaves USB at 0 (USBCore.cpp
+ * init) beside the EIC (WInterrupts.c), and its USB handler busy-waits on the host during
+ * control transfers (sendControl/recvControl -> armRecvCtrlOUT), e.g. when the flash tool
+ * opens the port. At full speed encoder edges are 27-54 us apart: an edge held off that long
+ * lets both channels change before the handler samples them, an illegal transition to the
+ * decoder, a count slip of 2 and, in a burst, a latched MC_FAULT_ENCODER. So:
+ *   EIC 0      encoder edges pre-empt everything that can wait
+ *   TC3 1      the control tick (34 us worst case, every 500 us)
+ *   SERCOM2 2  the I2C secondary: it stretches SCL until its handler has run, so it stays
+ *              above USB (the core's Wire.begin sets it to 3)
+ *   USB 3      host traffic waits; its deadlines are milliseconds
+ * SysTick stays at the core's 2 (millis/micros). fwcheck reads this table from the linked
+ * image (docs/hardware.md, "Interrupt priorities").
+ */
+extern "C" const uint8_t hw_irq_priority[HW_IRQ_PRIORITIES][2] = {
+    {EIC_IRQn, 0},
+    {TC3_IRQn, 1},
+    {SERCOM2_IRQn, 2},
+    {USB_IRQn, 3},
+};
+
+void hw_irq_priorities(void)
+{
+    for (unsigned i = 0; i < HW_IRQ_PRIORITIES; i++)
+        NVIC_SetPriority((IRQn_Type)hw_irq_priority[i][0], hw_irq_priority[i][1]);
+}
+
 void hw_tick_mask(void) { NVIC_DisableIRQ(TC3_IRQn); }
 void hw_tick_unmask(void) { NVIC_EnableIRQ(TC3_IRQn); }
 

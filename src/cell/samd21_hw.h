@@ -25,10 +25,22 @@ void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b);
  * pin-change interrupts (EIC, both edges) that call mc_quad_update. */
 void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta);
 /* Start TC3 calling hw_tick_handler() at rate_hz (MFRQ mode, NVIC priority 1:
- * below the pin interrupts and USB, above the I2C SERCOM). Returns the timer
+ * below the pin interrupts, above the I2C SERCOM and USB). Returns the timer
  * period in timer clocks (rate error < 1 / period), or 0 if rate_hz cannot be
  * reached. */
 uint32_t hw_tick_start(uint32_t rate_hz);
+/* Set the NVIC priorities of hw_irq_priority[] (EIC 0, TC3 1, SERCOM2 2, USB 3). Call at the
+ * end of setup(), after everything that sets a priority of its own (USB init before setup(),
+ * attachInterrupt, hw_tick_start, Wire.begin in bus_setup). */
+#define HW_IRQ_PRIORITIES 4
+#ifdef __cplusplus
+extern "C" {
+#endif
+extern const uint8_t hw_irq_priority[HW_IRQ_PRIORITIES][2];   /* {IRQn, priority 0..3} */
+#ifdef __cplusplus
+}
+#endif
+void hw_irq_priorities(void);
 /* Hold off / release the control tick (for commands that touch the cell state). */
 void hw_tick_mask(void);
 void hw_tick_unmask(void);
