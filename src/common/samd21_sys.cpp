@@ -37,9 +37,11 @@ void sys_wdt_start(void)
     }
 }
 
-void sys_wdt_feed(void)
+int sys_wdt_feed(void)
 {
     /* writing CLEAR while a clear is still synchronising would stall the bus: skip instead */
-    if (!WDT->STATUS.bit.SYNCBUSY)
-        WDT->CLEAR.reg = WDT_CLEAR_CLEAR_KEY;
+    if (WDT->STATUS.bit.SYNCBUSY)
+        return 0;
+    WDT->CLEAR.reg = WDT_CLEAR_CLEAR_KEY;
+    return 1;
 }

@@ -19,7 +19,8 @@ uint8_t sys_reset_cause(void);
 /* Start the watchdog (SYS_WDT_MS). Call once, late in setup(). */
 void sys_wdt_start(void);
 /* Restart the watchdog period; never waits (skips while the previous clear synchronises,
- * ~3 WDT clocks = 3 ms, far below the period). Call from every pass of loop(). */
-void sys_wdt_feed(void);
+ * ~3 WDT clocks = 3 ms, far below the period). Returns 1 when it fed, 0 when it skipped.
+ * Call from loop() when the work it guards has progressed (cell: the control tick). */
+int sys_wdt_feed(void);
 
 #endif /* SAMD21_SYS_H */
