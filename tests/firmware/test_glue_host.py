@@ -75,11 +75,31 @@ def test_encoder_pins_are_sampled_continuously(programs):
     assert int(r["attached"], 16) == sum(1 << p for p in (7, 8, 9, 10))
 
 
+def test_cell_interrupt_priorities_put_usb_below_encoders_tick_and_bus(programs):
+    """The core leaves USB and the EIC at 0 and Wire at 3; the cell's map, set last in setup(), must win."""
+    r = results(programs[1])
+    prio = {k: int(r[f"prio_{k}"]) for k in ("eic", "tc3", "sercom2", "usb")}
+    assert prio == {"eic": 0, "tc3": 1, "sercom2": 2, "usb": 3}
+
+
+def test_cell_watchdog_is_fed_only_when_the_tick_ran(programs):
+    r = results(programs[1])
+    # nothing fed while the tick stands still, one feed after a tick, none again for the same tick
+    assert (int(r["wdt_fed_no_tick"]), int(r["wdt_fed"]), int(r["wdt_fed_same_tick"])) == (0, 1, 0)
+
+
+def test_cell_with_a_start_up_error_keeps_its_watchdog_fed(programs):
+    """The tick never starts after a start-up error (drive off): the board must keep answering, not reset."""
+    r = results(programs[1], "pins_err")
+    assert int(r["setup_err"]) == 1  # SETUP_ERR_PINS
+    assert int(r["wdt_fed_without_tick"]) == 1
+
+
 def test_cell_watchdog_and_boot_block(programs):
     from metacell_tools.rigtools import proto
 
     r = results(programs[1])
-    assert (int(r["wdt_enabled"]), int(r["wdt_per"]), int(r["wdt_fed"])) == (1, 7, 1)  # PER 0x7 = 1024 clocks
+    assert (int(r["wdt_enabled"]), int(r["wdt_per"])) == (1, 7)  # PER 0x7 = 1024 clocks
     boot = bytes.fromhex(r["boot"])
     d = proto.decode_block("BOOT", boot)
     assert proto.crc8(boot[:-1]) == boot[-1]

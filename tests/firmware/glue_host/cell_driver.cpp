@@ -8,19 +8,43 @@ extern "C" {
 #include "bus/mc_crc8.h"
 }
 
-int main(void)
+static int fed_by_loop(void)
 {
+    WDT->CLEAR.reg = 0;
+    loop();
+    return WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY;
+}
+
+int main(int argc, char **argv)
+{
+    const char *sc = argc > 1 ? argv[1] : "";
     stub.sda = stub.scl = 1;
+    for (int i = 0; i < 32; i++)
+        stub.prio[i] = -1;
+    stub.prio[USB_IRQn] = 0;   /* the core's USBDevice.init() before setup() */
     PM->RCAUSE.reg = PM_RCAUSE_WDT;
+    if (!strcmp(sc, "pins_err")) {
+        /* another variant's pin table: setup() stops before the tick starts */
+        g_APinDescription[CELL_PIN_ENC_A_A].ulPin = 3;
+        setup();
+        int a = fed_by_loop(), b = fed_by_loop();
+        printf("setup_err=%d\nwdt_fed_without_tick=%d\n", g_setup_err, a && b);
+        return 0;
+    }
     setup();
     printf("setup_err=%d\n", g_setup_err);
+    printf("prio_eic=%d\nprio_tc3=%d\nprio_sercom2=%d\nprio_usb=%d\n", stub.prio[EIC_IRQn], stub.prio[TC3_IRQn],
+           stub.prio[SERCOM2_IRQn], stub.prio[USB_IRQn]);
     printf("ctrl_pa=0x%08lx\nctrl_pb=0x%08lx\n", (unsigned long)PORT->Group[0].CTRL.reg,
            (unsigned long)PORT->Group[1].CTRL.reg);
     printf("attached=0x%08lx\n", (unsigned long)stub.attached);
     printf("wdt_enabled=%d\nwdt_per=%u\n", (WDT->CTRL.reg & WDT_CTRL_ENABLE) != 0, (unsigned)WDT->CONFIG.reg);
-    WDT->CLEAR.reg = 0;
-    loop();
-    printf("wdt_fed=%d\n", WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY);
+    /* the watchdog proves the tick: no feed while it stands still, one after it ran */
+    int idle = fed_by_loop();
+    hw_tick_handler();
+    int after_tick = fed_by_loop();
+    int again = fed_by_loop();
+    printf("wdt_fed_no_tick=%d\nwdt_fed=%d\nwdt_fed_same_tick=%d\n", idle, after_tick, again);
     /* the BOOT block as the primary reads it: POINTER write, then a read */
     uint8_t w[3 + MC_REG_POINTER_LEN] = {MC_REG_POINTER, 1, MC_BLK_BOOT, 0};
     uint8_t hdr = (uint8_t)(MC_CELL_ADDR << 1);

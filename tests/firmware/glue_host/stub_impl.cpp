@@ -21,7 +21,7 @@ TccStub *const TCC0 = &g_tcc0;
 static TcStub g_tc3;
 TcStub *const TC3 = &g_tc3;
 /* Seeed XIAO_m0 variant: D0..D10 */
-const PinDescription g_APinDescription[] = {{0, 2}, {0, 4}, {0, 10}, {0, 11}, {0, 8}, {0, 9},
+PinDescription g_APinDescription[] = {{0, 2}, {0, 4}, {0, 10}, {0, 11}, {0, 8}, {0, 9},
                                             {1, 8}, {1, 9}, {0, 7},  {0, 5},  {0, 6}};
 
 stub_state_t stub;
@@ -84,6 +84,8 @@ void attachInterrupt(uint32_t pin, void (*isr)(void), uint32_t mode)
 {
     (void)isr;
     (void)mode;
+    if (!stub.attached)
+        stub.prio[EIC_IRQn] = 0;   /* the core's first attachInterrupt: EIC at priority 0 */
     if (pin < 32)
         stub.attached |= 1u << pin;
 }
@@ -117,8 +119,17 @@ int SerialStub::availableForWrite() { return 63; }
 bool SerialStub::dtr() { return stub.dtr; }
 
 TwoWire Wire;
-void TwoWire::begin() { stub.wire_begins++; }
-void TwoWire::begin(uint8_t) { stub.wire_begins++; }
+/* the core's initClockNVIC: SERCOM2 at SERCOM_NVIC_PRIORITY = 3 */
+void TwoWire::begin()
+{
+    stub.wire_begins++;
+    stub.prio[SERCOM2_IRQn] = 3;
+}
+void TwoWire::begin(uint8_t)
+{
+    stub.wire_begins++;
+    stub.prio[SERCOM2_IRQn] = 3;
+}
 void TwoWire::end() { stub.wire_ends++; }
 void TwoWire::setClock(uint32_t) {}
 void TwoWire::onReceive(void (*)(int)) {}

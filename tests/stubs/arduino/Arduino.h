@@ -71,7 +71,7 @@ extern PortStub *const PORT_IOBUS;
 #define PORT_PMUX_PMUXE_F 0x05u
 #define PORT_PMUX_PMUXO_F 0x50u
 struct PinDescription { uint32_t ulPort, ulPin; };
-extern const PinDescription g_APinDescription[];
+extern PinDescription g_APinDescription[];   /* const in the core; writable here so a test can spoil it */
 
 struct PmStub {
     volatile REG(APBCMASK, uint32_t, uint32_t b : 32;);
