@@ -62,7 +62,8 @@ extern "C" void bus_setup(uint8_t addr)
     cell_app_lock();
     int rc = mc_regs_init(&g_regs, c, addr, MC_BUILD_ID, NULL);
     if (rc == MC_OK)
-        mc_regs_set_boot(&g_regs, cell_app_reset_cause(), cell_app_wdt_ms());
+        mc_regs_set_boot(&g_regs, cell_app_reset_cause(), cell_app_wdt_ms(), cell_app_fault_exc(),
+                         cell_app_fault_pc());
     cell_app_unlock();
     if (rc != MC_OK)
         return;

@@ -51,6 +51,12 @@ uint32_t cell_app_ticks(void) { return g_ticks; }
 uint8_t cell_app_reset_cause(void) { return g_reset_cause; }
 uint16_t cell_app_wdt_ms(void) { return g_wdt_ms; }
 
+uint8_t cell_app_fault_exc(void) { return sys_fault_exc(); }
+uint32_t cell_app_fault_pc(void) { return sys_fault_pc(); }
+
+/* The fault handler's first act (src/common/samd21_sys.h): both drivers asleep. */
+extern "C" void sys_safe_outputs(void) { hw_drivers_off(); }
+
 void cell_app_positions(int32_t *pos_a, int32_t *pos_b)
 {
     mc_quad_snap_t a, b;

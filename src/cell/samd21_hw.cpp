@@ -114,6 +114,13 @@ void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b)
     }
 }
 
+void hw_drivers_off(void)
+{
+    /* nSLEEP low: both drivers' outputs high-impedance at once, whatever TCC0 still drives */
+    PORT_IOBUS->Group[PA].OUTCLR.reg = NSLEEP_MASK | DIR_A_MASK;
+    PORT_IOBUS->Group[PB].OUTCLR.reg = DIR_B_MASK;
+}
+
 /* ---- encoders -------------------------------------------------------------- */
 
 static mc_quad_t *s_quad[2];

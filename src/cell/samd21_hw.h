@@ -21,6 +21,9 @@ void hw_pwm_init(uint16_t top);
 /* Apply both drivers' commands: PH levels, EN duties (TCC0 CCB, takes effect at the
  * next PWM period), nSLEEP = a.enable || b.enable (one pin for both drivers). */
 void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b);
+/* Both drivers asleep now (nSLEEP and PH low): the fault handler's safe state. Register
+ * writes only, safe from any context. */
+void hw_drivers_off(void);
 /* Sample both encoders, initialise the decoders from the levels, then attach the
  * pin-change interrupts (EIC, both edges) that call mc_quad_update. */
 void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta);

@@ -41,6 +41,9 @@ static char g_line_first;    /* first byte of the USB line being received */
 static bool g_dtr;           /* last seen USB DTR (host has the port open) */
 static uint32_t g_resets;    /* bus recoveries already reported to the library */
 
+/* The fault handler's first act (src/common/samd21_sys.h): the primary drives nothing that moves. */
+extern "C" void sys_safe_outputs(void) {}
+
 void setup()
 {
     uint8_t cause = sys_reset_cause();

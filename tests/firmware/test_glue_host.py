@@ -105,6 +105,38 @@ def test_cell_watchdog_and_boot_block(programs):
     assert proto.crc8(boot[:-1]) == boot[-1]
     assert d["tag"] == (proto.D.PROTO_VERSION << 4) | proto.D.BLOCKS["BOOT"]["id"]
     assert (d["addr"], d["reset_cause"], d["wdt_ms"]) == (0x10, 1 << proto.D.RESET_CAUSE["WDT"], 1000)
+    assert (d["fault_exc"], d["fault_pc"]) == (0, 0)
+
+
+def test_cell_fault_sleeps_the_drivers_and_is_reported_once_after_the_reboot(programs):
+    """HardFault with the drive on: nSLEEP cleared before the reset, the next BOOT block says SYST + FAULT with the
+    exception and the stacked PC; the boot after that, and a power-on with an intact-looking record, say no FAULT."""
+    from metacell_tools.rigtools import proto
+
+    rc = proto.D.RESET_CAUSE
+    r = results(programs[1], "fault")
+    assert int(r["nsleep_set_before"]) == 1
+    assert (int(r["resets"]), int(r["nsleep_cleared"])) == (1, 1)
+    boots = {}
+    for key in ("boot_after_fault", "boot_after_next", "boot_after_por"):
+        raw = bytes.fromhex(r[key])
+        assert proto.crc8(raw[:-1]) == raw[-1]
+        boots[key] = proto.decode_block("BOOT", raw)
+    d = boots["boot_after_fault"]
+    assert (d["reset_cause"], d["fault_exc"], d["fault_pc"]) == ((1 << rc["SYST"]) | (1 << rc["FAULT"]), 3, 0x3A5C)
+    d = boots["boot_after_next"]
+    assert (d["reset_cause"], d["fault_exc"], d["fault_pc"]) == (1 << rc["SYST"], 0, 0)
+    d = boots["boot_after_por"]
+    assert d["reset_cause"] == 1 << rc["POR"] and d["fault_exc"] == 0
+
+
+def test_primary_fault_is_reported_in_its_health_frame(programs):
+    from metacell_tools.rigtools import proto
+
+    rc = proto.D.RESET_CAUSE
+    r = results(programs[0], "fault")
+    assert int(r["resets"]) == 1
+    assert int(r["reset_cause"]) == (1 << rc["SYST"]) | (1 << rc["FAULT"])
 
 
 @pytest.mark.parametrize(

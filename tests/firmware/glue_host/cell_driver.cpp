@@ -1,4 +1,4 @@
-/* Runs the cell glue (src/cell, src/common) on the host stand-ins: setup() and loop() after a watchdog reset; results as key=value lines. */
+/* Runs the cell glue (src/cell, src/common) on the host stand-ins: setup() and loop() after a watchdog reset, a fault and its reboots; key=value lines. */
 #include <stdio.h>
 #include <string.h>
 #include "stub_state.h"
@@ -15,6 +15,48 @@ static int fed_by_loop(void)
     return WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY;
 }
 
+/* The BOOT block as the primary reads it: POINTER write, then a read; printed as key=hex. */
+static void print_boot(const char *key)
+{
+    uint8_t w[3 + MC_REG_POINTER_LEN] = {MC_REG_POINTER, 1, MC_BLK_BOOT, 0};
+    uint8_t hdr = (uint8_t)(MC_CELL_ADDR << 1);
+    w[3] = mc_crc8_update(mc_crc8(&hdr, 1), w, 3);
+    mc_regs_on_receive(&g_regs, w, sizeof(w));
+    uint8_t out[MC_BLK_MAX_LEN];
+    uint32_t n = mc_regs_on_request(&g_regs, out, sizeof(out));
+    printf("%s=", key);
+    for (uint32_t k = 0; k < n; k++)
+        printf("%02x", out[k]);
+    printf("\n");
+}
+
+/* A HardFault with the drive running: the fault path, then the boots that follow it. */
+static void fault_scenario(void)
+{
+    static uint32_t frame[8] = {0, 0, 0, 0, 0, 0, 0x00003a5cu, 0x01000000u};   /* stacked PC 0x3a5c */
+    setup();
+    mc_cell_enable(&g_cell, 1);
+    hw_tick_handler();   /* the drive runs: nSLEEP set */
+    printf("nsleep_set_before=%d\n", (PORT_IOBUS->Group[0].OUTSET.reg & (1u << 2)) != 0);
+    PORT_IOBUS->Group[0].OUTCLR.reg = 0;
+    if (setjmp(stub.reset) == 0)
+        sys_fault(frame, 3);   /* HardFault: what sys_fault_entry passes */
+    printf("resets=%d\nnsleep_cleared=%d\n", stub.resets, (PORT_IOBUS->Group[0].OUTCLR.reg & (1u << 2)) != 0);
+    PM->RCAUSE.reg = PM_RCAUSE_SYST;   /* the boot after the fault */
+    setup();
+    print_boot("boot_after_fault");
+    PM->RCAUSE.reg = PM_RCAUSE_SYST;   /* a later software reset (bootloader entry): record consumed */
+    setup();
+    print_boot("boot_after_next");
+    mc_fault_record.magic = SYS_FAULT_MAGIC;   /* an intact-looking record after a power-on: RAM noise */
+    mc_fault_record.exc = 3;
+    mc_fault_record.pc = 0x1234;
+    mc_fault_record.check = ~(SYS_FAULT_MAGIC ^ 3u ^ 0x1234u);
+    PM->RCAUSE.reg = PM_RCAUSE_POR;
+    setup();
+    print_boot("boot_after_por");
+}
+
 int main(int argc, char **argv)
 {
     const char *sc = argc > 1 ? argv[1] : "";
@@ -23,6 +65,10 @@ int main(int argc, char **argv)
         stub.prio[i] = -1;
     stub.prio[USB_IRQn] = 0;   /* the core's USBDevice.init() before setup() */
     PM->RCAUSE.reg = PM_RCAUSE_WDT;
+    if (!strcmp(sc, "fault")) {
+        fault_scenario();
+        return 0;
+    }
     if (!strcmp(sc, "pins_err")) {
         /* another variant's pin table: setup() stops before the tick starts */
         g_APinDescription[CELL_PIN_ENC_A_A].ulPin = 3;
@@ -45,16 +91,6 @@ int main(int argc, char **argv)
     int after_tick = fed_by_loop();
     int again = fed_by_loop();
     printf("wdt_fed_no_tick=%d\nwdt_fed=%d\nwdt_fed_same_tick=%d\n", idle, after_tick, again);
-    /* the BOOT block as the primary reads it: POINTER write, then a read */
-    uint8_t w[3 + MC_REG_POINTER_LEN] = {MC_REG_POINTER, 1, MC_BLK_BOOT, 0};
-    uint8_t hdr = (uint8_t)(MC_CELL_ADDR << 1);
-    w[3] = mc_crc8_update(mc_crc8(&hdr, 1), w, 3);
-    mc_regs_on_receive(&g_regs, w, sizeof(w));
-    uint8_t out[MC_BLK_MAX_LEN];
-    uint32_t n = mc_regs_on_request(&g_regs, out, sizeof(out));
-    printf("boot=");
-    for (uint32_t k = 0; k < n; k++)
-        printf("%02x", out[k]);
-    printf("\n");
+    print_boot("boot");
     return 0;
 }

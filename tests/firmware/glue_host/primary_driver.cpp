@@ -72,6 +72,17 @@ int main(int argc, char **argv)
     } else if (!strcmp(sc, "ok_write")) {
         SERCOM2->I2CM.INTFLAG.bit.MB = 1;
         run_txn(MC_TXN_WRITE, 1500, rx, &len);
+    } else if (!strcmp(sc, "fault")) {
+        /* a HardFault, then the boot after it: PRIMARY_HEALTH.reset_cause says SYST and FAULT */
+        static uint32_t frame[8] = {0, 0, 0, 0, 0, 0, 0x2468u, 0x01000000u};
+        PM->RCAUSE.reg = PM_RCAUSE_POR;
+        setup();
+        if (setjmp(stub.reset) == 0)
+            sys_fault(frame, 3);
+        PM->RCAUSE.reg = PM_RCAUSE_SYST;
+        setup();
+        printf("resets=%d\nreset_cause=%u\n", stub.resets, (unsigned)g_link.p.reset_cause);
+        return 0;
     } else if (!strcmp(sc, "main")) {
         /* the whole program: boot after a watchdog reset, laptop opens, stops reading, reconnects */
         PM->RCAUSE.reg = PM_RCAUSE_WDT;

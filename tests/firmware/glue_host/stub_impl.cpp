@@ -4,6 +4,7 @@
 #include "Arduino.h"
 #include "Wire.h"
 #include "stub_state.h"
+#include "common/samd21_sys.h"
 
 static Sercom g_sercom2;
 Sercom *const SERCOM2 = &g_sercom2;
@@ -25,6 +26,8 @@ PinDescription g_APinDescription[] = {{0, 2}, {0, 4}, {0, 10}, {0, 11}, {0, 8}, 
                                             {1, 8}, {1, 9}, {0, 7},  {0, 5},  {0, 6}};
 
 stub_state_t stub;
+/* the fault record: a fixed RAM address on the target (platformio.ini), plain memory here */
+volatile sys_fault_record_t mc_fault_record;
 
 static void line_event(uint32_t pin)
 {
@@ -97,6 +100,11 @@ void NVIC_SetPriority(IRQn_Type irq, uint32_t prio)
 void NVIC_ClearPendingIRQ(IRQn_Type) {}
 void NVIC_EnableIRQ(IRQn_Type) {}
 void NVIC_DisableIRQ(IRQn_Type) {}
+void NVIC_SystemReset(void)
+{
+    stub.resets++;
+    longjmp(stub.reset, 1);
+}
 
 SerialStub Serial;
 void SerialStub::begin(unsigned long) {}

@@ -1,5 +1,6 @@
 /* State of the host stand-ins that the glue test drivers set and inspect. */
 #pragma once
+#include <setjmp.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -23,6 +24,8 @@ typedef struct {
     bool dtr, usb_blocked;
     size_t usb_tried, usb_sent, usb_writes, usb_max_write;
     int wire_begins, wire_ends;
+    jmp_buf reset;             /* NVIC_SystemReset() longjmps here (value 1) */
+    int resets;
 } stub_state_t;
 
 extern stub_state_t stub;

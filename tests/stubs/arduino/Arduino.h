@@ -169,3 +169,4 @@ void NVIC_SetPriority(IRQn_Type irq, uint32_t prio);
 void NVIC_ClearPendingIRQ(IRQn_Type irq);
 void NVIC_EnableIRQ(IRQn_Type irq);
 void NVIC_DisableIRQ(IRQn_Type irq);
+[[noreturn]] void NVIC_SystemReset(void);   /* the driver's reset hook (longjmp back to its boot) */
