@@ -557,16 +557,85 @@ class IsrBudget:
 
 
 @dataclass
+class Response:
+    """Worst-case response of one interrupt under the image's NVIC priorities: from its event to the end of its
+    handler, with the same-priority handler that may be running (an interrupt cannot pre-empt its equal) and every
+    more urgent one that may arrive meanwhile. ``cycles`` None: no bound (a handler on its path has none)."""
+
+    name: str
+    priority: int
+    cycles: int | None
+    deadline: int  # cycles
+    why: str
+
+    @property
+    def ok(self) -> bool:
+        return self.cycles is not None and self.cycles <= self.deadline
+
+
+@dataclass
 class Budget:
     isrs: list[IsrBudget]
     model: CycleModel
+    responses: list[Response] = field(default_factory=list)
+    priorities: dict[str, int] | None = None
 
     @property
     def total(self) -> float:
         return sum(i.load for i in self.isrs)
 
 
-def cell_budget(image: Image, model: CycleModel | None = None, tick_hz: float = TICK_HZ) -> Budget:
+#: Other handlers that may share a priority with the edges or the tick, as (vector, handler, indirect calls,
+#: events per second or None when nothing bounds their rate). The core's USB handler calls UDD_Handler through
+#: the pointer USB_SetHandler() stores, and busy-waits on the host during control transfers (USBCore.cpp
+#: armRecvCtrlOUT, sendControl): no loop bound exists, so its analysis fails by design. SysTick stays at the
+#: core's priority 2 (wiring.c).
+OTHER_ISRS: tuple[tuple[str, str, dict[str, tuple[str, ...]], float | None], ...] = (
+    ("USB", "USB_Handler", {"USB_Handler": ("UDD_Handler",)}, None),
+    ("SERCOM2", "SERCOM2_Handler", {}, None),
+    ("SysTick", "SysTick_Handler", {}, 1000.0),
+)
+SYSTICK_PRIORITY = 2
+
+
+Other = tuple[str, "int | None", str]  # name, worst cycles (None: no bound), why there is none
+Urgent = tuple[str, "int | None", "int | None", str]  # name, worst cycles, period in cycles (None: unbounded), why
+
+
+def _response(name: str, prio: int, own: int, deadline: int, same: list[Other], above: list[Urgent]) -> Response:
+    """Fixed-priority response time: R = B + C + sum over more urgent j of ceil(R / T_j) * C_j, iterated to its
+    fixed point. ``same``: handlers at the same priority (B is the longest of them: it may be running and cannot
+    be pre-empted); ``above``: the more urgent ones."""
+    blockers: list[tuple[str, int]] = []
+    for n, c, why in same:
+        if c is None:
+            return Response(name, prio, None, deadline, f"{n} shares priority {prio} and has no bound ({why})")
+        blockers.append((n, c))
+    urgent: list[tuple[str, int, int]] = []
+    for n, c, t, why in above:
+        if c is None or t is None:
+            what = why if c is None else "nothing bounds its rate"
+            return Response(name, prio, None, deadline, f"{n} is more urgent and has no bound ({what})")
+        urgent.append((n, c, t))
+    block = max((c for _, c in blockers), default=0)
+    r = block + own
+    for _ in range(10_000):
+        nxt = block + own + sum(-(-r // t) * c for _, c, t in urgent)
+        if nxt == r:
+            break
+        r = nxt
+        if r > 100 * deadline:
+            return Response(name, prio, None, deadline, "the more urgent handlers alone fill the CPU")
+    parts = [f"{n} {c}" for n, c in blockers if c == block and block][:1]
+    parts += [f"{n} {c} x {-(-r // t)}" for n, c, t in urgent]
+    return Response(name, prio, r, deadline, f"own {own}" + "".join(" + " + p for p in parts))
+
+
+def cell_budget(
+    image: Image, model: CycleModel | None = None, tick_hz: float = TICK_HZ, priorities: dict[str, int] | None = None
+) -> Budget:
+    """Load of the tick and the encoder edges; with ``priorities`` (vector -> NVIC priority as the image sets
+    them, irqmap.effective_priorities) also their worst-case responses."""
     model = model or CycleModel()
 
     def an(metric: str) -> Analyser:
@@ -581,13 +650,45 @@ def cell_budget(image: Image, model: CycleModel | None = None, tick_hz: float = 
     cb_i = ins._max([ins.worst(n) for n in ENCODER_CALLBACKS])
     edge_c = cyc.worst("EIC_Handler") + cb_c + exc
     edge_i = ins.worst("EIC_Handler") + cb_i
-    return Budget(
+    b = Budget(
         [
             IsrBudget("TC3_Handler (control tick)", tick_c.cycles, tick_i.insns, tick_hz),
             IsrBudget("EIC_Handler + encoder ISR (per edge)", edge_c.cycles, edge_i.insns, max_edge_rate_hz()),
         ],
         model,
     )
+    if priorities is None:
+        return b
+    b.priorities = dict(priorities)
+    # (name, priority, cycles or None, period in cycles or None, why)
+    isrs: list[tuple[str, int, int | None, float | None, str]] = [
+        ("EIC", priorities["EIC"], edge_c.cycles, F_CPU_HZ / max_edge_rate_hz(), ""),
+        ("TC3", priorities["TC3"], tick_c.cycles, F_CPU_HZ / tick_hz, ""),
+    ]
+    for vec, handler, indirect, rate in OTHER_ISRS:
+        prio = SYSTICK_PRIORITY if vec == "SysTick" else priorities.get(vec)
+        if prio is None or handler not in image.functions:
+            continue
+        try:
+            c: int | None = Analyser(image, model, CELL_LOOP_BOUNDS, indirect).worst(handler).cycles + exc.cycles
+            why = ""
+        except (AnalysisError, UnsupportedInsn) as e:
+            c, why = None, str(e)
+        isrs.append((vec, prio, c, None if rate is None else F_CPU_HZ / rate, why))
+
+    def resp(target: str, label: str, own: int, deadline: float, blocker_self: bool) -> Response:
+        prio = priorities[target]
+        same: list[Other] = [(n, c, w) for n, p, c, _, w in isrs if p == prio and (n != target or blocker_self)]
+        above: list[Urgent] = [(n, c, None if t is None else int(t), w) for n, p, c, t, w in isrs if p < prio]
+        return _response(label, prio, own, int(deadline), same, above)
+
+    # an edge must be sampled before its encoder's next edge; the other encoder's edge may be in its handler
+    per_encoder = F_CPU_HZ / (max_edge_rate_hz() / ENCODERS)
+    b.responses = [
+        resp("EIC", "encoder edge (EIC)", edge_c.cycles, per_encoder, True),
+        resp("TC3", "control tick (TC3)", tick_c.cycles, F_CPU_HZ / tick_hz, False),
+    ]
+    return b
 
 
 def disassemble(elf: Path) -> str:
@@ -607,4 +708,15 @@ def format_budget(b: Budget, elf: str) -> str:
         f"  model: +{m.fetch_wait} wait/insn, +{m.refill_wait} per flow change, +{m.literal_wait} per literal load, "
         f"+{m.apb_extra} per APB or unproven load/store, exception entry {m.exc_entry} + exit {m.exc_exit}"
     )
+    if b.priorities is not None:
+        order = sorted(b.priorities.items(), key=lambda kv: (kv[1], kv[0]))
+        lines.append("  NVIC priorities in force (0 = most urgent): " + ", ".join(f"{k} {v}" for k, v in order))
+        lines.append(f"  {'worst response':<40}{'prio':>5}{'cycles':>8}{'us':>7}{'deadline us':>13}")
+        for r in b.responses:
+            cyc = "-" if r.cycles is None else str(r.cycles)
+            us = "-" if r.cycles is None else f"{r.cycles / F_CPU_HZ * 1e6:.1f}"
+            verdict = "within" if r.ok else "OVER"
+            lines.append(
+                f"  {r.name:<40}{r.priority:>5}{cyc:>8}{us:>7}{r.deadline / F_CPU_HZ * 1e6:>13.1f}  {verdict}: {r.why}"
+            )
     return "\n".join(lines)

@@ -116,6 +116,35 @@ def test_the_edge_rate_is_the_no_load_speed_times_the_counts():
     assert 37_000 < cpubudget.max_edge_rate_hz() < 37_300
 
 
+@given(
+    own=st.integers(1, 5000),
+    block=st.integers(0, 5000),
+    urgent=st.lists(st.tuples(st.integers(1, 2000), st.integers(2000, 50_000)), max_size=3),
+)
+def test_a_response_is_the_least_fixed_point_of_the_interference_equation(own, block, urgent):
+    """R = B + C + sum ceil(R / T) C_j: the value returned satisfies it, and no smaller R >= B + C does."""
+
+    def rhs(r):
+        return block + own + sum(-(-r // t) * c for c, t in urgent)
+
+    above = [(f"j{i}", c, t, "") for i, (c, t) in enumerate(urgent)]
+    r = cpubudget._response("x", 1, own, 10**9, [("b", block, "")], above)
+    if sum(c / t for c, t in urgent) < 0.9:  # otherwise the busy period may be enormous: only check it is consistent
+        assert r.cycles is not None
+    if r.cycles is not None:
+        assert rhs(r.cycles) == r.cycles
+        assert all(rhs(x) > x for x in range(block + own, r.cycles, max(1, (r.cycles - block - own) // 50)))
+
+
+def test_a_handler_without_a_bound_at_the_same_or_a_higher_priority_leaves_no_bound():
+    same = cpubudget._response("edge", 0, 400, 2600, [("EIC", 400, ""), ("USB", None, "busy-waits")], [])
+    assert same.cycles is None and not same.ok and "USB shares priority 0" in same.why
+    above = cpubudget._response("tick", 1, 1600, 24000, [], [("USB", None, None, "busy-waits")])
+    assert above.cycles is None and "USB is more urgent" in above.why
+    rate = cpubudget._response("tick", 1, 1600, 24000, [], [("X", 100, None, "")])
+    assert rate.cycles is None and "nothing bounds its rate" in rate.why
+
+
 # ---------------------------------------------------------------------------- the real image
 
 ELF = ROOT / ".pio" / "build" / "cell" / "firmware.elf"
@@ -160,3 +189,23 @@ def test_static_worst_instructions_bound_every_tick_counted_under_qemu():
     assert a.worst("mc_cell_tick").insns >= max(s.ticks)
     assert a.worst("mc_quad_update").insns >= max(s.quad_update)
     assert a.worst("mc_quad_snapshot").insns >= max(s.snapshot)
+
+
+def test_real_cell_image_responses_under_its_own_priorities(build_log):  # noqa: F811
+    """With the priorities the image sets, an edge is sampled before its encoder's next edge and the tick ends
+    before the next one; with USB back beside the EIC (the core's map) neither has a bound: the USB handler's
+    busy-waits are on the path."""
+    from metacell_tools.fwcheck import irqmap
+
+    img = cpubudget.parse_disassembly(cpubudget.disassemble(ELF))
+    prio = irqmap.effective_priorities(ELF)
+    assert prio["EIC"] < prio["TC3"] < prio["USB"]
+    b = cpubudget.cell_budget(img, priorities=prio)
+    edge, tick = b.responses
+    tick_c, edge_c = (i.cycles for i in b.isrs)
+    assert edge.ok and edge.cycles == 2 * edge_c  # the other encoder's entry, then its own
+    assert tick.ok and tick.cycles >= tick_c + edge_c
+    assert edge.deadline == int(48e6 / (cpubudget.max_edge_rate_hz() / 2)) and tick.deadline == 24_000
+    core = cpubudget.cell_budget(img, priorities={**prio, "USB": prio["EIC"]})
+    assert [r.cycles for r in core.responses] == [None, None]
+    assert "USB shares priority" in core.responses[0].why and "USB is more urgent" in core.responses[1].why
