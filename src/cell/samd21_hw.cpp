@@ -173,12 +173,21 @@ void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta)
     delayMicroseconds(20);   /* let the pull-ups settle before the first sample */
     s_quad[MC_ALPHA] = alpha;
     s_quad[MC_BETA] = beta;
-    mc_quad_init(alpha, read_alpha());
-    mc_quad_init(beta, read_beta());
+    /*
+     * Attach first, sample after, all with interrupts off. Once a pin is on the EIC every
+     * edge latches its flag: an edge after the sample runs the handler when interrupts come
+     * back (it samples again; the same state twice counts 0), an edge before it is in the
+     * sample. Sampling first lost an edge that came before its pin was attached: the decoder
+     * started from a stale state and the next edge looked illegal.
+     */
+    noInterrupts();
     attach_encoder_pin(CELL_PIN_ENC_A_A, hw_isr_encoder_alpha);
     attach_encoder_pin(CELL_PIN_ENC_A_B, hw_isr_encoder_alpha);
     attach_encoder_pin(CELL_PIN_ENC_B_A, hw_isr_encoder_beta);
     attach_encoder_pin(CELL_PIN_ENC_B_B, hw_isr_encoder_beta);
+    mc_quad_init(alpha, read_alpha());
+    mc_quad_init(beta, read_beta());
+    interrupts();
 }
 
 /* ---- control tick (TC3) ------------------------------------------------------ */

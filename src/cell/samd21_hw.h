@@ -24,8 +24,9 @@ void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b);
 /* Both drivers asleep now (nSLEEP and PH low): the fault handler's safe state. Register
  * writes only, safe from any context. */
 void hw_drivers_off(void);
-/* Sample both encoders, initialise the decoders from the levels, then attach the
- * pin-change interrupts (EIC, both edges) that call mc_quad_update. */
+/* Attach the pin-change interrupts (EIC, both edges) that call mc_quad_update, then sample
+ * both encoders and initialise the decoders from the levels, with interrupts off throughout
+ * (on again at the end): no edge is lost between the sample and the attach. */
 void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta);
 /* Start TC3 calling hw_tick_handler() at rate_hz (MFRQ mode, NVIC priority 1:
  * below the pin interrupts, above the I2C SERCOM and USB). Returns the timer

@@ -75,6 +75,16 @@ def test_encoder_pins_are_sampled_continuously(programs):
     assert int(r["attached"], 16) == sum(1 << p for p in (7, 8, 9, 10))
 
 
+def test_an_edge_during_encoder_start_up_is_not_lost(programs):
+    """Channel B changes while start-up attaches the pins; then A changes. The decoder must have started from the
+    level after B's edge, so A's edge is one legal count; started from the level before it, A's edge would look
+    like both channels changing at once (an illegal transition, a count lost)."""
+    r = results(programs[1], "startup_edge")
+    assert int(r["setup_err"]) == 0 and int(r["irq_off"]) == 0  # interrupts on again after start-up
+    assert int(r["errors"]) == 0
+    assert abs(int(r["pos"]) - int(r["pos_at_start"])) == 1
+
+
 def test_cell_interrupt_priorities_put_usb_below_encoders_tick_and_bus(programs):
     """The core leaves USB and the EIC at 0 and Wire at 3; the cell's map, set last in setup(), must win."""
     r = results(programs[1])

@@ -65,6 +65,17 @@ int main(int argc, char **argv)
         stub.prio[i] = -1;
     stub.prio[USB_IRQn] = 0;   /* the core's USBDevice.init() before setup() */
     PM->RCAUSE.reg = PM_RCAUSE_WDT;
+    if (!strcmp(sc, "startup_edge")) {
+        /* alpha B (D8) changes while start-up attaches the pins, then alpha A (D7) after it: +1 each way
+         * round the Gray code, never an illegal transition */
+        stub.edge_on_first_attach = CELL_PIN_ENC_A_B;
+        setup();
+        int32_t at_start = g_quad[MC_ALPHA].pos;
+        stub_edge(CELL_PIN_ENC_A_A);
+        printf("setup_err=%d\nirq_off=%d\npos_at_start=%ld\npos=%ld\nerrors=%lu\n", g_setup_err, stub.irq_off,
+               (long)at_start, (long)g_quad[MC_ALPHA].pos, (unsigned long)g_quad[MC_ALPHA].errors);
+        return 0;
+    }
     if (!strcmp(sc, "fault")) {
         fault_scenario();
         return 0;

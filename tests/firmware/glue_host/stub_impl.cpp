@@ -83,14 +83,41 @@ unsigned long micros(void)
 }
 void delayMicroseconds(unsigned int us) { stub.now_us += us; }
 unsigned long millis(void) { return stub.now_us / 1000u; }
+void stub_edge(uint32_t pin)
+{
+    const PinDescription &d = g_APinDescription[pin];
+    PORT->Group[d.ulPort].IN.reg ^= 1u << d.ulPin;
+    if (!stub.isr[pin])
+        return;   /* not on the EIC yet: nothing latches the edge */
+    if (stub.irq_off)
+        stub.pending |= 1u << pin;
+    else
+        stub.isr[pin]();
+}
+
+void noInterrupts(void) { stub.irq_off = 1; }
+void interrupts(void)
+{
+    stub.irq_off = 0;
+    for (uint32_t pin = 0; pin < 32; pin++)
+        if (stub.pending & (1u << pin)) {
+            stub.pending &= ~(1u << pin);
+            stub.isr[pin]();
+        }
+}
+
 void attachInterrupt(uint32_t pin, void (*isr)(void), uint32_t mode)
 {
-    (void)isr;
     (void)mode;
-    if (!stub.attached)
+    int first = !stub.attached;
+    if (first)
         stub.prio[EIC_IRQn] = 0;   /* the core's first attachInterrupt: EIC at priority 0 */
-    if (pin < 32)
+    if (pin < 32) {
         stub.attached |= 1u << pin;
+        stub.isr[pin] = isr;
+    }
+    if (first && stub.edge_on_first_attach > 0)
+        stub_edge((uint32_t)stub.edge_on_first_attach);
 }
 void NVIC_SetPriority(IRQn_Type irq, uint32_t prio)
 {

@@ -17,6 +17,10 @@ typedef struct {
     char log[256];             /* line states: '0' + (scl << 1 | sda) at each change */
     int n_log;
     uint32_t attached;
+    void (*isr[32])(void);     /* attached pin handlers */
+    int irq_off;               /* noInterrupts() in force */
+    uint32_t pending;          /* pins whose edge waits for interrupts() */
+    int edge_on_first_attach;  /* > 0: this pin changes level during the first attachInterrupt */
     int prio[32];              /* NVIC priority per IRQ as last set (a driver presets -1: never set) */
     /* USB serial */
     const char *in;
@@ -29,3 +33,5 @@ typedef struct {
 } stub_state_t;
 
 extern stub_state_t stub;
+/* The level of an Arduino pin flips (its PORT IN bit); its handler runs now, or at interrupts() when off. */
+void stub_edge(uint32_t pin);

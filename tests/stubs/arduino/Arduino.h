@@ -20,6 +20,8 @@ unsigned long micros(void);
 unsigned long millis(void);
 #define digitalPinToInterrupt(p) (p)
 void attachInterrupt(uint32_t pin, void (*isr)(void), uint32_t mode);
+void noInterrupts(void);   /* the core's macros for __disable_irq / __enable_irq */
+void interrupts(void);
 struct SerialStub {
     void begin(unsigned long baud);
     int available();
