@@ -75,6 +75,8 @@ void cell_app_zero(void)
     cell_app_unlock();
 }
 
+static uint32_t g_rx_pass;   /* USB bytes read in this pass of loop() */
+
 static void answer_identity(void)
 {
     char line[MC_IDENT_LINE_MAX];
@@ -140,7 +142,10 @@ void loop()
     while (Serial.available() > 0) {
         if (mc_ident_rx_feed(&g_rx, (uint8_t)Serial.read()))
             answer_identity();
+        if (++g_rx_pass >= SYS_USB_RX_PER_PASS)
+            break;   /* the rest waits for the next pass: bus service and watchdog first */
     }
+    g_rx_pass = 0;
     if (g_setup_err == SETUP_OK)
         bus_service();
     /* LED: fast blink = start-up error (drive never enabled), on = latched fault. */

@@ -46,6 +46,11 @@ void sys_fault(const uint32_t *frame, uint32_t ipsr) __attribute__((noreturn));
 }
 #endif
 
+/* Bytes of USB input one pass of loop() handles at most (one full-speed packet): a host that
+ * streams without pause must not starve the bus service and the watchdog feed. What is left
+ * waits in the core's buffer, and USB flow control holds the host back. */
+#define SYS_USB_RX_PER_PASS 64u
+
 /* PM->RCAUSE as read now (MC_RCAUSE_* bits: the cause of the last reset), with MC_RCAUSE_FAULT
  * added when the reset came from sys_fault(). Call once, first thing in setup(): it consumes
  * the fault record (sys_fault_exc/_pc keep it). */

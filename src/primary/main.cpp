@@ -75,10 +75,12 @@ static bool usb_write(const void *buf, uint32_t n)
     return false;
 }
 
+/* At most SYS_USB_RX_PER_PASS bytes per pass: a laptop streaming without pause must not starve
+ * the polling and the watchdog feed. */
 static void usb_in(void)
 {
     char out[MC_SLCAN_REPLY_MAX + 1];
-    while (Serial.available() > 0) {
+    for (uint32_t k = 0; k < SYS_USB_RX_PER_PASS && Serial.available() > 0; k++) {
         uint8_t b = (uint8_t)Serial.read();
         if (mc_ident_rx_feed(&g_rx, b)) {
             char line[MC_IDENT_LINE_MAX];

@@ -75,6 +75,22 @@ def test_encoder_pins_are_sampled_continuously(programs):
     assert int(r["attached"], 16) == sum(1 << p for p in (7, 8, 9, 10))
 
 
+@pytest.mark.parametrize("role", ["primary", "cell"])
+def test_a_host_that_never_stops_sending_does_not_starve_the_loop(programs, role):
+    """Each pass of loop() handles at most one USB packet of input, then serves the bus (primary: one poll per
+    pass; cell: the watchdog fed after each tick). Without the cap the first pass never ends (the stand-in gives up
+    after 100,000 reads and exits 3)."""
+    exe = programs[0] if role == "primary" else programs[1]
+    res = subprocess.run([str(exe), "flood"], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0 and "starved" not in res.stdout, res.stdout
+    r = dict(line.split("=", 1) for line in res.stdout.splitlines())
+    assert 0 < int(r["most_reads_per_pass"]) <= 64
+    if role == "primary":
+        assert int(r["polls"]) >= 5
+    else:
+        assert int(r["passes_fed"]) == 5
+
+
 def test_an_edge_during_encoder_start_up_is_not_lost(programs):
     """Channel B changes while start-up attaches the pins; then A changes. The decoder must have started from the
     level after B's edge, so A's edge is one legal count; started from the level before it, A's edge would look

@@ -65,6 +65,21 @@ int main(int argc, char **argv)
         stub.prio[i] = -1;
     stub.prio[USB_IRQn] = 0;   /* the core's USBDevice.init() before setup() */
     PM->RCAUSE.reg = PM_RCAUSE_WDT;
+    if (!strcmp(sc, "flood")) {
+        /* the host sends without pause: every pass still ends, serves the bus and feeds the watchdog */
+        setup();
+        stub.flood = true;
+        size_t most = 0;
+        int fed = 0;
+        for (int pass = 0; pass < 5; pass++) {
+            stub.reads = 0;
+            hw_tick_handler();
+            fed += fed_by_loop();
+            most = stub.reads > most ? stub.reads : most;
+        }
+        printf("passes_fed=%d\nmost_reads_per_pass=%lu\n", fed, (unsigned long)most);
+        return 0;
+    }
     if (!strcmp(sc, "startup_edge")) {
         /* alpha B (D8) changes while start-up attaches the pins, then alpha A (D7) after it: +1 each way
          * round the Gray code, never an illegal transition */

@@ -72,6 +72,23 @@ int main(int argc, char **argv)
     } else if (!strcmp(sc, "ok_write")) {
         SERCOM2->I2CM.INTFLAG.bit.MB = 1;
         run_txn(MC_TXN_WRITE, 1500, rx, &len);
+    } else if (!strcmp(sc, "flood")) {
+        /* the laptop sends without pause: every pass still ends, polls a cell and feeds the watchdog */
+        SERCOM2->I2CM.INTFLAG.bit.MB = 1;   /* every cell NACKs its address */
+        SERCOM2->I2CM.STATUS.bit.RXNACK = 1;
+        setup();
+        stub.flood = true;
+        size_t most = 0;
+        for (int pass = 0; pass < 5; pass++) {
+            stub.reads = 0;
+            loop();
+            most = stub.reads > most ? stub.reads : most;
+        }
+        uint32_t nacks = 0;
+        for (int i = 0; i < MC_N_CELLS; i++)
+            nacks += g_link.p.cell[i].nack;
+        printf("polls=%lu\nmost_reads_per_pass=%lu\n", (unsigned long)nacks, (unsigned long)most);
+        return 0;
     } else if (!strcmp(sc, "fault")) {
         /* a HardFault, then the boot after it: PRIMARY_HEALTH.reset_cause says SYST and FAULT */
         static uint32_t frame[8] = {0, 0, 0, 0, 0, 0, 0x2468u, 0x01000000u};

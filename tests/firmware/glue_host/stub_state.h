@@ -25,6 +25,8 @@ typedef struct {
     /* USB serial */
     const char *in;
     size_t in_len, in_pos;
+    bool flood;                /* the host never stops sending ('x' forever) */
+    size_t reads;              /* bytes read since the driver last cleared it */
     bool dtr, usb_blocked;
     size_t usb_tried, usb_sent, usb_writes, usb_max_write;
     int wire_begins, wire_ends;
