@@ -62,17 +62,17 @@ void setup()
  * Serial.availableForWrite() is a constant on this core (63), so it cannot pace the
  * output. Serial.write() blocks up to 70 ms when the host stops reading, then gives
  * up (returning 0, or (size_t)-1 from the core's failed send); later writes fail at
- * once until the host reads again. So every write is at most one packet (whole SLCAN
- * lines, all or nothing) and any write that does not report all its bytes counts
- * them as lost (PRIMARY_HEALTH.usb_lost); nothing is dropped silently.
+ * once until the host reads again. On that timeout the core also zeroes the packet
+ * still armed, the previous write, which had reported all its bytes. So every write is
+ * at most one packet (whole SLCAN lines, all or nothing), and the library counts a
+ * failed write's bytes and those of the write before it, not yet known to have left, as
+ * lost (mc_primary_usb_write, PRIMARY_HEALTH.usb_lost); nothing is dropped silently.
  */
 static bool usb_write(const void *buf, uint32_t n)
 {
     size_t w = Serial.write((const uint8_t *)buf, n);
-    if (w == n)
-        return true;
-    mc_primary_usb_lost(&g_link.p, n);
-    return false;
+    mc_primary_usb_write(&g_link.p, n, w == n);
+    return w == n;
 }
 
 /* At most SYS_USB_RX_PER_PASS bytes per pass: a laptop streaming without pause must not starve

@@ -119,13 +119,13 @@ int main(int argc, char **argv)
         printf("wdt_fed=%d\nopen=%d\nsent=%lu\n", WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY, g_link.s.open,
                (unsigned long)stub.usb_sent);
         stub.usb_blocked = true;   /* the laptop stops reading */
-        size_t tried0 = stub.usb_tried;
         while (stub.now_us < 6000000ul)
             loop();
-        printf("usb_lost=%lu\nusb_tried=%lu\nusb_fail=%u\nmax_write=%lu\n", (unsigned long)g_link.p.usb_lost,
-               (unsigned long)(stub.usb_tried - tried0), (unsigned)g_link.p.usb_fail,
-               (unsigned long)stub.usb_max_write);
-        stub.usb_blocked = false;
+        stub.usb_blocked = false;   /* and reads again: the bank empties */
+        stub_usb_host_reads();
+        printf("usb_lost=%lu\nusb_tried=%lu\nusb_delivered=%lu\nusb_zeroed=%lu\nusb_fail=%u\nmax_write=%lu\n",
+               (unsigned long)g_link.p.usb_lost, (unsigned long)stub.usb_tried, (unsigned long)stub.usb_delivered,
+               (unsigned long)stub.usb_zeroed, (unsigned)g_link.p.usb_fail, (unsigned long)stub.usb_max_write);
         stub.dtr = false;   /* the laptop closes the port: a new session */
         loop();
         printf("open_after_close=%d\n", g_link.s.open);

@@ -148,6 +148,17 @@ int SerialStub::read()
         return 'x';
     return stub.in_pos < stub.in_len ? (uint8_t)stub.in[stub.in_pos++] : -1;
 }
+void stub_usb_host_reads(void)
+{
+    if (stub.usb_blocked || !stub.bank_ready)
+        return;
+    stub.usb_delivered += stub.bank_bytes;   /* data, or the zero-length packet after a timeout */
+    stub.bank_bytes = 0;
+    stub.bank_ready = false;
+}
+
+/* USBCore.cpp USBDeviceClass::send for one packet: wait for the armed bank to be read (70 ms,
+ * or at once after an earlier timeout), on timeout zero its byte count and fail; else arm. */
 size_t SerialStub::write(const uint8_t *buf, size_t n)
 {
     (void)buf;
@@ -155,9 +166,20 @@ size_t SerialStub::write(const uint8_t *buf, size_t n)
     stub.usb_writes++;
     if (n > stub.usb_max_write)
         stub.usb_max_write = n;
-    if (stub.usb_blocked)
-        return (size_t)-1;   /* the core's failed send after its 70 ms wait */
+    stub_usb_host_reads();
+    if (stub.bank_ready) {
+        if (!stub.timed_out)
+            stub.now_us += 70000;   /* the core's TX_TIMEOUT_MS wait */
+        stub.timed_out = true;
+        stub.usb_zeroed += stub.bank_bytes;
+        stub.bank_bytes = 0;   /* "set byte count to zero, so that ZLP is sent" */
+        return (size_t)-1;
+    }
+    stub.timed_out = false;
+    stub.bank_ready = true;
+    stub.bank_bytes = n;
     stub.usb_sent += n;
+    stub_usb_host_reads();   /* a reading host takes it at once */
     return n;
 }
 size_t SerialStub::print(const char *s) { return write((const uint8_t *)s, strlen(s)); }

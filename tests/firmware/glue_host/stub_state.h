@@ -29,11 +29,17 @@ typedef struct {
     size_t reads;              /* bytes read since the driver last cleared it */
     bool dtr, usb_blocked;
     size_t usb_tried, usb_sent, usb_writes, usb_max_write;
+    /* the core's IN endpoint bank (USBCore.cpp send): one armed packet until the host reads it */
+    bool bank_ready, timed_out;
+    size_t bank_bytes;
+    size_t usb_delivered, usb_zeroed;   /* bytes the host read; armed bytes the core's timeout zeroed */
     int wire_begins, wire_ends;
     jmp_buf reset;             /* NVIC_SystemReset() longjmps here (value 1) */
     int resets;
 } stub_state_t;
 
 extern stub_state_t stub;
+/* The host reads the IN bank if it is reading (not usb_blocked). */
+void stub_usb_host_reads(void);
 /* The level of an Arduino pin flips (its PORT IN bit); its handler runs now, or at interrupts() when off. */
 void stub_edge(uint32_t pin);

@@ -308,6 +308,19 @@ void mc_primary_usb_lost(mc_primary_t *p, uint32_t n)
     p->usb_fail++;
 }
 
+void mc_primary_usb_write(mc_primary_t *p, uint32_t n, int taken)
+{
+    if (taken) {
+        p->usb_pending = n;   /* and the one before it has left */
+        return;
+    }
+    uint32_t pending = p->usb_pending;
+    p->usb_pending = 0;
+    mc_primary_usb_lost(p, n);
+    if (pending)
+        p->usb_lost = pending > 0xFFFFFFFFu - p->usb_lost ? 0xFFFFFFFFu : p->usb_lost + pending;
+}
+
 void mc_primary_bus_reset(mc_primary_t *p) { p->bus_reset++; }
 void mc_primary_set_reset_cause(mc_primary_t *p, uint8_t cause) { p->reset_cause = cause; }
 

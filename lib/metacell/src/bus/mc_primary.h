@@ -115,6 +115,7 @@ typedef struct {
     uint16_t slcan_err;       /* copied in by the link */
     /* health (PRIMARY_HEALTH frame, once a second after the heartbeat), reported by the glue */
     uint32_t usb_lost;        /* SLCAN output bytes the USB port did not take (saturates) */
+    uint32_t usb_pending;     /* bytes of the last write the port took, not yet known to have left */
     uint16_t bus_reset;       /* I2C bus recoveries (wraps) */
     uint8_t usb_fail;         /* failed USB writes (wraps) */
     uint8_t reset_cause;      /* MC_RCAUSE_* bits read at boot */
@@ -138,6 +139,15 @@ uint32_t mc_primary_ms(mc_primary_t *p, uint32_t now_us);
 /* Health the glue reports (sent in PRIMARY_HEALTH): n bytes of output the USB port did not
  * take (one failed write), one I2C bus recovery, the reset cause read at boot. */
 void mc_primary_usb_lost(mc_primary_t *p, uint32_t n);
+/*
+ * One write of n bytes to the USB port (at most one 64-byte packet), taken = it reported all
+ * n. A port like the SAMD21 core's (USBCore.cpp send) arms a packet and returns; the packet
+ * leaves when the host reads it, and the next write waits for that first. When that wait
+ * times out, the core zeroes the byte count of the packet still armed: the *previous* write,
+ * reported taken, never arrives either. So a taken write stays pending until the next taken
+ * one proves it left; a failed write counts its own n and the pending bytes as lost.
+ */
+void mc_primary_usb_write(mc_primary_t *p, uint32_t n, int taken);
 void mc_primary_bus_reset(mc_primary_t *p);
 void mc_primary_set_reset_cause(mc_primary_t *p, uint8_t cause);
 
