@@ -15,8 +15,9 @@ extern "C" {
  *   mc_primary_next -> one guarded Wire transaction (primary_hw.cpp) -> mc_primary_complete
  *   mc_link_tx -> USB out (whole lines, one USB packet per write, see usb_out)
  *   USB DTR edge (the laptop opened or closed the port) -> mc_link_session
- * The watchdog (src/common/samd21_sys.h) is fed once per loop pass; the reset cause
- * read at boot, the bus recoveries and the USB bytes lost go out in PRIMARY_HEALTH.
+ * The watchdog (src/common/samd21_sys.h) is fed when the poll schedule has moved since the
+ * last feed (mc_primary_progress); the reset cause read at boot, the bus recoveries and the
+ * USB bytes lost go out in PRIMARY_HEALTH.
  * "ID?" lines are answered with the identity line (metacell_tools/flash); the SLCAN parser
  * also sees them and counts them as malformed, but its BEL reply is suppressed.
  */
@@ -40,6 +41,7 @@ static mc_ident_rx_t g_rx;
 static char g_line_first;    /* first byte of the USB line being received */
 static bool g_dtr;           /* last seen USB DTR (host has the port open) */
 static uint32_t g_resets;    /* bus recoveries already reported to the library */
+static uint32_t g_wdt_progress;   /* mc_primary_progress at the last watchdog feed */
 
 /* The fault handler's first act (src/common/samd21_sys.h): the primary drives nothing that moves. */
 extern "C" void sys_safe_outputs(void) {}
@@ -113,7 +115,6 @@ static void usb_out(void)
 
 void loop()
 {
-    sys_wdt_feed();
     /* a laptop opening or closing the port starts a new link session */
     bool dtr = Serial.dtr();
     if (dtr != g_dtr) {
@@ -131,4 +132,9 @@ void loop()
     for (uint32_t r = primary_hw_bus_resets(); g_resets != r; g_resets++)
         mc_primary_bus_reset(&g_link.p);
     usb_out();
+    /* fed only when polling moved: a schedule stuck on a transaction that never completes, or a
+     * loop that no longer reaches it, resets the board */
+    uint32_t pr = mc_primary_progress(&g_link.p);
+    if (pr != g_wdt_progress && sys_wdt_feed())
+        g_wdt_progress = pr;
 }

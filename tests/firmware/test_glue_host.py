@@ -156,6 +156,11 @@ def test_cell_fault_sleeps_the_drivers_and_is_reported_once_after_the_reboot(pro
     assert d["reset_cause"] == 1 << rc["POR"] and d["fault_exc"] == 0
 
 
+def test_primary_watchdog_is_fed_only_while_polling_moves(programs):
+    r = results(programs[0], "stalled_schedule")
+    assert (int(r["fed_moving"]), int(r["fed_stalled"])) == (1, 0)
+
+
 def test_primary_fault_is_reported_in_its_health_frame(programs):
     from metacell_tools.rigtools import proto
 

@@ -89,6 +89,25 @@ int main(int argc, char **argv)
             nacks += g_link.p.cell[i].nack;
         printf("polls=%lu\nmost_reads_per_pass=%lu\n", (unsigned long)nacks, (unsigned long)most);
         return 0;
+    } else if (!strcmp(sc, "stalled_schedule")) {
+        /* polling that no longer moves: a transaction handed out and never completed */
+        SERCOM2->I2CM.INTFLAG.bit.MB = 1;
+        SERCOM2->I2CM.STATUS.bit.RXNACK = 1;
+        setup();
+        WDT->CLEAR.reg = 0;
+        loop();
+        int fed_moving = WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY;
+        mc_txn_t t;
+        while (!mc_primary_next(&g_link.p, primary_hw_micros(), &t)) {
+        }
+        int fed_stalled = 0;
+        for (int pass = 0; pass < 20; pass++) {
+            WDT->CLEAR.reg = 0;
+            loop();
+            fed_stalled |= WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY;
+        }
+        printf("fed_moving=%d\nfed_stalled=%d\n", fed_moving, fed_stalled);
+        return 0;
     } else if (!strcmp(sc, "fault")) {
         /* a HardFault, then the boot after it: PRIMARY_HEALTH.reset_cause says SYST and FAULT */
         static uint32_t frame[8] = {0, 0, 0, 0, 0, 0, 0x2468u, 0x01000000u};

@@ -100,6 +100,7 @@ typedef struct {
     mc_txn_t txn;
     uint32_t txn_start;
     uint32_t cycles;          /* completed cycles */
+    uint32_t progress;        /* schedule steps: transactions completed, cycles ended, waits for the period */
     uint16_t cycles_window;   /* cycles since the last heartbeat */
     uint16_t reject_count;
     /* millisecond clock, kept without division */
@@ -131,6 +132,11 @@ int mc_primary_next(mc_primary_t *p, uint32_t now_us, mc_txn_t *t);
 /* Report the end of the transaction started by mc_primary_next. */
 void mc_primary_complete(mc_primary_t *p, uint32_t now_us, int status, const uint8_t *rx,
                          uint32_t len);
+/* Steps the schedule has made (wraps): a transaction completed, a cycle ended, or a call of
+ * mc_primary_next() that found the next cycle not yet due. It stands still while a transaction
+ * is in flight and never completed, or while the glue stops calling the scheduler: the primary's
+ * watchdog is fed only when it has moved. */
+uint32_t mc_primary_progress(const mc_primary_t *p);
 /* A frame from the laptop (commands); everything else is rejected and reported. */
 void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f);
 /* Pop one outgoing frame; 0 when the queue is empty. */
