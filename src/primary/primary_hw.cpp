@@ -10,10 +10,14 @@
  * only to set up SERCOM2 (clock, pins, baud); each transaction drives the I2CM
  * registers itself, and every wait (MB/SB, SYNCBUSY) ends at the transaction's
  * deadline, txn.timeout_us after its start, or at a bus error / lost arbitration.
- *   - SERCOM2 also runs with its SCL low timeout (LOWTOUTEN: SCL held low 25-35 ms
- *     sets LOWTOUT) and the inactive-bus timeout INACTOUT = 3: 20-21 SCL periods,
- *     ~52 us at 400 kHz (~205 us at 100 kHz), after which a bus left busy by a
- *     missing STOP counts as idle;
+ *   - SERCOM2's own SMBus timeouts stay off. The SCL low timeout (LOWTOUTEN, 25-35 ms)
+ *     counts on GCLK_SERCOMx_SLOW, which nothing here clocks, so it could never fire; and
+ *     the deadline above ends a stuck transaction 17x sooner. The inactive-bus timeout
+ *     (INACTOUT) sets the bus state to idle when SCL stays low for 5-6, 10-11 or 20-21 SCL
+ *     periods (at most ~53 us at 400 kHz), and a cell legitimately stretches SCL longer
+ *     while its tick and encoder interrupts run (tick + two edges: 52 us by
+ *     `fwcheck cpu-budget`, plus its I2C handler): the master would take the bus for
+ *     idle in the middle of a transaction. A bus left busy is recovered below instead;
  *   - a transaction that fails with a timeout or a bus error ends with a STOP when
  *     the primary owns the bus; a bus still not idle is recovered at once (9 SCL
  *     pulses, open-drain, then a STOP) and the recovery counted (PRIMARY_HEALTH);
@@ -51,14 +55,15 @@ static void deadline(uint32_t us)
     g_limit = us;
 }
 
-static void sercom_timeouts(void)
+/* CTRLA fields the core's Wire leaves at their defaults, set while SERCOM2 is disabled. */
+static void sercom_setup(void)
 {
     deadline(SYNC_US);
     I2CM.CTRLA.bit.ENABLE = 0;
     while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {
     }
-    I2CM.CTRLA.bit.LOWTOUTEN = 1;   /* SCL low > 25-35 ms: LOWTOUT error */
-    I2CM.CTRLA.bit.INACTOUT = 3;    /* bus idle after 20-21 SCL periods: ~52 us at 400 kHz */
+    I2CM.CTRLA.bit.LOWTOUTEN = 0;   /* no slow clock: it could never fire (see above) */
+    I2CM.CTRLA.bit.INACTOUT = 0;    /* shorter than a cell's clock stretch (see above) */
     I2CM.CTRLA.bit.ENABLE = 1;
     deadline(SYNC_US);
     while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {
@@ -73,7 +78,7 @@ void primary_hw_begin(uint32_t hz)
     g_hz = hz;
     Wire.begin();
     Wire.setClock(hz);
-    sercom_timeouts();
+    sercom_setup();
 }
 
 /* SCL / SDA as open-drain lines: low = output driving 0; released = input with pull-up.
@@ -117,12 +122,11 @@ static void bus_recover(void)
 
 static int bus_fault(void)
 {
-    return (I2CM.STATUS.reg & (SERCOM_I2CM_STATUS_BUSERR | SERCOM_I2CM_STATUS_ARBLOST |
-                               SERCOM_I2CM_STATUS_LOWTOUT)) != 0;
+    return (I2CM.STATUS.reg & (SERCOM_I2CM_STATUS_BUSERR | SERCOM_I2CM_STATUS_ARBLOST)) != 0;
 }
 
-/* Wait for MB or SB. MC_I2C_OK, MC_I2C_BUS_ERROR (bus error, lost arbitration, SCL low
- * timeout) or MC_I2C_TIMEOUT (deadline). */
+/* Wait for MB or SB. MC_I2C_OK, MC_I2C_BUS_ERROR (bus error, lost arbitration) or
+ * MC_I2C_TIMEOUT (deadline). */
 static int wait_bus(void)
 {
     for (;;) {
@@ -152,7 +156,7 @@ static int finish(int st)
         deadline(SYNC_US);   /* room for the STOP even after the transaction's deadline */
         command(CMD_STOP, 1);
     }
-    if (st == MC_I2C_TIMEOUT || st == MC_I2C_BUS_ERROR || I2CM.STATUS.bit.LOWTOUT)
+    if (st == MC_I2C_TIMEOUT || st == MC_I2C_BUS_ERROR)
         if (I2CM.STATUS.bit.BUSSTATE != BUSSTATE_IDLE || bus_fault() || I2CM.SYNCBUSY.bit.SYSOP)
             bus_recover();
     return st;
@@ -217,7 +221,7 @@ int primary_hw_txn(const mc_txn_t *t, uint8_t *rx, uint32_t *len)
 {
     *len = 0;
     deadline(t->timeout_us);
-    if (I2CM.STATUS.bit.BUSSTATE == 3u || I2CM.STATUS.bit.LOWTOUT) {
+    if (I2CM.STATUS.bit.BUSSTATE == 3u) {   /* busy: left so by a missing STOP or a glitch */
         bus_recover();
         return MC_I2C_BUS_ERROR;
     }

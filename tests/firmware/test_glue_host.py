@@ -187,6 +187,15 @@ def test_a_broken_bus_never_hangs_the_primary(programs, scenario, status):
     assert r["lines"].endswith("1023")  # SCL low/SDA high, SDA low, SCL up, SDA up: a STOP
 
 
+@pytest.mark.parametrize("hz", [400000, 100000])
+def test_primary_leaves_the_smbus_timeouts_off(programs, hz):
+    """LOWTOUTEN needs a slow clock nothing enables (it could never fire); INACTOUT's longest setting (20-21 SCL
+    periods) is shorter than a cell's worst clock stretch at 400 kHz and would declare the bus idle mid-transaction.
+    The transaction deadline and the bus recovery cover both."""
+    r = results(programs[0], "begin")
+    assert (int(r[f"inactout_{hz}"]), int(r[f"lowtouten_{hz}"]), int(r[f"enabled_{hz}"])) == (0, 0, 1)
+
+
 @pytest.mark.parametrize("scenario,status,n", [("ok_read", 0, 23), ("nack_read", 1, 0), ("ok_write", 0, 0)])
 def test_good_transactions(programs, scenario, status, n):
     r = results(programs[0], scenario)

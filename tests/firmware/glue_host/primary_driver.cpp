@@ -72,6 +72,17 @@ int main(int argc, char **argv)
     } else if (!strcmp(sc, "ok_write")) {
         SERCOM2->I2CM.INTFLAG.bit.MB = 1;
         run_txn(MC_TXN_WRITE, 1500, rx, &len);
+    } else if (!strcmp(sc, "begin")) {
+        /* SERCOM2 as primary_hw_begin leaves it, at each supported rate */
+        static const uint32_t rates[] = {400000, 100000};
+        for (int i = 0; i < 2; i++) {
+            primary_hw_begin(rates[i]);
+            printf("inactout_%lu=%u\nlowtouten_%lu=%u\nenabled_%lu=%u\n", (unsigned long)rates[i],
+                   (unsigned)SERCOM2->I2CM.CTRLA.bit.INACTOUT, (unsigned long)rates[i],
+                   (unsigned)SERCOM2->I2CM.CTRLA.bit.LOWTOUTEN, (unsigned long)rates[i],
+                   (unsigned)SERCOM2->I2CM.CTRLA.bit.ENABLE);
+        }
+        return 0;
     } else if (!strcmp(sc, "flood")) {
         /* the laptop sends without pause: every pass still ends, polls a cell and feeds the watchdog */
         SERCOM2->I2CM.INTFLAG.bit.MB = 1;   /* every cell NACKs its address */
