@@ -3,6 +3,7 @@
 #include <Wire.h>
 #include "bus_glue.h"
 #include "cell_app.h"
+#include "samd21_hw.h"
 extern "C" {
 #include "bus/mc_regs.h"
 }
@@ -69,6 +70,7 @@ extern "C" void bus_setup(uint8_t addr)
         return;
     g_published = cell_app_ticks() - 1u;
     Wire.begin(addr);
+    hw_i2c_secondary_timing();
     Wire.onReceive(on_receive);
     Wire.onRequest(on_request);
     g_up = 1;

@@ -45,6 +45,8 @@ extern const uint8_t hw_irq_priority[HW_IRQ_PRIORITIES][2];   /* {IRQn, priority
 }
 #endif
 void hw_irq_priorities(void);
+/* SERCOM2 as I2C secondary: SDA hold 300-600 ns (call after Wire.begin(addr)). */
+void hw_i2c_secondary_timing(void);
 /* Hold off / release the control tick (for commands that touch the cell state). */
 void hw_tick_mask(void);
 void hw_tick_unmask(void);

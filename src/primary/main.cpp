@@ -29,8 +29,10 @@ extern "C" {
 #endif
 #if MC_I2C_HZ == 400000
 #define MC_TXN_TIMEOUT_US 1500
+#elif MC_I2C_HZ == 100000
+#define MC_TXN_TIMEOUT_US 5000   /* the fallback for a bus too slow for Fast-mode (docs/hardware.md) */
 #else
-#define MC_TXN_TIMEOUT_US 5000
+#error "MC_I2C_HZ must be 400000 or 100000 (the two SCL timings primary_hw.cpp sets)"
 #endif
 
 /* One write = at most one USB full-speed bulk packet: the core sends it whole or not at all. */

@@ -55,7 +55,28 @@ static void deadline(uint32_t us)
     g_limit = us;
 }
 
-/* CTRLA fields the core's Wire leaves at their defaults, set while SERCOM2 is disabled. */
+/*
+ * SCL timing (docs/hardware.md, "Bus timing"). The core computes BAUD = 48 MHz / (2 f) - 5 - 3
+ * with BAUDLOW = 0: at 400 kHz BAUD 52, an SCL low time of (52 + 5) / 48 MHz = 1.19 us, under
+ * Fast-mode's 1.3 us. Per DS40001882, T_LOW = (BAUDLOW + 5) / f_GCLK, T_HIGH = (BAUD + 5) /
+ * f_GCLK, and the period adds the rise time: f_SCL = f_GCLK / (10 + BAUD + BAUDLOW +
+ * f_GCLK t_r). Here BAUD + BAUDLOW + 10 = 48 MHz / f, so f_SCL <= f for any rise time, and
+ * T_LOW, T_HIGH clear the spec's minimum with the rest:
+ *   400 kHz: BAUDLOW 62 (T_LOW 1.396 us >= 1.3), BAUD 48 (T_HIGH 1.104 us >= 0.6)
+ *   100 kHz: BAUDLOW 226 (4.813 us >= 4.7), BAUD 244 (5.188 us >= 4.0)
+ * Other rates keep the core's value.
+ */
+struct scl_timing {
+    uint32_t hz;
+    uint8_t baud, baudlow;
+};
+static const scl_timing k_scl[] = {{400000, 48, 62}, {100000, 244, 226}};
+/* SDA hold 300-600 ns after SCL falls (Atmel's default for Standard- and Fast-mode): it
+ * bridges a slow SCL fall on a long bus, where 0 could change SDA while a receiver still
+ * sees SCL high (a false START or STOP). */
+#define SDAHOLD_300_600NS 2u
+
+/* CTRLA and BAUD fields the core's Wire leaves at its defaults, set while SERCOM2 is disabled. */
 static void sercom_setup(void)
 {
     deadline(SYNC_US);
@@ -64,6 +85,11 @@ static void sercom_setup(void)
     }
     I2CM.CTRLA.bit.LOWTOUTEN = 0;   /* no slow clock: it could never fire (see above) */
     I2CM.CTRLA.bit.INACTOUT = 0;    /* shorter than a cell's clock stretch (see above) */
+    I2CM.CTRLA.bit.SDAHOLD = SDAHOLD_300_600NS;
+    for (unsigned i = 0; i < sizeof(k_scl) / sizeof(k_scl[0]); i++)
+        if (k_scl[i].hz == g_hz)
+            I2CM.BAUD.reg = SERCOM_I2CM_BAUD_BAUD(k_scl[i].baud) |
+                            SERCOM_I2CM_BAUD_BAUDLOW(k_scl[i].baudlow);
     I2CM.CTRLA.bit.ENABLE = 1;
     deadline(SYNC_US);
     while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {

@@ -196,6 +196,32 @@ def test_primary_leaves_the_smbus_timeouts_off(programs, hz):
     assert (int(r[f"inactout_{hz}"]), int(r[f"lowtouten_{hz}"]), int(r[f"enabled_{hz}"])) == (0, 0, 1)
 
 
+# UM10204 rev. 7 (I2C-bus specification), tables 10 and 11: f_SCL max, t_LOW min, t_HIGH min, t_r max (s)
+I2C_SPEC = {400000: (400e3, 1.3e-6, 0.6e-6, 300e-9), 100000: (100e3, 4.7e-6, 4.0e-6, 1000e-9)}
+F_GCLK = 48e6
+
+
+@pytest.mark.parametrize("hz", sorted(I2C_SPEC))
+def test_primary_scl_timing_meets_the_i2c_spec_for_any_allowed_rise_time(programs, hz):
+    """DS40001882 (SERCOM I2C clock generation): T_LOW = (BAUDLOW + 5) / f_GCLK, T_HIGH = (BAUD + 5) / f_GCLK,
+    f_SCL = f_GCLK / (10 + BAUD + BAUDLOW + f_GCLK t_r). The core's BAUD 52 (BAUDLOW 0) gives T_LOW 1.19 us at
+    400 kHz, under the 1.3 us minimum."""
+    f_max, t_low, t_high, t_r_max = I2C_SPEC[hz]
+    r = results(programs[0], "begin")
+    baud, baudlow = int(r[f"baud_{hz}"]), int(r[f"baudlow_{hz}"])
+    assert baudlow > 0  # 0 would make the low time equal the high time (the core's choice)
+    assert (baudlow + 5) / F_GCLK >= t_low
+    assert (baud + 5) / F_GCLK >= t_high
+    assert F_GCLK / (10 + baud + baudlow) <= f_max  # even with an instant rise
+    assert F_GCLK / (10 + baud + baudlow + F_GCLK * t_r_max) >= 0.85 * f_max  # and not much slower at the slowest
+    assert int(r[f"sdahold_{hz}"]) == 2  # 300-600 ns
+
+
+def test_cell_i2c_secondary_holds_sda_like_the_primary(programs):
+    r = results(programs[1])
+    assert (int(r["i2cs_sdahold"]), int(r["i2cs_enabled"]), int(r["i2cs_mode"])) == (2, 1, 4)
+
+
 @pytest.mark.parametrize("scenario,status,n", [("ok_read", 0, 23), ("nack_read", 1, 0), ("ok_write", 0, 0)])
 def test_good_transactions(programs, scenario, status, n):
     r = results(programs[0], scenario)

@@ -110,6 +110,8 @@ int main(int argc, char **argv)
     printf("ctrl_pa=0x%08lx\nctrl_pb=0x%08lx\n", (unsigned long)PORT->Group[0].CTRL.reg,
            (unsigned long)PORT->Group[1].CTRL.reg);
     printf("attached=0x%08lx\n", (unsigned long)stub.attached);
+    printf("i2cs_sdahold=%u\ni2cs_enabled=%u\ni2cs_mode=%u\n", (unsigned)SERCOM2->I2CS.CTRLA.bit.SDAHOLD,
+           (unsigned)SERCOM2->I2CS.CTRLA.bit.ENABLE, (unsigned)SERCOM2->I2CS.CTRLA.bit.MODE);
     printf("wdt_enabled=%d\nwdt_per=%u\n", (WDT->CTRL.reg & WDT_CTRL_ENABLE) != 0, (unsigned)WDT->CONFIG.reg);
     /* the watchdog proves the tick: no feed while it stands still, one after it ran */
     int idle = fed_by_loop();

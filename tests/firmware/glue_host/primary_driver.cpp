@@ -77,10 +77,11 @@ int main(int argc, char **argv)
         static const uint32_t rates[] = {400000, 100000};
         for (int i = 0; i < 2; i++) {
             primary_hw_begin(rates[i]);
-            printf("inactout_%lu=%u\nlowtouten_%lu=%u\nenabled_%lu=%u\n", (unsigned long)rates[i],
-                   (unsigned)SERCOM2->I2CM.CTRLA.bit.INACTOUT, (unsigned long)rates[i],
-                   (unsigned)SERCOM2->I2CM.CTRLA.bit.LOWTOUTEN, (unsigned long)rates[i],
-                   (unsigned)SERCOM2->I2CM.CTRLA.bit.ENABLE);
+            unsigned long f = rates[i];
+            printf("inactout_%lu=%u\nlowtouten_%lu=%u\nenabled_%lu=%u\n", f, (unsigned)SERCOM2->I2CM.CTRLA.bit.INACTOUT,
+                   f, (unsigned)SERCOM2->I2CM.CTRLA.bit.LOWTOUTEN, f, (unsigned)SERCOM2->I2CM.CTRLA.bit.ENABLE);
+            printf("baud_%lu=%u\nbaudlow_%lu=%u\nsdahold_%lu=%u\n", f, (unsigned)SERCOM2->I2CM.BAUD.bit.BAUD, f,
+                   (unsigned)SERCOM2->I2CM.BAUD.bit.BAUDLOW, f, (unsigned)SERCOM2->I2CM.CTRLA.bit.SDAHOLD);
         }
         return 0;
     } else if (!strcmp(sc, "flood")) {

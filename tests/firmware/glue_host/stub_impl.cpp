@@ -187,19 +187,40 @@ int SerialStub::availableForWrite() { return 63; }
 bool SerialStub::dtr() { return stub.dtr; }
 
 TwoWire Wire;
-/* the core's initClockNVIC: SERCOM2 at SERCOM_NVIC_PRIORITY = 3 */
+/* The core's Wire (SERCOM.cpp): initClockNVIC puts SERCOM2 at SERCOM_NVIC_PRIORITY = 3, resetWIRE
+ * clears CTRLA, initMasterWIRE sets BAUD = F_CPU / (2 f) - 5 - 3 (125 ns rise) with BAUDLOW 0. */
+static void core_init_wire(uint32_t mode)
+{
+    stub.prio[SERCOM2_IRQn] = 3;
+    SERCOM2->I2CM.CTRLA.reg = 0;
+    SERCOM2->I2CM.CTRLA.bit.MODE = mode;
+}
+static void core_master_baud(uint32_t hz)
+{
+    if (hz) /* a scenario that never called primary_hw_begin recovers with hz 0 */
+        SERCOM2->I2CM.BAUD.reg = (uint32_t)(F_CPU / (2 * hz) - 5 - 3);
+}
 void TwoWire::begin()
 {
     stub.wire_begins++;
-    stub.prio[SERCOM2_IRQn] = 3;
+    core_init_wire(5);
+    core_master_baud(100000);   /* TWI_CLOCK */
+    SERCOM2->I2CM.CTRLA.bit.ENABLE = 1;
 }
 void TwoWire::begin(uint8_t)
 {
     stub.wire_begins++;
-    stub.prio[SERCOM2_IRQn] = 3;
+    core_init_wire(4);
+    SERCOM2->I2CM.CTRLA.bit.ENABLE = 1;
 }
 void TwoWire::end() { stub.wire_ends++; }
-void TwoWire::setClock(uint32_t) {}
+void TwoWire::setClock(uint32_t hz)
+{
+    SERCOM2->I2CM.CTRLA.bit.ENABLE = 0;
+    core_init_wire(5);
+    core_master_baud(hz);
+    SERCOM2->I2CM.CTRLA.bit.ENABLE = 1;
+}
 void TwoWire::onReceive(void (*)(int)) {}
 void TwoWire::onRequest(void (*)(void)) {}
 int TwoWire::available() { return 0; }

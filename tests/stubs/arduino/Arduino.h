@@ -36,7 +36,9 @@ extern SerialStub Serial;
 /* one register: the whole word or its bits (bits named as the glue uses them) */
 #define REG(name, type, ...) union { type reg; struct { __VA_ARGS__ } bit; } name
 struct SercomI2cmStub {
-    volatile REG(CTRLA, uint32_t, uint32_t SWRST : 1, ENABLE : 1, MODE : 3, : 23, INACTOUT : 2, LOWTOUTEN : 1, : 1;);
+    volatile REG(CTRLA, uint32_t, uint32_t SWRST : 1, ENABLE : 1, MODE : 3, : 15, SDAHOLD : 2, : 6, INACTOUT : 2,
+                 LOWTOUTEN : 1, : 1;);
+    volatile REG(BAUD, uint32_t, uint32_t BAUD : 8, BAUDLOW : 8, HSBAUD : 8, HSBAUDLOW : 8;);
     volatile REG(CTRLB, uint32_t, uint32_t : 16, CMD : 2, ACKACT : 1, : 13;);
     volatile REG(SYNCBUSY, uint32_t, uint32_t SWRST : 1, ENABLE : 1, SYSOP : 1, : 29;);
     volatile REG(STATUS, uint16_t, uint16_t BUSERR : 1, ARBLOST : 1, RXNACK : 1, : 1, BUSSTATE : 2, LOWTOUT : 1, : 9;);
@@ -44,7 +46,10 @@ struct SercomI2cmStub {
     volatile REG(ADDR, uint32_t, uint32_t ADDR : 11, : 21;);
     volatile REG(DATA, uint8_t, uint8_t DATA : 8;);
 };
-struct Sercom { SercomI2cmStub I2CM; };
+union Sercom {   /* master and secondary views of the same registers, as in the CMSIS header */
+    SercomI2cmStub I2CM;
+    SercomI2cmStub I2CS;
+};
 extern Sercom *const SERCOM2;
 #define SERCOM_I2CM_STATUS_BUSERR (1u << 0)
 #define SERCOM_I2CM_STATUS_ARBLOST (1u << 1)
@@ -55,6 +60,8 @@ extern Sercom *const SERCOM2;
 #define SERCOM_I2CM_CTRLB_CMD_Msk (3u << 16)
 #define SERCOM_I2CM_CTRLB_CMD(v) (((uint32_t)(v) << 16) & SERCOM_I2CM_CTRLB_CMD_Msk)
 #define SERCOM_I2CM_CTRLB_ACKACT (1u << 18)
+#define SERCOM_I2CM_BAUD_BAUD(v) ((uint32_t)(v) & 0xFFu)
+#define SERCOM_I2CM_BAUD_BAUDLOW(v) (((uint32_t)(v) & 0xFFu) << 8)
 
 struct PortGroupStub {
     volatile REG(DIRSET, uint32_t, uint32_t b : 32;);
