@@ -30,11 +30,11 @@ static void on_receive(int n)
 {
     uint8_t buf[32];
     int k = 0;
-    while (Wire.available() > 0) {
-        int b = Wire.read();
-        if (k < (int)sizeof(buf))
-            buf[k++] = (uint8_t)b;
-    }
+    /* At most sizeof(buf) bytes: the core clears its receive buffer after this callback, so
+     * the rest needs no draining, and a babbling bus (up to 255 buffered bytes) cannot make
+     * this interrupt, and the clock stretch of the next transaction, any longer. */
+    while (k < (int)sizeof(buf) && Wire.available() > 0)
+        buf[k++] = (uint8_t)Wire.read();
     (void)n;
     /* n == 0 (the core's onReceive(0) after a read) is ignored by the handler;
      * a write longer than buf arrives as 32 bytes and is rejected as LENGTH */

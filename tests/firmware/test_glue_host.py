@@ -91,6 +91,14 @@ def test_a_host_that_never_stops_sending_does_not_starve_the_loop(programs, role
         assert int(r["passes_fed"]) == 5
 
 
+def test_cell_receive_callback_reads_no_more_than_its_buffer(programs):
+    """The SERCOM2 interrupt's work stays bounded whatever a babbling bus left in Wire's 256-byte buffer: the callback
+    reads its 32 bytes (the core clears the rest after it) and the write is handed on as 32 bytes (rejected later as
+    LENGTH)."""
+    r = results(programs[1], "babble")
+    assert (int(r["wire_reads"]), int(r["mailbox_len"])) == (32, 32)
+
+
 def test_an_edge_during_encoder_start_up_is_not_lost(programs):
     """Channel B changes while start-up attaches the pins; then A changes. The decoder must have started from the
     level after B's edge, so A's edge is one legal count; started from the level before it, A's edge would look

@@ -65,6 +65,14 @@ int main(int argc, char **argv)
         stub.prio[i] = -1;
     stub.prio[USB_IRQn] = 0;   /* the core's USBDevice.init() before setup() */
     PM->RCAUSE.reg = PM_RCAUSE_WDT;
+    if (!strcmp(sc, "babble")) {
+        /* a babbling bus left 200 bytes in Wire's buffer when the STOP came */
+        setup();
+        stub.wire_rx = 200;
+        on_receive(200);
+        printf("wire_reads=%lu\nmailbox_len=%u\n", (unsigned long)stub.wire_reads, (unsigned)g_regs.rx_len);
+        return 0;
+    }
     if (!strcmp(sc, "flood")) {
         /* the host sends without pause: every pass still ends, serves the bus and feeds the watchdog */
         setup();

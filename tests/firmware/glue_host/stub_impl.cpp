@@ -223,8 +223,15 @@ void TwoWire::setClock(uint32_t hz)
 }
 void TwoWire::onReceive(void (*)(int)) {}
 void TwoWire::onRequest(void (*)(void)) {}
-int TwoWire::available() { return 0; }
-int TwoWire::read() { return -1; }
+int TwoWire::available() { return (int)stub.wire_rx; }
+int TwoWire::read()
+{
+    if (!stub.wire_rx)
+        return -1;
+    stub.wire_rx--;
+    stub.wire_reads++;
+    return 0x55;
+}
 size_t TwoWire::write(const uint8_t *, size_t n) { return n; }
 void TwoWire::beginTransmission(uint8_t) {}
 uint8_t TwoWire::endTransmission(bool) { return 4; }

@@ -34,6 +34,7 @@ typedef struct {
     size_t bank_bytes;
     size_t usb_delivered, usb_zeroed;   /* bytes the host read; armed bytes the core's timeout zeroed */
     int wire_begins, wire_ends;
+    size_t wire_rx, wire_reads;   /* bytes the stand-in Wire holds from the primary; bytes read from it */
     jmp_buf reset;             /* NVIC_SystemReset() longjmps here (value 1) */
     int resets;
 } stub_state_t;
