@@ -520,6 +520,26 @@ CELL_LOOP_BOUNDS: dict[str, int] = {
     # tick (500 us) ago and a synchronisation takes under 10 GCLK cycles (48 MHz) while one poll
     # takes at least 7: at most two polls wait even if a write had just started
     "_ZL9tcc0_syncm": 2,
+    # --- the I2C secondary's interrupt (SERCOM2_Handler -> Wire.onService), for its response ---
+    # Seeed core SERCOM.cpp prepareCommandBitsWire() / readDataWIRE(): the SYSOP / SB waits are in the
+    # master branch (isMasterWIRE()); a cell's SERCOM2 is a secondary and never enters them
+    "_ZN6SERCOM22prepareCommandBitsWireEh": 0,
+    "_ZN6SERCOM12readDataWIREEv": 0,
+    # src/cell/bus_glue.cpp on_receive(): reads at most its 32-byte buffer (the core clears the rest)
+    "_ZL10on_receivei": 32,
+    # bus/mc_crc8.c on the secondary's path: a POINTER write (3 bytes) and the 1-byte header; 32 = the
+    # glue's receive buffer, a bound that survives longer checked writes
+    "mc_crc8_update": 32,
+    # bus/mc_regs.c: copies at most MC_WRITE_MAX_LEN = 8 bytes into the mailbox
+    "mc_regs_on_receive": 8,
+    # bus/mc_regs.c: copies one published block, at most MC_BLK_MAX_LEN = 25 bytes
+    "mc_regs_on_request": 25,
+    # Wire.cpp write(data, n): one write(byte) per byte of that block, at most 25
+    "_ZN7TwoWire5writeEPKhj": 25,
+    # Seeed core Reset.cpp tickReset() (SysTick, beside SERCOM2 at priority 2): its loops are those of banzai(),
+    # inlined: the NVM-ready waits and the final while (true) on the way into the bootloader after a 1200-baud
+    # touch; the chip resets there, no response follows
+    "tickReset": 0,
 }
 
 #: EIC_Handler's ``ISRcallback[i]()`` is charged per edge (below), not inside the handler.
@@ -592,10 +612,24 @@ class Budget:
 #: core's priority 2 (wiring.c).
 OTHER_ISRS: tuple[tuple[str, str, dict[str, tuple[str, ...]], float | None], ...] = (
     ("USB", "USB_Handler", {"USB_Handler": ("UDD_Handler",)}, None),
-    ("SERCOM2", "SERCOM2_Handler", {}, None),
+    (
+        "SERCOM2",
+        "SERCOM2_Handler",
+        # Wire.onService calls the glue's callbacks through the pointers Wire.onReceive/onRequest store, and the
+        # virtual available(); Wire.write(data, n) the virtual write(byte)
+        {
+            "_ZN7TwoWire9onServiceEv": ("_ZL10on_receivei", "_ZL10on_requestv", "_ZN7TwoWire9availableEv"),
+            "_ZN7TwoWire5writeEPKhj": ("_ZN7TwoWire5writeEh",),
+        },
+        None,
+    ),
     ("SysTick", "SysTick_Handler", {}, 1000.0),
 )
 SYSTICK_PRIORITY = 2
+#: The primary's per-transaction timeout at 400 kHz (src/primary/main.cpp MC_TXN_TIMEOUT_US).
+TXN_TIMEOUT_S = 1500e-6
+#: SERCOM2's longest inactive-bus timeout: 20-21 SCL periods, at 400 kHz (DS40001882 CTRLA.INACTOUT = 3).
+INACTOUT_MAX_S = 21 * 2.5e-6
 
 
 Other = tuple[str, "int | None", str]  # name, worst cycles (None: no bound), why there is none
@@ -669,8 +703,9 @@ def cell_budget(
         prio = SYSTICK_PRIORITY if vec == "SysTick" else priorities.get(vec)
         if prio is None or handler not in image.functions:
             continue
+        present = {f: tuple(t for t in ts if t in image.functions) for f, ts in indirect.items()}
         try:
-            c: int | None = Analyser(image, model, CELL_LOOP_BOUNDS, indirect).worst(handler).cycles + exc.cycles
+            c: int | None = Analyser(image, model, CELL_LOOP_BOUNDS, present).worst(handler).cycles + exc.cycles
             why = ""
         except (AnalysisError, UnsupportedInsn) as e:
             c, why = None, str(e)
@@ -688,6 +723,15 @@ def cell_budget(
         resp("EIC", "encoder edge (EIC)", edge_c.cycles, per_encoder, True),
         resp("TC3", "control tick (TC3)", tick_c.cycles, F_CPU_HZ / tick_hz, False),
     ]
+    # the I2C secondary stretches SCL from an event (address match, data ready) until its handler has run; one
+    # event must end well inside the primary's transaction timeout (an addressed image: the bus glue linked)
+    sercom = next((i for i in isrs if i[0] == "SERCOM2"), None)
+    if sercom is not None and "_ZL10on_requestv" in image.functions:
+        own = sercom[2]
+        if own is None:
+            b.responses.append(Response("I2C secondary event (SERCOM2)", sercom[1], None, 0, sercom[4]))
+        else:
+            b.responses.append(resp("SERCOM2", "I2C secondary event (SERCOM2)", own, F_CPU_HZ * TXN_TIMEOUT_S, False))
     return b
 
 
@@ -719,4 +763,11 @@ def format_budget(b: Budget, elf: str) -> str:
             lines.append(
                 f"  {r.name:<40}{r.priority:>5}{cyc:>8}{us:>7}{r.deadline / F_CPU_HZ * 1e6:>13.1f}  {verdict}: {r.why}"
             )
+            if r.name.startswith("I2C secondary") and r.cycles is not None:
+                longer = r.cycles / F_CPU_HZ > INACTOUT_MAX_S
+                lines.append(
+                    f"    (a clock stretch of up to {r.cycles / F_CPU_HZ * 1e6:.0f} us: "
+                    + ("longer than" if longer else "within")
+                    + f" INACTOUT's longest setting, {INACTOUT_MAX_S * 1e6:.1f} us at 400 kHz)"
+                )
     return "\n".join(lines)

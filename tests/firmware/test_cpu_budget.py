@@ -11,6 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from metacell_tools.fwcheck import armbuild, cpubudget
+from tests.firmware.test_irqmap import addressed_cell_elf  # noqa: F401  (cell 1 as the flash tool builds it)
 from tests.firmware.test_pio_build import build_log  # noqa: F401  (the shared, locked real build)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -209,3 +210,21 @@ def test_real_cell_image_responses_under_its_own_priorities(build_log):  # noqa:
     core = cpubudget.cell_budget(img, priorities={**prio, "USB": prio["EIC"]})
     assert [r.cycles for r in core.responses] == [None, None]
     assert "USB shares priority" in core.responses[0].why and "USB is more urgent" in core.responses[1].why
+
+
+def test_real_addressed_cell_image_bounds_the_i2c_secondary_event(addressed_cell_elf):  # noqa: F811
+    """With the bus glue linked, one SERCOM2 event (its handler, the callbacks, a SysTick beside it, the edges and
+    the tick above it) ends inside the primary's transaction timeout, and lasts longer than INACTOUT's longest
+    setting: the reason that timeout stays off on the primary."""
+    from metacell_tools.fwcheck import irqmap
+
+    img = cpubudget.parse_disassembly(cpubudget.disassemble(addressed_cell_elf))
+    b = cpubudget.cell_budget(img, priorities=irqmap.effective_priorities(addressed_cell_elf))
+    names = [r.name for r in b.responses]
+    assert names == ["encoder edge (EIC)", "control tick (TC3)", "I2C secondary event (SERCOM2)"]
+    i2c = b.responses[2]
+    assert i2c.ok and i2c.priority == 2 and i2c.deadline == int(48e6 * cpubudget.TXN_TIMEOUT_S)
+    assert i2c.cycles > cpubudget.INACTOUT_MAX_S * 48e6
+    assert "EIC" in i2c.why and "TC3" in i2c.why  # the edges and the tick pre-empt it
+    text = cpubudget.format_budget(b, str(addressed_cell_elf))
+    assert "longer than INACTOUT's longest setting" in text
