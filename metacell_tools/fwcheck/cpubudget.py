@@ -626,6 +626,16 @@ OTHER_ISRS: tuple[tuple[str, str, dict[str, tuple[str, ...]], float | None], ...
     ("SysTick", "SysTick_Handler", {}, 1000.0),
 )
 SYSTICK_PRIORITY = 2
+#: Functions that mask every interrupt (``cpsid i``) while the drive runs: each one's whole worst case (an upper
+#: bound of its masked section) may hold off an edge like a handler at the EIC's own level.
+MASKED_RUNTIME = ("mc_quad_snapshot", "mc_quad_set_pos", "mc_regs_on_request")
+#: Functions that mask interrupts only where no response matters, and why (matched by name prefix).
+MASKED_ELSEWHERE = {
+    "_Z16hw_encoders_init": "start-up: the pins are attached with interrupts off, before the tick and the drive",
+    "_ZN7__Guard": "the core's guard of a function-local static, once, at its construction",
+    "_sbrk": "heap growth: operator new in the core's USB set-up, before setup()",
+    "tickReset": "the 1200-baud touch: interrupts off, then a reset into the bootloader",
+}
 #: The primary's per-transaction timeout at 400 kHz (src/primary/main.cpp MC_TXN_TIMEOUT_US).
 TXN_TIMEOUT_S = 1500e-6
 #: SERCOM2's longest inactive-bus timeout: 20-21 SCL periods, at 400 kHz (DS40001882 CTRLA.INACTOUT = 3).
@@ -711,9 +721,23 @@ def cell_budget(
             c, why = None, str(e)
         isrs.append((vec, prio, c, None if rate is None else F_CPU_HZ / rate, why))
 
+    # every function that masks interrupts must be known: its section blocks the edges like a handler at level 0
+    masked: list[Other] = []
+    for name, f in image.functions.items():
+        if not any(i.mnem == "cpsid" for i in f.insns) or any(name.startswith(k) for k in MASKED_ELSEWHERE):
+            continue
+        if name not in MASKED_RUNTIME:
+            masked.append((f"interrupts masked in {name}", None, "not classified in cpubudget.MASKED_RUNTIME"))
+            continue
+        try:
+            masked.append((f"masked {name}", Analyser(image, model, CELL_LOOP_BOUNDS, {}).worst(name).cycles, ""))
+        except (AnalysisError, UnsupportedInsn) as e:
+            masked.append((f"masked {name}", None, str(e)))
+
     def resp(target: str, label: str, own: int, deadline: float, blocker_self: bool) -> Response:
         prio = priorities[target]
         same: list[Other] = [(n, c, w) for n, p, c, _, w in isrs if p == prio and (n != target or blocker_self)]
+        same += masked  # a masked section holds off every level
         above: list[Urgent] = [(n, c, None if t is None else int(t), w) for n, p, c, t, w in isrs if p < prio]
         return _response(label, prio, own, int(deadline), same, above)
 

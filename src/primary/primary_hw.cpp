@@ -15,9 +15,9 @@
  *     the deadline above ends a stuck transaction 17x sooner. The inactive-bus timeout
  *     (INACTOUT) sets the bus state to idle when SCL stays low for 5-6, 10-11 or 20-21 SCL
  *     periods (at most ~53 us at 400 kHz), and a cell legitimately stretches SCL longer
- *     while its tick and encoder interrupts run (tick + two edges: 52 us by
- *     `fwcheck cpu-budget`, plus its I2C handler): the master would take the bus for
- *     idle in the middle of a transaction. A bus left busy is recovered below instead;
+ *     while its tick and encoder interrupts run (up to 482 us with its I2C handler by
+ *     `fwcheck cpu-budget` on a cell image): the master would take the bus for idle in
+ *     the middle of a transaction. A bus left busy is recovered below instead;
  *   - a transaction that fails with a timeout or a bus error ends with a STOP when
  *     the primary owns the bus; a bus still not idle is recovered at once (9 SCL
  *     pulses, open-drain, then a STOP) and the recovery counted (PRIMARY_HEALTH);

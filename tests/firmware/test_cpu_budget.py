@@ -146,6 +146,47 @@ def test_a_handler_without_a_bound_at_the_same_or_a_higher_priority_leaves_no_bo
     assert rate.cycles is None and "nothing bounds its rate" in rate.why
 
 
+TINY = """
+00000200 <TC3_Handler>:
+     200:\tbx\tlr
+
+00000202 <EIC_Handler>:
+     202:\tbx\tlr
+
+00000204 <hw_isr_encoder_alpha>:
+     204:\tbx\tlr
+
+00000206 <hw_isr_encoder_beta>:
+     206:\tbx\tlr
+
+00000208 <mc_quad_snapshot>:
+     208:\tmrs\tr3, PRIMASK
+     20c:\tcpsid\ti
+     20e:\tldr\tr2, [r0, #0]
+     210:\tldr\tr1, [r0, #4]
+     212:\tldr\tr1, [r0, #8]
+     214:\tldr\tr1, [r0, #12]
+     216:\tldr\tr1, [r0, #16]
+     218:\tldr\tr1, [r0, #20]
+     21a:\tmsr\tPRIMASK, r3
+     21e:\tbx\tlr
+"""
+
+
+def test_a_masked_section_holds_off_the_edges_and_an_unknown_one_leaves_no_bound():
+    prio = {"EIC": 0, "TC3": 1, "SERCOM2": 2, "USB": 3}
+    img = cpubudget.parse_disassembly(TINY)
+    b = cpubudget.cell_budget(img, priorities=prio)
+    masked = cpubudget.Analyser(img).worst("mc_quad_snapshot").cycles
+    edge_c = b.isrs[1].cycles
+    assert masked > edge_c  # a bare handler costs less than the copy here, so the copy is the blocking term
+    assert b.responses[0].cycles == masked + edge_c and "masked mc_quad_snapshot" in b.responses[0].why
+    unknown = TINY + "\n00000220 <mystery>:\n     220:\tcpsid\ti\n     222:\tbx\tlr\n"
+    b = cpubudget.cell_budget(cpubudget.parse_disassembly(unknown), priorities=prio)
+    assert [r.cycles for r in b.responses] == [None, None]
+    assert "interrupts masked in mystery" in b.responses[0].why
+
+
 # ---------------------------------------------------------------------------- the real image
 
 ELF = ROOT / ".pio" / "build" / "cell" / "firmware.elf"
