@@ -71,7 +71,7 @@ struct scl_timing {
     uint8_t baud, baudlow;
 };
 static const scl_timing k_scl[] = {{400000, 48, 62}, {100000, 244, 226}};
-/* SDA hold 300-600 ns after SCL falls (Atmel's default for Standard- and Fast-mode): it
+/* SDA hold 300-600 ns after SCL falls (the default of Atmel's ASF I2C secondary driver): it
  * bridges a slow SCL fall on a long bus, where 0 could change SDA while a receiver still
  * sees SCL high (a false START or STOP). */
 #define SDAHOLD_300_600NS 2u
