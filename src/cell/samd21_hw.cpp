@@ -252,21 +252,6 @@ uint32_t hw_tick_start(uint32_t rate_hz)
     return period;
 }
 
-/* ---- I2C secondary -------------------------------------------------------------- */
-
-void hw_i2c_secondary_timing(void)
-{
-    /* SDA hold 300-600 ns after SCL falls, as on the primary (docs/hardware.md, "Bus timing");
-     * the core's Wire.begin(addr) leaves 0. CTRLA is enable-protected: disable, set, enable. */
-    SERCOM2->I2CS.CTRLA.bit.ENABLE = 0;
-    while (SERCOM2->I2CS.SYNCBUSY.bit.ENABLE) {
-    }
-    SERCOM2->I2CS.CTRLA.bit.SDAHOLD = 2;
-    SERCOM2->I2CS.CTRLA.bit.ENABLE = 1;
-    while (SERCOM2->I2CS.SYNCBUSY.bit.ENABLE) {
-    }
-}
-
 /* ---- interrupt priorities ----------------------------------------------------- */
 
 /*
@@ -308,4 +293,19 @@ int hw_nfault_active(void)
 #else
     return 0;
 #endif
+}
+
+/* ---- I2C secondary -------------------------------------------------------------- */
+
+void hw_i2c_secondary_timing(void)
+{
+    /* SDA hold 300-600 ns after SCL falls, as on the primary (docs/hardware.md, "Bus timing");
+     * the core's Wire.begin(addr) leaves 0. CTRLA is enable-protected: disable, set, enable. */
+    SERCOM2->I2CS.CTRLA.bit.ENABLE = 0;
+    while (SERCOM2->I2CS.SYNCBUSY.bit.ENABLE) {
+    }
+    SERCOM2->I2CS.CTRLA.bit.SDAHOLD = 2;
+    SERCOM2->I2CS.CTRLA.bit.ENABLE = 1;
+    while (SERCOM2->I2CS.SYNCBUSY.bit.ENABLE) {
+    }
 }

@@ -24,9 +24,10 @@ void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b);
 /* Both drivers asleep now (nSLEEP and PH low): the fault handler's safe state. Register
  * writes only, safe from any context. */
 void hw_drivers_off(void);
-/* Attach the pin-change interrupts (EIC, both edges) that call mc_quad_update, then sample
- * both encoders and initialise the decoders from the levels, with interrupts off throughout
- * (on again at the end): no edge is lost between the sample and the attach. */
+/* Attach the pin interrupts, then sample both encoders and initialise the decoders from the
+ * levels, with interrupts off throughout (on again at the end): no edge is lost between the
+ * sample and the attach. The handlers attached are the encoders'
+ * pin-change interrupts (EIC, both edges) that call mc_quad_update. */
 void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta);
 /* Start TC3 calling hw_tick_handler() at rate_hz (MFRQ mode, NVIC priority 1:
  * below the pin interrupts, above the I2C SERCOM and USB). Returns the timer
@@ -45,8 +46,6 @@ extern const uint8_t hw_irq_priority[HW_IRQ_PRIORITIES][2];   /* {IRQn, priority
 }
 #endif
 void hw_irq_priorities(void);
-/* SERCOM2 as I2C secondary: SDA hold 300-600 ns (call after Wire.begin(addr)). */
-void hw_i2c_secondary_timing(void);
 /* Hold off / release the control tick (for commands that touch the cell state). */
 void hw_tick_mask(void);
 void hw_tick_unmask(void);
@@ -68,5 +67,8 @@ void hw_isr_encoder_beta(void);
 
 /* 1 when the drivers' nFAULT line is low (0 when MC_PIN_NFAULT is not wired). */
 int hw_nfault_active(void);
+
+/* SERCOM2 as I2C secondary: SDA hold 300-600 ns (call after Wire.begin(addr)). */
+void hw_i2c_secondary_timing(void);
 
 #endif /* SAMD21_HW_H */

@@ -137,6 +137,8 @@ void loop()
     /* fed only when polling moved: a schedule stuck on a transaction that never completes, or a
      * loop that no longer reaches it, resets the board */
     uint32_t pr = mc_primary_progress(&g_link.p);
-    if (pr != g_wdt_progress && sys_wdt_feed())
+    if (pr != g_wdt_progress) {
+        sys_wdt_feed();   /* a feed skipped while the last one synchronises: the next step feeds */
         g_wdt_progress = pr;
+    }
 }
