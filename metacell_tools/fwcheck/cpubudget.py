@@ -662,14 +662,17 @@ def _response(name: str, prio: int, own: int, deadline: int, same: list[Other], 
             return Response(name, prio, None, deadline, f"{n} is more urgent and has no bound ({what})")
         urgent.append((n, c, t))
     block = max((c for _, c in blockers), default=0)
+    full = Response(name, prio, None, deadline, "the more urgent handlers alone fill the CPU")
+    if sum(c / t for _, c, t in urgent) >= 1:
+        return full
     r = block + own
-    for _ in range(10_000):
+    for _ in range(100_000):
         nxt = block + own + sum(-(-r // t) * c for _, c, t in urgent)
         if nxt == r:
             break
         r = nxt
-        if r > 100 * deadline:
-            return Response(name, prio, None, deadline, "the more urgent handlers alone fill the CPU")
+    else:
+        return full  # no fixed point reached: never report a value that is not one
     parts = [f"{n} {c}" for n, c in blockers if c == block and block][:1]
     parts += [f"{n} {c} x {-(-r // t)}" for n, c, t in urgent]
     return Response(name, prio, r, deadline, f"own {own}" + "".join(" + " + p for p in parts))

@@ -132,6 +132,8 @@ def test_a_response_is_the_least_fixed_point_of_the_interference_equation(own, b
     r = cpubudget._response("x", 1, own, 10**9, [("b", block, "")], above)
     if sum(c / t for c, t in urgent) < 0.9:  # otherwise the busy period may be enormous: only check it is consistent
         assert r.cycles is not None
+    if sum(c / t for c, t in urgent) >= 1:
+        assert r.cycles is None and "fill the CPU" in r.why  # no finite response exists
     if r.cycles is not None:
         assert rhs(r.cycles) == r.cycles
         assert all(rhs(x) > x for x in range(block + own, r.cycles, max(1, (r.cycles - block - own) // 50)))
