@@ -66,7 +66,8 @@ class RecordTracker(Tracker):
 class ProgressTracker(Tracker):
     """A tqdm bar in simulated seconds, shown only once the run has taken over `delay_s` of wall time."""
 
-    def __init__(self, delay_s: float = 1.0, file: TextIO | None = None, disable: bool = False) -> None:
+    def __init__(self, delay_s: float = 1.0, file: TextIO | None = None, disable: bool | None = None) -> None:
+        """disable None (default): shown on a terminal only (tqdm's rule); True: never."""
         self.delay_s = delay_s
         self.file = file or sys.stderr
         self.disable = disable
