@@ -5,6 +5,7 @@ Python API (imports are lazy, so ``import host_emulator`` is cheap)::
     import host_emulator as he
     r = he.run("default", overrides={"params.sigma": 0.05})   # RunResult: time, alpha, beta, summary
     r.to_xarray()                                              # xarray.Dataset, dims (time, cell)
+    ds = he.load("out/rig1")        # any run or capture, rig or emulated, in the same Dataset layout
     he.plot_spacetime(r)                                       # a matplotlib Figure
     he.sweep("default", {"params.sigma": [0.05, 0.07]}, seeds=2, out="out/sw")   # xarray.Dataset
 """
@@ -15,6 +16,7 @@ __all__ = [
     "load_scene",
     "list_scenes",
     "sweep",
+    "load",
     "plot_spacetime",
     "plot_final",
     "plot_dispersion",
@@ -33,6 +35,7 @@ _LAZY = {
     "plot_final": "plots",
     "plot_dispersion": "plots",
     "sweep": "sweep",
+    "load": "datasets",
     "plot_phase_diagram": "sweep",
     "plot_regime_map": "sweep",
     "provenance": "provenance",
@@ -50,7 +53,9 @@ def __getattr__(name):
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value  # bound once: later calls find the function, never a submodule of the same name
+        return value
     raise AttributeError(f"module 'host_emulator' has no attribute {name!r}")
 
 

@@ -128,9 +128,15 @@ def test_dispersion_plot_names_band_and_fastest_wavelength():
     ax = Figure().add_subplot(111)
     he.plot_dispersion(Params(sigma=0.072), ax=ax, inertia=True, measured_period_s=None)
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert any(s.startswith("unstable band") for s in labels) and any(
+    assert any(s.startswith("stationary unstable 5.79-21.6") for s in labels) and any(
         s.startswith("fastest wavelength") for s in labels
     )
+    assert "lattice with inertia" in ax.get_title() and "(1/s)" in ax.get_ylabel()
+    # 12/125 at the table k: both pieces of the unstable set are drawn, each with its kind
+    ax = Figure().add_subplot(111)
+    he.plot_dispersion(Params(sigma=12 / 125, band_scale=0.5), ax=ax, inertia=True)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "stationary unstable 4.51-7.54 cells" in labels and "oscillatory unstable 19.3-inf cells" in labels
     ticks = [t.get_text() for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
     assert ticks and all("^" not in s and "times" not in s for s in ticks)  # plain numbers, no 10^x labels
 
