@@ -32,6 +32,15 @@ def new_figure(figsize: tuple[float, float] = (8, 6), **kw: Any) -> Figure:
     return Figure(figsize=figsize, **kw)
 
 
+def cell_ticks(axis: Any, n: int) -> None:
+    """Integer cell ticks on a matplotlib Axis (every cell up to 16, else 1 and every 4th): cells are 1..n, never
+    2.5 or 7.5 (what an automatic locator puts on an image extent of 0.5..n + 0.5)."""
+    from matplotlib.ticker import FixedLocator, NullLocator
+
+    axis.set_major_locator(FixedLocator(list(range(1, n + 1)) if n <= 16 else [1, *range(4, n + 1, 4)]))
+    axis.set_minor_locator(NullLocator())
+
+
 def _save(fig, path):
     fig.savefig(path, dpi=110)
     if "matplotlib.pyplot" in sys.modules:
@@ -124,6 +133,7 @@ def plot_spacetime(
             interpolation="nearest",
         )
         axi.set_ylabel("cell j")
+        cell_ticks(axi.yaxis, n)
         axi.set_xlabel("t (s)")
         if tz is None:
             fig.colorbar(im, ax=axi, label=f"{lab} (rad)")
@@ -160,7 +170,7 @@ def plot_final(
     ax.axhline(0, color="0.6", lw=0.8)
     ax.set_xlabel("cell j")
     ax.set_ylabel("angle (rad)")
-    ax.set_xticks(j)
+    cell_ticks(ax.xaxis, len(j))
     ax.legend()
     ax.set_title(_title(scene, title) or "final pattern", fontsize=9)
     return fig

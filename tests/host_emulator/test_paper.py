@@ -9,7 +9,7 @@ from host_emulator.paper import build
 def test_paper_items_agree_with_the_source(tmp_path):
     doc = build(tmp_path, repeats=2)
     figs = {i["figure"] for i in doc["items"]}
-    assert {"2a.i", "2b.i", "2c.i", "2a.ii", "2b.ii", "2c.ii", "3a", "3b", "3c"} <= figs
+    assert {"2a.i", "2b.i", "2c.i", "2a.ii", "2b.ii", "2c.ii", "exp. 4", "3a", "3b", "3c"} <= figs
     bad = [i for i in doc["items"] if not i["agree"]]
     assert not bad, bad
     assert doc["agree"] == doc["total"] == 14
