@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .trackers import PlotTracker, Tracker
+    from .workbench.trackers import PlotTracker, Tracker
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -25,8 +25,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .analysis.summary import summarize
     from .controller import run_scene
     from .models import ConfigError, NumericalInstability
-    from .plots import plot_run
     from .scene import load_scene
+    from .workbench.plots import plot_run
 
     try:
         scene = load_scene(args.scene, list(args.set) + ([f"accuracy={args.accuracy}"] if args.accuracy else []))
@@ -53,7 +53,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: run failed: out of memory ({e})", file=sys.stderr)
         return 3
     summary = summarize(scene, res)
-    from .datasets import write_run
+    from .workbench.datasets import write_run
 
     write_run(out / "trajectories.npz", scene, res.t, res.alpha, res.beta, summary, summary["source"])
     files = [] if args.no_plots else plot_run(res, scene, out)
@@ -71,7 +71,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _live_trackers(args, scene, out: Path) -> tuple[list[Tracker], PlotTracker | None]:
     """Trackers for --print-every and --live; the PlotTracker (or None). On a non-interactive matplotlib
     backend the live figure goes to --live-png (default OUT/live.png), said once on stderr."""
-    from .trackers import LiveTracker, PlotTracker
+    from .workbench.trackers import LiveTracker, PlotTracker
 
     live: list[Tracker] = [LiveTracker(args.print_every)] if args.print_every else []
     plot: PlotTracker | None = None
@@ -141,7 +141,7 @@ def _positive_float(text: str) -> float:
 
 
 def cmd_bench(args) -> int:
-    from .bench import bench_main
+    from .benchmarks.speed import bench_main
 
     return bench_main(args.rest)
 
@@ -166,11 +166,11 @@ def main(argv: list[str] | None = None) -> int:
 SUBCOMMANDS = {
     "dispersion": (".analysis.cli", "dispersion_main"),
     "serve": (".bus.serve", "serve_main"),
-    "bench-speed": (".bench", "bench_main"),
-    "robustness": (".paper", "robustness_main"),
-    "paper": (".paper", "paper_main"),
-    "animate": (".animate", "animate_main"),
-    "sweep": (".sweep", "sweep_main"),
+    "bench-speed": (".benchmarks.speed", "bench_main"),
+    "robustness": (".workbench.robustness", "robustness_main"),
+    "paper": (".workbench.paper", "paper_main"),
+    "animate": (".workbench.animate", "animate_main"),
+    "sweep": (".workbench.sweep", "sweep_main"),
     "bench": (".benchmarks.cli", "main"),
 }
 

@@ -155,7 +155,7 @@ def dispersion_main(argv: list[str] | None) -> int:
         print(f"dispersion: error: {e.args[0] if e.args else e}", file=sys.stderr)
         return 2
     if args.plot:
-        from ..plots import plot_dispersion_png
+        from ..workbench.plots import plot_dispersion_png
 
         plot_dispersion_png(p, args.plot, theory=theory)
         print(f"wrote {args.plot}", file=sys.stderr)

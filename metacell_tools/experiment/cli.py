@@ -128,7 +128,7 @@ def make_live(args, scene, out: Path, source: str = "rig"):
     """RigLive for --live (None without it); on a non-interactive matplotlib backend the figure goes to a PNG."""
     if getattr(args, "live", None) is None:
         return None
-    from host_emulator.trackers import PlotTracker
+    from host_emulator.workbench.trackers import PlotTracker
 
     from .live import RigLive
 
@@ -330,7 +330,7 @@ def execute(
     files = []
     if plot_src is not None:
         sc, res = plot_src
-        from host_emulator.datasets import from_run, to_npz
+        from host_emulator.workbench.datasets import from_run, to_npz
 
         ds = from_run(sc, res.t, res.alpha, res.beta, summary, source)
         ds.attrs["repeat"] = int(res.info["repeat"])
@@ -338,7 +338,7 @@ def execute(
         to_npz(ds, out / "trajectories.npz")
         files.append("trajectories.npz")
         if plots:
-            from host_emulator.plots import plot_run
+            from host_emulator.workbench.plots import plot_run
 
             miss = summary["missing_cells"]
             name = f"{sc.name}, repeat {res.info['repeat']}" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")

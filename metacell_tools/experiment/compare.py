@@ -46,7 +46,7 @@ def _arr(v) -> np.ndarray:
 
 
 def _from_summary(d: Path, s: dict, source: str | None) -> Run:
-    from host_emulator.datasets import _summary_source
+    from host_emulator.workbench.datasets import _summary_source
 
     for k in ("scene", "final_alpha_rad", "final_beta_rad"):
         if k not in s:
@@ -75,7 +75,7 @@ def _from_summary(d: Path, s: dict, source: str | None) -> Run:
 def open_run(path: Path, source: str | None = None) -> Run:
     """The final profile of whatever host_emulator.load opens at path."""
     from host_emulator.analysis.observables import spatial_period
-    from host_emulator.datasets import LoadError, final_profile, load
+    from host_emulator.workbench.datasets import LoadError, final_profile, load
 
     path = Path(path)
     f = path / "summary.json"

@@ -10,7 +10,7 @@ from .runner import series, tail_arrays
 
 
 class RigLive:
-    """Feeds a host_emulator.trackers.PlotTracker with the samples of the current repeat.
+    """Feeds a host_emulator.workbench.trackers.PlotTracker with the samples of the current repeat.
 
     The runner calls `begin` when a repeat's drive is enabled and `poll` in its receive loop; `poll` does
     nothing until `interval_s` of primary clock has passed since the last feed, then hands the tracker every

@@ -335,7 +335,7 @@ class SampleDecoder:
         return rows_to_arrays(np.array(self.rows, dtype=np.float64).reshape(-1, 8), self.n, self.gaps)
 
     def save(self, prefix: Path, attrs: dict | None = None) -> list[Path]:
-        """<prefix>.npz in the one run layout (host_emulator.datasets; attrs: source, ...) and <prefix>.csv."""
+        """<prefix>.npz in the one run layout (host_emulator.workbench.datasets; attrs: source, ...), <prefix>.csv."""
         prefix = Path(prefix)
         prefix.parent.mkdir(parents=True, exist_ok=True)
         arr = self.arrays()
@@ -348,11 +348,11 @@ class SampleDecoder:
 
 
 def write_capture(path: Path, arr: dict, attrs: dict) -> Path:
-    """Cycle x cell arrays (rows_to_arrays) as an NPZ in the one run layout of host_emulator.datasets: time from the
-    first sample, alpha/beta in rad (NaN: no sample), flags, counts, each cell's primary clock, host time, cycles,
-    segments, gaps; attrs (source, capture, channel, ...) with units and provenance. he.load reads it."""
-    from host_emulator.datasets import logger_layout, write_npz
+    """Cycle x cell arrays (rows_to_arrays) as an NPZ in the one run layout of host_emulator.workbench.datasets:
+    time from the first sample, alpha/beta in rad (NaN: no sample), flags, counts, each cell's primary clock, host
+    time, cycles, segments, gaps; attrs (source, capture, channel, ...) with units and provenance. he.load reads it."""
     from host_emulator.provenance import provenance
+    from host_emulator.workbench.datasets import logger_layout, write_npz
 
     lay = logger_layout(arr)
     meta = {"source": "unknown", **attrs, "t_origin_s": lay.pop("t_origin_s")}

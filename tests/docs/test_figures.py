@@ -131,7 +131,7 @@ def test_instruction_counts_quoted_in_readme_and_firmware_proof():
 
 def test_bus_rates_in_the_readme():
     r = subprocess.run(
-        [sys.executable, "-m", "host_emulator.bus.bench"], cwd=ROOT, capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "host_emulator.benchmarks.bus"], cwd=ROOT, capture_output=True, text=True, timeout=300
     )
     assert r.returncode == 0, r.stderr
     limit = re.search(
@@ -149,7 +149,7 @@ def test_bus_rates_in_the_readme():
 def test_the_paper_count_in_the_readme(tmp_path):
     """README's 'N of N agree' is the paper command's count (one repeat per Fig. 3 panel: the count of items does
     not depend on the repeats)."""
-    from host_emulator.paper import build
+    from host_emulator.workbench.paper import build
 
     doc = build(tmp_path, repeats=1)
     m = re.search(r"item by item \((\d+) of (\d+) agree\)", README)

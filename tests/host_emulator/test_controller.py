@@ -12,7 +12,7 @@ from host_emulator import controller
 from host_emulator.controller import run_solver
 from host_emulator.models import STEPPERS, ModelOptions, NoiseOptions, NumericalInstability, Perturbation, make_model
 from host_emulator.params import Params
-from host_emulator.trackers import ProgressTracker
+from host_emulator.workbench.trackers import ProgressTracker
 
 # edges off the 10 ms output grid, so chunks must not straddle them differently from the per-sample path
 PERTS = [Perturbation(5, "alpha", 0.03, 0.0137, 0.0519), Perturbation(11, "beta", -0.02, 0.2031, 0.0402)]

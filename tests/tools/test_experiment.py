@@ -673,7 +673,7 @@ def test_rig_live_plot_draws_the_series_of_the_logged_frames():
     """RigLive polled as the runner polls it: the tracker ends up holding the same time series as the summary's."""
     from matplotlib.figure import Figure
 
-    from host_emulator.trackers import PlotTracker
+    from host_emulator.workbench.trackers import PlotTracker
     from metacell_tools.experiment.live import RigLive
 
     dec = SampleDecoder(n_cells=3, report=lambda t: None)

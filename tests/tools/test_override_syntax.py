@@ -11,7 +11,7 @@ from host_emulator.analysis.cli import parse_set
 from host_emulator.models import ConfigError
 from host_emulator.params import Params
 from host_emulator.scene import load_scene
-from host_emulator.sweep import parse_grid
+from host_emulator.workbench.sweep import parse_grid
 from metacell_tools.rigtools import command
 
 

@@ -68,7 +68,7 @@ def test_decoded_arrays_equal_the_emulated_cells(tmp_path):
     np.testing.assert_array_equal(d["alpha_counts"], arr["alpha_counts"])
     np.testing.assert_allclose(d["alpha"], arr["alpha_counts"] * 2 * np.pi / 400)
     # the one run layout: he.load reads it back as the same angles, with the label given
-    from host_emulator.datasets import load
+    from host_emulator.workbench.datasets import load
 
     ds = load(files[0])
     assert ds.attrs["source"] == "emulator:hil" and ds["alpha"].dims == ("time", "cell")

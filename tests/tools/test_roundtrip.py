@@ -14,7 +14,7 @@ import pytest
 
 import host_emulator as he
 from host_emulator.cli import main as emulator_main
-from host_emulator.datasets import FORMAT
+from host_emulator.workbench.datasets import FORMAT
 from metacell_tools.experiment import cli
 from metacell_tools.experiment.rehearse import Serve
 from metacell_tools.rigtools import proto

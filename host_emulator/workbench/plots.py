@@ -18,9 +18,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, FigureBase
 
-    from .analysis.stability import Theory
-    from .params import Params
-    from .scene import Scene
+    from ..analysis.stability import Theory
+    from ..params import Params
+    from ..scene import Scene
 
 
 def new_figure(figsize: tuple[float, float] = (8, 6), **kw: Any) -> Figure:
@@ -187,7 +187,7 @@ def plot_dispersion(
     """Growth rate against wavelength (analysis.stability.plot_dispersion) of the given theory (theory_of(model,
     params, inertia); default the lattice with or without inertia); the measured period, if given, is marked as a
     horizontal line at its angular frequency 2 pi / T. Returns the Figure."""
-    from .analysis.stability import plot_dispersion as _pd
+    from ..analysis.stability import plot_dispersion as _pd
 
     if ax is None:
         fig = new_figure(figsize=(7, 4.2), constrained_layout=True)
@@ -224,7 +224,7 @@ def plot_run(res: Any, scene: Scene, outdir: Path, *, source: str | None = None,
 
     source labels the data in the titles ("emulator:<model>" by default, "rehearsal:<model>", "rig"); name replaces
     the scene's name in them; the dispersion is the linear theory of the scene's model."""
-    from .analysis.summary import theory_for
+    from ..analysis.summary import theory_for
 
     outdir = Path(outdir)
     label = source or f"emulator:{scene.model}"

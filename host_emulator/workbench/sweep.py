@@ -51,8 +51,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import FigureBase
 
+    from ..scene import Scene
     from .api import Overrides
-    from .scene import Scene
 
 OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report it)
     "domain_walls": "1",
@@ -93,7 +93,7 @@ def _exact_range(a_text: str, b_text: str, n: int) -> list[float]:
 
 def parse_grid(text: str) -> tuple[str, list]:
     """'KEY=START:STOP:NUM' or 'KEY=V1,V2,...' -> (KEY, values)."""
-    from .scene import _value
+    from ..scene import _value
 
     if "=" not in text:
         raise SweepError(f"--grid {text!r}: expected KEY=START:STOP:NUM or KEY=V1,V2,...")
@@ -169,7 +169,7 @@ def point_specs(scene: str | dict, grid: dict, seeds: int | None, fixed: Sequenc
 
 
 def _load_spec(spec: dict):
-    from .scene import apply_overrides, load_scene, scene_from_dict
+    from ..scene import apply_overrides, load_scene, scene_from_dict
 
     if isinstance(spec["scene"], dict):
         return scene_from_dict(apply_overrides(spec["scene"], spec["overrides"]), "")
@@ -207,9 +207,9 @@ def outcome_of(r: dict) -> str:
 def evaluate_points(specs: list[dict]) -> list[dict]:
     """Run each point spec and return one result dict per spec, in order; a failing point gives
     {"status": "failed", "error": "<Type>: <message>"} instead of raising. The points of a chunk run together
-    in one compiled call (host_emulator.batch.run_batch: hil lattices batched, bit-identical to run_scene;
+    in one compiled call (host_emulator.workbench.batch.run_batch: hil lattices batched, bit-identical to run_scene;
     other models one by one), so a point costs no Python per control tick."""
-    from .analysis.summary import summarize
+    from ..analysis.summary import summarize
     from .batch import run_batch
 
     out: list[dict] = []
@@ -306,8 +306,8 @@ def sweep(
     scene and fixed take what host_emulator.run takes (a shipped name, a .toml path or a Scene; overrides as
     {"params.sigma": "6/125"} or ["KEY=VALUE", ...]); grid: {key: values} (a list, a range, a numpy array);
     progress: a bar on stderr (shown on a terminal only)."""
+    from ..scene import _value, scene_table
     from .api import override_list
-    from .scene import _value, scene_table
 
     grid = {
         str(k): [_value(x) if isinstance(x, str) else x for x in (v.tolist() if isinstance(v, np.ndarray) else v)]
@@ -387,7 +387,7 @@ def chunk_size(points: int, workers: int) -> int:
 def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
     from distributed import Client, as_completed
 
-    from .progress import bar as progress_bar
+    from ..progress import bar as progress_bar
 
     cluster = None
     if scheduler:
@@ -434,8 +434,8 @@ def to_dataset(specs: list[dict], axes: dict, done: dict, base: Scene, definitio
     attribute; + seed), observables as variables, the theory's unstable intervals over a dimension 'band'."""
     import xarray as xr
 
+    from ..provenance import provenance
     from .api import netcdf_attrs
-    from .provenance import provenance
 
     shape = tuple(len(v) for v in axes.values())
     names = coord_names(axes)
@@ -498,7 +498,7 @@ def theory_bands_over(base: Scene, sigmas: np.ndarray) -> dict:
     the longest waves."""
     import dataclasses
 
-    from .analysis.stability import dispersion, theory_of
+    from ..analysis.stability import dispersion, theory_of
 
     out: dict = {"stationary": [], "oscillatory": [], "fastest": [], "regime": []}
     for sg in sigmas:
@@ -606,7 +606,7 @@ def plot_phase_diagram(
                     label=f"linear theory: {kind} unstable" if k == 0 else None,
                 )
         ax.plot(sg, th["fastest"], color="C0", lw=1.2, label="linear theory: fastest stationary wavelength")
-        from .analysis.stability import theory_of
+        from ..analysis.stability import theory_of
 
         tname = theory_of(base.model, base.params, base.options.inertia).label()
     else:
@@ -805,7 +805,7 @@ def sweep_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-plots", action="store_true", help="skip phase_diagram.png and regime_map.png")
     ap.add_argument("--quiet", action="store_true", help="no progress bar (it shows on a terminal only anyway)")
     args = ap.parse_args(argv)
-    from .models import ConfigError
+    from ..models import ConfigError
 
     try:
         if args.workers is not None and args.workers < 1:

@@ -3,7 +3,7 @@
 import json
 
 from host_emulator.cli import main
-from host_emulator.paper import build
+from host_emulator.workbench.paper import build
 
 
 def test_paper_items_agree_with_the_source(tmp_path):
@@ -28,7 +28,7 @@ def test_paper_rejects_bad_arguments(tmp_path, capsys):
 
 
 def test_robustness_counts_seeds_and_pushes_that_select_the_source():
-    from host_emulator.paper import robustness, selects
+    from host_emulator.workbench.robustness import robustness, selects
 
     res = robustness(seeds=2, torques=(0.01, 0.02), durations=(0.1,), scenes=["exp2_ccw_cw", "exp5_rest"])
     assert res["exp2_ccw_cw"]["seeds"] == 1.0 and res["exp2_ccw_cw"]["pushes"] == 1.0

@@ -13,7 +13,7 @@ import numpy as np
 if TYPE_CHECKING:
     from matplotlib.image import AxesImage
 
-    from .models import Solver
+    from ..models import Solver
 
 
 class Tracker:

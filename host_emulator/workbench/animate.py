@@ -92,7 +92,7 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
         return pa, pb, prof, txt
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
-    from .progress import bar
+    from ..progress import bar
 
     pbar = bar(len(frames), desc=f"animate {path.rsplit('/', 1)[-1]}", unit="frame", quiet=quiet)
 
@@ -165,8 +165,8 @@ def animate_main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--quiet", action="store_true", help="no progress bars (they show on a terminal only anyway)")
     args = ap.parse_args(argv)
+    from ..models import ConfigError, NumericalInstability
     from .api import run
-    from .models import ConfigError, NumericalInstability
 
     if not (1 <= args.fps <= 60) or not args.t_max > 0:
         print("error: --fps must be 1..60 and --t-max > 0", file=sys.stderr)

@@ -43,7 +43,7 @@ import numpy as np
 if TYPE_CHECKING:
     import xarray as xr
 
-    from .scene import Scene
+    from ..scene import Scene
 
 __all__ = ["FORMAT", "VARIABLES", "load", "make_dataset", "to_npz", "read_npz", "from_run", "from_logger_arrays"]
 
@@ -130,7 +130,7 @@ def run_arrays(scene: Scene, time, alpha, beta, source: str) -> dict[str, np.nda
         "beta": b,
     }
     if source.startswith("emulator:") and scene.model in ("lattice", "continuum"):
-        from .physics import reaction
+        from ..physics import reaction
 
         ra, rb = reaction(scene.params, a, b)
         if scene.model == "lattice":

@@ -24,8 +24,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import FigureBase
 
-    from .analysis.stability import Theory
-    from .scene import Scene
+    from ..analysis.stability import Theory
+    from ..scene import Scene
     from .trackers import Tracker
 
 __all__ = ["RunResult", "run", "load_scene", "list_scenes"]
@@ -85,7 +85,7 @@ class RunResult:
     def theory(self) -> Theory:
         """The linear theory of the model that ran (analysis.stability.theory_of: inertia as the scene, the hil
         motors' back-EMF damping): pass it to he.plot_dispersion(r.scene.params, theory=r.theory)."""
-        from .analysis.summary import theory_for
+        from ..analysis.summary import theory_for
 
         return theory_for(self.scene)
 
@@ -95,9 +95,9 @@ class RunResult:
         return str(self.summary.get("source") or f"emulator:{self.scene.model}")
 
     def to_xarray(self) -> xr.Dataset:
-        """The run in the one dataset layout of every run, rig or emulated (host_emulator.datasets): alpha, beta
-        (time x cell, rad) and, for the lattice and continuum models, the commanded reaction torques; coords time
-        (s), cell (1..N); attributes: source, units, every scene parameter (params.*, model_options.*,
+        """The run in the one dataset layout of every run, rig or emulated (host_emulator.workbench.datasets):
+        alpha, beta (time x cell, rad) and, for the lattice and continuum models, the commanded reaction torques;
+        coords time (s), cell (1..N); attributes: source, units, every scene parameter (params.*, model_options.*,
         perturbation.*), the scalar observables, the linear theory and provenance."""
         from .datasets import from_run
 
@@ -132,7 +132,7 @@ def _flat(prefix, v, out):
 
 def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
     """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance."""
-    from .provenance import provenance
+    from ..provenance import provenance
 
     out: dict = {}
     d = scene.as_dict()
@@ -173,8 +173,8 @@ def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
 
 def load_scene(scene: str | Scene, overrides: Overrides = None, accuracy: str | None = None) -> Scene:
     """A validated Scene from a shipped name / TOML path (or a Scene, returned with the overrides applied)."""
-    from .scene import apply_overrides, scene_from_dict, scene_table
-    from .scene import load_scene as _load
+    from ..scene import apply_overrides, scene_from_dict, scene_table
+    from ..scene import load_scene as _load
 
     over = override_list(overrides) + ([f'accuracy="{accuracy}"'] if accuracy else [])
     if hasattr(scene, "as_dict") and not isinstance(scene, str):
@@ -186,7 +186,7 @@ def load_scene(scene: str | Scene, overrides: Overrides = None, accuracy: str | 
 
 
 def list_scenes() -> list[str]:
-    from .scene import list_scenes as _ls
+    from ..scene import list_scenes as _ls
 
     return [n for n, _, _ in _ls()]
 
@@ -205,8 +205,8 @@ def run(
     (the keys of ``run --set``); accuracy: "fast" | "balanced" | "exact" (docs/accuracy.md).
     Raises ConfigError (bad scene or key) or NumericalInstability (the run blew up).
     """
-    from .analysis.summary import summarize
-    from .controller import run_scene
+    from ..analysis.summary import summarize
+    from ..controller import run_scene
 
     sc = load_scene(scene, overrides, accuracy)
     res = run_scene(sc, progress=progress, trackers=list(trackers))

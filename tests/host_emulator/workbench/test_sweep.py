@@ -15,7 +15,7 @@ import pytest
 pytest.importorskip("distributed")
 xr = pytest.importorskip("xarray")
 
-from host_emulator.sweep import SweepError, evaluate_points, parse_grid, point_specs, sweep  # noqa: E402
+from host_emulator.workbench.sweep import SweepError, evaluate_points, parse_grid, point_specs, sweep  # noqa: E402
 
 BIN = Path(sys.executable).parent
 
@@ -109,7 +109,7 @@ def test_cli_sweep_bad_grid_is_exit_2(capsys):
 
 def _start_cluster(tmp_path, n_workers=2):
     sf = tmp_path / "scheduler.json"
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[3]))
     procs = [
         subprocess.Popen(
             [str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard", "--scheduler-file", str(sf)],
@@ -201,7 +201,7 @@ def test_api_sweep_takes_what_run_takes_and_runs_twice(tmp_path):
     """A notebook re-runs its cells: he.sweep stays the function; a Scene object, a dict of overrides with a
     fraction, string grid values and accuracy= are accepted as by he.run; coordinates are plain and .sel-able."""
     import host_emulator as he
-    from host_emulator.api import load_scene
+    from host_emulator.workbench.api import load_scene
 
     sc = load_scene("default", {"t_end_s": 0.3})
     for i in range(2):
@@ -231,7 +231,7 @@ def test_bare_key_gets_a_hint(tmp_path):
 
 
 def test_coordinate_names():
-    from host_emulator.sweep import coord_names
+    from host_emulator.workbench.sweep import coord_names
 
     assert coord_names(["params.sigma", "perturbation.1.torque_Nm", "seed"]) == {
         "params.sigma": "sigma",
