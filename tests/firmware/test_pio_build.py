@@ -18,7 +18,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 PIO = Path(sys.executable).with_name("pio")
-# budgets of the linked images (bytes); measured 20,344 / 3,476 (cell) and 18,604 / 5,940 (primary)
+# budgets of the linked images (bytes); measured 20,532 / 3,488 (cell) and 19,148 / 5,964 (primary)
 BUDGET = {"cell": {"Flash": 32 * 1024, "RAM": 8 * 1024}, "primary": {"Flash": 32 * 1024, "RAM": 12 * 1024}}
 
 
