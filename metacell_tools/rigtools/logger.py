@@ -5,7 +5,8 @@
 
 Writes <out>.<fmt> for every python-can format asked for (asc blf csv db log trc txt),
 <out>.csv (one row per cell sample, on disk within 1.5 s of its frame) and, at the end,
-<out>.npz (cycle x cell arrays, written to a temporary name and renamed; see docs/datapath.md).
+<out>.npz (the one run layout host_emulator.load reads, time x cell with a `partial` flag
+per cycle; written to a temporary name and renamed; see docs/datapath.md).
 `--repair PREFIX` puts the files of a killed or full-disk run right (BLF cut to its last
 object, NPZ rebuilt from the CSV). A port another program holds is refused. Every gap in a cell's
 sequence counter is reported on stderr with its length as it happens and kept in the NPZ;
@@ -344,17 +345,31 @@ class SampleDecoder:
         self.finish()
         return rows_to_arrays(np.array(self.rows, dtype=np.float64).reshape(-1, 8), self.n, self.gaps)
 
-    def save(self, prefix: Path) -> list[Path]:
+    def save(self, prefix: Path, attrs: dict | None = None) -> list[Path]:
+        """<prefix>.npz in the one run layout (host_emulator.workbench.datasets; attrs: source, ...), <prefix>.csv."""
         prefix = Path(prefix)
         prefix.parent.mkdir(parents=True, exist_ok=True)
         arr = self.arrays()
-        npz = prefix.with_suffix(".npz")
-        save_npz_atomic(npz, arr)
+        npz = write_capture(prefix.with_suffix(".npz"), arr, attrs or {})
         csv = prefix.with_suffix(".csv")
         with open(csv, "w") as f:
             f.write(CSV_HEADER)
             f.write(format_rows(self.rows))
         return [npz, csv]
+
+
+def write_capture(path: Path, arr: dict, attrs: dict) -> Path:
+    """Cycle x cell arrays (rows_to_arrays) as an NPZ in the one run layout of host_emulator.workbench.datasets:
+    time from the first sample, alpha/beta in rad (NaN: no sample), flags, counts, each cell's primary clock, host
+    time, cycles, segments, partial cycles, gaps; attrs (source, capture, channel, ...) with units and provenance;
+    written to a temporary name and renamed (datasets.save_npz_atomic). he.load reads it."""
+    from host_emulator.provenance import provenance
+    from host_emulator.workbench.datasets import logger_layout, write_npz
+
+    lay = logger_layout(arr)
+    meta = {"source": "unknown", **attrs, "t_origin_s": lay.pop("t_origin_s")}
+    meta.update({f"provenance.{k}": v for k, v in provenance().items()})
+    return write_npz(path, lay, meta)
 
 
 def format_rows(rows: Iterable[tuple]) -> str:
@@ -505,24 +520,6 @@ def flush_writer(w) -> None:
         pass  # reported by stop() at the end
 
 
-def save_npz_atomic(path: Path, arrays: dict) -> None:
-    """np.savez_compressed to <path>.tmp, fsync, rename over <path>: a reader never sees a cut or empty NPZ
-    (a full disk leaves the previous file or none, never a 0-byte one)."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
 BLF_HEADER = 144  # python-can's FILE_HEADER_SIZE
 BLF_OBJ = struct.Struct("<4sHHLL")  # signature "LOBJ", header size, version, object size, type
 
@@ -588,10 +585,16 @@ def gaps_from_rows(rows: np.ndarray) -> list[tuple[int, int, int, int]]:
     return sorted(gaps)
 
 
-def repair(prefix: Path, n_cells: int = proto.N_CELLS, report: Callable[[str], None] | None = None) -> dict:
+def repair(
+    prefix: Path,
+    n_cells: int = proto.N_CELLS,
+    report: Callable[[str], None] | None = None,
+    source: str | None = None,
+) -> dict:
     """After a crash, a kill or a full disk: cut the text logs (and the CSV) after their last complete line, cut the
-    BLF after its last complete object, and rebuild <prefix>.npz from the CSV (gaps from the cycle counters).
-    Returns the arrays written."""
+    BLF after its last complete object, and rebuild <prefix>.npz from the CSV (gaps from the cycle counters) in the
+    one run layout (write_capture), labelled source (default unknown: the CSV does not say what sent the frames).
+    Returns the logger's cycle x cell arrays the NPZ was made from."""
     report = report or (lambda text: print(text, file=sys.stderr, flush=True))
     prefix = Path(prefix)
     csv = prefix.with_suffix(".csv")
@@ -609,7 +612,10 @@ def repair(prefix: Path, n_cells: int = proto.N_CELLS, report: Callable[[str], N
     except ValueError as e:
         raise RunFailed(f"--repair {prefix}: {csv} is not the logger's CSV: {e}") from None
     arrays = rows_to_arrays(rows, n_cells, gaps_from_rows(rows))
-    save_npz_atomic(prefix.with_suffix(".npz"), arrays)
+    attrs = {"source": source or "unknown", "capture": "rigtools logger, rebuilt from the CSV by --repair"}
+    if not source:
+        attrs["source_note"] = "the CSV does not say whether a rig or an emulator sent it (--source LABEL)"
+    write_capture(prefix.with_suffix(".npz"), arrays, attrs)
     stale = prefix.with_name(prefix.name + ".npz.tmp")
     if stale.exists():
         stale.unlink()
@@ -634,8 +640,10 @@ class RigLogger:
         open_bus: Callable[[], can.BusABC] | None = None,
         first_frame_s: float = 30.0,
         wait_open_s: float = 0.0,
+        source: str | None = None,
     ) -> None:
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
+        self.source = source or channel_source(interface, channel)  # written into the NPZ: rig, emulator or unknown
         self.prefix = Path(prefix)
         self.formats = [f.strip().lstrip(".") for f in formats if f.strip()]
         self.reconnect_s, self.give_up_s = reconnect_s, give_up_s
@@ -842,10 +850,33 @@ class RigLogger:
             repair_blf(self.prefix.with_suffix(".blf"))  # a stop() that failed (full disk) leaves a cut container
         try:
             self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n, self.decoder.gaps)
-            save_npz_atomic(self.prefix.with_suffix(".npz"), self.arrays)
+            write_capture(
+                self.prefix.with_suffix(".npz"),
+                self.arrays,
+                {"source": self.source, "capture": "rigtools logger", "channel": f"{self.interface}:{self.channel}"},
+            )
         except OSError as e:
             why = f"write failed: {e.strerror or e} (the CSV is complete: --repair rebuilds the NPZ)"
             self.error = self.error or why
+
+
+def channel_source(interface: str, channel: str) -> str:
+    """What is on the other end of a channel, as far as the channel tells: a pseudo-terminal is the emulator's
+    primary (`python -m host_emulator serve`, which runs the hil model: no rig offers a pty), a USB serial
+    device (ttyACM, ttyUSB, cu.usbmodem, COMn) is the rig's primary; anything else is unknown."""
+    if interface != "slcan":
+        return "unknown"
+    dev = channel.split("@", 1)[0]
+    try:
+        real = os.path.realpath(dev)
+    except (OSError, ValueError):
+        return "unknown"
+    if real.startswith("/dev/pts/") or real.startswith("/dev/ttys"):
+        return "emulator:hil"
+    name = os.path.basename(real)
+    if name.startswith(("ttyACM", "ttyUSB", "cu.usbmodem", "tty.usbmodem")) or name.upper().startswith("COM"):
+        return "rig"
+    return "unknown"
 
 
 def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
@@ -908,6 +939,14 @@ def _main(argv: list[str] | None = None) -> int:
     ap.add_argument("--wait-open", type=float, default=0.0, help="keep trying to open the port this many s at start")
     ap.add_argument("--first-frame", type=float, default=30.0, help="fail if no frame arrives in this many s")
     ap.add_argument(
+        "--source",
+        default=None,
+        metavar="LABEL",
+        help="what sends the frames, written into the NPZ: rig, emulator:hil, rehearsal:hil or unknown (default: "
+        "from the channel: a pty is the emulator's serve, a USB serial device the rig, else unknown; with --repair: "
+        "the label of the rebuilt NPZ, default unknown)",
+    )
+    ap.add_argument(
         "--do",
         action="append",
         default=[],
@@ -921,9 +960,13 @@ def _main(argv: list[str] | None = None) -> int:
         print(f"logger: {text}", file=sys.stderr)
         return 2
 
+    if args.source is not None and not (
+        args.source in ("rig", "unknown") or args.source.split(":")[0] in ("emulator", "rehearsal")
+    ):
+        return bad(f"--source {args.source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
     if args.repair is not None:
         try:
-            arr = repair(Path(args.repair))
+            arr = repair(Path(args.repair), source=args.source)
         except RunFailed as e:
             return bad(str(e))
         except OSError as e:
@@ -959,6 +1002,7 @@ def _main(argv: list[str] | None = None) -> int:
         give_up_s=args.give_up,
         first_frame_s=args.first_frame,
         wait_open_s=args.wait_open,
+        source=args.source,
     )
     from .command import build, parser
 

@@ -202,16 +202,28 @@ def test_an_integer_too_big_for_the_firmware_names_its_key(tmp_path):
     assert r.returncode == 2 and "params.pwm_top" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
-def test_compare_on_a_logger_npz_is_one_line(tmp_path):
+@pytest.mark.parametrize("kind", ["not-a-run", "empty", "cut", "junk"])
+def test_compare_on_a_bad_npz_is_one_line(tmp_path, kind):
+    """compare opens logger NPZs now (issue 21: he.load); an NPZ that is no run, empty (a full disk before the
+    logger's atomic write), cut or not an NPZ at all is one line naming the file, exit 2."""
     import numpy as np
 
     npz = tmp_path / "run.npz"
     np.savez(npz, a=np.zeros(3))
+    data = npz.read_bytes()
+    if kind == "empty":
+        npz.write_bytes(b"")
+    elif kind == "cut":
+        npz.write_bytes(data[: len(data) // 2])
+    elif kind == "junk":
+        npz.write_bytes(b"\x00junk" * 100)
+    (tmp_path / "emu").mkdir()
     r = subprocess.run(
-        [sys.executable, "-m", "metacell_tools.experiment", "compare", str(npz), str(tmp_path)],
+        [sys.executable, "-m", "metacell_tools.experiment", "compare", str(npz), str(tmp_path / "emu")],
         cwd=ROOT, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
-    assert r.returncode == 2 and "not a directory" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    err = r.stderr.strip()
+    assert r.returncode == 2 and str(npz) in err and "Traceback" not in err and len(err.splitlines()) == 1, err
 
 
 def test_an_unforeseen_error_is_one_line_exit_3(monkeypatch, capsys):

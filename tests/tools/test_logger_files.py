@@ -14,6 +14,7 @@ import can
 import numpy as np
 import pytest
 
+from host_emulator.workbench import datasets
 from metacell_tools.rigtools import logger as L
 from metacell_tools.rigtools import proto
 
@@ -64,21 +65,27 @@ def test_repair_blf_leaves_a_complete_file_alone(tmp_path):
 
 
 def test_npz_is_written_atomically(tmp_path, monkeypatch):
-    """A failing write (full disk) leaves the previous NPZ or none: never a cut or 0-byte file."""
+    """A failing write (full disk) leaves the previous NPZ or none: never a cut or 0-byte file. The one writer of
+    the run layout (datasets.save_npz_atomic, under write_npz) is what the logger, the experiment runner's
+    per-repeat NPZ, --repair and the run command use."""
     p = tmp_path / "r.npz"
-    L.save_npz_atomic(p, {"a": np.arange(5)})
+    datasets.save_npz_atomic(p, {"a": np.arange(5)})
 
     def full(*a, **k):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(np, "savez_compressed", full)
     with pytest.raises(OSError):
-        L.save_npz_atomic(p, {"a": np.arange(7)})
+        datasets.save_npz_atomic(p, {"a": np.arange(7)})
     assert list(np.load(p)["a"]) == list(range(5))
     assert not (tmp_path / "r.npz.tmp").exists()
+    rows = np.array([(0, k, j, k * 0.01, 0.0, 1, 2, 0) for k in range(3) for j in (1, 2)], dtype=float)
+    with pytest.raises(OSError):  # the logger's own NPZ goes the same way
+        L.write_capture(p, L.rows_to_arrays(rows, 2, []), {"source": "rig"})
+    assert list(np.load(p)["a"]) == list(range(5))
     p.unlink()
     with pytest.raises(OSError):
-        L.save_npz_atomic(p, {"a": np.arange(7)})
+        datasets.save_npz_atomic(p, {"a": np.arange(7)})
     assert not p.exists() and not (tmp_path / "r.npz.tmp").exists()
 
 
@@ -112,6 +119,34 @@ def test_partial_first_and_last_cycles_are_flagged():
     assert list(arr["cycle"]) == [10, 11, 12, 13, 50]
     assert list(arr["partial"]) == [True, False, False, True, False]
     assert L.gaps_from_rows(np.array(rows, dtype=float)) == [(0, 2, 12, 1)]
+
+
+def test_partial_cycles_reach_the_run_layout(tmp_path):
+    """The flag survives into the one run layout: the logger's NPZ, he.load of it and of the CSV alone (gaps from
+    the cycle counters), and an NPZ of the logger's older layout (computed when loaded)."""
+    import host_emulator as he
+
+    rows = []
+    for k, cells in ((10, [3]), (11, [1, 2, 3]), (12, [1, 3]), (13, [1, 2])):
+        rows += [(0, k, j, k * 0.01, 100.0 + k, 1, 2, 0) for j in cells]
+    rows_a = np.array(rows, dtype=float)
+    arr = L.rows_to_arrays(rows_a, 3, [])
+    want = [True, False, False, True]
+    prefix = tmp_path / "cap"
+    L.write_capture(prefix.with_suffix(".npz"), arr, {"source": "rig"})
+    with open(prefix.with_suffix(".csv"), "w") as f:
+        f.write(L.CSV_HEADER + L.format_rows(rows))
+    with np.load(prefix.with_suffix(".npz")) as z:
+        assert str(z["format"]) == datasets.FORMAT and list(z["partial"]) == want
+    ds = he.load(prefix.with_suffix(".npz"))
+    assert list(ds["partial"].values) == want and ds.attrs["source"] == "rig"
+    assert ds.isel(time=~ds["partial"].values).sizes["time"] == 2  # as docs/datapath.md shows
+    ds_csv = he.load(prefix.with_suffix(".csv"))
+    assert list(ds_csv["partial"].values) == want
+    assert ds_csv["gaps"].values.tolist() == [[0, 2, 12, 1]]
+    old = {k: v for k, v in arr.items() if k != "partial"}  # a logger NPZ from before the flag
+    np.savez_compressed(tmp_path / "old.npz", **old)
+    assert list(he.load(tmp_path / "old.npz")["partial"].values) == want
 
 
 def start_server(link: Path) -> subprocess.Popen:
@@ -181,6 +216,11 @@ def test_a_killed_logger_leaves_files_every_reader_opens(tmp_path):
     arr = np.load(out.with_suffix(".npz"))
     n_npz = int(np.sum(~np.isnan(arr["alpha_counts"])))
     assert n_npz == len(df)
+    import host_emulator as he
+
+    ds = he.load(out.with_suffix(".npz"))  # the rebuilt NPZ is the run layout, labelled as the CSV allows
+    assert ds.attrs["format"] == datasets.FORMAT and ds.attrs["source"] == "unknown"
+    assert int(np.isfinite(ds["alpha"].values).sum()) == len(df) and ds["partial"].dtype == bool
     span = asc[-1].timestamp - asc[0].timestamp
     rate = len(asc) / span
     window = (L.SampleDecoder.HOLD_S + L.CsvChunks.FLUSH_S + L.RigLogger.WRITERS_FLUSH_S + 0.5) * rate

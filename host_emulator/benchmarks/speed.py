@@ -26,9 +26,9 @@ def bench_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cpu", type=int, default=None, help="pin to this CPU (default: the first allowed one)")
     args = ap.parse_args(argv)
 
-    from .controller import build_solver, run_solver
-    from .firmware import load
-    from .scene import load_scene
+    from ..controller import build_solver, run_solver
+    from ..firmware import load
+    from ..scene import load_scene
 
     if hasattr(os, "sched_setaffinity"):
         cpus = sorted(os.sched_getaffinity(0))
