@@ -78,6 +78,26 @@ def run_workprecision(args: argparse.Namespace, out: Path) -> int:
             + "".join(f"; {f}: not run" for f in ("diffrax", "CVODE", "scipy") if f not in peer_ratios)
         )
     summary["lattice_peer_ratios"] = peer_ratios
+    front = wp.front_ratios(pts)
+    print(
+        "\n  lattice front: CPU time to reach each max angle error, the best of ours against the best method of each "
+        "peer family (log-log on each method's Pareto front; medians of 5 runs for ours, diffrax and CVODE, all "
+        "measured in this run)"
+    )
+    print("  " + wp.front_table(front).replace("\n", "\n  "))
+    short = [r for r in front if r["ratio"] is not None and r["ratio"] < wp.FRONT_TARGET]
+    unmeasured = [r for r in front if r["ratio"] is None]
+    ratios = [r["ratio"] for r in front if r["ratio"] is not None]
+    print(
+        f"  FRONT lattice: best peer / best ours >= {wp.FRONT_TARGET:g}x at every error from "
+        f"{max(wp.FRONT_TOLS):g} to {min(wp.FRONT_TOLS):g} rad: "
+        + ("met" if not short and not unmeasured else "NOT met" if short else "not measured")
+        + (f" (ratios {min(ratios):.1f}x-{max(ratios):.1f}x)" if ratios else "")
+        + "".join(f"; {r['tol_rad']:g} rad: below target" for r in short)
+        + "".join(f"; {r['tol_rad']:g} rad: ours or every peer never reach it" for r in unmeasured)
+    )
+    status |= 1 if short else 0
+    summary["lattice_front_ratios"] = front
     summary["lattice"] = {
         "ratio": ratio,
         "best_ours": best,
