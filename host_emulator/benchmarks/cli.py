@@ -45,7 +45,9 @@ def run_workprecision(args: argparse.Namespace, out: Path) -> int:
     from . import workprecision as wp
 
     t_start = time.perf_counter()
-    summary: dict[str, Any] = {}  # written as JSON
+    from ..provenance import machine, provenance
+
+    summary: dict[str, Any] = {"machine": machine(), "provenance": provenance()}  # written as JSON
     panels: list[tuple[str, list, float | None]] = []  # (title, points, target error) per figure panel
     status = 0
 
@@ -155,6 +157,7 @@ def run_workprecision(args: argparse.Namespace, out: Path) -> int:
     out.mkdir(parents=True, exist_ok=True)
     png = out / "work_precision.png"
     _plot(panels, png)
+    summary["machine"]["load_end"] = machine()["load"]
     (out / "bench.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
     print(f"\nwrote {png} and {out / 'bench.json'}; bench took {time.perf_counter() - t_start:.0f} s")
     return status
@@ -179,7 +182,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="out/bench", help="directory for the PNG and JSON (default out/bench)")
     args = ap.parse_args(argv)
     where = pin_one_core()
+    from ..provenance import machine_line
+
     print(f"# host_emulator bench on {where} [{platform.machine()}, python {platform.python_version()}]")
+    print(f"# machine: {machine_line()}")
     from ..firmware import load
 
     load()  # compile outside every timing
