@@ -25,8 +25,8 @@ bench: setup
 	.venv/bin/pip install -q -e '.[bench]'
 	$(PY) -m host_emulator bench-speed
 	$(PY) -m host_emulator bench
-	$(PY) -m host_emulator.batch --points 1000 --workers 1 2
-	$(PY) -m host_emulator.bus.bench
+	$(PY) -m host_emulator.benchmarks.batch --points 1000 --workers 1 2
+	$(PY) -m host_emulator.benchmarks.bus
 	$(PY) -m metacell_tools.fwcheck report
 
 # After editing protocol/definition.py: regenerate the C headers, DBC and tables, and (a unit or limit changes the

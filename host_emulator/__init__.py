@@ -5,6 +5,7 @@ Python API (imports are lazy, so ``import host_emulator`` is cheap)::
     import host_emulator as he
     r = he.run("default", overrides={"params.sigma": 0.05})   # RunResult: time, alpha, beta, summary
     r.to_xarray()                                              # xarray.Dataset, dims (time, cell)
+    ds = he.load("out/rig1")        # any run or capture, rig or emulated, in the same Dataset layout
     he.plot_spacetime(r)                                       # a matplotlib Figure
     he.sweep("default", {"params.sigma": [0.05, 0.07]}, seeds=2, out="out/sw")   # xarray.Dataset
 """
@@ -15,27 +16,29 @@ __all__ = [
     "load_scene",
     "list_scenes",
     "sweep",
+    "load",
     "plot_spacetime",
     "plot_final",
     "plot_dispersion",
     "plot_phase_diagram",
     "plot_regime_map",
-    "provenance",
     "__version__",
 ]
 
+# API name -> the workbench module that holds it (host_emulator/workbench/); no module of the package has the
+# name of an API function, so `he.sweep` is the function however often it is called or imported
 _LAZY = {
-    "run": "api",
-    "RunResult": "api",
-    "load_scene": "api",
-    "list_scenes": "api",
-    "plot_spacetime": "plots",
-    "plot_final": "plots",
-    "plot_dispersion": "plots",
-    "sweep": "sweep",
-    "plot_phase_diagram": "sweep",
-    "plot_regime_map": "sweep",
-    "provenance": "provenance",
+    "run": "workbench.api",
+    "RunResult": "workbench.api",
+    "load_scene": "workbench.api",
+    "list_scenes": "workbench.api",
+    "plot_spacetime": "workbench.plots",
+    "plot_final": "workbench.plots",
+    "plot_dispersion": "workbench.plots",
+    "sweep": "workbench.sweep",
+    "load": "workbench.datasets",
+    "plot_phase_diagram": "workbench.sweep",
+    "plot_regime_map": "workbench.sweep",
 }
 
 
@@ -50,7 +53,9 @@ def __getattr__(name):
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value  # bound once: later calls find the function, never a submodule of the same name
+        return value
     raise AttributeError(f"module 'host_emulator' has no attribute {name!r}")
 
 

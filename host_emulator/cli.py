@@ -3,87 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import copy
-import functools
 import json
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .controller import RunResult
-    from .params import Params
-    from .scene import Scene
-    from .trackers import PlotTracker, Tracker
-
-
-def _clean(v):
-    """JSON-ready: numpy scalars/arrays to Python, non-finite floats to None (never NaN in a summary)."""
-    if isinstance(v, dict):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return [_clean(x) for x in v.tolist()]
-    if isinstance(v, (np.bool_, bool)):
-        return bool(v)
-    if isinstance(v, (np.integer, int)):
-        return int(v)
-    if isinstance(v, (np.floating, float)):
-        return float(v) if math.isfinite(v) else None
-    return v
-
-
-DISPERSION_KEYS = (
-    "regime",
-    "fastest_lambda_cells",
-    "fastest_growth_per_s",
-    "oscillation_period_s",
-    "unstable_band_cells",
-)
-
-
-@functools.lru_cache(maxsize=256)
-def _dispersion_summary(params: Params, inertia: bool, cells: int) -> tuple[tuple[str, Any], ...]:
-    """The dispersion keys of summary.json for one parameter set, cached: a sweep over seeds and pushes asks for the
-    same parameters many times, and the linear theory costs as much as the 10 s run itself (Params is frozen)."""
-    from .analysis.stability import dispersion
-
-    d = dispersion(params, inertia=inertia, n_cells=cells)
-    return tuple((k, d.get(k)) for k in DISPERSION_KEYS) + (("inertia", inertia),)
-
-
-def summarize(scene: Scene, res: RunResult) -> dict:
-    """summary.json content: run figures, observables of the trajectories, dispersion of the scene's params."""
-    from .analysis.observables import observables
-
-    obs = observables(res.t, res.alpha, res.beta)
-    inertia = scene.options.inertia and scene.model != "continuum"
-    try:
-        # copies: the cached values (lists among them) must not be shared between summaries
-        disp = {k: copy.deepcopy(v) for k, v in _dispersion_summary(scene.params, inertia, scene.cells)}
-    except ImportError:
-        disp = None
-    out = {
-        "scene": scene.name,
-        "model": scene.model,
-        "t_end_s": float(res.t[-1]),
-        "wall_s": res.wall_s,
-        "realtime_factor": res.realtime_factor,
-        **obs,
-        "dispersion": disp,
-        "solver": res.info,
-        "params": scene.as_dict()["params"],
-        "model_options": scene.as_dict()["model_options"],
-        "perturbation": scene.as_dict()["perturbation"],
-    }
-    from .provenance import provenance
-
-    out["provenance"] = provenance()
-    return _clean(out)
+    from .workbench.trackers import PlotTracker, Tracker
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -95,10 +22,11 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from .analysis.summary import summarize
     from .controller import run_scene
     from .models import ConfigError, NumericalInstability
-    from .plots import plot_run
     from .scene import load_scene
+    from .workbench.plots import plot_run
 
     try:
         scene = load_scene(args.scene, list(args.set) + ([f"accuracy={args.accuracy}"] if args.accuracy else []))
@@ -125,12 +53,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: run failed: out of memory ({e})", file=sys.stderr)
         return 3
     summary = summarize(scene, res)
-    np.savez_compressed(out / "trajectories.npz", t=res.t, alpha=res.alpha, beta=res.beta)
-    files = (
-        []
-        if args.no_plots
-        else plot_run(res, scene, out, inertia=summary["dispersion"]["inertia"] if summary["dispersion"] else False)
-    )
+    from .workbench.datasets import write_run
+
+    write_run(out / "trajectories.npz", scene, res.t, res.alpha, res.beta, summary, summary["source"])
+    files = [] if args.no_plots else plot_run(res, scene, out)
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _print_summary(summary, out, files)
@@ -145,7 +71,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _live_trackers(args, scene, out: Path) -> tuple[list[Tracker], PlotTracker | None]:
     """Trackers for --print-every and --live; the PlotTracker (or None). On a non-interactive matplotlib
     backend the live figure goes to --live-png (default OUT/live.png), said once on stderr."""
-    from .trackers import LiveTracker, PlotTracker
+    from .workbench.trackers import LiveTracker, PlotTracker
 
     live: list[Tracker] = [LiveTracker(args.print_every)] if args.print_every else []
     plot: PlotTracker | None = None
@@ -185,10 +111,18 @@ def _print_summary(s, out, files):
     )
     print("  final alpha (rad): " + " ".join(f"{v:+.2f}" for v in s["final_alpha_rad"]))
     if d:
+        from .analysis.stability import format_set
+
+        print(f"  linear theory ({d.get('theory')}): {d.get('regime')}")
         print(
-            f"  theory ({'with' if d.get('inertia') else 'no'} inertia): {d.get('regime')}, fastest "
-            f"wavelength {_fmt(d.get('fastest_lambda_cells'), ' cells')}, "
-            f"growth {_fmt(d.get('fastest_growth_per_s'), '/s')}"
+            (
+                f"    unstable wavelengths {format_set(d['unstable_set_cells'])} cells, fastest "
+                if d.get("unstable_set_cells")
+                else "    nothing grows; least stable: "
+            )
+            + (_fmt(d["fastest_lambda_cells"], " cells") if d.get("fastest_lambda_cells") else "the uniform mode")
+            + f" at {_fmt(d.get('fastest_growth_per_s'), '/s')}"
+            + (f", period {_fmt(d['oscillation_period_s'], ' s')}" if d.get("oscillation_period_s") else "")
         )
     print(
         f"  wrote {out}/summary.json, trajectories.npz"
@@ -207,7 +141,7 @@ def _positive_float(text: str) -> float:
 
 
 def cmd_bench(args) -> int:
-    from .bench import bench_main
+    from .benchmarks.speed import bench_main
 
     return bench_main(args.rest)
 
@@ -232,11 +166,11 @@ def main(argv: list[str] | None = None) -> int:
 SUBCOMMANDS = {
     "dispersion": (".analysis.cli", "dispersion_main"),
     "serve": (".bus.serve", "serve_main"),
-    "bench-speed": (".bench", "bench_main"),
-    "robustness": (".paper", "robustness_main"),
-    "paper": (".paper", "paper_main"),
-    "animate": (".animate", "animate_main"),
-    "sweep": (".sweep", "sweep_main"),
+    "bench-speed": (".benchmarks.speed", "bench_main"),
+    "robustness": (".workbench.robustness", "robustness_main"),
+    "paper": (".workbench.paper", "paper_main"),
+    "animate": (".workbench.animate", "animate_main"),
+    "sweep": (".workbench.sweep", "sweep_main"),
     "bench": (".benchmarks.cli", "main"),
 }
 

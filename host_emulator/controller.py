@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .models import NumericalInstability, Solver, make_model
-from .trackers import ProgressTracker, RecordTracker, Tracker
+from .workbench.trackers import ProgressTracker, RecordTracker, Tracker
 
 if TYPE_CHECKING:
     from .models import Solver

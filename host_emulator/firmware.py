@@ -167,6 +167,32 @@ def check_pedantic(srcs: list[Path], include_dirs: list[Path], defines: tuple[st
         raise RuntimeError(f"C sources are not warning-free ISO C99:\n{r.stderr.strip()}")
 
 
+class _compile_progress:
+    """An elapsed-time bar while the library compiles (first use: about 30 s), on a terminal only."""
+
+    def __enter__(self):
+        from .progress import bar
+
+        self.bar = bar(
+            None, desc="compiling the firmware library for the host (first use)", bar_format="{desc}: {elapsed}"
+        )
+        self.stop = threading.Event()
+
+        def tick():
+            while not self.stop.wait(0.5):
+                self.bar.update(0.5)
+
+        self.thread = threading.Thread(target=tick, daemon=True)
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        self.thread.join()
+        self.bar.close()
+        return False
+
+
 def _build(srcs: list[Path], key: str):
     name = f"_mcfw_{key}"
     outdir = BUILD_DIR / key
@@ -193,7 +219,8 @@ def _build(srcs: list[Path], key: str):
         tmp = Path(tempfile.mkdtemp(prefix="mcfw-", dir=BUILD_DIR.parent if BUILD_DIR.parent.exists() else None))
         try:
             try:
-                built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
+                with _compile_progress():
+                    built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
             except Exception as e:  # cffi raises VerificationError/CompileError/LinkError; distutils may exit
                 raise FirmwareBuildError(
                     f"compiling the firmware library for the host failed ({type(e).__name__}: {e}); it needs a C "

@@ -81,7 +81,7 @@ def _parse_params(d, cells) -> Params:
             raise ConfigError("params.cells: set the top-level `cells` key instead")
         if k not in types:
             raise ConfigError(
-                f"unknown key {key}{did_you_mean(k, types)}; "
+                f"unknown key {key}{did_you_mean(k, types) or key_hint(k)}; "
                 f"known: {', '.join(sorted(n for n in types if n != 'cells'))}"
             )
         cur = getattr(base, k)
@@ -118,13 +118,57 @@ def _parse_params(d, cells) -> Params:
     return p
 
 
+def known_keys() -> list[str]:
+    """Every dotted key a --set / overrides item can name (perturbation fields as perturbation.N.<field>)."""
+    from .models.options import _PERT_KEYS, NoiseOptions
+
+    keys = [k for k in TOP_KEYS if k not in ("params", "model_options", "perturbation")]
+    keys += [f"params.{f.name}" for f in dataclasses.fields(Params) if f.name != "cells"]
+    for f in dataclasses.fields(ModelOptions):
+        if f.name == "noise":
+            keys += [f"model_options.noise.{g.name}" for g in dataclasses.fields(NoiseOptions)]
+        else:
+            keys.append(f"model_options.{f.name}")
+    keys += [f"perturbation.N.{k}" for k in _PERT_KEYS]
+    return keys
+
+
+def key_hint(key: str) -> str:
+    """' (did you mean params.sigma?)' for a bare or misspelt key: the dotted keys ending in it, else the closest."""
+    key = str(key)
+    known = known_keys()
+    ends = [k for k in known if k.endswith("." + key)]
+    if ends:
+        return f" (did you mean {' or '.join(ends)}?)"
+    return did_you_mean(key, known)
+
+
+def scene_table(scene: Scene) -> dict:
+    """A Scene back as the table scene_from_dict reads (what a TOML file holds): every parameter, the model options
+    the scene set itself (the others stay free for its accuracy preset), the perturbations. JSON-ready."""
+    d = scene.as_dict()
+    params = {k: v for k, v in d["params"].items() if k != "cells"}
+    opts = {k: d["model_options"][k] for k in scene.explicit_options}
+    return {
+        "name": scene.name,
+        "description": scene.description,
+        "model": scene.model,
+        "cells": scene.cells,
+        "t_end_s": scene.t_end_s,
+        "accuracy": scene.accuracy,
+        "params": params,
+        "model_options": opts,
+        "perturbation": d["perturbation"],
+    }
+
+
 def scene_from_dict(d: dict, source: str = "") -> Scene:
     """Validate a scene table; ConfigError names the first bad key."""
     if not isinstance(d, dict):
         raise ConfigError("scene: expected a table")
     for k in d:
         if k not in TOP_KEYS:
-            raise ConfigError(f"unknown key {k!r}{did_you_mean(k, TOP_KEYS)}; known: {', '.join(TOP_KEYS)}")
+            raise ConfigError(f"unknown key {k!r}{key_hint(k)}; known: {', '.join(TOP_KEYS)}")
     for k in REQUIRED:
         if k not in d:
             raise ConfigError(f"missing key {k!r}")

@@ -2,7 +2,7 @@
 
 import sys
 
-from host_emulator.bench import bench_main
+from host_emulator.benchmarks.speed import bench_main
 
 if __name__ == "__main__":
     sys.exit(bench_main(sys.argv[1:]))

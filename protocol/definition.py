@@ -122,12 +122,20 @@ BLOCKS: dict[str, Block] = {
     # --- health additions (firmware review: watchdog and reset cause); additive, no layout above changed ---
     "BOOT": {
         "id": 3,
-        "doc": "why the cell last restarted and the watchdog in force",
+        "doc": "why the cell last restarted, the watchdog in force and the fault that reset it",
         "fields": [
             ("tag", "u8", "(PROTO_VERSION << 4) | block id"),
             ("addr", "u8", "7-bit address of the cell"),
             ("reset_cause", "u8", "RESET_CAUSE bits read at boot (SAMD21 PM RCAUSE)"),
             ("wdt_ms", "u16", "watchdog timeout in force, ms (0 = off)"),
+            # --- fault record (firmware review: fault handlers); additive at the end ---
+            (
+                "fault_exc",
+                "u8",
+                "exception that reset the cell through its fault handler (3 HardFault, 11 SVCall, 14 PendSV, "
+                "16+n interrupt n); 0 = none",
+            ),
+            ("fault_pc", "u32", "address the fault interrupted (stacked PC); 0 = none"),
             ("crc", "u8", "CRC-8 of all bytes before"),
         ],
     },
@@ -141,6 +149,9 @@ RESET_CAUSE = {
     "EXT": 4,  # reset pin
     "WDT": 5,  # watchdog expired (the firmware hung)
     "SYST": 6,  # system reset request (software reset, bootloader entry)
+    # not an RCAUSE bit (bit 7 is reserved there): the firmware's fault handler (HardFault or an interrupt
+    # nobody handles) put the drivers to sleep and requested the reset; SYST is set with it
+    "FAULT": 7,
 }
 
 CELL_FLAGS = {

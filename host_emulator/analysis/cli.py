@@ -12,11 +12,9 @@ from typing import Any
 
 from host_emulator.params import Params
 
-from .stability import dispersion
+from .stability import REGIMES, dispersion, format_set, theory_of
 
 __all__ = ["dispersion_main", "parse_set"]
-
-KEYS = ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s", "unstable_band_cells")
 
 
 def parse_set(params: Params, items: Iterable[str]) -> Params:
@@ -74,12 +72,35 @@ def dispersion_main(argv: list[str] | None) -> int:
         description="Linear stability of the uniform rest state (docs/physics.md#linear-stability).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m host_emulator dispersion --sigma 9/125 --inertia\n"
-        "  python -m host_emulator dispersion --sigma 9/125 --inertia --cells 16 --json\n"
+        "  python -m host_emulator dispersion --sigma 9/125\n"
+        "  python -m host_emulator dispersion --sigma 12/125 --band-scale 0.5 --json   # two unstable intervals\n"
+        "  python -m host_emulator dispersion --sigma 14/125 --model hil                # the hil model: rest\n"
+        "  python -m host_emulator dispersion --sigma 9/125 --no-inertia --cells 16    # the source's theory\n"
         "  python -m host_emulator dispersion --band-scale 0.5 --plot out/dispersion.png",
     )
     ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
-    ap.add_argument("--inertia", action="store_true", help="include cylinder inertia (4 roots per mode)")
+    ap.add_argument(
+        "--model",
+        choices=("lattice", "hil", "continuum"),
+        default="lattice",
+        help="whose linear theory: lattice (default; with inertia), hil (the lattice plus the motors' back-EMF "
+        "damping, 15/16 of it removed with --set bemf_comp=true) or continuum (kappa^2, no inertia), as the "
+        "run summaries of those models",
+    )
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument(
+        "--inertia",
+        dest="inertia",
+        action="store_true",
+        default=None,
+        help="include cylinder inertia (4 roots per mode; the default except for --model continuum)",
+    )
+    g.add_argument(
+        "--no-inertia",
+        dest="inertia",
+        action="store_false",
+        help="drop inertia: the overdamped theory of the source's stability figure",
+    )
     ap.add_argument("--eta-scale", type=str, default=None, help="multiply both viscous coefficients")
     ap.add_argument(
         "--band-scale",
@@ -93,10 +114,10 @@ def dispersion_main(argv: list[str] | None) -> int:
         "--discrete",
         dest="discrete",
         action="store_true",
-        default=True,
-        help="lattice dispersion, kappa^2 -> 2(1 - cos kappa) (default)",
+        default=None,
+        help="lattice dispersion, kappa^2 -> 2(1 - cos kappa) (the default but for --model continuum)",
     )
-    g.add_argument("--continuum", dest="discrete", action="store_false", help="continuum dispersion")
+    g.add_argument("--continuum", dest="discrete", action="store_false", help="continuum dispersion (kappa^2)")
     ap.add_argument("--cells", type=int, default=None, help="also list the modes of a free-end chain of N cells")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a Params field")
     ap.add_argument("--json", action="store_true", help="print JSON")
@@ -122,14 +143,21 @@ def dispersion_main(argv: list[str] | None) -> int:
         p = parse_set(p, args.set)
         if args.cells is not None and args.cells < 1:
             raise ValueError("--cells must be >= 1")
-        res = dispersion(p, inertia=args.inertia, discrete=args.discrete, n_cells=args.cells)
+        theory = theory_of(args.model, p)
+        if args.model == "continuum":
+            theory = dataclasses.replace(theory, inertia=False)
+        if args.inertia is not None:
+            theory = dataclasses.replace(theory, inertia=args.inertia)
+        if args.discrete is not None:
+            theory = dataclasses.replace(theory, discrete=args.discrete)
+        res = dispersion(p, theory=theory, n_cells=args.cells)
     except (ValueError, KeyError, FloatingPointError) as e:
         print(f"dispersion: error: {e.args[0] if e.args else e}", file=sys.stderr)
         return 2
     if args.plot:
-        from ..plots import plot_dispersion_png
+        from ..workbench.plots import plot_dispersion_png
 
-        plot_dispersion_png(p, args.plot, inertia=args.inertia)
+        plot_dispersion_png(p, args.plot, theory=theory)
         print(f"wrote {args.plot}", file=sys.stderr)
     if not args.curve:
         res.pop("curve")
@@ -138,15 +166,31 @@ def dispersion_main(argv: list[str] | None) -> int:
         return 0
     print(
         f"sigma = {p.sigma:.6g} N m/rad, eta_scale = {p.eta_scale:g}, gamma = {p.gamma:g}, "
-        f"band_scale = {p.band_scale:g} (k_a = {p.ka_eff:.4g}, k_b = {p.kb_eff:.4g} N m/rad), "
-        f"{res['model']}{', inertia' if res['inertia'] else ', no inertia'}"
+        f"band_scale = {p.band_scale:g} (k_a = {p.ka_eff:.4g}, k_b = {p.kb_eff:.4g} N m/rad)"
     )
+    print(f"linear theory: {res['theory']}")
     rows = [
-        ("regime", res["regime"].replace("_", " ")),
-        ("fastest wavelength", _fmt(res["fastest_lambda_cells"], " cells")),
+        ("regime", f"{res['regime']} ({REGIMES[res['regime']]})"),
+        ("unstable set", format_set(res["unstable_set_cells"]) + (" cells" if res["unstable_set_cells"] else "")),
+    ]
+    for iv in res["unstable_intervals"]:
+        lo, hi = iv["lambda_cells"]
+        rows.append(
+            (
+                f"  {lo:.2f}-{'inf' if hi is None else format(hi, '.2f')} cells",
+                f"{iv['kind']}, fastest "
+                + (_fmt(iv["fastest_lambda_cells"], " cells") if iv["fastest_lambda_cells"] else "uniform")
+                + f" at {iv['fastest_growth_per_s']:.4g} 1/s"
+                + (f", period {iv['period_s']:.4g} s" if iv["period_s"] else ""),
+            )
+        )
+    rows += [
+        (
+            "fastest wavelength",
+            _fmt(res["fastest_lambda_cells"], " cells") if res["fastest_lambda_cells"] else "uniform (inf)",
+        ),
         ("fastest growth rate", _fmt(res["fastest_growth_per_s"], " 1/s")),
         ("oscillation period", _fmt(res["oscillation_period_s"], " s")),
-        ("unstable band", _fmt(res["unstable_band_cells"], " cells")),
         ("uniform mode growth", _fmt(res["uniform_mode_growth_per_s"], " 1/s")),
         ("uniform mode period", _fmt(res["uniform_mode_period_s"], " s")),
         (
@@ -161,7 +205,8 @@ def dispersion_main(argv: list[str] | None) -> int:
         rows.append(
             (
                 f"fastest of {args.cells} cells",
-                f"m={m['m']} lambda={_fmt(m['lambda_cells'])} growth={m['growth_per_s']:.4g} 1/s",
+                f"m={m['m']} lambda={_fmt(m['lambda_cells']) if m['lambda_cells'] else 'inf (uniform)'} "
+                f"growth={m['growth_per_s']:.4g} 1/s",
             )
         )
     w = max(len(r[0]) for r in rows)

@@ -24,11 +24,12 @@ does not mix them, so the chain's linear modes are exactly the dispersion curve 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from ..physics import reaction_jacobian as _physics_jacobian
 
@@ -46,6 +47,11 @@ __all__ = [
     "plot_dispersion",
     "classify_regime",
     "q_of_kappa",
+    "REGIMES",
+    "Theory",
+    "theory_of",
+    "motor_damping",
+    "format_set",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -109,8 +115,12 @@ def _sort_desc(ev: np.ndarray) -> np.ndarray:
     return np.take_along_axis(ev, order, axis=-1)
 
 
-def growth_rates(params: Params, kappa: ArrayLike, *, discrete: bool = True, inertia: bool = False) -> np.ndarray:
-    """Growth rates s (1/s, complex) of mode kappa (rad per cell), shape (len(kappa), 2 or 4), Re descending."""
+def growth_rates(
+    params: Params, kappa: ArrayLike, *, discrete: bool = True, inertia: bool = False, motor_damping: float = 0.0
+) -> np.ndarray:
+    """Growth rates s (1/s, complex) of mode kappa (rad per cell), shape (len(kappa), 2 or 4), Re descending.
+
+    motor_damping (N m s) adds to both viscous coefficients (the hil motors' back-EMF, see theory_of)."""
     _check(params, inertia)
     k = np.atleast_1d(np.asarray(kappa, dtype=float))
     if k.ndim != 1 or not np.all(np.isfinite(k)):
@@ -118,7 +128,7 @@ def growth_rates(params: Params, kappa: ArrayLike, *, discrete: bool = True, ine
     q = q_of_kappa(k, discrete)
     jr = reaction_jacobian(params)
     kd = np.array([params.ka_eff, params.kb_eff])
-    eta = np.array([params.eta_alpha, params.eta_beta])
+    eta = np.array([params.eta_alpha, params.eta_beta]) + float(motor_damping)
     # A(q) = Jr - q K, one 2x2 per kappa
     a = np.broadcast_to(jr, (k.size, 2, 2)).copy()
     a[:, 0, 0] -= q * kd[0]
@@ -135,9 +145,9 @@ def growth_rates(params: Params, kappa: ArrayLike, *, discrete: bool = True, ine
     return _sort_desc(np.linalg.eigvals(m).astype(complex))
 
 
-def _lead(params, kappa, discrete, inertia):
+def _lead(params, kappa, discrete, inertia, damping=0.0):
     """Leading (max real part) growth rate at scalar kappa."""
-    return growth_rates(params, [kappa], discrete=discrete, inertia=inertia)[0, 0]
+    return growth_rates(params, [kappa], discrete=discrete, inertia=inertia, motor_damping=damping)[0, 0]
 
 
 # ---- Turing conditions -----------------------------------------------------------
@@ -172,26 +182,77 @@ def turing_conditions(params: Params) -> dict:
     return out
 
 
-# ---- dispersion curve, band, regime ----------------------------------------------
-def classify_regime(growth_at_zero: float, max_growth: float) -> str:
-    """Regime rule (same for continuum and lattice, with and without inertia).
+# ---- the theory of a model, regimes, unstable sets ---------------------------------
+BEMF_COMP_FRACTION = 15 / 16  # the firmware's back-EMF compensation: MC_BEMF_FRAC_NUM / MC_BEMF_FRAC_DEN (mc_drive.h)
 
-    stable: no mode grows (max Re s <= 0 over all kappa, including the uniform mode kappa = 0);
-    unconditionally_unstable: the uniform / longest-wavelength mode grows (band reaches lambda -> inf);
-    conditionally_unstable: some modes grow but the longest do not (a finite band: pattern selection).
-    """
-    if not max_growth > 0.0:
-        return "stable"
-    return "unconditionally_unstable" if growth_at_zero > 0.0 else "conditionally_unstable"
+REGIMES = {
+    "rest": "no mode grows: every perturbation of the rest state decays",
+    "stationary_pattern": "only stationary modes (real s > 0) grow, in bands of finite wavelength "
+    "(Turing: the lattice selects a pattern)",
+    "broadband_pattern": "only stationary modes grow, and the unstable set reaches the longest waves "
+    "(lambda -> inf: the uniform mode grows too)",
+    "uniform_oscillation": "only oscillatory modes (complex s, Re s > 0) grow, the uniform mode among them",
+    "pattern_and_oscillation": "stationary and oscillatory modes both grow, in separate intervals",
+}
 
 
-def _kappa_max(params, discrete, inertia):
+@dataclass(frozen=True)
+class Theory:
+    """The linear theory of one model: inertia or not, lattice (q = 2(1 - cos kappa)) or continuum (q = kappa^2),
+    and a viscous coefficient added on every cylinder (N m s: the hil motors' uncompensated back-EMF)."""
+
+    model: str = "lattice"
+    inertia: bool = True
+    discrete: bool = True
+    motor_damping: float = 0.0
+
+    def label(self) -> str:
+        """What the theory includes, e.g. 'lattice with inertia' or 'hil: lattice with inertia + the motors'
+        back-EMF damping 1.5e-04 N m s'."""
+        text = f"{'lattice' if self.discrete else 'continuum'} {'with' if self.inertia else 'without'} inertia"
+        if self.motor_damping > 0:
+            text += f" + the motors' back-EMF damping {self.motor_damping:.1e} N m s"
+        return (f"{self.model}: " if self.model not in ("lattice", "continuum") else "") + text
+
+
+def motor_damping(params: Params) -> float:
+    """Viscous coefficient (N m s) the hil model's motors add on every cylinder: Kt/S_L, of which the firmware's
+    back-EMF compensation (params.bemf_comp) removes 15/16."""
+    return params.eta_bemf * ((1.0 - BEMF_COMP_FRACTION) if params.bemf_comp else 1.0)
+
+
+def theory_of(model: str, params: Params, inertia: bool = True) -> Theory:
+    """The linear theory of a scene's model: the continuum model has no inertia; the lattice model has the scene's
+    inertia switch; the hil model is the lattice plus its motors' back-EMF damping (firmware quantisation and
+    sampling are not in the linear theory)."""
+    if model == "continuum":
+        return Theory("continuum", False, False, 0.0)
+    if model == "hil":
+        return Theory("hil", bool(inertia), True, motor_damping(params))
+    return Theory(model, bool(inertia), True, 0.0)
+
+
+def classify_regime(intervals: list[dict]) -> str:
+    """The regime named for what grows (REGIMES; docs/analysis.md#regimes), from the unstable intervals of
+    `dispersion` (each with its kind, stationary or oscillatory, and its kappa range)."""
+    stat = [iv for iv in intervals if iv["kind"] == "stationary"]
+    osc = [iv for iv in intervals if iv["kind"] == "oscillatory"]
+    if stat and osc:
+        return "pattern_and_oscillation"
+    if osc:
+        return "uniform_oscillation"
+    if stat:
+        return "broadband_pattern" if any(iv["kappa"][0] == 0.0 for iv in stat) else "stationary_pattern"
+    return "rest"
+
+
+def _kappa_max(params, discrete, inertia, damping=0.0):
     if discrete:
         return math.pi
     # continuum: from lambda = 1 cell, extended while the shortest wavelength still grows
     kmax = TWO_PI
     for _ in range(20):
-        if _lead(params, kmax, False, inertia).real <= 0:
+        if _lead(params, kmax, False, inertia, damping).real <= 0:
             return kmax
         kmax *= 2.0
     raise ValueError(
@@ -204,35 +265,144 @@ def _lam(k):
     return None if k <= 0 else float(TWO_PI / k)
 
 
-def _fin(x):
-    x = float(x)
-    return x if math.isfinite(x) else None
+def _is_osc(s) -> bool:
+    """A growth rate is oscillatory when its imaginary part is not a rounding residue."""
+    return bool(abs(s.imag) > 1e-9 * max(1.0, abs(s)))
+
+
+def _kind_growth(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per kappa (rows of growth_rates): the largest Re s among the stationary (real) roots and among the
+    oscillatory (complex) roots; -inf where that kind has no root."""
+    osc = np.abs(rates.imag) > 1e-9 * np.maximum(1.0, np.abs(rates))
+    re = rates.real
+    g_stat = np.where(~osc, re, -np.inf).max(axis=1)
+    g_osc = np.where(osc, re, -np.inf).max(axis=1)
+    return g_stat, g_osc
+
+
+def _unstable_intervals(params, kap, rates, kmax, discrete, inertia, damping) -> list[dict]:
+    """The kappa intervals where a stationary mode (a real root, Re s > 0) or an oscillatory one (a complex root)
+    grows, each kind on its own (both can grow at one kappa: every root counts, not only the fastest); edges
+    bisected to 1e-15 between grid points, each interval with its fastest root."""
+
+    def g(k: float, kind: int) -> float:
+        return float(
+            _kind_growth(growth_rates(params, [k], discrete=discrete, inertia=inertia, motor_damping=damping))[kind][0]
+        )
+
+    def edge(a: float, b: float, kind: int, grows_at_a: bool) -> float:
+        for _ in range(64):
+            m = 0.5 * (a + b)
+            if m in (a, b):
+                break
+            if (g(m, kind) > 0) == grows_at_a:
+                a = m
+            else:
+                b = m
+        return a if grows_at_a else b
+
+    out: list[dict] = []
+    n = len(kap)
+    for kind, gk in enumerate(_kind_growth(rates)):
+        name = ("stationary", "oscillatory")[kind]
+        pos = gk > 0
+        i = 0
+        while i < n:
+            if not pos[i]:
+                i += 1
+                continue
+            j = i
+            while j + 1 < n and pos[j + 1]:
+                j += 1
+            k_lo = 0.0 if i == 0 else edge(float(kap[i]), float(kap[i - 1]), kind, True)
+            k_hi = float(kmax) if j == n - 1 else edge(float(kap[j]), float(kap[j + 1]), kind, True)
+            b_i = i + int(np.argmax(gk[i : j + 1]))
+            k_best, g_best = float(kap[b_i]), float(gk[b_i])
+            lo_b, hi_b = max(k_lo, float(kap[max(b_i - 1, 0)])), min(k_hi, float(kap[min(b_i + 1, n - 1)]))
+            if hi_b > lo_b:
+                r = minimize_scalar(
+                    lambda k, kind=kind: -g(k, kind), bounds=(lo_b, hi_b), method="bounded", options={"xatol": 1e-10}
+                )
+                if -r.fun > g_best * (1 + 1e-12):
+                    k_best, g_best = float(r.x), float(-r.fun)
+            row = growth_rates(params, [k_best], discrete=discrete, inertia=inertia, motor_damping=damping)[0]
+            of_kind = [z for z in row if _is_osc(z) == bool(kind)]
+            best = max(of_kind, key=lambda z: z.real) if of_kind else row[0]
+            out.append(
+                {
+                    "lambda_cells": [_lam(k_hi), _lam(k_lo)],
+                    "kappa": [k_lo, k_hi],
+                    "kind": name,
+                    "fastest_lambda_cells": _lam(k_best) if k_best > 1e-9 * max(1.0, kmax) else None,
+                    "fastest_growth_per_s": g_best,
+                    "period_s": float(TWO_PI / abs(best.imag)) if kind == 1 and _is_osc(best) else None,
+                }
+            )
+            i = j + 1
+    out.sort(key=lambda iv: (-iv["kappa"][1], iv["kind"]))  # shortest wavelengths first
+    return out
+
+
+def _merged(intervals: list[dict]) -> list[list[float | None]]:
+    """The unstable set as disjoint [lo, hi] wavelength intervals (cells; hi None = reaches lambda -> inf)."""
+    spans = sorted((iv["kappa"] for iv in intervals), key=lambda k: k[0])
+    merged: list[list[float]] = []
+    for lo, hi in spans:
+        if merged and lo <= merged[-1][1] + 1e-12:
+            merged[-1][1] = max(merged[-1][1], hi)
+        else:
+            merged.append([lo, hi])
+    return [[_lam(hi), _lam(lo)] for lo, hi in reversed(merged)]
+
+
+def format_set(cells: list | None) -> str:
+    """'[4.51, 7.54] U [19.27, inf)' for an unstable set (cells), 'none' when empty."""
+    if not cells:
+        return "none"
+    return " U ".join(f"[{lo:.2f}, inf)" if hi is None else f"[{lo:.2f}, {hi:.2f}]" for lo, hi in cells)
 
 
 def dispersion(
-    params: Params, *, inertia: bool = False, discrete: bool = True, n_cells: int | None = None, n_kappa: int = 2000
+    params: Params,
+    *,
+    inertia: bool = False,
+    discrete: bool = True,
+    n_cells: int | None = None,
+    n_kappa: int = 2000,
+    motor_damping: float = 0.0,
+    theory: Theory | None = None,
 ) -> dict:
     """Dispersion relation summary of the uniform state; see module docstring for the equations.
 
+    theory: a Theory (theory_of(model, params, inertia)) sets inertia, discrete and motor_damping at once.
+    regime: one of REGIMES (classify_regime); unstable_set_cells: the wavelengths (cells) that grow, as a union of
+        disjoint [lo, hi] intervals (hi None: reaches lambda -> inf; lo = 2 on the lattice at the shortest wave),
+        [] when nothing grows; unstable_intervals: the same split by kind (stationary / oscillatory), each with
+        its fastest mode and, if oscillatory, its period;
     fastest_lambda_cells: wavelength of the mode with the largest Re s (None if that is the uniform mode);
-    fastest_growth_per_s: that Re s (negative when stable: the slowest decay);
-    oscillation_period_s: 2 pi / |Im s| of that mode if it oscillates, else None;
-    unstable_band_cells: [lo, hi] wavelengths (cells) with Re s > 0, hi None when it reaches lambda -> inf,
-        lo = 2 on the lattice when it reaches the shortest wave; None when nothing grows.
+    fastest_growth_per_s: that Re s (negative when nothing grows: the slowest decay);
+    oscillation_period_s: 2 pi / |Im s| of that mode if it oscillates, else None.
     """
+    if theory is not None:
+        inertia, discrete, motor_damping = theory.inertia, theory.discrete, theory.motor_damping
+    else:
+        theory = Theory("lattice" if discrete else "continuum", bool(inertia), bool(discrete), float(motor_damping))
     _check(params, inertia)
+    if not (math.isfinite(motor_damping) and motor_damping >= 0):
+        raise ValueError(f"motor_damping={motor_damping!r} must be finite and >= 0")
     n_kappa = int(n_kappa)
     if n_kappa < 16:
         raise ValueError("n_kappa must be >= 16")
-    kmax = _kappa_max(params, discrete, inertia)
+    damp = float(motor_damping)
+    kmax = _kappa_max(params, discrete, inertia, damp)
     kap = np.linspace(0.0, kmax, n_kappa + 1)  # includes kappa = 0 (uniform mode)
-    s = growth_rates(params, kap, discrete=discrete, inertia=inertia)[:, 0]
+    s = growth_rates(params, kap, discrete=discrete, inertia=inertia, motor_damping=damp)[:, 0]
     re = s.real
     if not np.all(np.isfinite(s)):
         raise FloatingPointError("non-finite growth rate: parameters out of range")
 
     def f(k):
-        return _lead(params, k, discrete, inertia).real
+        return _lead(params, k, discrete, inertia, damp).real
 
     # fastest mode, refined between grid neighbours
     i = int(np.argmax(re))
@@ -243,28 +413,27 @@ def dispersion(
         )
         if -r.fun >= re[i]:
             k_best = float(r.x)
-            s_best = _lead(params, k_best, discrete, inertia)
+            s_best = _lead(params, k_best, discrete, inertia, damp)
+    if i <= 1 and k_best > 0 and re[0] >= s_best.real - 1e-9 * abs(s_best):
+        k_best, s_best = 0.0, s[0]
     fastest_growth = float(s_best.real)
 
-    # unstable band: sign changes of Re s, refined by brentq
-    pos = re > 0
-    band = None
-    if pos.any():
-        edges = []
-        for j in np.nonzero(pos[1:] != pos[:-1])[0]:
-            edges.append(brentq(f, kap[j], kap[j + 1], xtol=1e-12))
-        k_lo_edge = 0.0 if pos[0] else min(edges)
-        k_hi_edge = kmax if pos[-1] else max(edges)
-        hi = None if pos[0] else _lam(k_lo_edge)
-        lo = _lam(k_hi_edge)
-        band = [lo, hi]
-    band_note = "several disjoint unstable bands; reported their envelope" if pos.any() and len(edges) > 2 else None
-
-    regime = classify_regime(float(re[0]), float(re.max()))
+    intervals = _unstable_intervals(
+        params,
+        kap,
+        growth_rates(params, kap, discrete=discrete, inertia=inertia, motor_damping=damp),
+        kmax,
+        discrete,
+        inertia,
+        damp,
+    )
+    regime = classify_regime(intervals)
     osc = abs(s_best.imag)
     out: dict[str, Any] = {
         "model": "discrete" if discrete else "continuum",
         "inertia": bool(inertia),
+        "theory": theory.label(),
+        "motor_damping_Nms": damp,
         "sigma": float(params.sigma),
         "regime": regime,
         "fastest_lambda_cells": _lam(k_best) if k_best > 1e-9 else None,
@@ -273,7 +442,8 @@ def dispersion(
         "oscillation_period_s": (TWO_PI / osc) if osc > 1e-9 * max(1.0, abs(s_best)) else None,
         "uniform_mode_growth_per_s": float(re[0]),
         "uniform_mode_period_s": (TWO_PI / abs(s[0].imag)) if abs(s[0].imag) > 1e-9 * max(1.0, abs(s[0])) else None,
-        "unstable_band_cells": band,
+        "unstable_set_cells": _merged(intervals),
+        "unstable_intervals": [{k: v for k, v in iv.items() if k != "kappa"} for iv in intervals],
         "turing": turing_conditions(params),
         "curve": {
             "lambda_cells": [TWO_PI / k for k in kap[1:]],
@@ -281,14 +451,12 @@ def dispersion(
             "imag_per_s": [float(abs(x)) for x in s[1:].imag],
         },
     }
-    if band_note:
-        out["band_note"] = band_note
     if n_cells is not None:
         n = int(n_cells)
         if n < 1:
             raise ValueError("n_cells must be >= 1")
         km = np.pi * np.arange(n) / n
-        sm = growth_rates(params, km, discrete=discrete, inertia=inertia)[:, 0]
+        sm = growth_rates(params, km, discrete=discrete, inertia=inertia, motor_damping=damp)[:, 0]
         out["lattice_modes"] = [
             {
                 "m": m,
@@ -305,34 +473,45 @@ def dispersion(
 
 
 # ---- plot -------------------------------------------------------------------------
-def plot_dispersion(params: Params, ax: Axes | None = None, *, inertia: bool = False) -> Axes:
-    """Re s(lambda) for the lattice and the continuum (Im s dashed), band shaded, chain modes marked.
+def plot_dispersion(
+    params: Params, ax: Axes | None = None, *, inertia: bool = False, theory: Theory | None = None
+) -> Axes:
+    """Re s(lambda) (1/s, absolute) for the lattice and the continuum (|Im s| dashed), every unstable interval
+    shaded (stationary blue, oscillatory red hatched), chain modes marked; the theory is named in the title.
 
-    Uses matplotlib's object API (no pyplot) so it is safe under any backend; returns the Axes.
+    theory: a Theory (theory_of(model, ...)); without it, the lattice with/without inertia. Uses matplotlib's
+    object API (no pyplot) so it is safe under any backend; returns the Axes.
     """
     if ax is None:
         from matplotlib.figure import Figure
 
         ax = Figure(figsize=(6.4, 4.0)).add_subplot(111)
+    if theory is None:
+        theory = Theory("lattice", bool(inertia), True, 0.0)
     n = int(getattr(params, "cells", 16) or 16)
-    disc = dispersion(params, inertia=inertia, discrete=True, n_cells=n, n_kappa=800)
-    cont = dispersion(params, inertia=inertia, discrete=False, n_kappa=800)
+    cont_theory = Theory(theory.model, theory.inertia, False, theory.motor_damping)
+    disc = dispersion(
+        params, theory=Theory(theory.model, theory.inertia, True, theory.motor_damping), n_cells=n, n_kappa=800
+    )
+    cont = dispersion(params, theory=cont_theory, n_kappa=800)
+    ytop = 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9)
     for res, style, label in ((disc, "C0", "lattice"), (cont, "C1", "continuum")):
         lam = np.asarray(res["curve"]["lambda_cells"])
         ax.plot(lam, res["curve"]["growth_per_s"], color=style, label=f"Re s, {label}")
         im = np.asarray(res["curve"]["imag_per_s"], dtype=float)
-        ytop = 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9)
         im = np.where((im > 0) & (im <= ytop), im, np.nan)  # off-scale |Im s| is not drawn as spikes
         if np.any(np.isfinite(im)):
             ax.plot(lam, im, color=style, ls="--", lw=0.8, label=f"|Im s|, {label}")
-    band = disc["unstable_band_cells"]
-    if band:
+    for iv in disc["unstable_intervals"]:
+        lo, hi = iv["lambda_cells"]
+        osc = iv["kind"] == "oscillatory"
         ax.axvspan(
-            band[0],
-            band[1] if band[1] is not None else 1e3,
-            color="C0",
+            lo,
+            hi if hi is not None else 1e3,
+            color="C3" if osc else "C0",
             alpha=0.12,
-            label=f"unstable band {band[0]:.3g}-{'inf' if band[1] is None else format(band[1], '.3g')} cells",
+            hatch="//" if osc else None,
+            label=f"{iv['kind']} unstable {lo:.3g}-{'inf' if hi is None else format(hi, '.3g')} cells",
         )
     modes = [m for m in disc["lattice_modes"] if m["lambda_cells"]]
     ax.plot(
@@ -362,11 +541,12 @@ def plot_dispersion(params: Params, ax: Axes | None = None, *, inertia: bool = F
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(NullFormatter())
     ylo = min(np.percentile(disc["curve"]["growth_per_s"], 5), -abs(disc["fastest_growth_per_s"]))
-    ax.set_ylim(ylo, 1.3 * max(abs(disc["fastest_growth_per_s"]), abs(cont["fastest_growth_per_s"]), 1e-9))
+    ax.set_ylim(ylo, ytop)
     ax.set_xlabel("wavelength lambda (cells)")
-    ax.set_ylabel("growth rate (1/s)")
+    ax.set_ylabel("growth rate Re s (1/s); |Im s| dashed")
     ax.set_title(
-        f"sigma = {params.sigma:.4g}: {disc['regime'].replace('_', ' ')}{' (inertia)' if inertia else ''}", fontsize=10
+        f"sigma = {params.sigma:.4g}: {disc['regime'].replace('_', ' ')}\nlinear theory: {theory.label()}",
+        fontsize=9,
     )
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=6, loc="lower right")
     return ax

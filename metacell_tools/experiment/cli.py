@@ -11,15 +11,12 @@ another protocol map id: all in the summary), 2 bad scene/argument (nothing sent
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import signal
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
-
-import numpy as np
 
 if TYPE_CHECKING:
     from host_emulator.scene import Scene
@@ -44,7 +41,9 @@ def _common(p: argparse.ArgumentParser):
         "--t-end", type=float, default=None, metavar="S", help="time limit per repeat (default: the scene's t_end_s)"
     )
     p.add_argument("--repeats", type=int, default=1, help="repeats, re-zeroed in between (default 1)")
-    p.add_argument("--out", default=None, help="output directory (default out/rig/<scene>)")
+    p.add_argument(
+        "--out", default=None, help="output directory (default out/rig/<scene>; a rehearsal: out/rehearsal/<scene>)"
+    )
     p.add_argument(
         "--settle",
         type=float,
@@ -125,16 +124,16 @@ def _positive_float(text: str) -> float:
     return v
 
 
-def make_live(args, scene, out: Path):
+def make_live(args, scene, out: Path, source: str = "rig"):
     """RigLive for --live (None without it); on a non-interactive matplotlib backend the figure goes to a PNG."""
     if getattr(args, "live", None) is None:
         return None
-    from host_emulator.trackers import PlotTracker
+    from host_emulator.workbench.trackers import PlotTracker
 
     from .live import RigLive
 
     tracker = PlotTracker(args.live, args.live_window, png=args.live_png)
-    live = RigLive(tracker, scene.cells, title=scene.name)
+    live = RigLive(tracker, scene.cells, title=scene.name, source=source)
     live.begin(0, scene.t_end_s)  # the window opens before the bus does
     if not tracker.interactive and tracker.png is None:
         out.mkdir(parents=True, exist_ok=True)
@@ -199,14 +198,27 @@ def parser() -> argparse.ArgumentParser:
     )
     c = sub.add_parser(
         "compare",
-        help="overlay a rig (or rehearsal) run and an emulator run of the same scene",
-        description="Table and plot of the final angles of a rig run against an emulator run of the same scene.",
-        epilog="example:\n  python -m metacell_tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw "
-        "--out cmp.png",
+        help="overlay two runs of one scene, rig or emulated (any run directory, logger capture or python-can log)",
+        description="Table and plot of the final angles of run A (markers, min..max over its repeats) against run B "
+        "(lines). Each is anything host_emulator.load opens: an experiment or emulator run directory, a logger "
+        "capture (NPZ/CSV) or a python-can log (ASC, BLF, ...).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m metacell_tools.experiment compare out/rig/exp1_ccw_ccw out/exp1_ccw_ccw --out cmp.png\n"
+        "  python -m metacell_tools.experiment compare run.asc out/default --source-a emulator:hil",
     )
-    c.add_argument("rig_dir", help="output directory of `run` or `rehearse` (holds summary.json)")
-    c.add_argument("emu_dir", help="output directory of `python -m host_emulator run` of the same scene")
-    c.add_argument("--out", default=None, help="PNG file (default RIG_DIR/compare.png)")
+    c.add_argument("a", metavar="A", help="first run: a directory with summary.json, a capture or a log")
+    c.add_argument(
+        "b", metavar="B", help="second run, the reference drawn as lines (e.g. `python -m host_emulator run`)"
+    )
+    c.add_argument("--out", default=None, help="PNG file (default A/compare.png, or beside A for a file)")
+    for x in ("a", "b"):
+        c.add_argument(
+            f"--source-{x}",
+            default=None,
+            metavar="LABEL",
+            help=f"label of {x.upper()} when its file does not say (a python-can log): rig, emulator:hil, ...",
+        )
     return ap
 
 
@@ -263,8 +275,12 @@ def execute(
     report=None,
     plain_slcan=False,
     live=None,
+    source: str = "rig",
 ) -> tuple[int, dict]:
-    """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary)."""
+    """Open the bus, run, always switch the drive off, write summary.json and plots. Returns (exit code, summary).
+
+    source: "rig", or "rehearsal:hil" against the emulator's pty: the label of the log files, the summary, the
+    NPZ files and the plots (a rehearsal is never written as a rig measurement)."""
     from . import summary as S
     from .fastslcan import open_bus
     from .runner import CommandFailed, Experiment, LinkError
@@ -285,7 +301,7 @@ def execute(
     rc, error = EXIT_OK, None
     exp = None
     try:
-        exp = Experiment(bus, plan, out, opts, report=report, hook=hook, live=live)
+        exp = Experiment(bus, plan, out, opts, report=report, hook=hook, live=live, source=source)
         exp.run()
     except KeyboardInterrupt:
         rc, error = EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
@@ -310,21 +326,23 @@ def execute(
     if exp is None:
         return rc, {}
     wall = time.time() - t_start
-    summary, plot_src = S.build(exp, scene, wall, error)
+    summary, plot_src = S.build(exp, scene, wall, error, source=source)
     files = []
     if plot_src is not None:
         sc, res = plot_src
-        np.savez_compressed(out / "trajectories.npz", t=res.t, alpha=res.alpha, beta=res.beta)
+        from host_emulator.workbench.datasets import from_run, to_npz
+
+        ds = from_run(sc, res.t, res.alpha, res.beta, summary, source)
+        ds.attrs["repeat"] = int(res.info["repeat"])
+        ds.attrs["samples_held_note"] = "a lost sample of a present cell holds its previous value; absent cells are 0"
+        to_npz(ds, out / "trajectories.npz")
         files.append("trajectories.npz")
         if plots:
-            from host_emulator.plots import plot_run
+            from host_emulator.workbench.plots import plot_run
 
             miss = summary["missing_cells"]
             name = f"{sc.name}, repeat {res.info['repeat']}" + (f" [no data: cells {miss}, drawn as 0]" if miss else "")
-            inertia = bool(summary["dispersion"] and summary["dispersion"].get("inertia"))
-            files += [
-                f.name for f in plot_run(res, dataclasses.replace(sc, name=name, model="rig"), out, inertia=inertia)
-            ]
+            files += [f.name for f in plot_run(res, sc, out, source=source, name=name)]
     summary["files"] = (
         ["summary.json"]
         + files
@@ -355,7 +373,7 @@ def _main_thread() -> bool:
 
 def print_summary(s: dict, out: Path) -> None:
     print(
-        f"scene {s['scene']} (rig): {s['repeats_completed']}/{s['repeats']} repeat(s) completed, "
+        f"scene {s['scene']} ({s.get('source', 'rig')}): {s['repeats_completed']}/{s['repeats']} repeat(s) completed, "
         f"{s['wall_s']:.1f} s wall" + (f"; ABORTED: {s['aborted']}" if s["aborted"] else "")
     )
 
@@ -392,7 +410,11 @@ def print_summary(s: dict, out: Path) -> None:
 
 
 def cmd_run(
-    args: argparse.Namespace, channel: str | None = None, interface: str | None = None, open_wait: float | None = None
+    args: argparse.Namespace,
+    channel: str | None = None,
+    interface: str | None = None,
+    open_wait: float | None = None,
+    source: str = "rig",
 ) -> int:
     from .plan import PlanError
 
@@ -402,19 +424,28 @@ def cmd_run(
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    out = Path(args.out or Path("out") / "rig" / scene.name)
-    live = make_live(args, scene, out)
+    channel = channel or args.channel
+    interface = interface or args.interface
+    if source == "rig":
+        from metacell_tools.rigtools.logger import channel_source
+
+        if channel_source(interface, channel) == "emulator:hil":  # a pty: the emulator's serve, never the rig
+            source = "rehearsal:hil"
+            print(f"note: {channel} is a pseudo-terminal (the emulator's serve): labelled {source}", file=sys.stderr)
+    out = Path(args.out or Path("out") / ("rig" if source == "rig" else "rehearsal") / scene.name)
+    live = make_live(args, scene, out, source)
     rc, summary = execute(
         scene,
         plan,
-        channel or args.channel,
-        interface or args.interface,
+        channel,
+        interface,
         out,
         opts,
         open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
         plots=not args.no_plots,
         plain_slcan=args.plain_slcan,
         live=live,
+        source=source,
     )
     if summary:
         print_summary(summary, out)
@@ -445,7 +476,7 @@ def cmd_rehearse(args: argparse.Namespace) -> int:
     try:
         with Serve(args.scene, serve_overrides(scene, args.set), extra, duration_s=duration) as srv:
             print(f"rehearsal: emulated primary on {srv.pty}", file=sys.stderr, flush=True)
-            return cmd_run(args, channel=srv.channel, interface="slcan", open_wait=0.1)
+            return cmd_run(args, channel=srv.channel, interface="slcan", open_wait=0.1, source="rehearsal:hil")
     except ServeError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_ABORTED
@@ -455,7 +486,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .compare import CompareError, compare
 
     try:
-        table, png = compare(Path(args.rig_dir), Path(args.emu_dir), Path(args.out) if args.out else None)
+        table, png = compare(
+            Path(args.a), Path(args.b), Path(args.out) if args.out else None, (args.source_a, args.source_b)
+        )
     except CompareError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -1,69 +1,128 @@
-"""Overlay a rig (or rehearsal) run and an emulator run of one scene: final angles per cell, emulator as lines, rig as
-markers with the spread over repeats.
+"""Overlay two runs of one scene, rig or emulated: final angles per cell, the second run as lines, the first as
+markers with the spread over its repeats.
 
-Both directories hold a summary.json (`python -m metacell_tools.experiment run|rehearse` and
-`python -m host_emulator run`). Rig markers are the per-cell mean over repeats, error
-bars span min..max of the repeats (a single repeat: no bar). The table gives, per cell,
-both values and rig - emulator, and the pattern period of each run.
+Either path is anything ``host_emulator.load`` opens: an experiment directory (`python -m metacell_tools.experiment
+run|rehearse`), an emulator run directory (`python -m host_emulator run`), a logger capture (NPZ/CSV) or a
+python-can log (ASC, BLF, ...). A directory with a summary.json gives the per-cell mean of its repeats' final
+angles, with min..max over the repeats; a capture gives each cell's last sample. Each run is named by its source
+(rig, rehearsal:<model>, emulator:<model>, or unknown for a file that does not say). The table gives, per cell,
+both values and their difference, and the pattern period of each run.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 
 class CompareError(ValueError):
-    """A directory without a usable summary, or runs that cannot be compared."""
+    """A path without a usable run, or runs that cannot be compared."""
 
 
-def load(d: Path) -> dict:
-    f = Path(d) / "summary.json"
-    try:
-        s = json.loads(f.read_text())
-    except FileNotFoundError:
-        raise CompareError(
-            f"{f}: not found (run `python -m metacell_tools.experiment run` or `python -m host_emulator run` first)"
-        ) from None
-    except json.JSONDecodeError as e:
-        raise CompareError(f"{f}: not valid JSON: {e}") from None
-    for k in ("scene", "final_alpha_rad", "final_beta_rad"):
-        if k not in s:
-            raise CompareError(f"{f}: no {k!r} key (not a run summary)")
-    return s
+@dataclass
+class Run:
+    """The final profile of one run: per-cell mean and min..max over its repeats (alpha and beta, rad)."""
+
+    path: Path
+    source: str
+    scene: str  # "" when the data does not say
+    repeats: int
+    finals: dict  # chain -> (mean, lo, hi), each (N,)
+    pattern_period_cells: float | None
+    oscillation_period_s: float | None
+    what: str  # how the final profile was taken
+
+    @property
+    def cells(self) -> int:
+        return len(self.finals["alpha"][0])
 
 
 def _arr(v) -> np.ndarray:
     return np.array([np.nan if x is None else float(x) for x in v], dtype=float)
 
 
-def finals(s: dict, chain: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(mean, low, high) per cell; low/high = min/max over repeats (= mean for one repeat or a simulation)."""
-    m = _arr(s[f"final_{chain}_rad"])
-    lo = _arr(s.get(f"final_{chain}_min_rad", s[f"final_{chain}_rad"]))
-    hi = _arr(s.get(f"final_{chain}_max_rad", s[f"final_{chain}_rad"]))
-    return m, lo, hi
+def _from_summary(d: Path, s: dict, source: str | None) -> Run:
+    from host_emulator.workbench.datasets import _summary_source
+
+    for k in ("scene", "final_alpha_rad", "final_beta_rad"):
+        if k not in s:
+            raise CompareError(f"{d / 'summary.json'}: no {k!r} key (not a run summary)")
+    finals = {}
+    for chain in ("alpha", "beta"):
+        m = _arr(s[f"final_{chain}_rad"])
+        finals[chain] = (
+            m,
+            _arr(s.get(f"final_{chain}_min_rad", s[f"final_{chain}_rad"])),
+            _arr(s.get(f"final_{chain}_max_rad", s[f"final_{chain}_rad"])),
+        )
+    reps = int(s.get("repeats", 1))
+    return Run(
+        d,
+        source or _summary_source(s),
+        str(s["scene"]),
+        reps,
+        finals,
+        s.get("pattern_period_cells"),
+        s.get("oscillation_period_s"),
+        f"mean of {reps} repeat(s), bars min..max" if reps > 1 else "final sample",
+    )
 
 
-def table(rig: dict, emu: dict) -> str:
-    ra, ra_lo, ra_hi = finals(rig, "alpha")
-    rb = finals(rig, "beta")[0]
-    ea, eb = finals(emu, "alpha")[0], finals(emu, "beta")[0]
+def open_run(path: Path, source: str | None = None) -> Run:
+    """The final profile of whatever host_emulator.load opens at path."""
+    from host_emulator.analysis.observables import spatial_period
+    from host_emulator.workbench.datasets import LoadError, final_profile, load
+
+    path = Path(path)
+    f = path / "summary.json"
+    if path.is_dir() and f.exists():
+        try:
+            return _from_summary(path, json.loads(f.read_text()), source)
+        except json.JSONDecodeError as e:
+            raise CompareError(f"{f}: not valid JSON: {e}") from None
+    if not path.exists() and not any(path.with_suffix(x).exists() for x in (".npz", ".csv")):
+        raise CompareError(
+            f"{path}: not found (run `python -m metacell_tools.experiment run` or `python -m host_emulator run` first)"
+        )
+    try:
+        ds = load(path, source=source)
+    except (LoadError, OSError) as e:
+        raise CompareError(str(e)) from None
+    finals = {c: (final_profile(ds, c),) * 3 for c in ("alpha", "beta")}
+    a = finals["alpha"][0]
+    period = spatial_period(a) if np.isfinite(a).all() and np.ptp(a) > 0.03 else None
+    return Run(
+        path,
+        str(ds.attrs.get("source", "unknown")),
+        str(ds.attrs.get("scene", "")),
+        1,
+        finals,
+        period,
+        None,
+        "each cell's last sample",
+    )
+
+
+def table(a: Run, b: Run) -> str:
+    ra, ra_lo, ra_hi = a.finals["alpha"]
+    rb = a.finals["beta"][0]
+    ea, eb = b.finals["alpha"][0], b.finals["beta"][0]
+    scene = a.scene or b.scene or "unknown scene"
     lines = [
-        f"scene {rig['scene']}: rig/rehearsal ({rig.get('model')}, {rig.get('repeats', 1)} repeat(s)) "
-        f"vs emulator ({emu.get('model')})",
-        " cell  alpha_rig  (min..max)        alpha_emu  d_alpha  |  beta_rig  beta_emu  d_beta",
+        f"scene {scene}: A = {a.source} ({a.what}, {a.path}) vs B = {b.source} ({b.what}, {b.path})",
+        " cell   alpha_A  (min..max)           alpha_B  A-B      |   beta_A    beta_B   A-B",
     ]
+
+    def f(v, w=8):
+        return f"{'n/a':>{w}}" if not math.isfinite(v) else f"{v:+{w}.3f}"
+
     for j in range(len(ra)):
-
-        def f(v, w=8):
-            return f"{'n/a':>{w}}" if not math.isfinite(v) else f"{v:+{w}.3f}"
-
         lines.append(
-            f" {j + 1:4d}  {f(ra[j], 9)}  ({f(ra_lo[j], 6)}..{f(ra_hi[j], 6)})  {f(ea[j], 9)}  "
+            f" {j + 1:4d}  {f(ra[j], 8)}  ({f(ra_lo[j], 7)}..{f(ra_hi[j], 7)})  {f(ea[j], 8)}  "
             f"{f(ra[j] - ea[j])}  |  {f(rb[j])}  {f(eb[j])}  {f(rb[j] - eb[j])}"
         )
     da, db = ra - ea, rb - eb
@@ -74,61 +133,64 @@ def table(rig: dict, emu: dict) -> str:
 
     lines.append(f" rms difference: alpha {rms(da):.3f} rad, beta {rms(db):.3f} rad over {int(ok.sum())} cell(s)")
 
-    def p(s, k, unit):
-        v = s.get(k)
+    def p(v, unit):
         return "none" if v is None else f"{v:.3g} {unit}"
 
     lines.append(
-        f" pattern period: rig {p(rig, 'pattern_period_cells', 'cells')}, emulator "
-        f"{p(emu, 'pattern_period_cells', 'cells')}; oscillation period: rig "
-        f"{p(rig, 'oscillation_period_s', 's')}, emulator {p(emu, 'oscillation_period_s', 's')}"
+        f" pattern period: A {p(a.pattern_period_cells, 'cells')}, B {p(b.pattern_period_cells, 'cells')}; "
+        f"oscillation period: A {p(a.oscillation_period_s, 's')}, B {p(b.oscillation_period_s, 's')}"
     )
+    lines.append(" (A: markers; B: lines. Angles in rad; n/a: a cell without data.)")
     return "\n".join(lines)
 
 
-def plot(rig: dict, emu: dict, path: Path) -> Path:
+def plot(a: Run, b: Run, path: Path) -> Path:
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     fig = Figure(figsize=(7.5, 6), constrained_layout=True)
     axes = fig.subplots(2, 1, sharex=True)
     for ax, chain, colour in ((axes[0], "alpha", "C0"), (axes[1], "beta", "C1")):
-        em = finals(emu, chain)[0]
-        m, lo, hi = finals(rig, chain)
+        em = b.finals[chain][0]
+        m, lo, hi = a.finals[chain]
         j = np.arange(1, len(m) + 1)
-        ax.plot(np.arange(1, len(em) + 1), em, "-", color=colour, lw=1.5, label=f"emulator ({emu.get('model')})")
+        ax.plot(np.arange(1, len(em) + 1), em, "-", color=colour, lw=1.5, label=f"B: {b.source}, {b.what}")
         # min <= mean <= max up to rounding of the mean: clip the last-bit negatives matplotlib refuses
         yerr = np.clip(np.vstack([np.where(np.isfinite(lo), m - lo, 0), np.where(np.isfinite(hi), hi - m, 0)]), 0, None)
         ax.errorbar(
             j,
             m,
-            yerr=yerr,
+            yerr=yerr if a.repeats > 1 else None,
             fmt="o",
             color="k",
             mfc="white",
             ms=6,
             capsize=3,
-            label=f"{'rig' if rig.get('model') == 'rig' else rig.get('model')}: mean, min..max over "
-            f"{rig.get('repeats', 1)} repeat(s)",
+            label=f"A: {a.source}, {a.what}",
         )
         ax.axhline(0, color="0.6", lw=0.8)
-        ax.set_ylabel(f"{chain} at steady state (rad)")
+        ax.set_ylabel(f"{chain} at the end (rad)")
         ax.legend(fontsize=8)
     axes[1].set_xlabel("cell j")
-    axes[1].set_xticks(np.arange(1, len(finals(rig, "alpha")[0]) + 1))
+    axes[1].xaxis.set_major_locator(MaxNLocator(integer=True))
+    axes[1].set_xticks(np.arange(1, a.cells + 1))
     axes[0].set_title(
-        f"{rig['scene']}: rig vs emulator (pattern period {rig.get('pattern_period_cells') or 0:.3g} vs "
-        f"{emu.get('pattern_period_cells') or 0:.3g} cells)"
+        f"{a.scene or b.scene or 'unknown scene'}: {a.source} (A) vs {b.source} (B)\n"
+        f"pattern period {a.pattern_period_cells or 0:.3g} vs {b.pattern_period_cells or 0:.3g} cells",
+        fontsize=10,
     )
     fig.savefig(path, dpi=110)
     return path
 
 
-def compare(rig_dir: Path, emu_dir: Path, out: Path | None = None) -> tuple[str, Path]:
-    rig, emu = load(rig_dir), load(emu_dir)
-    if rig["scene"] != emu["scene"]:
-        raise CompareError(f"different scenes: {rig_dir} ran {rig['scene']!r}, {emu_dir} ran {emu['scene']!r}")
-    if len(rig["final_alpha_rad"]) != len(emu["final_alpha_rad"]):
-        raise CompareError(f"different cell counts: {len(rig['final_alpha_rad'])} vs {len(emu['final_alpha_rad'])}")
-    out = Path(out) if out else Path(rig_dir) / "compare.png"
+def compare(
+    a_path: Path, b_path: Path, out: Path | None = None, sources: tuple[str | None, str | None] = (None, None)
+) -> tuple[str, Path]:
+    a, b = open_run(a_path, sources[0]), open_run(b_path, sources[1])
+    if a.scene and b.scene and a.scene != b.scene:
+        raise CompareError(f"different scenes: {a_path} ran {a.scene!r}, {b_path} ran {b.scene!r}")
+    if a.cells != b.cells:
+        raise CompareError(f"different cell counts: {a.cells} vs {b.cells}")
+    out = Path(out) if out else (Path(a_path) if Path(a_path).is_dir() else Path(a_path).parent) / "compare.png"
     out.parent.mkdir(parents=True, exist_ok=True)
-    return table(rig, emu), plot(rig, emu, out)
+    return table(a, b), plot(a, b, out)

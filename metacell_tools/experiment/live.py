@@ -10,16 +10,17 @@ from .runner import series, tail_arrays
 
 
 class RigLive:
-    """Feeds a host_emulator.trackers.PlotTracker with the samples of the current repeat.
+    """Feeds a host_emulator.workbench.trackers.PlotTracker with the samples of the current repeat.
 
     The runner calls `begin` when a repeat's drive is enabled and `poll` in its receive loop; `poll` does
     nothing until `interval_s` of primary clock has passed since the last feed, then hands the tracker every
     new row (time series as in the summary: t from the enable, missing samples held, absent cells 0)."""
 
-    def __init__(self, tracker, n_cells: int, title: str = ""):
+    def __init__(self, tracker, n_cells: int, title: str = "", source: str = "rig"):
         self.tracker = tracker
         self.n = int(n_cells)
         self.title = title
+        self.source = source  # "rig" or "rehearsal:<model>": what the title says the data is
         self.last_t = -math.inf
         self.rows_fed = 0
 
@@ -28,7 +29,7 @@ class RigLive:
         return self.tracker.interval_s
 
     def begin(self, repeat: int, t_end_s: float) -> None:
-        self.tracker.title = f"{self.title} rig, repeat {repeat}".strip()
+        self.tracker.title = f"{self.title} ({self.source}), repeat {repeat}".strip()
         self.tracker.setup(self.n, t_end_s)
         self.last_t = -math.inf
 

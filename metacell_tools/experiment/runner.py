@@ -94,14 +94,17 @@ class Experiment:
         report=None,
         hook=None,
         live=None,
+        source: str = "rig",
     ):
 
         self.bus, self.plan, self.out = bus, plan, Path(out)
+        self.source = source  # "rig", or "rehearsal:<model>" against the emulator: names files, summary and plots
         self.opts = opts or Options()
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.hook = hook or (lambda event, **kw: None)  # test and instrumentation point: hook(event, ...)
         self.out.mkdir(parents=True, exist_ok=True)
-        self.log_files = [self.out / f"rig.{f}" for f in self.opts.formats]
+        stem = "rig" if source == "rig" else source.split(":")[0]  # rig.asc, or rehearsal.asc: never a rehearsal as rig
+        self.log_files = [self.out / f"{stem}.{f}" for f in self.opts.formats]
         self.writers = [can.Logger(str(p)) for p in self.log_files]
         self.client = RigClient(bus, self.opts.cmd_timeout_s, on_message=self._take)
         self.idle = SampleDecoder(report=lambda text: None)  # frames outside a repeat (rest checks)
@@ -414,8 +417,16 @@ class Experiment:
         if driving:  # we switched these on and cannot switch them off: stop everything
             raise CommandFailed(f"{phase}: drive off not confirmed by cell(s) {cells_text(driving)} that were enabled")
         self.decoder = self.idle
-        rep.decoder.save(self.out / f"repeat_{index:02d}")
+        rep.decoder.save(self.out / f"repeat_{index:02d}", self._npz_attrs(rep))
         return rep
+
+    def _npz_attrs(self, rep: Repeat) -> dict:
+        return {
+            "source": self.source,
+            "repeat": rep.index,
+            "capture": "experiment repeat (setup, run and drive-off)",
+            "t_enable_primary_s": rep.t0,
+        }
 
     def run(self) -> None:
         self.read_identity()
@@ -441,7 +452,7 @@ class Experiment:
             if rep.t0 is not None and rep.t_stop is None:
                 rep.t_stop = t_stop = rep.decoder.t_s  # the decoder has a time base since t0
                 rep.stopped = f"aborted at t = {t_stop - rep.t0:.2f} s"
-                rep.decoder.save(self.out / f"repeat_{rep.index:02d}")
+                rep.decoder.save(self.out / f"repeat_{rep.index:02d}", self._npz_attrs(rep))
         for w in self.writers:
             w.stop()
         return left

@@ -1,4 +1,5 @@
-"""summary.json of a rig run: the keys of `python -m host_emulator run` (model = "rig") plus repeats, spread,
+"""summary.json of a rig run or a rehearsal: the keys of `python -m host_emulator run` (source = "rig" and
+model = "rig" on the rig; source = "rehearsal:hil" and model = "hil" against the emulator) plus repeats, spread,
 every problem seen and the cells' identity.
 
 Top-level observables over N repeats: final_alpha_rad / final_beta_rad are the per-cell mean
@@ -18,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from host_emulator.analysis.observables import observables, spatial_period
-from host_emulator.cli import summarize
+from host_emulator.analysis.summary import summarize
 from host_emulator.controller import RunResult
 from host_emulator.scene import Scene
 
@@ -63,6 +64,7 @@ def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
         "perturbations": rep.perturbations,
         "rest_before_zero_counts": rep.rest_counts,
         "enabled_cells": rep.enabled_cells,
+        "t_enable_s": rep.t0,  # the primary's clock at the drive enable: time 0 of the repeat's series
     }
     per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0) if arr["alpha_counts"].size else np.zeros(n_cells, int)
     gaps = arr["gaps"]
@@ -112,9 +114,13 @@ def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
 
 
 def build(
-    exp: Experiment, scene: Scene, wall_s: float, error: str | None
+    exp: Experiment, scene: Scene, wall_s: float, error: str | None, source: str = "rig"
 ) -> tuple[dict, tuple[Scene, RunResult] | None]:
-    """(summary dict, (scene, RunResult) of the first repeat with data, for the plots, or None)."""
+    """(summary dict, (scene, RunResult) of the first repeat with data, for the plots, or None).
+
+    source: "rig" (model "rig") or "rehearsal:<model>" (model: the emulated one). The linear theory is the hil
+    model's (the lattice, its motors and their back-EMF), whatever model the scene names: the rig has motors."""
+    scene = dataclasses.replace(scene, model="hil")
     n = len(exp.plan.cells)
     recs, first = [], None
     for rep in exp.repeats:
@@ -124,8 +130,8 @@ def build(
             first = (rep, s)
     if first is not None:
         rep, s = first
-        res = RunResult(s.t, s.alpha, s.beta, wall_s, {"source": "rig", "repeat": rep.index})
-        base = summarize(scene, res)
+        res = RunResult(s.t, s.alpha, s.beta, wall_s, {"source": source, "repeat": rep.index})
+        base = summarize(scene, res, source=source)
     else:
         res = None
         base = {
@@ -164,7 +170,8 @@ def build(
     out = dict(base)
     out.update(
         {
-            "model": "rig",
+            "model": "rig" if source == "rig" else source.split(":", 1)[-1],
+            "source": source,
             "t_end_s": max((r["t_end_s"] for r in done), default=0.0),
             "wall_s": wall_s,
             "realtime_factor": total_t / wall_s if wall_s > 0 else 0.0,

@@ -1,4 +1,4 @@
-"""Command line: `python -m metacell_tools.fwcheck report|size|vectors|ticks|golden-header|lint --elf X`.
+"""Command line: `python -m metacell_tools.fwcheck report|size|vectors|ticks|golden-header|lint|irq|cpu-budget`.
 
 report         soft-float check, division check, code size, QEMU bit-exact count, instructions/tick
 size           code size of the cross-compiled library
@@ -8,6 +8,7 @@ profile [-v]   where the instructions of one enabled tick go (per function; -v: 
 golden-header  regenerate test/test_native_vectors/golden_vectors.h from the host build
 lint --elf F   soft-float/division helpers reachable from the control path of a linked image
 cpu-budget     worst-case cycles of the cell's interrupts (tick, encoder edges) in its linked image
+irq --elf F    interrupt map of a linked image: vector table, fault entry and record, the cell's priorities
 """
 
 from __future__ import annotations
@@ -131,10 +132,27 @@ def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
     return 0 if rep.ok else 1
 
 
+def _irq(elf: str | None, role: str) -> int:
+    from pathlib import Path
+
+    from . import irqmap
+
+    if not elf or not Path(elf).is_file():
+        print(f"fwcheck irq: --elf must name a linked image (got {elf!r})", file=sys.stderr)
+        return 2
+    try:
+        rep = irqmap.check(Path(elf), role)
+    except irqmap.ImageError as e:
+        print(f"fwcheck irq: {e}", file=sys.stderr)
+        return 2
+    print(irqmap.format_report(rep, elf))
+    return 0 if rep.ok else 1
+
+
 def _cpu_budget(elf: str | None, limit: float) -> int:
     from pathlib import Path
 
-    from . import cpubudget
+    from . import cpubudget, irqmap
 
     path = Path(elf) if elf else cpubudget.DEFAULT_ELF
     if not path.is_file():
@@ -145,16 +163,18 @@ def _cpu_budget(elf: str | None, limit: float) -> int:
         return 2
     try:
         image = cpubudget.parse_disassembly(cpubudget.disassemble(path))
-        b = cpubudget.cell_budget(image)
+        b = cpubudget.cell_budget(image, priorities=irqmap.effective_priorities(path))
         core = cpubudget.cell_budget(image, cpubudget.CORE_ONLY)
-    except (cpubudget.AnalysisError, cpubudget.UnsupportedInsn) as e:
+    except (cpubudget.AnalysisError, cpubudget.UnsupportedInsn, irqmap.ImageError) as e:
         print(f"fwcheck cpu-budget: {e}", file=sys.stderr)
         return 2
     print(cpubudget.format_budget(b, str(path)))
     print(f"  (core timings only, zero-wait memory: total {core.total:.1%})")
     ok = b.total <= limit
     print(f"  limit {limit:.0%}: " + ("within" if ok else "OVER"))
-    return 0 if ok else 1
+    responses_ok = all(r.ok for r in b.responses)
+    print("  responses: " + ("within their deadlines" if responses_ok else "OVER"))
+    return 0 if ok and responses_ok else 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -167,19 +187,20 @@ def main(argv: list[str] | None = None) -> int:
         "  python -m metacell_tools.fwcheck ticks --cflags -O2         # instructions per tick at another -O\n"
         "  python -m metacell_tools.fwcheck profile -v\n"
         "  python -m metacell_tools.fwcheck lint --elf .pio/build/cell/firmware.elf --role cell\n"
-        "  python -m metacell_tools.fwcheck cpu-budget --elf .pio/build/cell/firmware.elf",
+        "  python -m metacell_tools.fwcheck cpu-budget --elf .pio/build/cell/firmware.elf\n"
+        "  python -m metacell_tools.fwcheck irq --elf .pio/build/primary/firmware.elf --role primary",
     )
     ap.add_argument(
         "command",
         nargs="?",
         default="report",
-        choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile", "cpu-budget"],
+        choices=["report", "size", "vectors", "ticks", "golden-header", "lint", "profile", "cpu-budget", "irq"],
         help="what to check (default report; each is described above)",
     )
     ap.add_argument("--lib-src", help="ticks/profile/size: measure a variant copy of lib/metacell/src")
     ap.add_argument("--cflags", help="ticks/profile/size: optimisation flags instead of -Os")
     ap.add_argument("-v", "--verbose", action="store_true", help="profile: print the trace")
-    ap.add_argument("--elf", help="lint: linked image to check; cpu-budget: cell image (default .pio/build/cell)")
+    ap.add_argument("--elf", help="lint, irq: linked image to check; cpu-budget: cell image (default .pio/build/cell)")
     ap.add_argument(
         "--limit",
         type=float,
@@ -191,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
         "--role",
         choices=("cell", "primary"),
         default="cell",
-        help="lint: which image's entry points to check (cell: the control path; primary: poll and SLCAN)",
+        help="lint, irq: which image (lint: cell = the control path, primary = poll and SLCAN; irq: its handlers)",
     )
     ap.add_argument(
         "--seed",
@@ -210,6 +231,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if a.command == "lint":
             return _lint(a.elf, a.root or [], a.role)
+        if a.command == "irq":
+            return _irq(a.elf, a.role)
         if a.command == "cpu-budget":
             from .cpubudget import BUDGET_LIMIT
 

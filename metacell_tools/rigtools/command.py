@@ -30,6 +30,17 @@ PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_s
 CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
 
 
+def number(text: str) -> float:
+    """A number, or a fraction such as 9/125: the syntax of the emulator's --set and scene overrides (ranges, and
+    inf / nan, are refused by `build` with a one-line error)."""
+    from fractions import Fraction
+
+    try:
+        return float(Fraction(text.strip())) if "/" in text else float(text)
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"expected a number or a fraction such as 9/125, got {text!r}") from None
+
+
 def physical_to_wire(name: str, value: float) -> int:
     """SI value (N*m/rad, rad for alpha_star) -> integer register value (protocol.codec: uN*m/rad, urad),
     ValueError if the register cannot carry it (the cell answers RANGE for what it does not accept)."""
@@ -160,16 +171,22 @@ def parser():
             epilog=f"example:\n  {pre} {example}",
         )
 
-    s = add("set", "set a reaction parameter (SI units: N*m/rad; alpha_star in rad)", "set 1-16 sigma 0.072")
+    s = add("set", "set a reaction parameter (SI units: N*m/rad; alpha_star in rad)", "set 1-16 sigma 9/125")
     s.add_argument("cells", type=_cells, help=cells_help)
     s.add_argument(
         "name", choices=sorted(PARAM_REGS), metavar="NAME", help="parameter: " + ", ".join(sorted(PARAM_REGS))
     )
-    s.add_argument("value", type=float, help="value in SI units (N*m/rad; alpha_star and astar in rad)")
+    s.add_argument(
+        "value",
+        type=number,
+        help="value in SI units (N*m/rad; alpha_star and astar in rad): a number or a fraction such as 9/125",
+    )
     p = add("perturb", "perturbing torque on one chain for a while", "perturb 8 --torque 0.02 --duration 0.1")
     p.add_argument("cells", type=_cells, help=cells_help)
     p.add_argument("--chain", choices=("alpha", "beta"), default="alpha", help="chain pushed (default alpha)")
-    p.add_argument("--torque", type=float, required=True, help=f"N*m, |torque| <= {codec.PERTURB_MAX_NM:g}")
+    p.add_argument(
+        "--torque", type=number, required=True, help=f"N*m (a fraction allowed), |torque| <= {codec.PERTURB_MAX_NM:g}"
+    )
     p.add_argument("--duration", type=float, required=True, help="seconds (at the 2 kHz control tick)")
     for name in ("enable", "bemf"):
         what = "drive enable" if name == "enable" else "back-EMF compensation"

@@ -334,17 +334,30 @@ class SampleDecoder:
         self.finish()
         return rows_to_arrays(np.array(self.rows, dtype=np.float64).reshape(-1, 8), self.n, self.gaps)
 
-    def save(self, prefix: Path) -> list[Path]:
+    def save(self, prefix: Path, attrs: dict | None = None) -> list[Path]:
+        """<prefix>.npz in the one run layout (host_emulator.workbench.datasets; attrs: source, ...), <prefix>.csv."""
         prefix = Path(prefix)
         prefix.parent.mkdir(parents=True, exist_ok=True)
         arr = self.arrays()
-        npz = prefix.with_suffix(".npz")
-        np.savez_compressed(npz, **arr)
+        npz = write_capture(prefix.with_suffix(".npz"), arr, attrs or {})
         csv = prefix.with_suffix(".csv")
         with open(csv, "w") as f:
             f.write(CSV_HEADER)
             f.write(format_rows(self.rows))
         return [npz, csv]
+
+
+def write_capture(path: Path, arr: dict, attrs: dict) -> Path:
+    """Cycle x cell arrays (rows_to_arrays) as an NPZ in the one run layout of host_emulator.workbench.datasets:
+    time from the first sample, alpha/beta in rad (NaN: no sample), flags, counts, each cell's primary clock, host
+    time, cycles, segments, gaps; attrs (source, capture, channel, ...) with units and provenance. he.load reads it."""
+    from host_emulator.provenance import provenance
+    from host_emulator.workbench.datasets import logger_layout, write_npz
+
+    lay = logger_layout(arr)
+    meta = {"source": "unknown", **attrs, "t_origin_s": lay.pop("t_origin_s")}
+    meta.update({f"provenance.{k}": v for k, v in provenance().items()})
+    return write_npz(path, lay, meta)
 
 
 def format_rows(rows: Iterable[tuple]) -> str:
@@ -467,8 +480,10 @@ class RigLogger:
         open_bus: Callable[[], can.BusABC] | None = None,
         first_frame_s: float = 30.0,
         wait_open_s: float = 0.0,
+        source: str | None = None,
     ) -> None:
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
+        self.source = source or channel_source(interface, channel)  # written into the NPZ: rig, emulator or unknown
         self.prefix = Path(prefix)
         self.formats = [f.strip().lstrip(".") for f in formats if f.strip()]
         self.reconnect_s, self.give_up_s = reconnect_s, give_up_s
@@ -642,9 +657,32 @@ class RigLogger:
                     truncate_to_last_line(p)
         try:
             self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n, self.decoder.gaps)
-            np.savez_compressed(self.prefix.with_suffix(".npz"), **self.arrays)
+            write_capture(
+                self.prefix.with_suffix(".npz"),
+                self.arrays,
+                {"source": self.source, "capture": "rigtools logger", "channel": f"{self.interface}:{self.channel}"},
+            )
         except OSError as e:
             self.error = self.error or f"write failed: {e.strerror or e}"
+
+
+def channel_source(interface: str, channel: str) -> str:
+    """What is on the other end of a channel, as far as the channel tells: a pseudo-terminal is the emulator's
+    primary (`python -m host_emulator serve`, which runs the hil model: no rig offers a pty), a USB serial
+    device (ttyACM, ttyUSB, cu.usbmodem, COMn) is the rig's primary; anything else is unknown."""
+    if interface != "slcan":
+        return "unknown"
+    dev = channel.split("@", 1)[0]
+    try:
+        real = os.path.realpath(dev)
+    except (OSError, ValueError):
+        return "unknown"
+    if real.startswith("/dev/pts/") or real.startswith("/dev/ttys"):
+        return "emulator:hil"
+    name = os.path.basename(real)
+    if name.startswith(("ttyACM", "ttyUSB", "cu.usbmodem", "tty.usbmodem")) or name.upper().startswith("COM"):
+        return "rig"
+    return "unknown"
 
 
 def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
@@ -691,6 +729,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--wait-open", type=float, default=0.0, help="keep trying to open the port this many s at start")
     ap.add_argument("--first-frame", type=float, default=30.0, help="fail if no frame arrives in this many s")
     ap.add_argument(
+        "--source",
+        default=None,
+        metavar="LABEL",
+        help="what sends the frames, written into the NPZ: rig, emulator:hil, rehearsal:hil or unknown (default: "
+        "from the channel: a pty is the emulator's serve, a USB serial device the rig, else unknown)",
+    )
+    ap.add_argument(
         "--do",
         action="append",
         default=[],
@@ -714,6 +759,10 @@ def main(argv: list[str] | None = None) -> int:
     known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
     if not formats or any(f not in known for f in formats):
         return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
+    if args.source is not None and not (
+        args.source in ("rig", "unknown") or args.source.split(":")[0] in ("emulator", "rehearsal")
+    ):
+        return bad(f"--source {args.source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
     problem = check_out(Path(args.out), formats)
     if problem:
         return bad(problem)
@@ -726,6 +775,7 @@ def main(argv: list[str] | None = None) -> int:
         give_up_s=args.give_up,
         first_frame_s=args.first_frame,
         wait_open_s=args.wait_open,
+        source=args.source,
     )
     from .command import build, parser
 

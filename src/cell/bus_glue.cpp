@@ -3,6 +3,7 @@
 #include <Wire.h>
 #include "bus_glue.h"
 #include "cell_app.h"
+#include "samd21_hw.h"
 extern "C" {
 #include "bus/mc_regs.h"
 }
@@ -29,11 +30,11 @@ static void on_receive(int n)
 {
     uint8_t buf[32];
     int k = 0;
-    while (Wire.available() > 0) {
-        int b = Wire.read();
-        if (k < (int)sizeof(buf))
-            buf[k++] = (uint8_t)b;
-    }
+    /* At most sizeof(buf) bytes: the core clears its receive buffer after this callback, so
+     * the rest needs no draining, and a babbling bus (up to 255 buffered bytes) cannot make
+     * this interrupt, and the clock stretch of the next transaction, any longer. */
+    while (k < (int)sizeof(buf) && Wire.available() > 0)
+        buf[k++] = (uint8_t)Wire.read();
     (void)n;
     /* n == 0 (the core's onReceive(0) after a read) is ignored by the handler;
      * a write longer than buf arrives as 32 bytes and is rejected as LENGTH */
@@ -62,12 +63,14 @@ extern "C" void bus_setup(uint8_t addr)
     cell_app_lock();
     int rc = mc_regs_init(&g_regs, c, addr, MC_BUILD_ID, NULL);
     if (rc == MC_OK)
-        mc_regs_set_boot(&g_regs, cell_app_reset_cause(), cell_app_wdt_ms());
+        mc_regs_set_boot(&g_regs, cell_app_reset_cause(), cell_app_wdt_ms(), cell_app_fault_exc(),
+                         cell_app_fault_pc());
     cell_app_unlock();
     if (rc != MC_OK)
         return;
     g_published = cell_app_ticks() - 1u;
     Wire.begin(addr);
+    hw_i2c_secondary_timing();
     Wire.onReceive(on_receive);
     Wire.onRequest(on_request);
     g_up = 1;

@@ -31,6 +31,9 @@ uint32_t cell_app_ticks(void);
 /* MC_RCAUSE_* bits read at boot, and the watchdog timeout in force (ms, 0 = off). */
 uint8_t cell_app_reset_cause(void);
 uint16_t cell_app_wdt_ms(void);
+/* Exception number and stacked PC of the fault that caused the last reset (0 / 0: none). */
+uint8_t cell_app_fault_exc(void);
+uint32_t cell_app_fault_pc(void);
 
 #ifdef __cplusplus
 }

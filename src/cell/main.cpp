@@ -12,7 +12,8 @@
  *   snapshot both decoders -> mc_cell_tick() -> hw_apply(out[alpha], out[beta])
  * The USB serial port answers the identity request "ID?" (src/common/mc_ident.h)
  * and nothing else; the bus glue (docs/datapath.md) carries every other command.
- * The watchdog (src/common/samd21_sys.h) is fed once per loop pass; the reset cause
+ * The watchdog (src/common/samd21_sys.h) is fed from loop() only when the control tick
+ * has run since the last feed, so it proves the tick, not just the loop; the reset cause
  * read at boot goes out in the BOOT block.
  */
 
@@ -26,6 +27,7 @@ static int g_setup_err = SETUP_OK;
 static mc_ident_rx_t g_rx;
 static uint8_t g_reset_cause;
 static uint16_t g_wdt_ms;
+static uint32_t g_wdt_ticks;   /* g_ticks at the last watchdog feed */
 
 /* TC3 interrupt, MC_CTRL_RATE_HZ times a second. */
 extern "C" void hw_tick_handler(void)
@@ -49,6 +51,12 @@ uint32_t cell_app_ticks(void) { return g_ticks; }
 uint8_t cell_app_reset_cause(void) { return g_reset_cause; }
 uint16_t cell_app_wdt_ms(void) { return g_wdt_ms; }
 
+uint8_t cell_app_fault_exc(void) { return sys_fault_exc(); }
+uint32_t cell_app_fault_pc(void) { return sys_fault_pc(); }
+
+/* The fault handler's first act (src/common/samd21_sys.h): both drivers asleep. */
+extern "C" void sys_safe_outputs(void) { hw_drivers_off(); }
+
 void cell_app_positions(int32_t *pos_a, int32_t *pos_b)
 {
     mc_quad_snap_t a, b;
@@ -66,6 +74,8 @@ void cell_app_zero(void)
     mc_cell_zero(&g_cell, pa, pb);
     cell_app_unlock();
 }
+
+static uint32_t g_rx_pass;   /* USB bytes read in this pass of loop() */
 
 static void answer_identity(void)
 {
@@ -85,7 +95,7 @@ void setup()
 {
     hw_drivers_init();   /* drivers asleep before anything else */
     g_reset_cause = sys_reset_cause();
-    sys_wdt_start();     /* fed by loop() from here on, also after a start-up error */
+    sys_wdt_start();     /* fed by loop() as the tick runs (always after a start-up error) */
     g_wdt_ms = SYS_WDT_MS;
     pinMode(LED_BUILTIN, OUTPUT);
     digitalWrite(LED_BUILTIN, HIGH);   /* XIAO user LED is active low: off */
@@ -117,15 +127,25 @@ void setup()
     }
     if (MC_CELL_INDEX != 0)
         bus_setup(MC_CELL_ADDR);
+    hw_irq_priorities();   /* last: USB below the encoders, the tick and the bus */
 }
 
 void loop()
 {
-    sys_wdt_feed();
+    /* Feed only when the tick has advanced since the last feed: a tick that stopped (TC3
+     * off, its interrupt left masked) then resets the chip like a hung loop, instead of
+     * leaving the drivers at their last duty. After a start-up error the tick never runs
+     * and the drive stays off: fed unconditionally then (the board keeps answering "ID?"). */
+    uint32_t t = g_ticks;
+    if ((t != g_wdt_ticks || g_setup_err != SETUP_OK) && sys_wdt_feed())
+        g_wdt_ticks = t;
     while (Serial.available() > 0) {
         if (mc_ident_rx_feed(&g_rx, (uint8_t)Serial.read()))
             answer_identity();
+        if (++g_rx_pass >= SYS_USB_RX_PER_PASS)
+            break;   /* the rest waits for the next pass: bus service and watchdog first */
     }
+    g_rx_pass = 0;
     if (g_setup_err == SETUP_OK)
         bus_service();
     /* LED: fast blink = start-up error (drive never enabled), on = latched fault. */

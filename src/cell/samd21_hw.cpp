@@ -114,6 +114,13 @@ void hw_apply(const mc_drive_out_t *a, const mc_drive_out_t *b)
     }
 }
 
+void hw_drivers_off(void)
+{
+    /* nSLEEP low: both drivers' outputs high-impedance at once, whatever TCC0 still drives */
+    PORT_IOBUS->Group[PA].OUTCLR.reg = NSLEEP_MASK | DIR_A_MASK;
+    PORT_IOBUS->Group[PB].OUTCLR.reg = DIR_B_MASK;
+}
+
 /* ---- encoders -------------------------------------------------------------- */
 
 static mc_quad_t *s_quad[2];
@@ -166,12 +173,21 @@ void hw_encoders_init(mc_quad_t *alpha, mc_quad_t *beta)
     delayMicroseconds(20);   /* let the pull-ups settle before the first sample */
     s_quad[MC_ALPHA] = alpha;
     s_quad[MC_BETA] = beta;
-    mc_quad_init(alpha, read_alpha());
-    mc_quad_init(beta, read_beta());
+    /*
+     * Attach first, sample after, all with interrupts off. Once a pin is on the EIC every
+     * edge latches its flag: an edge after the sample runs the handler when interrupts come
+     * back (it samples again; the same state twice counts 0), an edge before it is in the
+     * sample. Sampling first lost an edge that came before its pin was attached: the decoder
+     * started from a stale state and the next edge looked illegal.
+     */
+    noInterrupts();
     attach_encoder_pin(CELL_PIN_ENC_A_A, hw_isr_encoder_alpha);
     attach_encoder_pin(CELL_PIN_ENC_A_B, hw_isr_encoder_alpha);
     attach_encoder_pin(CELL_PIN_ENC_B_A, hw_isr_encoder_beta);
     attach_encoder_pin(CELL_PIN_ENC_B_B, hw_isr_encoder_beta);
+    mc_quad_init(alpha, read_alpha());
+    mc_quad_init(beta, read_beta());
+    interrupts();
 }
 
 /* ---- control tick (TC3) ------------------------------------------------------ */
@@ -236,6 +252,37 @@ uint32_t hw_tick_start(uint32_t rate_hz)
     return period;
 }
 
+/* ---- interrupt priorities ----------------------------------------------------- */
+
+/*
+ * NVIC priorities of the cell, 0 = most urgent (the Cortex-M0+ has four levels, and an
+ * interrupt cannot pre-empt one of equal priority). The core leaves USB at 0 (USBCore.cpp
+ * init) beside the EIC (WInterrupts.c), and its USB handler busy-waits on the host during
+ * control transfers (sendControl/recvControl -> armRecvCtrlOUT), e.g. when the flash tool
+ * opens the port. At full speed encoder edges are 27-54 us apart: an edge held off that long
+ * lets both channels change before the handler samples them, an illegal transition to the
+ * decoder, a count slip of 2 and, in a burst, a latched MC_FAULT_ENCODER. So:
+ *   EIC 0      encoder edges pre-empt everything that can wait
+ *   TC3 1      the control tick (34 us worst case, every 500 us)
+ *   SERCOM2 2  the I2C secondary: it stretches SCL until its handler has run, so it stays
+ *              above USB (the core's Wire.begin sets it to 3)
+ *   USB 3      host traffic waits; its deadlines are milliseconds
+ * SysTick stays at the core's 2 (millis/micros). fwcheck reads this table from the linked
+ * image (docs/hardware.md, "Interrupt priorities").
+ */
+extern "C" const uint8_t hw_irq_priority[HW_IRQ_PRIORITIES][2] = {
+    {EIC_IRQn, 0},
+    {TC3_IRQn, 1},
+    {SERCOM2_IRQn, 2},
+    {USB_IRQn, 3},
+};
+
+void hw_irq_priorities(void)
+{
+    for (unsigned i = 0; i < HW_IRQ_PRIORITIES; i++)
+        NVIC_SetPriority((IRQn_Type)hw_irq_priority[i][0], hw_irq_priority[i][1]);
+}
+
 void hw_tick_mask(void) { NVIC_DisableIRQ(TC3_IRQn); }
 void hw_tick_unmask(void) { NVIC_EnableIRQ(TC3_IRQn); }
 
@@ -246,4 +293,19 @@ int hw_nfault_active(void)
 #else
     return 0;
 #endif
+}
+
+/* ---- I2C secondary -------------------------------------------------------------- */
+
+void hw_i2c_secondary_timing(void)
+{
+    /* SDA hold 300-600 ns after SCL falls, as on the primary (docs/hardware.md, "Bus timing");
+     * the core's Wire.begin(addr) leaves 0. CTRLA is enable-protected: disable, set, enable. */
+    SERCOM2->I2CS.CTRLA.bit.ENABLE = 0;
+    while (SERCOM2->I2CS.SYNCBUSY.bit.ENABLE) {
+    }
+    SERCOM2->I2CS.CTRLA.bit.SDAHOLD = 2;
+    SERCOM2->I2CS.CTRLA.bit.ENABLE = 1;
+    while (SERCOM2->I2CS.SYNCBUSY.bit.ENABLE) {
+    }
 }

@@ -15,8 +15,9 @@ extern "C" {
  *   mc_primary_next -> one guarded Wire transaction (primary_hw.cpp) -> mc_primary_complete
  *   mc_link_tx -> USB out (whole lines, one USB packet per write, see usb_out)
  *   USB DTR edge (the laptop opened or closed the port) -> mc_link_session
- * The watchdog (src/common/samd21_sys.h) is fed once per loop pass; the reset cause
- * read at boot, the bus recoveries and the USB bytes lost go out in PRIMARY_HEALTH.
+ * The watchdog (src/common/samd21_sys.h) is fed when the poll schedule has moved since the
+ * last feed (mc_primary_progress); the reset cause read at boot, the bus recoveries and the
+ * USB bytes lost go out in PRIMARY_HEALTH.
  * "ID?" lines are answered with the identity line (metacell_tools/flash); the SLCAN parser
  * also sees them and counts them as malformed, but its BEL reply is suppressed.
  */
@@ -28,8 +29,10 @@ extern "C" {
 #endif
 #if MC_I2C_HZ == 400000
 #define MC_TXN_TIMEOUT_US 1500
+#elif MC_I2C_HZ == 100000
+#define MC_TXN_TIMEOUT_US 5000   /* the fallback for a bus too slow for Fast-mode (docs/hardware.md) */
 #else
-#define MC_TXN_TIMEOUT_US 5000
+#error "MC_I2C_HZ must be 400000 or 100000 (the two SCL timings primary_hw.cpp sets)"
 #endif
 
 /* One write = at most one USB full-speed bulk packet: the core sends it whole or not at all. */
@@ -40,6 +43,10 @@ static mc_ident_rx_t g_rx;
 static char g_line_first;    /* first byte of the USB line being received */
 static bool g_dtr;           /* last seen USB DTR (host has the port open) */
 static uint32_t g_resets;    /* bus recoveries already reported to the library */
+static uint32_t g_wdt_progress;   /* mc_primary_progress at the last watchdog feed */
+
+/* The fault handler's first act (src/common/samd21_sys.h): the primary drives nothing that moves. */
+extern "C" void sys_safe_outputs(void) {}
 
 void setup()
 {
@@ -59,23 +66,25 @@ void setup()
  * Serial.availableForWrite() is a constant on this core (63), so it cannot pace the
  * output. Serial.write() blocks up to 70 ms when the host stops reading, then gives
  * up (returning 0, or (size_t)-1 from the core's failed send); later writes fail at
- * once until the host reads again. So every write is at most one packet (whole SLCAN
- * lines, all or nothing) and any write that does not report all its bytes counts
- * them as lost (PRIMARY_HEALTH.usb_lost); nothing is dropped silently.
+ * once until the host reads again. On that timeout the core also zeroes the packet
+ * still armed, the previous write, which had reported all its bytes. So every write is
+ * at most one packet (whole SLCAN lines, all or nothing), and the library counts a
+ * failed write's bytes and those of the write before it, not yet known to have left, as
+ * lost (mc_primary_usb_write, PRIMARY_HEALTH.usb_lost); nothing is dropped silently.
  */
 static bool usb_write(const void *buf, uint32_t n)
 {
     size_t w = Serial.write((const uint8_t *)buf, n);
-    if (w == n)
-        return true;
-    mc_primary_usb_lost(&g_link.p, n);
-    return false;
+    mc_primary_usb_write(&g_link.p, n, w == n);
+    return w == n;
 }
 
+/* At most SYS_USB_RX_PER_PASS bytes per pass: a laptop streaming without pause must not starve
+ * the polling and the watchdog feed. */
 static void usb_in(void)
 {
     char out[MC_SLCAN_REPLY_MAX + 1];
-    while (Serial.available() > 0) {
+    for (uint32_t k = 0; k < SYS_USB_RX_PER_PASS && Serial.available() > 0; k++) {
         uint8_t b = (uint8_t)Serial.read();
         if (mc_ident_rx_feed(&g_rx, b)) {
             char line[MC_IDENT_LINE_MAX];
@@ -108,7 +117,6 @@ static void usb_out(void)
 
 void loop()
 {
-    sys_wdt_feed();
     /* a laptop opening or closing the port starts a new link session */
     bool dtr = Serial.dtr();
     if (dtr != g_dtr) {
@@ -126,4 +134,11 @@ void loop()
     for (uint32_t r = primary_hw_bus_resets(); g_resets != r; g_resets++)
         mc_primary_bus_reset(&g_link.p);
     usb_out();
+    /* fed only when polling moved: a schedule stuck on a transaction that never completes, or a
+     * loop that no longer reaches it, resets the board */
+    uint32_t pr = mc_primary_progress(&g_link.p);
+    if (pr != g_wdt_progress) {
+        sys_wdt_feed();   /* a feed skipped while the last one synchronises: the next step feeds */
+        g_wdt_progress = pr;
+    }
 }

@@ -10,10 +10,14 @@
  * only to set up SERCOM2 (clock, pins, baud); each transaction drives the I2CM
  * registers itself, and every wait (MB/SB, SYNCBUSY) ends at the transaction's
  * deadline, txn.timeout_us after its start, or at a bus error / lost arbitration.
- *   - SERCOM2 also runs with its SCL low timeout (LOWTOUTEN: SCL held low 25-35 ms
- *     sets LOWTOUT) and the inactive-bus timeout INACTOUT = 3: 20-21 SCL periods,
- *     ~52 us at 400 kHz (~205 us at 100 kHz), after which a bus left busy by a
- *     missing STOP counts as idle;
+ *   - SERCOM2's own SMBus timeouts stay off. The SCL low timeout (LOWTOUTEN, 25-35 ms)
+ *     counts on GCLK_SERCOMx_SLOW, which nothing here clocks, so it could never fire; and
+ *     the deadline above ends a stuck transaction 17x sooner. The inactive-bus timeout
+ *     (INACTOUT) sets the bus state to idle when SCL stays low for 5-6, 10-11 or 20-21 SCL
+ *     periods (at most ~53 us at 400 kHz), and a cell legitimately stretches SCL longer
+ *     while its tick and encoder interrupts run (up to 482 us with its I2C handler by
+ *     `fwcheck cpu-budget` on a cell image): the master would take the bus for idle in
+ *     the middle of a transaction. A bus left busy is recovered below instead;
  *   - a transaction that fails with a timeout or a bus error ends with a STOP when
  *     the primary owns the bus; a bus still not idle is recovered at once (9 SCL
  *     pulses, open-drain, then a STOP) and the recovery counted (PRIMARY_HEALTH);
@@ -51,14 +55,41 @@ static void deadline(uint32_t us)
     g_limit = us;
 }
 
-static void sercom_timeouts(void)
+/*
+ * SCL timing (docs/hardware.md, "Bus timing"). The core computes BAUD = 48 MHz / (2 f) - 5 - 3
+ * with BAUDLOW = 0: at 400 kHz BAUD 52, an SCL low time of (52 + 5) / 48 MHz = 1.19 us, under
+ * Fast-mode's 1.3 us. Per DS40001882, T_LOW = (BAUDLOW + 5) / f_GCLK, T_HIGH = (BAUD + 5) /
+ * f_GCLK, and the period adds the rise time: f_SCL = f_GCLK / (10 + BAUD + BAUDLOW +
+ * f_GCLK t_r). Here BAUD + BAUDLOW + 10 = 48 MHz / f, so f_SCL <= f for any rise time, and
+ * T_LOW, T_HIGH clear the spec's minimum with the rest:
+ *   400 kHz: BAUDLOW 62 (T_LOW 1.396 us >= 1.3), BAUD 48 (T_HIGH 1.104 us >= 0.6)
+ *   100 kHz: BAUDLOW 226 (4.813 us >= 4.7), BAUD 244 (5.188 us >= 4.0)
+ * Other rates keep the core's value.
+ */
+struct scl_timing {
+    uint32_t hz;
+    uint8_t baud, baudlow;
+};
+static const scl_timing k_scl[] = {{400000, 48, 62}, {100000, 244, 226}};
+/* SDA hold 300-600 ns after SCL falls (the default of Atmel's ASF I2C secondary driver): it
+ * bridges a slow SCL fall on a long bus, where 0 could change SDA while a receiver still
+ * sees SCL high (a false START or STOP). */
+#define SDAHOLD_300_600NS 2u
+
+/* CTRLA and BAUD fields the core's Wire leaves at its defaults, set while SERCOM2 is disabled. */
+static void sercom_setup(void)
 {
     deadline(SYNC_US);
     I2CM.CTRLA.bit.ENABLE = 0;
     while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {
     }
-    I2CM.CTRLA.bit.LOWTOUTEN = 1;   /* SCL low > 25-35 ms: LOWTOUT error */
-    I2CM.CTRLA.bit.INACTOUT = 3;    /* bus idle after 20-21 SCL periods: ~52 us at 400 kHz */
+    I2CM.CTRLA.bit.LOWTOUTEN = 0;   /* no slow clock: it could never fire (see above) */
+    I2CM.CTRLA.bit.INACTOUT = 0;    /* shorter than a cell's clock stretch (see above) */
+    I2CM.CTRLA.bit.SDAHOLD = SDAHOLD_300_600NS;
+    for (unsigned i = 0; i < sizeof(k_scl) / sizeof(k_scl[0]); i++)
+        if (k_scl[i].hz == g_hz)
+            I2CM.BAUD.reg = SERCOM_I2CM_BAUD_BAUD(k_scl[i].baud) |
+                            SERCOM_I2CM_BAUD_BAUDLOW(k_scl[i].baudlow);
     I2CM.CTRLA.bit.ENABLE = 1;
     deadline(SYNC_US);
     while (I2CM.SYNCBUSY.bit.ENABLE && !expired()) {
@@ -73,7 +104,7 @@ void primary_hw_begin(uint32_t hz)
     g_hz = hz;
     Wire.begin();
     Wire.setClock(hz);
-    sercom_timeouts();
+    sercom_setup();
 }
 
 /* SCL / SDA as open-drain lines: low = output driving 0; released = input with pull-up.
@@ -117,12 +148,11 @@ static void bus_recover(void)
 
 static int bus_fault(void)
 {
-    return (I2CM.STATUS.reg & (SERCOM_I2CM_STATUS_BUSERR | SERCOM_I2CM_STATUS_ARBLOST |
-                               SERCOM_I2CM_STATUS_LOWTOUT)) != 0;
+    return (I2CM.STATUS.reg & (SERCOM_I2CM_STATUS_BUSERR | SERCOM_I2CM_STATUS_ARBLOST)) != 0;
 }
 
-/* Wait for MB or SB. MC_I2C_OK, MC_I2C_BUS_ERROR (bus error, lost arbitration, SCL low
- * timeout) or MC_I2C_TIMEOUT (deadline). */
+/* Wait for MB or SB. MC_I2C_OK, MC_I2C_BUS_ERROR (bus error, lost arbitration) or
+ * MC_I2C_TIMEOUT (deadline). */
 static int wait_bus(void)
 {
     for (;;) {
@@ -152,7 +182,7 @@ static int finish(int st)
         deadline(SYNC_US);   /* room for the STOP even after the transaction's deadline */
         command(CMD_STOP, 1);
     }
-    if (st == MC_I2C_TIMEOUT || st == MC_I2C_BUS_ERROR || I2CM.STATUS.bit.LOWTOUT)
+    if (st == MC_I2C_TIMEOUT || st == MC_I2C_BUS_ERROR)
         if (I2CM.STATUS.bit.BUSSTATE != BUSSTATE_IDLE || bus_fault() || I2CM.SYNCBUSY.bit.SYSOP)
             bus_recover();
     return st;
@@ -217,7 +247,7 @@ int primary_hw_txn(const mc_txn_t *t, uint8_t *rx, uint32_t *len)
 {
     *len = 0;
     deadline(t->timeout_us);
-    if (I2CM.STATUS.bit.BUSSTATE == 3u || I2CM.STATUS.bit.LOWTOUT) {
+    if (I2CM.STATUS.bit.BUSSTATE == 3u) {   /* busy: left so by a missing STOP or a glitch */
         bus_recover();
         return MC_I2C_BUS_ERROR;
     }

@@ -7,7 +7,7 @@ extern "C" {
 #include "bus/mc_primary.h"
 }
 
-/* I2C master at hz on SERCOM2 with the SCL-low and inactive-bus timeouts enabled. */
+/* I2C master at hz on SERCOM2; its SMBus timeouts stay off (primary_hw.cpp says why). */
 void primary_hw_begin(uint32_t hz);
 /* Run one transaction within t->timeout_us (every wait bounded); returns an MC_I2C_*
  * status, read bytes in rx[0..*len) (*len = 0 unless MC_I2C_OK). */

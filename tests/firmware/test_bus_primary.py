@@ -341,3 +341,29 @@ def test_pointer_command_reads_blocks_back():
     # the polls go on undisturbed: every cell keeps sampling, no integrity errors from the pointer moves
     assert all(rig.p.cell[i].integrity == 0 for i in range(16))
     assert {j for j, _ in by_kind(frames)["CELL_SAMPLE"]} == set(range(1, 17))
+
+
+def test_progress_moves_with_the_schedule_and_stands_while_a_transaction_hangs(fw):
+    """mc_primary_progress: +1 per completed transaction, per ended cycle and per wait for the period; nothing while a
+    transaction handed out is never completed, however often the scheduler is asked."""
+    ffi, lib = fw
+    p = ffi.new("mc_primary_t *")
+    lib.mc_primary_init(p, 0)
+    assert lib.mc_primary_configure(p, 20_000, 2000, 50_000, 64) == 0
+    t = ffi.new("mc_txn_t *")
+    now, done = 0, 0
+    for _ in range(16):  # one cycle: every cell NACKs
+        assert lib.mc_primary_next(p, now, t) == 1
+        lib.mc_primary_complete(p, now + 50, lib.MC_I2C_NACK_ADDR, ffi.NULL, 0)
+        now += 100
+        done += 1
+        assert lib.mc_primary_progress(p) == done
+    assert lib.mc_primary_next(p, now, t) == 0  # end of the cycle
+    assert lib.mc_primary_progress(p) == done + 1
+    assert lib.mc_primary_next(p, now + 10, t) == 0  # the next cycle is not due yet: waiting is progress
+    assert lib.mc_primary_progress(p) == done + 2
+    assert lib.mc_primary_next(p, 20_000, t) == 1  # handed out, never completed
+    stuck = lib.mc_primary_progress(p)
+    for k in range(50):
+        assert lib.mc_primary_next(p, 20_000 + 1000 * k, t) == 0
+    assert lib.mc_primary_progress(p) == stuck

@@ -11,6 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from metacell_tools.fwcheck import armbuild, cpubudget
+from tests.firmware.test_irqmap import addressed_cell_elf  # noqa: F401  (cell 1 as the flash tool builds it)
 from tests.firmware.test_pio_build import build_log  # noqa: F401  (the shared, locked real build)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -116,6 +117,78 @@ def test_the_edge_rate_is_the_no_load_speed_times_the_counts():
     assert 37_000 < cpubudget.max_edge_rate_hz() < 37_300
 
 
+@given(
+    own=st.integers(1, 5000),
+    block=st.integers(0, 5000),
+    urgent=st.lists(st.tuples(st.integers(1, 2000), st.integers(2000, 50_000)), max_size=3),
+)
+def test_a_response_is_the_least_fixed_point_of_the_interference_equation(own, block, urgent):
+    """R = B + C + sum ceil(R / T) C_j: the value returned satisfies it, and no smaller R >= B + C does."""
+
+    def rhs(r):
+        return block + own + sum(-(-r // t) * c for c, t in urgent)
+
+    above = [(f"j{i}", c, t, "") for i, (c, t) in enumerate(urgent)]
+    r = cpubudget._response("x", 1, own, 10**9, [("b", block, "")], above)
+    if sum(c / t for c, t in urgent) < 0.9:  # otherwise the busy period may be enormous: only check it is consistent
+        assert r.cycles is not None
+    if sum(c / t for c, t in urgent) >= 1:
+        assert r.cycles is None and "fill the CPU" in r.why  # no finite response exists
+    if r.cycles is not None:
+        assert rhs(r.cycles) == r.cycles
+        assert all(rhs(x) > x for x in range(block + own, r.cycles, max(1, (r.cycles - block - own) // 50)))
+
+
+def test_a_handler_without_a_bound_at_the_same_or_a_higher_priority_leaves_no_bound():
+    same = cpubudget._response("edge", 0, 400, 2600, [("EIC", 400, ""), ("USB", None, "busy-waits")], [])
+    assert same.cycles is None and not same.ok and "USB shares priority 0" in same.why
+    above = cpubudget._response("tick", 1, 1600, 24000, [], [("USB", None, None, "busy-waits")])
+    assert above.cycles is None and "USB is more urgent" in above.why
+    rate = cpubudget._response("tick", 1, 1600, 24000, [], [("X", 100, None, "")])
+    assert rate.cycles is None and "nothing bounds its rate" in rate.why
+
+
+TINY = """
+00000200 <TC3_Handler>:
+     200:\tbx\tlr
+
+00000202 <EIC_Handler>:
+     202:\tbx\tlr
+
+00000204 <hw_isr_encoder_alpha>:
+     204:\tbx\tlr
+
+00000206 <hw_isr_encoder_beta>:
+     206:\tbx\tlr
+
+00000208 <mc_quad_snapshot>:
+     208:\tmrs\tr3, PRIMASK
+     20c:\tcpsid\ti
+     20e:\tldr\tr2, [r0, #0]
+     210:\tldr\tr1, [r0, #4]
+     212:\tldr\tr1, [r0, #8]
+     214:\tldr\tr1, [r0, #12]
+     216:\tldr\tr1, [r0, #16]
+     218:\tldr\tr1, [r0, #20]
+     21a:\tmsr\tPRIMASK, r3
+     21e:\tbx\tlr
+"""
+
+
+def test_a_masked_section_holds_off_the_edges_and_an_unknown_one_leaves_no_bound():
+    prio = {"EIC": 0, "TC3": 1, "SERCOM2": 2, "USB": 3}
+    img = cpubudget.parse_disassembly(TINY)
+    b = cpubudget.cell_budget(img, priorities=prio)
+    masked = cpubudget.Analyser(img).worst("mc_quad_snapshot").cycles
+    edge_c = b.isrs[1].cycles
+    assert masked > edge_c  # a bare handler costs less than the copy here, so the copy is the blocking term
+    assert b.responses[0].cycles == masked + edge_c and "masked mc_quad_snapshot" in b.responses[0].why
+    unknown = TINY + "\n00000220 <mystery>:\n     220:\tcpsid\ti\n     222:\tbx\tlr\n"
+    b = cpubudget.cell_budget(cpubudget.parse_disassembly(unknown), priorities=prio)
+    assert [r.cycles for r in b.responses] == [None, None]
+    assert "interrupts masked in mystery" in b.responses[0].why
+
+
 # ---------------------------------------------------------------------------- the real image
 
 ELF = ROOT / ".pio" / "build" / "cell" / "firmware.elf"
@@ -160,3 +233,41 @@ def test_static_worst_instructions_bound_every_tick_counted_under_qemu():
     assert a.worst("mc_cell_tick").insns >= max(s.ticks)
     assert a.worst("mc_quad_update").insns >= max(s.quad_update)
     assert a.worst("mc_quad_snapshot").insns >= max(s.snapshot)
+
+
+def test_real_cell_image_responses_under_its_own_priorities(build_log):  # noqa: F811
+    """With the priorities the image sets, an edge is sampled before its encoder's next edge and the tick ends
+    before the next one; with USB back beside the EIC (the core's map) neither has a bound: the USB handler's
+    busy-waits are on the path."""
+    from metacell_tools.fwcheck import irqmap
+
+    img = cpubudget.parse_disassembly(cpubudget.disassemble(ELF))
+    prio = irqmap.effective_priorities(ELF)
+    assert prio["EIC"] < prio["TC3"] < prio["USB"]
+    b = cpubudget.cell_budget(img, priorities=prio)
+    edge, tick = b.responses
+    tick_c, edge_c = (i.cycles for i in b.isrs)
+    assert edge.ok and edge.cycles == 2 * edge_c  # the other encoder's entry, then its own
+    assert tick.ok and tick.cycles >= tick_c + edge_c
+    assert edge.deadline == int(48e6 / (cpubudget.max_edge_rate_hz() / 2)) and tick.deadline == 24_000
+    core = cpubudget.cell_budget(img, priorities={**prio, "USB": prio["EIC"]})
+    assert [r.cycles for r in core.responses] == [None, None]
+    assert "USB shares priority" in core.responses[0].why and "USB is more urgent" in core.responses[1].why
+
+
+def test_real_addressed_cell_image_bounds_the_i2c_secondary_event(addressed_cell_elf):  # noqa: F811
+    """With the bus glue linked, one SERCOM2 event (its handler, the callbacks, a SysTick beside it, the edges and
+    the tick above it) ends inside the primary's transaction timeout, and lasts longer than INACTOUT's longest
+    setting: the reason that timeout stays off on the primary."""
+    from metacell_tools.fwcheck import irqmap
+
+    img = cpubudget.parse_disassembly(cpubudget.disassemble(addressed_cell_elf))
+    b = cpubudget.cell_budget(img, priorities=irqmap.effective_priorities(addressed_cell_elf))
+    names = [r.name for r in b.responses]
+    assert names == ["encoder edge (EIC)", "control tick (TC3)", "I2C secondary event (SERCOM2)"]
+    i2c = b.responses[2]
+    assert i2c.ok and i2c.priority == 2 and i2c.deadline == int(48e6 * cpubudget.TXN_TIMEOUT_S)
+    assert i2c.cycles > cpubudget.INACTOUT_MAX_S * 48e6
+    assert "EIC" in i2c.why and "TC3" in i2c.why  # the edges and the tick pre-empt it
+    text = cpubudget.format_budget(b, str(addressed_cell_elf))
+    assert "longer than INACTOUT's longest setting" in text

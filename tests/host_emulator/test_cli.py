@@ -46,7 +46,8 @@ def test_run_writes_summary_npz_and_plots(tmp_path, capsys):
         assert k in s
     assert s["scene"] == "default" and s["model"] == "hil" and s["t_end_s"] == 3.0
     assert len(s["final_alpha_rad"]) == 16 and _no_nan(s)
-    assert s["dispersion"]["regime"] == "conditionally_unstable"
+    assert s["dispersion"]["regime"] == "stationary_pattern" and s["source"] == "emulator:hil"
+    assert s["dispersion"]["theory"].startswith("hil: lattice with inertia + the motors' back-EMF damping")
     z = np.load(out / "trajectories.npz")
     assert z["alpha"].shape == (301, 16) and np.allclose(z["alpha"][-1], s["final_alpha_rad"])
     for f in ("spacetime.png", "final_pattern.png", "dispersion.png"):

@@ -12,7 +12,7 @@ from host_emulator import controller
 from host_emulator.controller import run_solver
 from host_emulator.models import STEPPERS, ModelOptions, NoiseOptions, NumericalInstability, Perturbation, make_model
 from host_emulator.params import Params
-from host_emulator.trackers import ProgressTracker
+from host_emulator.workbench.trackers import ProgressTracker
 
 # edges off the 10 ms output grid, so chunks must not straddle them differently from the per-sample path
 PERTS = [Perturbation(5, "alpha", 0.03, 0.0137, 0.0519), Perturbation(11, "beta", -0.02, 0.2031, 0.0402)]
@@ -202,7 +202,7 @@ def test_hil_chunking_property(starts, ticks, sizes, seed):
 
 
 def test_progress_bar_reaches_the_end_with_chunks():
-    bar = ProgressTracker(delay_s=0.0, file=io.StringIO())
+    bar = ProgressTracker(delay_s=0.0, file=io.StringIO(), disable=False)  # shown although the file is no terminal
     res = run_solver(
         make_model("hil", Params(cells=4), [Perturbation(2, "alpha", 0.03, 0.0137, 0.05)], ModelOptions()).solver(),
         1.0,
@@ -225,3 +225,11 @@ def test_sampled_c_calls_refuse_bad_arguments_and_change_nothing():
     for rate, tpo in ((0, 1), (1000, 0)):
         rc = lib.he_hil_run_sampled(h.h, 0, rate, tpo, 1, h._pt, h._px, h._pv, out, done)
         assert rc == h.model.lib.HE_ERR_ARG and int(h.h.ticks) == 0
+
+
+def test_progress_bar_is_off_without_a_terminal():
+    """The default: tqdm's rule, a bar only on a TTY (never in a pipe, a log file or a test's captured stream)."""
+    out = io.StringIO()
+    bar = ProgressTracker(delay_s=0.0, file=out)
+    run_solver(make_model("lattice", Params(cells=2), [], ModelOptions()).solver(), 0.1, [bar])
+    assert bar.bar.disable and out.getvalue() == ""

@@ -80,11 +80,11 @@ def test_dispersion_at_table_k_and_at_the_rigs_k():
     table = dispersion(Params(band_scale=0.5))
     rig = dispersion(Params())
     assert table["fastest_lambda_cells"] == pytest.approx(6.83, abs=0.01)
-    assert table["unstable_band_cells"] == pytest.approx([3.84, 15.19], abs=0.01)
+    assert table["unstable_set_cells"] == [pytest.approx([3.84, 15.19], abs=0.01)]
     assert rig["fastest_lambda_cells"] == pytest.approx(9.84, abs=0.01)
-    assert rig["unstable_band_cells"] == pytest.approx([5.79, 21.56], abs=0.01)
+    assert rig["unstable_set_cells"] == [pytest.approx([5.79, 21.56], abs=0.01)]
     for lam in (15, 10, 7.5):
-        assert rig["unstable_band_cells"][0] < lam < rig["unstable_band_cells"][1]
+        assert rig["unstable_set_cells"][0][0] < lam < rig["unstable_set_cells"][0][1]
     # the growth rate depends on stiffness only through q*k, so the same rate sits at a longer wave
     assert rig["fastest_growth_per_s"] == pytest.approx(table["fastest_growth_per_s"], rel=1e-6)
     assert math.isclose(

@@ -21,7 +21,11 @@ def test_sigma_9_forms_a_steady_pattern_in_the_unstable_band(name):
     sc, res, obs = run(name)
     assert obs["steady"]
     assert obs["amplitude_rad"] > 0.5
-    band = dispersion(sc.params, inertia=True, n_cells=sc.cells)["unstable_band_cells"]
+    from host_emulator.analysis.summary import theory_for
+
+    d = dispersion(sc.params, theory=theory_for(sc), n_cells=sc.cells)
+    assert d["regime"] == "stationary_pattern"
+    [band] = d["unstable_set_cells"]
     assert band[0] - 1 <= obs["pattern_period_cells"] <= band[1] + 1
     # bistable cells: most sit near one of the two wells, both wells used
     a = res.alpha[-1]

@@ -22,8 +22,8 @@ def entry_points() -> list[tuple[str, str]]:
         ("metacell_tools.experiment.cli", "main"),
         ("metacell_tools.flash.__main__", "main"),
         ("metacell_tools.fwcheck.__main__", "main"),
-        ("host_emulator.sweep_bench", "main"),
-        ("host_emulator.bus.bench", "main"),
+        ("host_emulator.benchmarks.sweep", "main"),
+        ("host_emulator.benchmarks.bus", "main"),
         ("host_emulator.benchmarks.instructions", "main"),
     ]
     return list(dict.fromkeys(eps))

@@ -250,12 +250,14 @@ def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_pa
         "per_repeat",
     ):
         assert k in s, k
-    assert s["model"] == "rig" and s["scene"] == "exp1_ccw_ccw" and s["repeats"] == 2
+    # a rehearsal is never labelled a rig measurement: the emulated model and the source say what it is
+    assert s["model"] == "hil" and s["source"] == "rehearsal:hil"
+    assert s["scene"] == "exp1_ccw_ccw" and s["repeats"] == 2
     assert len(s["per_repeat"]) == 2 and all(len(r["final_alpha_rad"]) == 16 for r in s["per_repeat"])
     assert all(isinstance(v, float) for r in s["per_repeat"] for v in r["final_alpha_rad"] + r["final_beta_rad"])
     assert s["failed_commands"] == [] and s["missing_cells"] == [] and s["drive_off_confirmed"]
     assert all(p["result"] == "OK" for r in s["per_repeat"] for p in r["perturbations"])
-    for f in ("spacetime.png", "final_pattern.png", "rig.asc", "repeat_01.npz", "repeat_02.npz"):
+    for f in ("spacetime.png", "final_pattern.png", "rehearsal.asc", "repeat_01.npz", "repeat_02.npz"):
         assert (out / f).stat().st_size > 0
     # the emulator run of the same scene (pushes through the firmware too) against the rehearsal
     emu = tmp_path / "emu"
@@ -284,7 +286,8 @@ def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_pa
     e = strict_json(emu / "summary.json")
     rc = cli.main(["compare", str(out), str(emu), "--out", str(tmp_path / "overlay.png")])
     assert rc == 0 and (tmp_path / "overlay.png").stat().st_size > 5000
-    assert "pattern period: rig" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "A = rehearsal:hil" in printed and "B = emulator:hil" in printed and "pattern period: A" in printed
     # same physics through the data path: from exact rest (repeat 1, like the emulator run) the same pattern:
     # the same domain walls, each domain of the same sign. At the rig's band stiffness the walls are soft (two to
     # three cells wide) and the two pushes reach cells 6 and 10 one bus command apart, so a wall may settle a
@@ -670,7 +673,7 @@ def test_rig_live_plot_draws_the_series_of_the_logged_frames():
     """RigLive polled as the runner polls it: the tracker ends up holding the same time series as the summary's."""
     from matplotlib.figure import Figure
 
-    from host_emulator.trackers import PlotTracker
+    from host_emulator.workbench.trackers import PlotTracker
     from metacell_tools.experiment.live import RigLive
 
     dec = SampleDecoder(n_cells=3, report=lambda t: None)
@@ -692,7 +695,7 @@ def test_rig_live_plot_draws_the_series_of_the_logged_frames():
     np.testing.assert_array_equal(np.asarray(tr.image.get_array()), want.alpha)
     np.testing.assert_array_equal(bw, want.beta)
     # fed in steps of about one interval (78 * 128 us = 10 ms per cycle: every 5th cycle), not every row
-    assert 15 <= sum(1 for n in fed if n) <= 30 and tr.title == "x rig, repeat 1"
+    assert 15 <= sum(1 for n in fed if n) <= 30 and tr.title == "x (rig), repeat 1"
 
 
 def test_rehearsal_records_cell_identity_and_draws_live(fw, tmp_path, capsys):

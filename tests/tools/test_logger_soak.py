@@ -129,7 +129,7 @@ def test_logger_soak_stalls_kill_restart(tmp_path):
         for seg in (0, 1):
             k = rows[(rows[:, 2] == j) & (rows[:, 0] == seg), 1]
             assert np.all(np.diff(k) > 0)  # no cycle repeats: nothing overwritten
-    t = d["t_s"]
+    t = d["sample_time"]
     tt = np.nanmax(t, axis=1)
     assert np.all(np.diff(tt) >= 0)
     import can

@@ -63,10 +63,17 @@ def test_decoded_arrays_equal_the_emulated_cells(tmp_path):
     # the last complete cycle is within a tick or two of the cells' own angles
     last = arr["alpha_counts"][-2]
     assert np.max(np.abs(last - np.array(truth[-1]))) <= 3
-    files = dec.save(tmp_path / "run")
+    files = dec.save(tmp_path / "run", {"source": "emulator:hil"})
     d = np.load(files[0])
     np.testing.assert_array_equal(d["alpha_counts"], arr["alpha_counts"])
-    np.testing.assert_allclose(d["alpha_rad"], arr["alpha_counts"] * 2 * np.pi / 400)
+    np.testing.assert_allclose(d["alpha"], arr["alpha_counts"] * 2 * np.pi / 400)
+    # the one run layout: he.load reads it back as the same angles, with the label given
+    from host_emulator.workbench.datasets import load
+
+    ds = load(files[0])
+    assert ds.attrs["source"] == "emulator:hil" and ds["alpha"].dims == ("time", "cell")
+    np.testing.assert_allclose(ds["alpha"].values, arr["alpha_counts"] * 2 * np.pi / 400)
+    assert np.all(np.diff(ds["time"].values) > 0) and ds["time"].values[0] == 0.0
     lines = files[1].read_text().splitlines()
     assert lines[0].startswith("segment,cycle,cell") and len(lines) == 1 + len(dec.rows)
 

@@ -72,6 +72,65 @@ int main(int argc, char **argv)
     } else if (!strcmp(sc, "ok_write")) {
         SERCOM2->I2CM.INTFLAG.bit.MB = 1;
         run_txn(MC_TXN_WRITE, 1500, rx, &len);
+    } else if (!strcmp(sc, "begin")) {
+        /* SERCOM2 as primary_hw_begin leaves it, at each supported rate */
+        static const uint32_t rates[] = {400000, 100000};
+        for (int i = 0; i < 2; i++) {
+            primary_hw_begin(rates[i]);
+            unsigned long f = rates[i];
+            printf("inactout_%lu=%u\nlowtouten_%lu=%u\nenabled_%lu=%u\n", f, (unsigned)SERCOM2->I2CM.CTRLA.bit.INACTOUT,
+                   f, (unsigned)SERCOM2->I2CM.CTRLA.bit.LOWTOUTEN, f, (unsigned)SERCOM2->I2CM.CTRLA.bit.ENABLE);
+            printf("baud_%lu=%u\nbaudlow_%lu=%u\nsdahold_%lu=%u\n", f, (unsigned)SERCOM2->I2CM.BAUD.bit.BAUD, f,
+                   (unsigned)SERCOM2->I2CM.BAUD.bit.BAUDLOW, f, (unsigned)SERCOM2->I2CM.CTRLA.bit.SDAHOLD);
+        }
+        return 0;
+    } else if (!strcmp(sc, "flood")) {
+        /* the laptop sends without pause: every pass still ends, polls a cell and feeds the watchdog */
+        SERCOM2->I2CM.INTFLAG.bit.MB = 1;   /* every cell NACKs its address */
+        SERCOM2->I2CM.STATUS.bit.RXNACK = 1;
+        setup();
+        stub.flood = true;
+        size_t most = 0;
+        for (int pass = 0; pass < 5; pass++) {
+            stub.reads = 0;
+            loop();
+            most = stub.reads > most ? stub.reads : most;
+        }
+        uint32_t nacks = 0;
+        for (int i = 0; i < MC_N_CELLS; i++)
+            nacks += g_link.p.cell[i].nack;
+        printf("polls=%lu\nmost_reads_per_pass=%lu\n", (unsigned long)nacks, (unsigned long)most);
+        return 0;
+    } else if (!strcmp(sc, "stalled_schedule")) {
+        /* polling that no longer moves: a transaction handed out and never completed */
+        SERCOM2->I2CM.INTFLAG.bit.MB = 1;
+        SERCOM2->I2CM.STATUS.bit.RXNACK = 1;
+        setup();
+        WDT->CLEAR.reg = 0;
+        loop();
+        int fed_moving = WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY;
+        mc_txn_t t;
+        while (!mc_primary_next(&g_link.p, primary_hw_micros(), &t)) {
+        }
+        int fed_stalled = 0;
+        for (int pass = 0; pass < 20; pass++) {
+            WDT->CLEAR.reg = 0;
+            loop();
+            fed_stalled |= WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY;
+        }
+        printf("fed_moving=%d\nfed_stalled=%d\n", fed_moving, fed_stalled);
+        return 0;
+    } else if (!strcmp(sc, "fault")) {
+        /* a HardFault, then the boot after it: PRIMARY_HEALTH.reset_cause says SYST and FAULT */
+        static uint32_t frame[8] = {0, 0, 0, 0, 0, 0, 0x2468u, 0x01000000u};
+        PM->RCAUSE.reg = PM_RCAUSE_POR;
+        setup();
+        if (setjmp(stub.reset) == 0)
+            sys_fault(frame, 3);
+        PM->RCAUSE.reg = PM_RCAUSE_SYST;
+        setup();
+        printf("resets=%d\nreset_cause=%u\n", stub.resets, (unsigned)g_link.p.reset_cause);
+        return 0;
     } else if (!strcmp(sc, "main")) {
         /* the whole program: boot after a watchdog reset, laptop opens, stops reading, reconnects */
         PM->RCAUSE.reg = PM_RCAUSE_WDT;
@@ -91,13 +150,13 @@ int main(int argc, char **argv)
         printf("wdt_fed=%d\nopen=%d\nsent=%lu\n", WDT->CLEAR.reg == WDT_CLEAR_CLEAR_KEY, g_link.s.open,
                (unsigned long)stub.usb_sent);
         stub.usb_blocked = true;   /* the laptop stops reading */
-        size_t tried0 = stub.usb_tried;
         while (stub.now_us < 6000000ul)
             loop();
-        printf("usb_lost=%lu\nusb_tried=%lu\nusb_fail=%u\nmax_write=%lu\n", (unsigned long)g_link.p.usb_lost,
-               (unsigned long)(stub.usb_tried - tried0), (unsigned)g_link.p.usb_fail,
-               (unsigned long)stub.usb_max_write);
-        stub.usb_blocked = false;
+        stub.usb_blocked = false;   /* and reads again: the bank empties */
+        stub_usb_host_reads();
+        printf("usb_lost=%lu\nusb_tried=%lu\nusb_delivered=%lu\nusb_zeroed=%lu\nusb_fail=%u\nmax_write=%lu\n",
+               (unsigned long)g_link.p.usb_lost, (unsigned long)stub.usb_tried, (unsigned long)stub.usb_delivered,
+               (unsigned long)stub.usb_zeroed, (unsigned)g_link.p.usb_fail, (unsigned long)stub.usb_max_write);
         stub.dtr = false;   /* the laptop closes the port: a new session */
         loop();
         printf("open_after_close=%d\n", g_link.s.open);

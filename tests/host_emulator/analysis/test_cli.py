@@ -21,12 +21,42 @@ def test_json_contract_and_values(capsys):
     rc, out, _ = run(capsys, "--sigma", "9/125", "--json")
     assert rc == 0
     d = json.loads(out)
-    for k in ("regime", "fastest_lambda_cells", "fastest_growth_per_s", "oscillation_period_s", "unstable_band_cells"):
+    for k in (
+        "regime",
+        "theory",
+        "fastest_lambda_cells",
+        "fastest_growth_per_s",
+        "oscillation_period_s",
+        "unstable_set_cells",
+        "unstable_intervals",
+    ):
         assert k in d
-    ref = dispersion(Params(sigma=9 / 125))
-    assert d["regime"] == "conditionally_unstable"
+    ref = dispersion(Params(sigma=9 / 125), inertia=True)  # the default theory: the lattice with inertia
+    assert d["regime"] == "stationary_pattern" and d["inertia"] is True and d["theory"] == "lattice with inertia"
     assert d["fastest_lambda_cells"] == pytest.approx(ref["fastest_lambda_cells"])
-    assert d["unstable_band_cells"] == pytest.approx(ref["unstable_band_cells"])
+    assert d["unstable_set_cells"] == [pytest.approx(iv) for iv in ref["unstable_set_cells"]]
+
+
+def test_acceptance_twelve_over_125_reports_both_intervals(capsys):
+    rc, out, _ = run(capsys, "--sigma", "12/125", "--inertia", "--band-scale", "0.5", "--json")
+    d = json.loads(out)
+    assert rc == 0 and d["regime"] == "pattern_and_oscillation"
+    assert [[round(x, 2) if x else x for x in iv] for iv in d["unstable_set_cells"]] == [[4.51, 7.54], [19.27, None]]
+
+
+def test_models_name_their_theory(capsys):
+    """--model hil adds the motors' back-EMF damping (14/125: rest, as the shipped hil scene), --no-inertia is
+    the source's overdamped theory, --model continuum has no inertia."""
+    rc, out, _ = run(capsys, "--sigma", "14/125", "--model", "hil", "--json")
+    d = json.loads(out)
+    assert d["regime"] == "rest" and d["motor_damping_Nms"] > 0 and d["theory"].startswith("hil:")
+    rc, out, _ = run(capsys, "--sigma", "14/125", "--model", "hil", "--set", "bemf_comp=true", "--json")
+    assert json.loads(out)["regime"] == "uniform_oscillation"
+    rc, out, _ = run(capsys, "--sigma", "14/125", "--no-inertia", "--json")
+    assert json.loads(out)["regime"] == "rest"
+    rc, out, _ = run(capsys, "--sigma", "9/125", "--model", "continuum", "--json")
+    d = json.loads(out)
+    assert d["model"] == "continuum" and d["inertia"] is False
 
 
 def test_flags_reach_the_analysis(capsys):
@@ -46,16 +76,16 @@ def test_flags_reach_the_analysis(capsys):
     )
     d = json.loads(out)
     ref = dispersion(Params(sigma=0.112, eta_scale=10.0), inertia=True, discrete=False, n_cells=16)
-    assert rc == 0 and d["model"] == "continuum" and d["inertia"] is True and d["regime"] == "stable"
+    assert rc == 0 and d["model"] == "continuum" and d["inertia"] is True and d["regime"] == "rest"
     assert d["fastest_growth_per_s"] == pytest.approx(ref["fastest_growth_per_s"])
     assert len(d["lattice_modes"]) == 16
     rc, out, _ = run(capsys, "--sigma", "0.112", "--inertia", "--json")
-    assert json.loads(out)["regime"] == "unconditionally_unstable"
+    assert json.loads(out)["regime"] == "uniform_oscillation"
 
 
 def test_human_table(capsys):
     rc, out, _ = run(capsys, "--sigma", "6/125")
-    assert rc == 0 and "unconditionally unstable" in out and "inf]" in out
+    assert rc == 0 and "broadband_pattern" in out and "inf)" in out and "linear theory: lattice with inertia" in out
 
 
 @pytest.mark.parametrize(

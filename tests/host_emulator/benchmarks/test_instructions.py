@@ -48,7 +48,7 @@ def test_bench_speed_names_its_machine_and_the_missing_count(monkeypatch, capsys
     is absent when valgrind is (its return code depends on the machine's speed, so it is not asserted)."""
     import os
 
-    from host_emulator.bench import bench_main
+    from host_emulator.benchmarks.speed import bench_main
 
     monkeypatch.setattr(ins.shutil, "which", lambda name: None)
     cpus = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None

@@ -145,10 +145,10 @@ def test_single_kick_outcome_follows_the_regime(sigma, eta_scale):
     )
     o = observables(t, a, b)
     assert o["steady"]
-    if d["regime"] == "stable":
+    if d["regime"] == "rest":
         assert o["pattern_period_cells"] is None and o["amplitude_rad"] < 1e-3
     else:
-        lo, hi = d["unstable_band_cells"]
+        [[lo, hi]] = d["unstable_set_cells"]
         assert lo < o["pattern_period_cells"] < (hi or 2 * N)
         # saturated on the outer branches of psi' (|alpha| beyond the breakpoint k1 alpha*/(k1 - k2))
         assert o["amplitude_rad"] > p.k1 * p.alpha_star / (p.k1 - p.k2)

@@ -20,6 +20,8 @@ unsigned long micros(void);
 unsigned long millis(void);
 #define digitalPinToInterrupt(p) (p)
 void attachInterrupt(uint32_t pin, void (*isr)(void), uint32_t mode);
+void noInterrupts(void);   /* the core's macros for __disable_irq / __enable_irq */
+void interrupts(void);
 struct SerialStub {
     void begin(unsigned long baud);
     int available();
@@ -34,7 +36,9 @@ extern SerialStub Serial;
 /* one register: the whole word or its bits (bits named as the glue uses them) */
 #define REG(name, type, ...) union { type reg; struct { __VA_ARGS__ } bit; } name
 struct SercomI2cmStub {
-    volatile REG(CTRLA, uint32_t, uint32_t SWRST : 1, ENABLE : 1, MODE : 3, : 23, INACTOUT : 2, LOWTOUTEN : 1, : 1;);
+    volatile REG(CTRLA, uint32_t, uint32_t SWRST : 1, ENABLE : 1, MODE : 3, : 15, SDAHOLD : 2, : 6, INACTOUT : 2,
+                 LOWTOUTEN : 1, : 1;);
+    volatile REG(BAUD, uint32_t, uint32_t BAUD : 8, BAUDLOW : 8, HSBAUD : 8, HSBAUDLOW : 8;);
     volatile REG(CTRLB, uint32_t, uint32_t : 16, CMD : 2, ACKACT : 1, : 13;);
     volatile REG(SYNCBUSY, uint32_t, uint32_t SWRST : 1, ENABLE : 1, SYSOP : 1, : 29;);
     volatile REG(STATUS, uint16_t, uint16_t BUSERR : 1, ARBLOST : 1, RXNACK : 1, : 1, BUSSTATE : 2, LOWTOUT : 1, : 9;);
@@ -42,7 +46,10 @@ struct SercomI2cmStub {
     volatile REG(ADDR, uint32_t, uint32_t ADDR : 11, : 21;);
     volatile REG(DATA, uint8_t, uint8_t DATA : 8;);
 };
-struct Sercom { SercomI2cmStub I2CM; };
+union Sercom {   /* master and secondary views of the same registers, as in the CMSIS header */
+    SercomI2cmStub I2CM;
+    SercomI2cmStub I2CS;
+};
 extern Sercom *const SERCOM2;
 #define SERCOM_I2CM_STATUS_BUSERR (1u << 0)
 #define SERCOM_I2CM_STATUS_ARBLOST (1u << 1)
@@ -53,6 +60,8 @@ extern Sercom *const SERCOM2;
 #define SERCOM_I2CM_CTRLB_CMD_Msk (3u << 16)
 #define SERCOM_I2CM_CTRLB_CMD(v) (((uint32_t)(v) << 16) & SERCOM_I2CM_CTRLB_CMD_Msk)
 #define SERCOM_I2CM_CTRLB_ACKACT (1u << 18)
+#define SERCOM_I2CM_BAUD_BAUD(v) ((uint32_t)(v) & 0xFFu)
+#define SERCOM_I2CM_BAUD_BAUDLOW(v) (((uint32_t)(v) & 0xFFu) << 8)
 
 struct PortGroupStub {
     volatile REG(DIRSET, uint32_t, uint32_t b : 32;);
@@ -71,7 +80,7 @@ extern PortStub *const PORT_IOBUS;
 #define PORT_PMUX_PMUXE_F 0x05u
 #define PORT_PMUX_PMUXO_F 0x50u
 struct PinDescription { uint32_t ulPort, ulPin; };
-extern const PinDescription g_APinDescription[];
+extern PinDescription g_APinDescription[];   /* const in the core; writable here so a test can spoil it */
 
 struct PmStub {
     volatile REG(APBCMASK, uint32_t, uint32_t b : 32;);
@@ -164,8 +173,9 @@ extern TcStub *const TC3;
 #define TC_CTRLA_PRESCALER_DIV1024 (7u << 8)
 #define TC_INTFLAG_OVF 0x01u
 #define TC_INTENSET_OVF 0x01u
-enum IRQn_Type { TC3_IRQn = 18 };
+enum IRQn_Type { EIC_IRQn = 4, USB_IRQn = 7, SERCOM2_IRQn = 11, TC3_IRQn = 18 };
 void NVIC_SetPriority(IRQn_Type irq, uint32_t prio);
 void NVIC_ClearPendingIRQ(IRQn_Type irq);
 void NVIC_EnableIRQ(IRQn_Type irq);
 void NVIC_DisableIRQ(IRQn_Type irq);
+[[noreturn]] void NVIC_SystemReset(void);   /* the driver's reset hook (longjmp back to its boot) */

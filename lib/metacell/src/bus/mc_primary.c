@@ -308,6 +308,21 @@ void mc_primary_usb_lost(mc_primary_t *p, uint32_t n)
     p->usb_fail++;
 }
 
+void mc_primary_usb_write(mc_primary_t *p, uint32_t n, int taken)
+{
+    if (taken) {
+        p->usb_pending = n;   /* and the one before it has left */
+        return;
+    }
+    uint32_t pending = p->usb_pending;
+    p->usb_pending = 0;
+    mc_primary_usb_lost(p, n);
+    if (pending)
+        p->usb_lost = pending > 0xFFFFFFFFu - p->usb_lost ? 0xFFFFFFFFu : p->usb_lost + pending;
+}
+
+uint32_t mc_primary_progress(const mc_primary_t *p) { return p->progress; }
+
 void mc_primary_bus_reset(mc_primary_t *p) { p->bus_reset++; }
 void mc_primary_set_reset_cause(mc_primary_t *p, uint8_t cause) { p->reset_cause = cause; }
 
@@ -364,8 +379,10 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
     }
     /* round-robin snapshot reads */
     if (!p->in_cycle) {
-        if (p->started && !due(now, p->cycle_start + p->period_us))
+        if (p->started && !due(now, p->cycle_start + p->period_us)) {
+            p->progress++;   /* idle by design until the period is up */
             return 0;
+        }
         /* keep the period's phase unless more than one period behind */
         if (p->started && p->period_us && !due(now, p->cycle_start + 2 * p->period_us))
             p->cycle_start += p->period_us;
@@ -394,6 +411,7 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
     /* end of cycle: status and link frames of one cell per cycle, in rotation */
     p->in_cycle = 0;
     p->cycles++;
+    p->progress++;
     p->cycles_window++;
     if (p->status_ctr < MC_N_CELLS) {
         emit_status(p, p->status_ctr);
@@ -419,6 +437,7 @@ void mc_primary_complete(mc_primary_t *p, uint32_t now, int status, const uint8_
     if (!p->busy)
         return;
     p->busy = 0;
+    p->progress++;
     mc_pcell_t *c = &p->cell[p->txn.cell];
     uint32_t j = p->txn.cell + 1u;
     if (status == MC_I2C_OK && now - p->txn_start > p->txn.timeout_us)

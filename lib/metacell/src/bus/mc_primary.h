@@ -100,6 +100,7 @@ typedef struct {
     mc_txn_t txn;
     uint32_t txn_start;
     uint32_t cycles;          /* completed cycles */
+    uint32_t progress;        /* schedule steps: transactions completed, cycles ended, waits for the period */
     uint16_t cycles_window;   /* cycles since the last heartbeat */
     uint16_t reject_count;
     /* millisecond clock, kept without division */
@@ -115,6 +116,7 @@ typedef struct {
     uint16_t slcan_err;       /* copied in by the link */
     /* health (PRIMARY_HEALTH frame, once a second after the heartbeat), reported by the glue */
     uint32_t usb_lost;        /* SLCAN output bytes the USB port did not take (saturates) */
+    uint32_t usb_pending;     /* bytes of the last write the port took, not yet known to have left */
     uint16_t bus_reset;       /* I2C bus recoveries (wraps) */
     uint8_t usb_fail;         /* failed USB writes (wraps) */
     uint8_t reset_cause;      /* MC_RCAUSE_* bits read at boot */
@@ -130,6 +132,11 @@ int mc_primary_next(mc_primary_t *p, uint32_t now_us, mc_txn_t *t);
 /* Report the end of the transaction started by mc_primary_next. */
 void mc_primary_complete(mc_primary_t *p, uint32_t now_us, int status, const uint8_t *rx,
                          uint32_t len);
+/* Steps the schedule has made (wraps): a transaction completed, a cycle ended, or a call of
+ * mc_primary_next() that found the next cycle not yet due. It stands still while a transaction
+ * is in flight and never completed, or while the glue stops calling the scheduler: the primary's
+ * watchdog is fed only when it has moved. */
+uint32_t mc_primary_progress(const mc_primary_t *p);
 /* A frame from the laptop (commands); everything else is rejected and reported. */
 void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f);
 /* Pop one outgoing frame; 0 when the queue is empty. */
@@ -138,6 +145,15 @@ uint32_t mc_primary_ms(mc_primary_t *p, uint32_t now_us);
 /* Health the glue reports (sent in PRIMARY_HEALTH): n bytes of output the USB port did not
  * take (one failed write), one I2C bus recovery, the reset cause read at boot. */
 void mc_primary_usb_lost(mc_primary_t *p, uint32_t n);
+/*
+ * One write of n bytes to the USB port (at most one 64-byte packet), taken = it reported all
+ * n. A port like the SAMD21 core's (USBCore.cpp send) arms a packet and returns; the packet
+ * leaves when the host reads it, and the next write waits for that first. When that wait
+ * times out, the core zeroes the byte count of the packet still armed: the *previous* write,
+ * reported taken, never arrives either. So a taken write stays pending until the next taken
+ * one proves it left; a failed write counts its own n and the pending bytes as lost.
+ */
+void mc_primary_usb_write(mc_primary_t *p, uint32_t n, int taken);
 void mc_primary_bus_reset(mc_primary_t *p);
 void mc_primary_set_reset_cause(mc_primary_t *p, uint8_t cause);
 

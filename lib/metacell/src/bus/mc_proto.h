@@ -6,7 +6,7 @@
 
 /* All multi-byte fields little-endian. See docs/datapath.md. */
 #define MC_PROTO_VERSION 1
-#define MC_PROTO_MAP_ID 0x53CE
+#define MC_PROTO_MAP_ID 0x9286
 #define MC_N_CELLS 16
 #define MC_ADDR_BASE 0x10   /* cell j at MC_ADDR_BASE + j - 1 */
 #define MC_CRC8_POLY 0x07
@@ -54,15 +54,17 @@
 #define MC_PARAMS_ASTAR 18   /* i32 */
 #define MC_PARAMS_PWM_LIMIT 22   /* u16 */
 #define MC_PARAMS_CRC 24   /* u8 */
-/* BOOT: why the cell last restarted and the watchdog in force */
+/* BOOT: why the cell last restarted, the watchdog in force and the fault that reset it */
 #define MC_BLK_BOOT 3
 #define MC_BLK_BOOT_TAG 0x13
-#define MC_BLK_BOOT_LEN 6
+#define MC_BLK_BOOT_LEN 11
 #define MC_BOOT_TAG 0   /* u8 */
 #define MC_BOOT_ADDR 1   /* u8 */
 #define MC_BOOT_RESET_CAUSE 2   /* u8 */
 #define MC_BOOT_WDT_MS 3   /* u16 */
-#define MC_BOOT_CRC 5   /* u8 */
+#define MC_BOOT_FAULT_EXC 5   /* u8 */
+#define MC_BOOT_FAULT_PC 6   /* u32 */
+#define MC_BOOT_CRC 10   /* u8 */
 #define MC_BLK_COUNT 4
 #define MC_BLK_MAX_LEN 25
 
@@ -80,6 +82,7 @@
 #define MC_RCAUSE_EXT 0x10
 #define MC_RCAUSE_WDT 0x20
 #define MC_RCAUSE_SYST 0x40
+#define MC_RCAUSE_FAULT 0x80
 
 /* ---- writable registers: S addr+W reg seq payload crc8 P ---- */
 #define MC_WRITE_OVERHEAD 3   /* reg, seq, crc */

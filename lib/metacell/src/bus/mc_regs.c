@@ -84,20 +84,23 @@ int mc_regs_init(mc_regs_t *r, const mc_cell_t *c, uint8_t addr, uint32_t build,
     mc_put_u32(id + MC_IDENT_BUILD, build);
     mc_put_u16(id + MC_IDENT_MAP_ID, MC_PROTO_MAP_ID);
     seal(id, MC_BLK_IDENT_LEN);
-    mc_regs_set_boot(r, 0, 0);
+    mc_regs_set_boot(r, 0, 0, 0, 0);
     publish_params(r, c);
     mc_quad_snap_t z = {0, 0, 0};
     publish_snapshot(r, c, &z, &z);
     return MC_OK;
 }
 
-void mc_regs_set_boot(mc_regs_t *r, uint8_t reset_cause, uint16_t wdt_ms)
+void mc_regs_set_boot(mc_regs_t *r, uint8_t reset_cause, uint16_t wdt_ms, uint8_t fault_exc,
+                      uint32_t fault_pc)
 {
     uint8_t *b = r->boot;
     b[MC_BOOT_TAG] = MC_BLK_BOOT_TAG;
     b[MC_BOOT_ADDR] = r->addr;
     b[MC_BOOT_RESET_CAUSE] = reset_cause;
     mc_put_u16(b + MC_BOOT_WDT_MS, wdt_ms);
+    b[MC_BOOT_FAULT_EXC] = fault_exc;
+    mc_put_u32(b + MC_BOOT_FAULT_PC, fault_pc);
     seal(b, MC_BLK_BOOT_LEN);
 }
 

@@ -38,7 +38,7 @@ typedef struct {
     uint8_t snap[2][MC_BLK_SNAPSHOT_LEN];
     uint8_t params[2][MC_BLK_PARAMS_LEN];
     uint8_t ident[MC_BLK_IDENT_LEN];
-    uint8_t boot[MC_BLK_BOOT_LEN];       /* BOOT block: reset cause, watchdog (mc_regs_set_boot) */
+    uint8_t boot[MC_BLK_BOOT_LEN];       /* BOOT block: reset cause, watchdog, fault (mc_regs_set_boot) */
     mc_reaction_phys_t phys;             /* parameters in force (last accepted) */
     uint8_t last_seq;                    /* seq of the last write processed */
     uint8_t last_result;                 /* MC_RES_* of it */
@@ -50,8 +50,11 @@ typedef struct {
 int mc_regs_init(mc_regs_t *r, const mc_cell_t *c, uint8_t addr, uint32_t build,
                  const mc_reaction_phys_t *phys);
 /* Fill the BOOT block: reset_cause = MC_RCAUSE_* bits read at boot, wdt_ms = watchdog
- * timeout in force (0 = off). Call after mc_regs_init, before the bus starts. */
-void mc_regs_set_boot(mc_regs_t *r, uint8_t reset_cause, uint16_t wdt_ms);
+ * timeout in force (0 = off), fault_exc / fault_pc = exception number and stacked PC of the
+ * fault that reset the cell (MC_RCAUSE_FAULT; 0 / 0 otherwise). Call after mc_regs_init,
+ * before the bus starts. */
+void mc_regs_set_boot(mc_regs_t *r, uint8_t reset_cause, uint16_t wdt_ms, uint8_t fault_exc,
+                      uint32_t fault_pc);
 /* ISR: a write of len bytes ended (len 0 is ignored). */
 void mc_regs_on_receive(mc_regs_t *r, const uint8_t *data, uint32_t len);
 /* ISR: a read started; fills out[0..cap) and returns the byte count. */

@@ -18,8 +18,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, FigureBase
 
-    from .params import Params
-    from .scene import Scene
+    from ..analysis.stability import Theory
+    from ..params import Params
+    from ..scene import Scene
 
 
 def new_figure(figsize: tuple[float, float] = (8, 6), **kw: Any) -> Figure:
@@ -29,6 +30,15 @@ def new_figure(figsize: tuple[float, float] = (8, 6), **kw: Any) -> Figure:
     from matplotlib.figure import Figure
 
     return Figure(figsize=figsize, **kw)
+
+
+def cell_ticks(axis: Any, n: int) -> None:
+    """Integer cell ticks on a matplotlib Axis (every cell up to 16, else 1 and every 4th): cells are 1..n, never
+    2.5 or 7.5 (what an automatic locator puts on an image extent of 0.5..n + 0.5)."""
+    from matplotlib.ticker import FixedLocator, NullLocator
+
+    axis.set_major_locator(FixedLocator(list(range(1, n + 1)) if n <= 16 else [1, *range(4, n + 1, 4)]))
+    axis.set_minor_locator(NullLocator())
 
 
 def _save(fig, path):
@@ -123,6 +133,7 @@ def plot_spacetime(
             interpolation="nearest",
         )
         axi.set_ylabel("cell j")
+        cell_ticks(axi.yaxis, n)
         axi.set_xlabel("t (s)")
         if tz is None:
             fig.colorbar(im, ax=axi, label=f"{lab} (rad)")
@@ -159,23 +170,29 @@ def plot_final(
     ax.axhline(0, color="0.6", lw=0.8)
     ax.set_xlabel("cell j")
     ax.set_ylabel("angle (rad)")
-    ax.set_xticks(j)
+    cell_ticks(ax.xaxis, len(j))
     ax.legend()
     ax.set_title(_title(scene, title) or "final pattern", fontsize=9)
     return fig
 
 
 def plot_dispersion(
-    params: Params, *, ax: Axes | None = None, inertia: bool = False, measured_period_s: float | None = None
+    params: Params,
+    *,
+    ax: Axes | None = None,
+    inertia: bool = False,
+    measured_period_s: float | None = None,
+    theory: Theory | None = None,
 ) -> FigureBase:
-    """Growth rate against wavelength (analysis.stability.plot_dispersion); the measured period, if given,
-    is marked as a horizontal line at its angular frequency 2 pi / T. Returns the Figure."""
-    from .analysis.stability import plot_dispersion as _pd
+    """Growth rate against wavelength (analysis.stability.plot_dispersion) of the given theory (theory_of(model,
+    params, inertia); default the lattice with or without inertia); the measured period, if given, is marked as a
+    horizontal line at its angular frequency 2 pi / T. Returns the Figure."""
+    from ..analysis.stability import plot_dispersion as _pd
 
     if ax is None:
         fig = new_figure(figsize=(7, 4.2), constrained_layout=True)
         ax = fig.add_subplot(111)
-    _pd(params, ax=ax, inertia=inertia)
+    _pd(params, ax=ax, inertia=inertia, theory=theory)
     if measured_period_s:
         w = 2 * np.pi / measured_period_s
         lo, hi = ax.get_ylim()
@@ -186,26 +203,38 @@ def plot_dispersion(
 
 
 def plot_dispersion_png(
-    params: Params, path: str | Path, *, inertia: bool = False, measured_period_s: float | None = None
+    params: Params,
+    path: str | Path,
+    *,
+    inertia: bool = False,
+    measured_period_s: float | None = None,
+    theory: Theory | None = None,
 ) -> bool:
     """Write the dispersion plot to path; False (no file) if the analysis module is unavailable."""
     try:
-        fig = plot_dispersion(params, inertia=inertia, measured_period_s=measured_period_s)
+        fig = plot_dispersion(params, inertia=inertia, measured_period_s=measured_period_s, theory=theory)
     except ImportError:
         return False
     _save(fig, path)
     return True
 
 
-def plot_run(res: Any, scene: Scene, outdir: Path, *, inertia: bool = False) -> list[Path]:
-    """The run's PNGs in outdir: spacetime.png, final_pattern.png, dispersion.png. Returns the paths."""
+def plot_run(res: Any, scene: Scene, outdir: Path, *, source: str | None = None, name: str | None = None) -> list[Path]:
+    """The run's PNGs in outdir: spacetime.png, final_pattern.png, dispersion.png. Returns the paths.
+
+    source labels the data in the titles ("emulator:<model>" by default, "rehearsal:<model>", "rig"); name replaces
+    the scene's name in them; the dispersion is the linear theory of the scene's model."""
+    from ..analysis.summary import theory_for
+
     outdir = Path(outdir)
+    label = source or f"emulator:{scene.model}"
+    name = name or scene.name
     files = [outdir / "spacetime.png", outdir / "final_pattern.png"]
-    fig = plot_spacetime(res.t, res.alpha, res.beta, scene=scene, title=f"{scene.name} ({scene.model})")
+    fig = plot_spacetime(res.t, res.alpha, res.beta, scene=scene, title=f"{name} ({label})")
     _save(fig, files[0])
-    fig = plot_final(res.alpha[-1], res.beta[-1], scene=scene, title=f"{scene.name}: t = {res.t[-1]:.2f} s")
+    fig = plot_final(res.alpha[-1], res.beta[-1], scene=scene, title=f"{name} ({label}): t = {res.t[-1]:.2f} s")
     _save(fig, files[1])
     d = outdir / "dispersion.png"
-    if plot_dispersion_png(scene.params, d, inertia=inertia):
+    if plot_dispersion_png(scene.params, d, theory=theory_for(scene)):
         files.append(d)
     return files

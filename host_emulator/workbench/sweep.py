@@ -3,8 +3,9 @@
     python -m host_emulator sweep default --grid params.sigma=0.04:0.12:41 \
         --grid perturbation.1.torque_Nm=0.005,0.01,0.02,0.04 --seeds 5 --out out/sweep
 
-* Grid: ``KEY=START:STOP:NUM`` (NUM values, both ends included) or ``KEY=V1,V2,...``; KEY is any ``run --set``
-  key (params.sigma, perturbation.1.torque_Nm, model_options.noise.band_spread, t_end_s, ...). ``--seeds S``
+* Grid: ``KEY=START:STOP:NUM`` (NUM values, both ends included, computed exactly: 0.04:0.12:41 gives 0.056, not
+  0.055999999999999994; fractions such as 6/125 allowed) or ``KEY=V1,V2,...``; KEY is any ``run --set`` key
+  (params.sigma, perturbation.1.torque_Nm, model_options.noise.band_spread, t_end_s, ...). ``--seeds S``
   adds a coordinate ``seed`` = 0..S-1 set as model_options.noise.seed (give the seeds something to vary,
   e.g. ``--set model_options.noise.band_spread=0.02``).
 * Execution: points are cut into chunks; each Dask task evaluates one chunk through
@@ -15,15 +16,18 @@
 * Output in DIR: ``points.jsonl`` (one line per finished point, appended as chunks finish: the sweep is
   resumable, a re-run skips the points already there; ``--retry-failed`` runs failed ones again),
   ``sweep.json`` (the sweep's definition; a re-run with another definition is refused), ``sweep.nc``
-  (xarray Dataset, NetCDF 3 through scipy: a coordinate per swept key, observables as variables, ``status``
+  (xarray Dataset, NetCDF 3 through scipy: a coordinate per swept key, named plainly for ``.sel`` (``sigma``,
+  ``torque_Nm``; the full key in the coordinate's ``key`` attribute), observables as variables, ``status``
   and ``error`` per point, provenance and every base-scene parameter as attributes), ``phase_diagram.png``
   (when params.sigma is swept) and ``regime_map.png`` (the first two swept keys, or ``--map KEY KEY``).
 
 Observables per point (NaN where not defined or not produced): domain_walls, pattern_wavelength_cells
 (2(N-1)/Z, cells), dominant_mode, pattern_period_cells, amplitude_rad, oscillation_period_s, growth_rate_per_s,
-at_rest and steady (1/0), and from the linear theory of the point's parameters: regime,
-theory_fastest_lambda_cells, theory_band_lo_cells, theory_band_hi_cells (inf: the band reaches infinitely long
-waves), theory_fastest_growth_per_s. Units are attributes of each variable.
+at_rest and steady (1/0), outcome (rest / pattern / oscillation / moving / failed), and from the linear theory
+of the model that runs, at the point's parameters: regime (docs/analysis.md#regimes), theory_fastest_lambda_cells,
+theory_fastest_growth_per_s and, over a dimension ``band`` (one entry per unstable interval, NaN-padded),
+theory_band_lo_cells, theory_band_hi_cells (inf: the interval reaches infinitely long waves) and
+theory_band_kind (stationary / oscillatory). Units are attributes of each variable.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -47,7 +51,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import FigureBase
 
-    from .scene import Scene
+    from ..scene import Scene
+    from .api import Overrides
 
 OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report it)
     "domain_walls": "1",
@@ -60,12 +65,12 @@ OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report 
     "at_rest": "1 (true) / 0 (false)",
     "steady": "1 (true) / 0 (false)",
     "theory_fastest_lambda_cells": "cells",
-    "theory_band_lo_cells": "cells",
-    "theory_band_hi_cells": "cells",
     "theory_fastest_growth_per_s": "1/s",
     "wall_s": "s",
 }
-STRINGS = ("regime", "status", "error")
+BANDS = {"theory_band_lo_cells": "cells", "theory_band_hi_cells": "cells"}  # per unstable interval (dim band)
+STRINGS = ("regime", "outcome", "status", "error")
+OUTCOMES = ("rest", "pattern", "oscillation", "moving", "failed")
 
 
 class SweepError(ValueError):
@@ -75,9 +80,20 @@ class SweepError(ValueError):
 # ---- the grid -------------------------------------------------------------------------------------------
 
 
+def _exact_range(a_text: str, b_text: str, n: int) -> list[float]:
+    """NUM values from START to STOP, both included, each the float nearest the exact decimal (or fraction) value:
+    0.04:0.12:41 gives 0.056 where linspace gives 0.055999999999999994 (so ds.sel(sigma=0.056) finds it)."""
+    from fractions import Fraction
+
+    a, b = Fraction(a_text.strip()), Fraction(b_text.strip())
+    if n == 1:
+        return [float(a)]
+    return [float(a + (b - a) * i / (n - 1)) for i in range(n)]
+
+
 def parse_grid(text: str) -> tuple[str, list]:
     """'KEY=START:STOP:NUM' or 'KEY=V1,V2,...' -> (KEY, values)."""
-    from .scene import _value
+    from ..scene import _value
 
     if "=" not in text:
         raise SweepError(f"--grid {text!r}: expected KEY=START:STOP:NUM or KEY=V1,V2,...")
@@ -87,18 +103,45 @@ def parse_grid(text: str) -> tuple[str, list]:
     if spec.count(":") == 2 and "," not in spec:
         a_text, b_text, n_text = spec.split(":")
         try:
-            a, b, n = float(_value(a_text)), float(_value(b_text)), int(n_text)
-        except (TypeError, ValueError):
+            n = int(n_text)
+            vals = _exact_range(a_text, b_text, max(n, 1))
+        except (TypeError, ValueError, ZeroDivisionError):
             raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
-        if n < 1 or not (math.isfinite(a) and math.isfinite(b)):
+        if n < 1 or not all(math.isfinite(v) for v in vals):
             raise SweepError(f"--grid {text!r}: NUM must be >= 1 and START, STOP finite")
-        return key, [float(v) for v in np.linspace(a, b, n)]
+        return key, vals
     vals = [_value(v) for v in spec.split(",") if v.strip()]
     if not vals:
         raise SweepError(f"--grid {text!r}: no values")
     if len(set(map(repr, vals))) != len(vals):
         raise SweepError(f"--grid {text!r}: repeated values")
     return key, vals
+
+
+def coord_names(keys) -> dict[str, str]:
+    """Plain coordinate names for swept keys, usable with ds.sel(...) and as attributes: the last part of the key
+    (params.sigma -> sigma, perturbation.1.torque_Nm -> torque_Nm), the whole key with '_' for '.' where two
+    keys would share a name or a name is a variable's (regime, status, ...)."""
+    keys = list(keys)
+    last = [k.split(".")[-1] for k in keys]
+    reserved = set(OBSERVABLES) | set(BANDS) | set(STRINGS) | {"seed", "band", "theory_band_kind"}
+    out = {}
+    for k, name in zip(keys, last):
+        if k == "seed":
+            out[k] = "seed"
+        elif last.count(name) > 1 or name in reserved or not name.isidentifier():
+            out[k] = k.replace(".", "_")
+        else:
+            out[k] = name
+    return out
+
+
+def _coord(ds: xr.Dataset, key: str) -> str | None:
+    """The coordinate of a swept key (by its 'key' attribute, or an old dataset's coordinate named by the key)."""
+    for name, c in ds.coords.items():
+        if c.attrs.get("key") == key:
+            return str(name)
+    return key if key in ds.coords else None
 
 
 def _fmt_value(v) -> str:
@@ -109,8 +152,9 @@ def _fmt_value(v) -> str:
     return repr(v)
 
 
-def point_specs(scene: str, grid: dict, seeds: int | None, fixed: Sequence[str] = ()) -> tuple[list[dict], dict]:
-    """Every grid point as a spec {"index", "scene", "overrides", "coords"}; and the coordinate axes."""
+def point_specs(scene: str | dict, grid: dict, seeds: int | None, fixed: Sequence[str] = ()) -> tuple[list[dict], dict]:
+    """Every grid point as a spec {"index", "scene", "overrides", "coords"}; and the coordinate axes. scene: a shipped
+    name / TOML path, or a scene table (scene.scene_table) that workers rebuild."""
     axes = {k: list(v) for k, v in grid.items()}
     if seeds:
         axes["seed"] = list(range(int(seeds)))
@@ -122,6 +166,14 @@ def point_specs(scene: str, grid: dict, seeds: int | None, fixed: Sequence[str] 
             over.append(f"model_options.noise.seed={coords['seed']}")
         specs.append({"index": i, "scene": scene, "overrides": over, "coords": coords})
     return specs, axes
+
+
+def _load_spec(spec: dict):
+    from ..scene import apply_overrides, load_scene, scene_from_dict
+
+    if isinstance(spec["scene"], dict):
+        return scene_from_dict(apply_overrides(spec["scene"], spec["overrides"]), "")
+    return load_scene(spec["scene"], spec["overrides"])
 
 
 # ---- one chunk of points: the task each Dask worker runs ------------------------------------------------
@@ -138,21 +190,34 @@ def _num(v):
         return float("nan")
 
 
+def outcome_of(r: dict) -> str:
+    """A point's outcome from its observables: rest, pattern (steady with domain walls), oscillation (a temporal
+    period found, not at rest), moving (neither), failed."""
+    if r.get("status") == "failed":
+        return "failed"
+    if r.get("at_rest") == 1:
+        return "rest"
+    if math.isfinite(_num(r.get("oscillation_period_s"))):
+        return "oscillation"
+    if r.get("steady") == 1 and _num(r.get("domain_walls")) > 0:
+        return "pattern"
+    return "moving"
+
+
 def evaluate_points(specs: list[dict]) -> list[dict]:
     """Run each point spec and return one result dict per spec, in order; a failing point gives
     {"status": "failed", "error": "<Type>: <message>"} instead of raising. The points of a chunk run together
-    in one compiled call (host_emulator.batch.run_batch: hil lattices batched, bit-identical to run_scene;
+    in one compiled call (host_emulator.workbench.batch.run_batch: hil lattices batched, bit-identical to run_scene;
     other models one by one), so a point costs no Python per control tick."""
+    from ..analysis.summary import summarize
     from .batch import run_batch
-    from .cli import summarize
-    from .scene import load_scene
 
     out: list[dict] = []
     loaded = []
     for spec in specs:
         r = {"index": spec["index"], "status": "ok", "error": ""}
         try:
-            loaded.append((r, load_scene(spec["scene"], spec["overrides"])))
+            loaded.append((r, _load_spec(spec)))
         except Exception as e:  # noqa: BLE001 - a failing point is recorded, never dropped
             r["status"], r["error"], r["wall_s"] = "failed", f"{type(e).__name__}: {e}", 0.0
         out.append(r)
@@ -169,16 +234,22 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
                 if k in s:
                     r[k] = _num(s[k])
             d = s.get("dispersion") or {}
-            band = d.get("unstable_band_cells")
             r["regime"] = str(d.get("regime") or "")
             r["theory_fastest_lambda_cells"] = _num(d.get("fastest_lambda_cells"))
             r["theory_fastest_growth_per_s"] = _num(d.get("fastest_growth_per_s"))
-            r["theory_band_lo_cells"] = _num(band[0]) if band else float("nan")
-            r["theory_band_hi_cells"] = (float("inf") if band[1] is None else _num(band[1])) if band else float("nan")
+            r["theory_bands"] = [
+                [
+                    _num(iv["lambda_cells"][0]),
+                    "inf" if iv["lambda_cells"][1] is None else _num(iv["lambda_cells"][1]),
+                    iv["kind"],
+                ]
+                for iv in d.get("unstable_intervals") or []
+            ]
             r["wall_s"] = float(res.wall_s)
         except Exception as e:  # noqa: BLE001 - a failing point is recorded, never dropped
             r["status"], r["error"] = "failed", f"{type(e).__name__}: {e}"
             r.setdefault("wall_s", 0.0)
+        r["outcome"] = outcome_of(r)
     return out
 
 
@@ -215,12 +286,13 @@ def load_done(out: Path) -> dict[int, dict]:
 
 
 def sweep(
-    scene: str = "default",
-    grid: dict | None = None,
+    scene: str | Scene = "default",
+    grid: Mapping[str, Iterable] | None = None,
     *,
     seeds: int | None = None,
     out: str | Path = "out/sweep",
-    fixed: Sequence[str] = (),
+    fixed: Overrides = (),
+    accuracy: str | None = None,
     scheduler: str | None = None,
     workers: int | None = None,
     chunk: int | None = None,
@@ -229,22 +301,36 @@ def sweep(
     plots: bool = True,
     map_keys: Sequence[str] | None = None,
 ) -> xr.Dataset:
-    """Run the sweep (see module docstring) and return its xarray Dataset (also written to out/sweep.nc)."""
-    from .api import load_scene
+    """Run the sweep (see module docstring) and return its xarray Dataset (also written to out/sweep.nc).
 
-    grid = dict(grid or {})
+    scene and fixed take what host_emulator.run takes (a shipped name, a .toml path or a Scene; overrides as
+    {"params.sigma": "6/125"} or ["KEY=VALUE", ...]); grid: {key: values} (a list, a range, a numpy array);
+    progress: a bar on stderr (shown on a terminal only)."""
+    from ..scene import _value, scene_table
+    from .api import override_list
+
+    grid = {
+        str(k): [_value(x) if isinstance(x, str) else x for x in (v.tolist() if isinstance(v, np.ndarray) else v)]
+        for k, v in dict(grid or {}).items()
+    }  # string values read as on the command line: "6/125" is a fraction
     for k, v in grid.items():
-        if not isinstance(v, (list, tuple)) or not v:
+        if not v:
             raise SweepError(f"grid[{k!r}]: expected a non-empty list of values")
     if seeds is not None and (isinstance(seeds, bool) or int(seeds) < 1):
         raise SweepError(f"seeds = {seeds!r}: expected a positive integer")
-    scene_name = str(scene)
-    specs, axes = point_specs(scene_name, grid, seeds, list(fixed))
-    base = load_scene(scene_name, list(fixed))
-    load_scene(scene_name, specs[0]["overrides"])  # a bad key fails here, before any cluster starts
+    fixed = override_list(fixed) + ([f'accuracy="{accuracy}"'] if accuracy else [])
+    if isinstance(scene, (str, Path)):
+        scene_ref: str | dict = str(scene)
+    elif hasattr(scene, "as_dict"):
+        scene_ref = scene_table(scene)  # a Scene object: workers rebuild it from its table
+    else:
+        raise SweepError(f"scene = {scene!r}: expected a scene name, a .toml path or a Scene")
+    specs, axes = point_specs(scene_ref, grid, seeds, fixed)
+    base = _load_spec({"scene": scene_ref, "overrides": fixed})
+    _load_spec(specs[0])  # a bad key fails here, before any cluster starts
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    definition = {"scene": scene_name, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}
+    definition = {"scene": scene_ref, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}
     dfile = out / "sweep.json"
     if dfile.exists():
         old = json.loads(dfile.read_text())
@@ -260,13 +346,12 @@ def sweep(
     ds = to_dataset(specs, axes, done, base, definition)
     ds.to_netcdf(out / "sweep.nc", engine="scipy")
     if plots:
-        files = []
         if "params.sigma" in axes:
             _save(plot_phase_diagram(ds, base), out / "phase_diagram.png")
-            files.append("phase_diagram.png")
         keys = list(map_keys or [k for k in axes if len(axes[k]) > 1][:2])
         if len(keys) == 2:
-            _save(plot_regime_map(ds, keys[0], keys[1]), out / "regime_map.png")
+            names = coord_names(axes)
+            _save(plot_regime_map(ds, names.get(keys[0], keys[0]), names.get(keys[1], keys[1])), out / "regime_map.png")
     return ds
 
 
@@ -301,7 +386,8 @@ def chunk_size(points: int, workers: int) -> int:
 
 def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
     from distributed import Client, as_completed
-    from tqdm import tqdm
+
+    from ..progress import bar as progress_bar
 
     cluster = None
     if scheduler:
@@ -318,7 +404,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
             client.submit(evaluate_points, c, retries=2, pure=False, key=f"sweep-{tag}-{i}"): c
             for i, c in enumerate(chunks)
         }
-        bar = tqdm(total=len(todo), unit="point", desc="sweep", disable=not progress, file=sys.stderr)
+        bar = progress_bar(len(todo), desc="sweep", unit="point", quiet=not progress)
         pf = out / "points.jsonl"
         cut = pf.exists() and pf.stat().st_size and not pf.read_bytes().endswith(b"\n")
         with open(pf, "a") as fh:
@@ -344,15 +430,20 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
 
 
 def to_dataset(specs: list[dict], axes: dict, done: dict, base: Scene, definition: dict) -> xr.Dataset:
-    """The xarray Dataset of a sweep: dims = swept keys (+ seed), observables as variables."""
+    """The xarray Dataset of a sweep: one dimension per swept key (plain names, the key in the coordinate's 'key'
+    attribute; + seed), observables as variables, the theory's unstable intervals over a dimension 'band'."""
     import xarray as xr
 
+    from ..provenance import provenance
     from .api import netcdf_attrs
-    from .provenance import provenance
 
     shape = tuple(len(v) for v in axes.values())
-    dims = tuple(axes)
+    names = coord_names(axes)
+    dims = tuple(names[k] for k in axes)
+    nb = max([1] + [len(r.get("theory_bands") or []) for r in done.values()])
     data = {k: np.full(shape, np.nan) for k in OBSERVABLES}
+    bands = {k: np.full(shape + (nb,), np.nan) for k in BANDS}
+    kinds = np.full(shape + (nb,), "", dtype=object)
     strs = {k: np.full(shape, "", dtype=object) for k in STRINGS}
     strs["status"][...] = "pending"
     for s in specs:
@@ -363,111 +454,240 @@ def to_dataset(specs: list[dict], axes: dict, done: dict, base: Scene, definitio
         for k in OBSERVABLES:
             if k in r:
                 data[k][ix] = _num(r[k])
+        for b, (lo, hi, kind) in enumerate(r.get("theory_bands") or []):
+            bands["theory_band_lo_cells"][ix + (b,)] = _num(lo)
+            bands["theory_band_hi_cells"][ix + (b,)] = float("inf") if hi in ("inf", None) else _num(hi)
+            kinds[ix + (b,)] = kind
         for k in STRINGS:
             strs[k][ix] = str(r.get(k, "") or "")
-    vars_: dict[str, tuple] = {k: (dims, v, {"units": u}) for k, v in data.items() for u in [OBSERVABLES[k]]}
+        if not strs["outcome"][ix]:
+            strs["outcome"][ix] = outcome_of(r)  # points stored before outcomes were
+    vars_: dict[str, tuple] = {k: (dims, v, {"units": OBSERVABLES[k]}) for k, v in data.items()}
+    vars_.update({k: (dims + ("band",), v, {"units": BANDS[k]}) for k, v in bands.items()})
+    vars_["theory_band_kind"] = (dims + ("band",), kinds.astype(str), {"long_name": "stationary / oscillatory"})
     vars_.update({k: (dims, v.astype(str)) for k, v in strs.items()})
     coords = {}
     for k, v in axes.items():
         arr = np.asarray(v)
-        coords[k] = (k, arr if arr.dtype.kind in "ifu" else arr.astype(str))
+        coords[names[k]] = (names[k], arr if arr.dtype.kind in "ifu" else arr.astype(str), {"key": k})
     ds = xr.Dataset(vars_, coords=coords)
     ds.attrs.update(netcdf_attrs(base))
     ds.attrs.update({f"provenance.{k}": v for k, v in provenance().items()})
     ds.attrs["sweep.definition"] = json.dumps(definition)
     ds.attrs["sweep.points"] = int(np.prod(shape))
     ds.attrs["sweep.failed"] = int((strs["status"] == "failed").sum())
+    ds.attrs["source"] = f"emulator:{base.model}"
     return ds
 
 
 # ---- plots ----------------------------------------------------------------------------------------------
 
 
+OUTCOME_STYLE = {  # outcome -> (marker, colour, label) in the phase diagram
+    "pattern": ("o", "k", "pattern: selected wavelength 2(N-1)/Z"),
+    "rest": ("v", "0.45", "rest (drawn at the bottom)"),
+    "oscillation": ("^", "C3", "oscillation (drawn at the top)"),
+    "moving": ("s", "C1", "still moving at the end (drawn at the top)"),
+    "failed": ("x", "C3", "failed (drawn at the bottom)"),
+}
+
+
+def theory_bands_over(base: Scene, sigmas: np.ndarray) -> dict:
+    """The linear theory of the base scene's model at each sigma: {'stationary': [(lo, hi), ...] per sigma,
+    'oscillatory': ..., 'fastest': the fastest stationary wavelength, 'regime': ...}, hi inf for an interval reaching
+    the longest waves."""
+    import dataclasses
+
+    from ..analysis.stability import dispersion, theory_of
+
+    out: dict = {"stationary": [], "oscillatory": [], "fastest": [], "regime": []}
+    for sg in sigmas:
+        p = dataclasses.replace(base.params, sigma=float(sg))
+        d = dispersion(p, theory=theory_of(base.model, p, base.options.inertia), n_cells=base.cells, n_kappa=600)
+        for kind in ("stationary", "oscillatory"):
+            out[kind].append(
+                [
+                    (iv["lambda_cells"][0], iv["lambda_cells"][1] or math.inf)
+                    for iv in d["unstable_intervals"]
+                    if iv["kind"] == kind
+                ]
+            )
+        stat = [iv for iv in d["unstable_intervals"] if iv["kind"] == "stationary"]
+        best = max(stat, key=lambda iv: iv["fastest_growth_per_s"]) if stat else None
+        out["fastest"].append((best and best["fastest_lambda_cells"]) or np.nan)
+        out["regime"].append(d["regime"])
+    return out
+
+
 def plot_phase_diagram(
-    ds: xr.Dataset, base: Scene | None = None, *, ax: Axes | None = None, inertia: bool | None = None
+    ds: xr.Dataset, base: Scene | None = None, *, ax: Axes | None = None, color_by: str | None = None
 ) -> FigureBase:
-    """Selected wavelength (2(N-1)/Z, cells) of every point against sigma, with the linear theory's unstable
-    band (shaded) and fastest wavelength (line) of the base scene's parameters at each sigma. Returns the Figure."""
-    from .analysis.stability import dispersion
+    """Every point of the sweep against sigma, drawn by outcome: the selected wavelength (2(N-1)/Z, cells) of a
+    pattern, rest at the bottom edge, an oscillation or a still-moving run at the top edge, failures as crosses;
+    with a second swept key (color_by: its coordinate name; default the first swept key besides sigma and seed)
+    the points are coloured by its value. Beside them the linear theory of the base scene's model at each sigma:
+    every unstable interval (stationary shaded blue, oscillatory hatched red; an interval reaching lambda -> inf
+    is drawn up to the top edge) and the fastest wavelength. Returns the Figure."""
     from .plots import new_figure
 
+    sname = _coord(ds, "params.sigma")
+    if sname is None:
+        raise SweepError("phase diagram: params.sigma is not swept")
     if ax is None:
-        fig = new_figure(figsize=(7.5, 4.8), constrained_layout=True)
+        fig = new_figure(figsize=(10, 5), constrained_layout=True)
         ax = fig.add_subplot(111)
-    sig = np.asarray(ds["params.sigma"].values, dtype=float)
-    lam = ds["pattern_wavelength_cells"].transpose("params.sigma", ...).values.reshape(len(sig), -1)
-    xs = np.repeat(sig, lam.shape[1])
-    ax.plot(xs, lam.ravel(), "o", ms=3, alpha=0.5, color="k", label="sweep: selected wavelength 2(N-1)/Z")
-    if base is not None:
-        import dataclasses
-
-        inert = base.options.inertia and base.model != "continuum" if inertia is None else inertia
-        sg = np.linspace(sig.min(), sig.max(), max(60, len(sig)))
-        lo, hi, fast = [], [], []
-        for s in sg:
-            d = dispersion(
-                dataclasses.replace(base.params, sigma=float(s)), inertia=inert, n_cells=base.cells, n_kappa=600
-            )
-            b = d.get("unstable_band_cells")
-            lo.append(b[0] if b else np.nan)
-            hi.append((b[1] if b[1] is not None else 1e3) if b else np.nan)
-            fast.append(d.get("fastest_lambda_cells") or np.nan)
-        ax.fill_between(sg, lo, hi, color="C0", alpha=0.15, label="linear theory: unstable band")
-        ax.plot(sg, fast, color="C0", lw=1.5, label="linear theory: fastest wavelength")
     n = int(ds.attrs.get("cells", 16))
-    ax.set_ylim(1.5, 4 * n)
-    ax.set_yscale("log")
-    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+    ylo, yhi = 1.5, 4.0 * n
+    others = [str(d) for d in ds["status"].dims if d not in (sname, "seed")]
+    cby = color_by if color_by is not None else (others[0] if others else None)
+    if cby is not None and cby not in others:
+        raise SweepError(f"phase diagram: color_by={cby!r} is not a swept key; swept: {', '.join(others) or 'none'}")
+    order = [sname] + ([cby] if cby else []) + [d for d in ds["status"].dims if d not in (sname, cby)]
+    sig = np.asarray(ds[sname].values, dtype=float)
+    lam = ds["pattern_wavelength_cells"].transpose(*order).values
+    outc = ds["outcome"].transpose(*order).values.astype(str) if "outcome" in ds else None
+    cvals = list(ds[cby].values) if cby else [None]
+    lam = lam.reshape(len(sig), len(cvals), -1)
+    outc = outc.reshape(lam.shape) if outc is not None else np.where(np.isfinite(lam), "pattern", "moving")
+    from matplotlib import colormaps
 
+    cmap = colormaps["viridis"]
+    spread = 0.004 * (sig.max() - sig.min() or 1.0)  # colours side by side, not on top of each other
+    for ci in range(len(cvals)):
+        dx = (ci - (len(cvals) - 1) / 2) * spread if len(cvals) > 1 else 0.0
+        for oc, (mk, col, label) in OUTCOME_STYLE.items():
+            m = outc[:, ci, :] == oc
+            if not m.any():
+                continue
+            xs = np.repeat(sig, m.shape[1]).reshape(m.shape)[m] + dx
+            if oc == "pattern":
+                ys = lam[:, ci, :][m]
+            elif oc in ("rest", "failed"):
+                ys = np.full(xs.shape, ylo * 1.08)
+            else:
+                ys = np.full(xs.shape, yhi / 1.12)
+            colour = col if cby is None or oc in ("failed",) else cmap(ci / max(1, len(cvals) - 1))
+            lab = label if ci == 0 else None
+            ax.plot(xs, ys, mk, ms=4, alpha=0.7, color=colour, mfc=colour if oc == "pattern" else "none", label=lab)
+    if cby:
+        from matplotlib.lines import Line2D
+
+        handles = [
+            Line2D(
+                [],
+                [],
+                marker="o",
+                ls="",
+                color=cmap(ci / max(1, len(cvals) - 1)),
+                label=f"{cby} = {cv:g}" if isinstance(cv, (float, int, np.number)) else f"{cby} = {cv}",
+            )
+            for ci, cv in enumerate(cvals)
+        ]
+        leg2 = ax.legend(
+            handles=handles, fontsize=7, loc="lower left", bbox_to_anchor=(1.01, 0.0), title="colour", title_fontsize=7
+        )
+        ax.add_artist(leg2)
+    if base is not None:
+        sg = np.linspace(sig.min(), sig.max(), max(80, len(sig)))
+        th = theory_bands_over(base, sg)
+        for kind, colour, hatch in (("stationary", "C0", None), ("oscillatory", "C3", "//")):
+            slots = max([0] + [len(x) for x in th[kind]])
+            for k in range(slots):
+                lo = np.array([x[k][0] if len(x) > k else np.nan for x in th[kind]])
+                hi = np.array([min(x[k][1], yhi) if len(x) > k else np.nan for x in th[kind]])
+                ax.fill_between(
+                    sg,
+                    lo,
+                    hi,
+                    color=colour,
+                    alpha=0.15,
+                    hatch=hatch,
+                    lw=0,
+                    label=f"linear theory: {kind} unstable" if k == 0 else None,
+                )
+        ax.plot(sg, th["fastest"], color="C0", lw=1.2, label="linear theory: fastest stationary wavelength")
+        from ..analysis.stability import theory_of
+
+        tname = theory_of(base.model, base.params, base.options.inertia).label()
+    else:
+        tname = ""
+    ax.set_ylim(ylo, yhi)
+    ax.set_yscale("log")
+    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullFormatter
+
+    ax.yaxis.set_major_locator(FixedLocator([t for t in (2, 3, 5, 7.5, 10, 15, 20, 30, 60) if t < yhi]))
     ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.yaxis.set_minor_formatter(NullFormatter())
-    ax.set_yticks([2, 3, 5, 7.5, 10, 15, 20, 30, 60])
     ax.set_xlabel("sigma (N·m/rad)")
     ax.set_ylabel("wavelength (cells)")
+    nseed = ds.sizes.get("seed", 1)
+    pooled = [d for d in ds["status"].dims if d not in (sname, cby)]
     ax.set_title(
-        f"phase diagram: {ds.attrs.get('scene', '')}, {ds.sizes.get('seed', 1)} seed(s) per point", fontsize=10
+        f"phase diagram: {ds.attrs.get('scene', '')}, {int(np.prod([ds.sizes[d] for d in pooled])) if pooled else 1} "
+        f"point(s) per marker column{f' ({nseed} seeds)' if 'seed' in pooled else ''}"
+        + (f"\ntheory: {tname}" if tname else ""),
+        fontsize=9,
     )
-    ax.legend(fontsize=7, loc="upper right")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: it never hides a point
     return ax.figure
 
 
-OUTCOMES = ("rest", "pattern", "moving", "failed")
-
-
 def outcome(ds: xr.Dataset) -> np.ndarray:
-    """Per point: 0 rest, 1 pattern (steady, domain walls), 2 moving (not steady), 3 failed, -1 pending."""
-    st = ds["status"].values.astype(str)
-    rest = ds["at_rest"].values == 1
-    steady = ds["steady"].values == 1
-    code = np.where(rest, 0, np.where(steady, 1, 2))
-    code = np.where(st == "failed", 3, np.where(st == "pending", -1, code))
+    """Per point: the index in OUTCOMES (rest, pattern, oscillation, moving, failed); -1 pending."""
+    if "outcome" in ds:
+        oc = ds["outcome"].values.astype(str)
+    else:  # an older dataset
+        rest = ds["at_rest"].values == 1
+        osc = np.isfinite(ds["oscillation_period_s"].values)
+        steady = ds["steady"].values == 1
+        oc = np.where(rest, "rest", np.where(osc, "oscillation", np.where(steady, "pattern", "moving")))
+        st = ds["status"].values.astype(str)
+        oc = np.where(st == "failed", "failed", oc)
+    code = np.full(oc.shape, -1)
+    for i, name in enumerate(OUTCOMES):
+        code[oc == name] = i
+    code[ds["status"].values.astype(str) == "pending"] = -1
     return code
 
 
+REGIME_MARKERS = {
+    "rest": ".",
+    "stationary_pattern": "o",
+    "broadband_pattern": "s",
+    "uniform_oscillation": "^",
+    "pattern_and_oscillation": "D",
+}
+
+
 def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = None) -> FigureBase:
-    """The most frequent outcome (rest / pattern / moving / failed) over the other swept keys, on xkey x ykey,
-    with the linear theory's regime of each point named in the title's legend. Returns the Figure."""
+    """The most frequent outcome (rest / pattern / oscillation / moving / failed) over the other swept keys, on xkey
+    x ykey (coordinate names, or the swept keys), and on each cell a marker for the regime the linear theory of
+    the model that ran gives there (first point of the pooled ones). Returns the Figure."""
     from matplotlib.colors import ListedColormap
 
     from .plots import new_figure
 
+    xkey = _coord(ds, xkey) or xkey
+    ykey = _coord(ds, ykey) or ykey
     for k in (xkey, ykey):
         if k not in ds.dims:
-            raise SweepError(f"regime map: {k!r} is not a swept key; swept: {', '.join(map(str, ds.dims))}")
+            raise SweepError(f"regime map: {k!r} is not a swept key; swept: {', '.join(map(str, ds['status'].dims))}")
     if ax is None:
-        fig = new_figure(figsize=(7, 4.8), constrained_layout=True)
+        fig = new_figure(figsize=(7.5, 4.8), constrained_layout=True)
         ax = fig.add_subplot(111)
     import xarray as xr
 
-    code = xr.DataArray(outcome(ds), dims=ds["status"].dims).transpose(ykey, xkey, ...)
+    dims = ds["status"].dims
+    code = xr.DataArray(outcome(ds), dims=dims).transpose(ykey, xkey, ...)
     c = code.values.reshape(code.shape[0], code.shape[1], -1)
     mode = np.full(c.shape[:2], -1)
     for i in range(c.shape[0]):
         for j in range(c.shape[1]):
             v = c[i, j][c[i, j] >= 0]
             if len(v):
-                mode[i, j] = np.bincount(v, minlength=4).argmax()
-    cmap = ListedColormap(["0.85", "C0", "C1", "C3"])
+                mode[i, j] = np.bincount(v, minlength=len(OUTCOMES)).argmax()
+    colours = ["0.85", "C0", "C3", "C1", "k"]
+    cmap = ListedColormap(colours)
     xv, yv = np.asarray(ds[xkey].values), np.asarray(ds[ykey].values)
     ax.imshow(
         np.ma.masked_less(mode, 0),
@@ -475,30 +695,35 @@ def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = N
         aspect="auto",
         cmap=cmap,
         vmin=-0.5,
-        vmax=3.5,
+        vmax=len(OUTCOMES) - 0.5,
         interpolation="nearest",
     )
+    from matplotlib.artist import Artist
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list[Artist] = [Patch(color=cmap(i), label=f"run: {o}") for i, o in enumerate(OUTCOMES)]
+    if "regime" in ds:
+        reg = ds["regime"].transpose(ykey, xkey, ...).values.astype(str).reshape(len(yv), len(xv), -1)[:, :, 0]
+        for name, mk in REGIME_MARKERS.items():
+            yy, xx = np.nonzero(reg == name)
+            if len(xx):
+                ax.plot(xx, yy, mk, ms=4, color="w", mec="k", mew=0.6, ls="")
+                handles.append(Line2D([], [], marker=mk, ls="", color="w", mec="k", label=f"theory: {name}"))
     ax.set_xticks(range(len(xv)))
     ax.set_xticklabels(
-        [f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in xv],
+        [f"{v:.4g}" if isinstance(v, (float, np.floating)) else str(v) for v in xv],
         rotation=90 if len(xv) > 8 else 0,
         fontsize=7,
     )
     ax.set_yticks(range(len(yv)))
-    ax.set_yticklabels([f"{v:.3g}" if isinstance(v, (float, np.floating)) else str(v) for v in yv], fontsize=7)
+    ax.set_yticklabels([f"{v:.4g}" if isinstance(v, (float, np.floating)) else str(v) for v in yv], fontsize=7)
     if len(xv) > 16:
         for lab in ax.get_xticklabels()[1::2]:
             lab.set_visible(False)
-    from matplotlib.patches import Patch
-
-    ax.legend(
-        handles=[Patch(color=cmap(i), label=o) for i, o in enumerate(OUTCOMES)],
-        fontsize=7,
-        loc="upper left",
-        bbox_to_anchor=(1.01, 1.0),
-    )
-    ax.set_xlabel(xkey)
-    ax.set_ylabel(ykey)
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_xlabel(ds[xkey].attrs.get("key", xkey))
+    ax.set_ylabel(ds[ykey].attrs.get("key", ykey))
     ax.set_title(f"regime map (most frequent outcome): {ds.attrs.get('scene', '')}", fontsize=10)
     return ax.figure
 
@@ -562,6 +787,12 @@ def sweep_main(argv: list[str] | None = None) -> int:
         metavar="N",
         help="local cluster: worker processes (default: the machine's cores)",
     )
+    ap.add_argument(
+        "--accuracy",
+        choices=("fast", "balanced", "exact"),
+        default=None,
+        help="stepper/step/model fidelity preset of every point, as `run --accuracy` (default: the scene's)",
+    )
     ap.add_argument("--chunk", type=int, default=None, metavar="K", help="points per Dask task (default: automatic)")
     ap.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
     ap.add_argument(
@@ -572,9 +803,9 @@ def sweep_main(argv: list[str] | None = None) -> int:
         help="the regime map's axes (default: the first two swept keys with more than one value)",
     )
     ap.add_argument("--no-plots", action="store_true", help="skip phase_diagram.png and regime_map.png")
-    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar (it shows on a terminal only anyway)")
     args = ap.parse_args(argv)
-    from .models import ConfigError
+    from ..models import ConfigError
 
     try:
         if args.workers is not None and args.workers < 1:
@@ -588,6 +819,7 @@ def sweep_main(argv: list[str] | None = None) -> int:
             seeds=args.seeds,
             out=args.out,
             fixed=args.set,
+            accuracy=args.accuracy,
             scheduler=args.scheduler,
             workers=args.workers,
             chunk=args.chunk,

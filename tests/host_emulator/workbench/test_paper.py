@@ -3,13 +3,13 @@
 import json
 
 from host_emulator.cli import main
-from host_emulator.paper import build
+from host_emulator.workbench.paper import build
 
 
 def test_paper_items_agree_with_the_source(tmp_path):
     doc = build(tmp_path, repeats=2)
     figs = {i["figure"] for i in doc["items"]}
-    assert {"2a.i", "2b.i", "2c.i", "2a.ii", "2b.ii", "2c.ii", "3a", "3b", "3c"} <= figs
+    assert {"2a.i", "2b.i", "2c.i", "2a.ii", "2b.ii", "2c.ii", "exp. 4", "3a", "3b", "3c"} <= figs
     bad = [i for i in doc["items"] if not i["agree"]]
     assert not bad, bad
     assert doc["agree"] == doc["total"] == 14
@@ -28,7 +28,7 @@ def test_paper_rejects_bad_arguments(tmp_path, capsys):
 
 
 def test_robustness_counts_seeds_and_pushes_that_select_the_source():
-    from host_emulator.paper import robustness, selects
+    from host_emulator.workbench.robustness import robustness, selects
 
     res = robustness(seeds=2, torques=(0.01, 0.02), durations=(0.1,), scenes=["exp2_ccw_cw", "exp5_rest"])
     assert res["exp2_ccw_cw"]["seeds"] == 1.0 and res["exp2_ccw_cw"]["pushes"] == 1.0

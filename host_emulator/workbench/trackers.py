@@ -13,7 +13,7 @@ import numpy as np
 if TYPE_CHECKING:
     from matplotlib.image import AxesImage
 
-    from .models import Solver
+    from ..models import Solver
 
 
 class Tracker:
@@ -66,7 +66,8 @@ class RecordTracker(Tracker):
 class ProgressTracker(Tracker):
     """A tqdm bar in simulated seconds, shown only once the run has taken over `delay_s` of wall time."""
 
-    def __init__(self, delay_s: float = 1.0, file: TextIO | None = None, disable: bool = False) -> None:
+    def __init__(self, delay_s: float = 1.0, file: TextIO | None = None, disable: bool | None = None) -> None:
+        """disable None (default): shown on a terminal only (tqdm's rule); True: never."""
         self.delay_s = delay_s
         self.file = file or sys.stderr
         self.disable = disable
@@ -189,7 +190,10 @@ class PlotTracker(Tracker):
             extent=(0.5, self.n + 0.5, 0.0, self.window_s),
         )
         self.fig.colorbar(self.image, ax=self.ax_map, label="alpha (rad)")
+        from .plots import cell_ticks
+
         self.ax_map.set_xlabel("cell j")
+        cell_ticks(self.ax_map.xaxis, self.n)
         self.ax_map.set_ylabel("t (s)")
         x = np.arange(1, self.n + 1)
         (self.line_a,) = self.ax_prof.plot(x, np.zeros(self.n), "o-", color="C0", label="alpha")
@@ -197,6 +201,7 @@ class PlotTracker(Tracker):
         self.ax_prof.axhline(0, color="0.7", lw=0.8)
         self.ax_prof.set_xlim(0.5, self.n + 0.5)
         self.ax_prof.set_xlabel("cell j")
+        cell_ticks(self.ax_prof.xaxis, self.n)
         self.ax_prof.set_ylabel("angle (rad)")
         self.ax_prof.legend(loc="upper right", fontsize=8)
         self.interactive = getattr(type(self.fig.canvas), "required_interactive_framework", None) is not None

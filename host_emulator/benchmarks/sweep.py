@@ -1,6 +1,7 @@
 """Benchmark of the Dask sweep: points per second at 1 and 2 workers, per-task overhead, a 1,000-point sweep.
 
-    python -m host_emulator.sweep_bench --points 400 --workers 1 2 --repeat 3 --big 1000 --json out/sweep_bench.json
+    python -m host_emulator.benchmarks.sweep --points 400 --workers 1 2 --repeat 3 --big 1000 \
+        --json out/sweep_bench.json
 
 Every figure is the median of --repeat measurements (the spread is printed beside it):
 
@@ -31,7 +32,7 @@ _T = TypeVar("_T")
 
 
 def _specs(points: int, t_end: float) -> list[dict]:
-    from .sweep import point_specs
+    from ..workbench.sweep import point_specs
 
     n = max(1, points)
     return point_specs(
@@ -44,9 +45,9 @@ def _noop() -> None:
 
 
 def _chunks(specs: list[_T], workers: int) -> list[list[_T]]:
-    from .sweep import chunk_size
+    from ..workbench.sweep import chunk_size
 
-    size = chunk_size(len(specs), workers)  # as host_emulator.sweep chunks them
+    size = chunk_size(len(specs), workers)  # as host_emulator.workbench.sweep chunks them
     return [specs[i : i + size] for i in range(0, len(specs), size)]
 
 
@@ -60,7 +61,7 @@ def measure(
     """Every figure of the benchmark as a dict (seconds, points per second); see the module docstring."""
     from distributed import Client, as_completed
 
-    from .sweep import evaluate_points, local_cluster, sweep
+    from ..workbench.sweep import evaluate_points, local_cluster, sweep
 
     specs = _specs(points, t_end)
     evaluate_points(specs[:1])  # compile / import outside the timing
@@ -198,14 +199,14 @@ def plot(res: dict, path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m host_emulator.sweep_bench",
+        prog="python -m host_emulator.benchmarks.sweep",
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        "  python -m host_emulator.sweep_bench                      # 400 points at 1 and 2 workers, 3 repeats, "
+        "  python -m host_emulator.benchmarks.sweep                      # 400 points at 1 and 2 workers, 3 repeats, "
         "1,000-point sweep\n"
-        "  python -m host_emulator.sweep_bench --points 100 --big 0 --repeat 1   # a quick look\n"
-        "  python -m host_emulator.sweep_bench --json out/sweep_bench.json --plot out/sweep_bench.png",
+        "  python -m host_emulator.benchmarks.sweep --points 100 --big 0 --repeat 1   # a quick look\n"
+        "  python -m host_emulator.benchmarks.sweep --json out/sweep_bench.json --plot out/sweep_bench.png",
     )
     ap.add_argument("--points", type=int, default=400, help="points per throughput measurement (default 400)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="worker counts to compare (default 1 2)")
@@ -223,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     r = measure(a.points, a.workers, a.t_end, a.repeat, a.big, not a.no_baseline)
     print(report(r))
     if a.json:
-        from .provenance import provenance
+        from ..provenance import provenance
 
         with open(a.json, "w") as f:
             json.dump(r | {"provenance": provenance()}, f, indent=1)

@@ -4,7 +4,11 @@ numbers.
 Each item is one number the source reports (a regime, a pattern's wavelength, an oscillation's period, rest)
 beside ours, with an agreement rule written next to it:
 
-* regimes: equal strings (linear theory, no inertia, as the source's stability figure);
+* regimes: equal names (analysis.stability.REGIMES). Ours is the linear theory of the lattice with inertia (the
+  model of the exp. 3 scenes); the source's classification, made without inertia, is translated to those names
+  (``SIGMAS``): conditionally unstable = stationary_pattern, unconditionally unstable = broadband_pattern, and
+  at 14/125, which its overdamped theory calls stable, the steady 0.03 s uniform oscillation its rig and its
+  Fig. 2c.ii show = uniform_oscillation. The overdamped theory's regime is given in each item's note;
 * patterns: the source reads lambda = 30 / Z for Z domain walls over the 16-cell chain; ours agrees when
   the run selects the same Z (``observables.domain_walls``). With repeats (the hil noise model), the
   majority of repeats must select it, and the fraction is reported;
@@ -31,20 +35,23 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from .analysis.observables import observables
-from .analysis.stability import dispersion
-from .controller import run_scene
-from .params import Params
-from .scene import load_scene
+from ..analysis.observables import observables
+from ..analysis.stability import Theory, dispersion, format_set
+from ..controller import run_scene
+from ..params import Params
+from ..scene import load_scene
+from .plots import cell_ticks
 
 PERIOD_TOL = 0.10
 SOURCE_PERIOD_S = 0.03
 NOISE = {"band_spread": 0.05, "eta_spread": 0.05}
+# Fig. 2 panel -> (sigma as the source writes it, value, the source's classification, in our regime names)
 SIGMAS = {
-    "a": ("9/125", 9 / 125, "conditionally_unstable"),
-    "b": ("6/125", 6 / 125, "unconditionally_unstable"),
-    "c": ("14/125", 14 / 125, "stable"),
+    "a": ("9/125", 9 / 125, "conditionally unstable", "stationary_pattern"),
+    "b": ("6/125", 6 / 125, "unconditionally unstable", "broadband_pattern"),
+    "c": ("14/125", 14 / 125, "stable; a steady 0.03 s oscillation on its rig (2c.ii)", "uniform_oscillation"),
 }
+THEORY = Theory("lattice", inertia=True, discrete=True)  # the theory of the model the exp. 3 scenes run
 # Fig. 2 a.ii-c.ii (one push on alpha_8) and Fig. 3 (rest, symmetric, antisymmetric loading)
 FIG2_RUNS: dict[str, tuple[str, list[str], int]] = {
     "a": ("exp3_single_sigma9", [], 4),
@@ -75,9 +82,14 @@ class Item:
         }
 
 
+_BAR: list = [None]  # the progress bar of the command running (paper or robustness), advanced once per run
+
+
 def _run(name, sets):
     scene = load_scene(name, list(sets))
     res = run_scene(scene, progress=False)
+    if _BAR[0] is not None:
+        _BAR[0].update(1)
     return scene, res, observables(res.t, res.alpha, res.beta)
 
 
@@ -97,19 +109,21 @@ def _walls_item(fig, what, z_source, obs_list):
     )
 
 
-def _rounded_band(band):
-    """The unstable band's edges (cells) to two decimals for a note; None (no band) and open edges stay None."""
-    return band and [None if x is None else round(x, 2) for x in band]
+def _rounded(intervals):
+    """Unstable intervals' edges (cells) to two decimals for a note; open edges stay None."""
+    return [[None if x is None else round(x, 2) for x in iv] for iv in intervals]
 
 
 def fig2_theory(items: list[Item]) -> dict:
-    """a.i-c.i: the regime of each sigma at the table k (as the source drew it) and at the rig's k."""
+    """a.i-c.i: the regime of each sigma at the table k (as the source drew it) and at the rig's k, by the linear
+    theory of the lattice with inertia (THEORY); the overdamped theory's regime in the note."""
     curves = {}
-    for key, (label, sigma, regime) in SIGMAS.items():
+    for key, (label, sigma, src_text, regime) in SIGMAS.items():
         for bs, which in ((0.5, "table k"), (1.0, "rig k")):
             p = Params(sigma=sigma, band_scale=bs)
-            d = dispersion(p, discrete=True, n_cells=16)
-            c = dispersion(p, discrete=False)
+            d = dispersion(p, theory=THEORY, n_cells=16)
+            c = dispersion(p, theory=Theory("lattice", THEORY.inertia, False), n_cells=None)
+            over = dispersion(p, inertia=False)["regime"]
             curves[(key, bs)] = (d, c)
             items.append(
                 Item(
@@ -118,8 +132,8 @@ def fig2_theory(items: list[Item]) -> dict:
                     regime,
                     d["regime"],
                     d["regime"] == regime,
-                    note=f"fastest {d['fastest_lambda_cells'] and round(d['fastest_lambda_cells'], 2)} cells, "
-                    f"band {_rounded_band(d['unstable_band_cells'])}",
+                    note=f"source: {src_text}; ours without inertia: {over}; unstable "
+                    f"{format_set(_rounded(d['unstable_set_cells']))} cells",
                 )
             )
     return curves
@@ -162,8 +176,8 @@ def fig2_runs(items: list[Item]) -> dict[str, Any]:
     runs["c10"] = (sc, res)
     items.append(
         Item(
-            "2c.ii",
-            "sigma = 14/125, eta x10: decays to rest",
+            "exp. 4",
+            "sigma = 14/125, eta x10: decays to rest (the source's text; no figure panel)",
             "rest",
             "rest" if o["at_rest"] else "moving",
             o["at_rest"],
@@ -207,43 +221,67 @@ def _figure(w, h):
     return Figure(figsize=(w, h), constrained_layout=True)
 
 
+def _panel_letter(ax, text: str) -> None:
+    """The source's panel letter in the panel's top-left corner, as the source labels its panels."""
+    ax.text(
+        0.02,
+        0.97,
+        text,
+        transform=ax.transAxes,
+        fontsize=11,
+        fontweight="bold",
+        va="top",
+        bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1.5},
+    )
+
+
 def draw_fig2_theory(curves: dict, path: Path) -> None:
+    """Fig. 2 a.i-c.i: absolute growth rate Re s (1/s) against wavelength, linear theory of the lattice with inertia
+    (THEORY), at the table k and at the rig's k: the continuum as a curve, the 16-cell chain's modes as markers, the
+    oscillatory unstable intervals hatched."""
     from matplotlib.ticker import NullFormatter
 
-    fig = _figure(12, 3.6)
-    for i, (key, (label, _, _)) in enumerate(SIGMAS.items()):
+    fig = _figure(13, 3.9)
+    fig.suptitle(f"Fig. 2 a.i-c.i: growth rate of each mode, linear theory of the {THEORY.label()}", fontsize=10)
+    for i, (key, (label, _, _, _)) in enumerate(SIGMAS.items()):
         ax = fig.add_subplot(1, 3, i + 1)
         for bs, ls, which in ((0.5, "-", "table k"), (1.0, "--", "rig k")):
             d, c = curves[(key, bs)]
-            norm = max(abs(d["fastest_growth_per_s"]), abs(c["fastest_growth_per_s"]), 1e-12)
+            colour = "C0" if bs == 0.5 else "C1"
             ax.plot(
                 c["curve"]["lambda_cells"],
-                np.asarray(c["curve"]["growth_per_s"]) / norm,
+                c["curve"]["growth_per_s"],
                 ls,
-                color="C0" if bs == 0.5 else "C1",
+                color=colour,
                 lw=1,
                 label=f"continuum, {which}",
             )
             modes = [m for m in d["lattice_modes"] if m["lambda_cells"]]
             ax.plot(
                 [m["lambda_cells"] for m in modes],
-                [m["growth_per_s"] / norm for m in modes],
+                [m["growth_per_s"] for m in modes],
                 "o" if bs == 0.5 else "s",
                 ms=3.5,
                 mfc="none",
-                color="C0" if bs == 0.5 else "C1",
+                color=colour,
                 label=f"16-cell modes, {which}",
             )
+            for iv in d["unstable_intervals"]:
+                if iv["kind"] == "oscillatory":
+                    lo, hi = iv["lambda_cells"]
+                    ax.axvspan(lo, hi or 1e3, color=colour, alpha=0.08, hatch="//" if bs == 0.5 else "\\\\", lw=0)
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xscale("log")
         ax.set_xlim(1.8, 60)
         ax.set_xticks(LAMBDA_TICKS, [f"{v:g}" for v in LAMBDA_TICKS])
         ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_ylim(-3, 1.2)
+        ax.set_ylim(-80, 60)
         ax.set_xlabel("wavelength (cells)")
-        ax.set_ylabel("growth rate / fastest |growth|")
-        ax.set_title(f"Fig. 2{key}.i: sigma = {label}", fontsize=10)
-        ax.legend(fontsize=6, loc="lower right")
+        ax.set_ylabel("growth rate Re s (1/s)")
+        d = curves[(key, 1.0)][0]
+        ax.set_title(f"sigma = {label}: {d['regime'].replace('_', ' ')}", fontsize=9)
+        _panel_letter(ax, f"{key}.i")
+        ax.legend(fontsize=6, loc="lower right", title="hatched: oscillatory, grows", title_fontsize=6)
     fig.savefig(path, dpi=110)
 
 
@@ -263,29 +301,36 @@ def _spacetime(ax, res, title):
     ax.set_title(title, fontsize=9)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("cell j")
+    cell_ticks(ax.yaxis, n)
     return im
 
 
 def draw_fig2_runs(runs: dict[str, Any], path: Path) -> None:
-    fig = _figure(14, 3.4)
+    """Fig. 2 a.ii-c.ii (one push on alpha_8 at 9/125, 6/125, 14/125) and experiment 4 (14/125, eta x10, which the
+    source describes in its text without a panel)."""
+    fig = _figure(15, 3.6)
     panels = [
-        ("a", "2a.ii sigma 9/125"),
-        ("b", "2b.ii sigma 6/125"),
-        ("c1", "2c.ii 14/125 eta x1 (lattice), first 0.5 s"),
-        ("c10", "2c.ii 14/125 eta x10"),
+        ("a", "a.ii", "sigma 9/125"),
+        ("b", "b.ii", "sigma 6/125"),
+        ("c1", "c.ii", "sigma 14/125, eta x1 (lattice), first 0.5 s"),
+        ("c10", "exp. 4", "sigma 14/125, eta x10 (no panel in the source)"),
     ]
-    for i, (k, title) in enumerate(panels):
+    for i, (k, letter, title) in enumerate(panels):
         ax = fig.add_subplot(1, len(panels), i + 1)
         sc, res = runs[k]
-        im = _spacetime(ax, res, title)
+        im = _spacetime(ax, res, f"{title}\n{sc.name} ({sc.model})")
         if k == "c1":
             ax.set_xlim(0, 0.5)
+        _panel_letter(ax, letter)
         fig.colorbar(im, ax=ax, label="alpha (rad)")
+    fig.suptitle("Fig. 2 a.ii-c.ii: space-time maps of alpha after one push on alpha_8", fontsize=10)
     fig.savefig(path, dpi=110)
 
 
 def draw_fig3(runs: dict[str, Any], path: Path) -> None:
-    fig = _figure(12, 3.4)
+    """Fig. 3 a-c: the final alpha profile of each loading, the mean of the noisy hil repeats with the min..max
+    spread over them as error bars (said in the legend)."""
+    fig = _figure(13, 3.8)
     for i, (key, (scene, z)) in enumerate(FIG3_RUNS.items()):
         ax = fig.add_subplot(1, 3, i + 1)
         finals = runs[key + "_finals"]
@@ -298,22 +343,37 @@ def draw_fig3(runs: dict[str, Any], path: Path) -> None:
             fmt="o-",
             ms=3,
             capsize=2,
+            label=f"mean of {len(finals)} repeats (hil, 5 % spread)\nbars: min..max over the repeats",
         )
         ax.axhline(0, color="0.6", lw=0.6)
         ax.set_ylim(-1.2, 1.2)
         ax.set_xlabel("cell j")
+        cell_ticks(ax.xaxis, finals.shape[1])
         ax.set_ylabel("final alpha (rad)")
-        ax.set_title(f"Fig. 3{key}: {scene} (source lambda = {30 / z if z else 'rest'})", fontsize=9)
+        ax.set_title(f"{scene}: source {'lambda = ' + format(30 / z, 'g') if z else 'rest'}", fontsize=9)
+        _panel_letter(ax, key)
+        ax.legend(fontsize=6, loc="lower left")
+    fig.suptitle(
+        "Fig. 3 a-c: final alpha profiles: (a) no push, (b) CCW-CCW on 6 and 10, (c) CCW-CW on 1 and 16", fontsize=10
+    )
     fig.savefig(path, dpi=110)
 
 
-def build(out: Path, repeats: int = 10) -> dict:
-    """Run every item, draw the figures into out/, write out/paper.json; returns its content."""
+def build(out: Path, repeats: int = 10, *, quiet: bool = False) -> dict:
+    """Run every item, draw the figures into out/, write out/paper.json; returns its content. A progress bar (one
+    step per run) on a terminal unless quiet."""
+    from ..progress import bar
+
     t0 = time.perf_counter()
     items: list[Item] = []
     curves = fig2_theory(items)
-    runs2 = fig2_runs(items)
-    runs3 = fig3_runs(items, repeats)
+    _BAR[0] = bar(len(FIG2_RUNS) + 3 + len(FIG3_RUNS) * repeats, desc="paper", unit="run", quiet=quiet)
+    try:
+        runs2 = fig2_runs(items)
+        runs3 = fig3_runs(items, repeats)
+    finally:
+        _BAR[0].close()
+        _BAR[0] = None
     out.mkdir(parents=True, exist_ok=True)
     files = ["fig2_dispersion.png", "fig2_spacetime.png", "fig3_patterns.png"]
     draw_fig2_theory(curves, out / files[0])
@@ -349,16 +409,31 @@ def _short(v):
     return str(v)
 
 
-def print_table(doc: dict, file: TextIO = sys.stdout) -> None:
-    w = max(len(i["item"]) for i in doc["items"])
-    print(f"{'fig':6s} {'item':<{w}s}  {'source':>22s}  {'ours':<40s} agree", file=file)
-    for i in doc["items"]:
-        ours = _short(i["ours"])
-        print(
-            f"{i['figure']:6s} {i['item']:<{w}s}  {_short(i['source']):>22s}  {ours[:40]:<40s} "
-            f"{'yes' if i['agree'] else 'NO'}",
-            file=file,
+def aligned(rows: list[list[str]], header: list[str], right: Sequence[int] = ()) -> list[str]:
+    """Rows of cells as lines of columns padded to their widest cell (right-aligned for the indices in right)."""
+    widths = [max(len(str(r[k])) for r in [header, *rows]) for k in range(len(header))]
+
+    def line(r):
+        return "  ".join(
+            f"{str(c):>{w}}" if k in right else f"{str(c):<{w}}" for k, (c, w) in enumerate(zip(r, widths))
         )
+
+    return [line(header), "  ".join("-" * w for w in widths)] + [line(r).rstrip() for r in rows]
+
+
+def print_table(doc: dict, file: TextIO = sys.stdout) -> None:
+    rows = [
+        [i["figure"], i["item"], _short(i["source"]), _short(i["ours"]), "yes" if i["agree"] else "NO"]
+        for i in doc["items"]
+    ]
+    for ln in aligned(rows, ["fig", "item", "source", "ours", "agree"]):
+        print(ln, file=file)
+    print(
+        "legend: fig = the source's panel (exp. 4: its text, no panel); source = its number or classification in our "
+        "regime names;\n        ours = the emulator's (a fraction: of the noisy repeats); agree = the rule in "
+        "host_emulator/workbench/paper.py (walls equal; period within 10 %; regimes equal; rest).",
+        file=file,
+    )
     print(f"{doc['agree']} of {doc['total']} items agree ({doc['repeats']} repeats, {doc['wall_s']:.1f} s)", file=file)
 
 
@@ -372,6 +447,7 @@ def paper_main(argv: list[str] | None) -> int:
     ap.add_argument(
         "--repeats", type=int, default=10, help="noisy hil repeats per Fig. 3 panel (default 10, as the rig)"
     )
+    ap.add_argument("--quiet", action="store_true", help="no progress bar (it shows on a terminal only anyway)")
     args = ap.parse_args(argv)
     if not 1 <= args.repeats <= 1000:
         print(f"paper: error: --repeats {args.repeats}: must be in 1..1000", file=sys.stderr)
@@ -380,7 +456,7 @@ def paper_main(argv: list[str] | None) -> int:
     if out.exists() and not out.is_dir():
         print(f"paper: error: --out {out}: exists and is not a directory", file=sys.stderr)
         return 2
-    doc = build(out, args.repeats)
+    doc = build(out, args.repeats, quiet=args.quiet)
     print_table(doc)
     print(f"wrote {out}/paper.json, " + ", ".join(f"{out}/{f}" for f in doc["files"]))
     return 0 if doc["agree"] == doc["total"] else 1
@@ -388,135 +464,3 @@ def paper_main(argv: list[str] | None) -> int:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(paper_main(sys.argv[1:]))
-
-
-# ---- robustness: how many noise seeds and hand pushes select the source's result -------------------------------
-# scene -> (model, the source's result: Z domain walls, "rest", or an oscillation period in s)
-ROBUST_SCENES = {
-    "exp1_ccw_ccw": ("hil", 2),
-    "exp2_ccw_cw": ("hil", 3),
-    "exp3_single_sigma9": ("hil", 4),
-    "exp3_single_sigma6": ("hil", 2),
-    "exp3_single_sigma14": ("lattice", SOURCE_PERIOD_S),
-    "exp4_stable_eta10": ("hil", "rest"),
-    "exp5_rest": ("hil", "rest"),
-}
-ROBUST_TORQUES_NM = (0.005, 0.01, 0.02, 0.04)  # a light to a firm push by hand (the motors' stall torque is 0.044)
-ROBUST_DURATIONS_S = (0.05, 0.1, 0.2)
-ROBUST_JITTER_COUNTS = 0.5
-
-
-def selects(o: dict, want: object) -> bool:
-    """Does a run's observables show the source's result `want` (Z walls, "rest", or a period in s)?"""
-    if want == "rest":
-        return bool(o["at_rest"])
-    if isinstance(want, float):
-        p = o["oscillation_period_s"]
-        return bool(p is not None and abs(p - want) <= PERIOD_TOL * want)
-    return bool(not o["at_rest"] and o["domain_walls"] == want)
-
-
-def _push_sets(scene, torque, duration):
-    """Overrides giving every perturbation of the scene this magnitude (its sign kept) and duration."""
-    out = []
-    for i, q in enumerate(scene.perturbations):
-        sign = 1.0 if q.torque_Nm >= 0 else -1.0
-        out += [f"perturbation.{i + 1}.torque_Nm={sign * torque}", f"perturbation.{i + 1}.duration_s={duration}"]
-    return out
-
-
-def robustness(
-    seeds: int = 20,
-    torques: Sequence[float] = ROBUST_TORQUES_NM,
-    durations: Sequence[float] = ROBUST_DURATIONS_S,
-    scenes: Sequence[str] | None = None,
-) -> dict:
-    """Per scene: the fraction of noise seeds (5 % band and viscosity spread; and the same with encoder jitter)
-    and of hand pushes (every torque x duration, no noise) that select the source's result."""
-    out = {}
-    for name in scenes or ROBUST_SCENES:
-        model, want = ROBUST_SCENES[name]
-        base = [f"model={model}"]
-        row: dict = {"model": model, "source": want}
-        for label, extra in (("seeds", {}), ("seeds_jitter", {"encoder_jitter_counts": ROBUST_JITTER_COUNTS})):
-            if extra and model != "hil":
-                row[label] = None
-                continue
-            hits = 0
-            for s in range(seeds):
-                sets = base + _noise_sets(2000 + s) + [f"model_options.noise.{k}={v}" for k, v in extra.items()]
-                hits += selects(_run(name, sets)[2], want)
-            row[label] = hits / seeds
-        scene = load_scene(name, base)
-        grid = {}
-        if scene.perturbations:
-            hit = {
-                (tq, du): selects(_run(name, base + _push_sets(scene, tq, du))[2], want)
-                for tq in torques
-                for du in durations
-            }
-            grid = {f"{tq * 1e3:g} mN*m x {du:g} s": v for (tq, du), v in hit.items()}
-            row["pushes"] = sum(hit.values()) / len(hit)
-            ok = [tq for tq in torques if all(hit[(tq, du)] for du in durations)]
-            row["min_push_Nm"] = min(ok) if ok else None
-        else:
-            row["pushes"] = None
-        row["push_grid"] = grid
-        out[name] = row
-    return out
-
-
-def print_robustness(res: dict, seeds: int, file: TextIO = sys.stdout) -> None:
-    print(
-        f"{'scene':22s} {'model':8s} {'source':>8s} {'seeds':>7s} {'+jitter':>8s} {'pushes':>7s}  min push", file=file
-    )
-    for name, r in res.items():
-
-        def pct(v):
-            return "-" if v is None else f"{100 * v:.0f} %"
-
-        src = f"Z={r['source']}" if isinstance(r["source"], int) else str(r["source"])
-        mp = r.get("min_push_Nm")
-        print(
-            f"{name:22s} {r['model']:8s} {src:>8s} {pct(r['seeds']):>7s} {pct(r['seeds_jitter']):>8s} "
-            f"{pct(r['pushes']):>7s}  {'-' if mp is None else f'{mp * 1e3:g} mN*m'}",
-            file=file,
-        )
-    print(f"({seeds} seeds; pushes: {len(ROBUST_TORQUES_NM)} torques x {len(ROBUST_DURATIONS_S)} durations)", file=file)
-
-
-def robustness_main(argv: list[str] | None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m host_emulator robustness",
-        description="Fraction of noise seeds and of hand pushes that select the source's result, per paper scene.",
-        epilog="example: python -m host_emulator robustness --seeds 20 --out out/robust",
-    )
-    ap.add_argument("--seeds", type=int, default=20, help="noise seeds per scene (default 20)")
-    ap.add_argument(
-        "--scene",
-        action="append",
-        default=None,
-        choices=sorted(ROBUST_SCENES),
-        help="only this scene (repeatable; default all paper scenes)",
-    )
-    ap.add_argument("--out", default=None, help="directory for robustness.json (default: print only)")
-    args = ap.parse_args(argv)
-    if not 1 <= args.seeds <= 10000:
-        print(f"robustness: error: --seeds {args.seeds}: must be in 1..10000", file=sys.stderr)
-        return 2
-    res = robustness(args.seeds, scenes=args.scene)
-    print_robustness(res, args.seeds)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        doc = {
-            "seeds": args.seeds,
-            "noise": NOISE,
-            "jitter_counts": ROBUST_JITTER_COUNTS,
-            "torques_Nm": list(ROBUST_TORQUES_NM),
-            "durations_s": list(ROBUST_DURATIONS_S),
-            "scenes": res,
-        }
-        (out / "robustness.json").write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
-        print(f"wrote {out}/robustness.json")
-    return 0

@@ -29,12 +29,13 @@ def ffmpeg_exe() -> tuple[str | None, str]:
         return None, f"imageio-ffmpeg found no ffmpeg binary ({e})"
 
 
-def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=True, report=None):
+def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=True, report=None, quiet=True):
     """Write an animation of run (a RunResult) to path (.gif or .mp4); returns the path written.
 
     An .mp4 needs imageio-ffmpeg's ffmpeg; without one (or if it fails) and with `fallback`, the GIF of the
-    same name is written instead, `report(message)` says why (default: a warning), and its path is returned."""
-    from matplotlib.animation import FuncAnimation, PillowWriter
+    same name is written instead, `report(message)` says why (default: a warning), and its path is returned.
+    quiet=False: a progress bar over the frames drawn (on a terminal only)."""
+    from matplotlib.animation import FuncAnimation
     from matplotlib.figure import Figure
 
     from .plots import _title
@@ -71,6 +72,9 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
     bot.set_ylim(-1.1 * lim, 1.1 * lim)
     bot.axhline(0, color="0.7", lw=0.8)
     bot.set_xlabel("cell j")
+    from .plots import cell_ticks
+
+    cell_ticks(bot.xaxis, n)
     bot.set_ylabel("alpha (rad)")
     (prof,) = bot.plot([], [], "o-", color="C0")
     txt = top.set_title("", fontsize=9)
@@ -88,6 +92,21 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
         return pa, pb, prof, txt
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
+    from ..progress import bar
+
+    pbar = bar(len(frames), desc=f"animate {path.rsplit('/', 1)[-1]}", unit="frame", quiet=quiet)
+
+    def advance(i: int, total: int) -> None:
+        pbar.n = i + 1
+        pbar.refresh()
+
+    try:
+        return _save_animation(anim, path, fps, exe, why, fallback, report, advance)
+    finally:
+        pbar.close()
+
+
+def _save_animation(anim, path, fps, exe, why, fallback, report, advance):
     if path.endswith(".mp4"):
         if exe is not None:
             from matplotlib import rc_context
@@ -95,7 +114,11 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
 
             try:
                 with rc_context({"animation.ffmpeg_path": exe}):
-                    anim.save(path, writer=FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"]))
+                    anim.save(
+                        path,
+                        writer=FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"]),
+                        progress_callback=advance,
+                    )
                 return path
             except Exception as e:  # noqa: BLE001 - ffmpeg exits non-zero, cannot start, ...
                 why = f"ffmpeg failed ({type(e).__name__}: {e})"
@@ -110,7 +133,9 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
         else:
             report(msg)
         path = gif
-    anim.save(path, writer=PillowWriter(fps=fps))
+    from matplotlib.animation import PillowWriter
+
+    anim.save(path, writer=PillowWriter(fps=fps), progress_callback=advance)
     return path
 
 
@@ -138,9 +163,10 @@ def animate_main(argv: list[str] | None = None) -> int:
         default=2.0,
         help="animate up to this simulated time, s (default 2: the pattern forms in the first 0.5 s)",
     )
+    ap.add_argument("--quiet", action="store_true", help="no progress bars (they show on a terminal only anyway)")
     args = ap.parse_args(argv)
+    from ..models import ConfigError, NumericalInstability
     from .api import run
-    from .models import ConfigError, NumericalInstability
 
     if not (1 <= args.fps <= 60) or not args.t_max > 0:
         print("error: --fps must be 1..60 and --t-max > 0", file=sys.stderr)
@@ -149,9 +175,14 @@ def animate_main(argv: list[str] | None = None) -> int:
         print(f"error: --out {args.out}: expected a .gif or .mp4 file", file=sys.stderr)
         return 2
     try:
-        r = run(args.scene, list(args.set))
+        r = run(args.scene, list(args.set), progress=not args.quiet)
         written = animate(
-            r, args.out, fps=args.fps, t_max=args.t_max, report=lambda m: print(f"note: {m}", file=sys.stderr)
+            r,
+            args.out,
+            fps=args.fps,
+            t_max=args.t_max,
+            report=lambda m: print(f"note: {m}", file=sys.stderr),
+            quiet=args.quiet,
         )
     except (ConfigError, ValueError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -8,7 +8,7 @@ import pytest
 from host_emulator.controller import run_solver
 from host_emulator.models import ModelOptions, make_model
 from host_emulator.params import Params
-from host_emulator.trackers import LiveTracker, ProgressTracker, Tracker
+from host_emulator.workbench.trackers import LiveTracker, ProgressTracker, Tracker
 
 
 class Count(Tracker):
@@ -41,7 +41,7 @@ def test_bad_t_end():
 def _plot_tracker(**kw):
     from matplotlib.figure import Figure
 
-    from host_emulator.trackers import PlotTracker
+    from host_emulator.workbench.trackers import PlotTracker
 
     return PlotTracker(fig=Figure(), **kw)
 
@@ -94,7 +94,7 @@ def test_plot_tracker_window_rolls():
 
 
 def test_plot_tracker_refuses_bad_settings():
-    from host_emulator.trackers import PlotTracker
+    from host_emulator.workbench.trackers import PlotTracker
 
     for kw in ({"interval_ms": 0}, {"window_s": -1}, {"interval_ms": float("nan")}):
         with pytest.raises(ValueError, match="PlotTracker"):

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from host_emulator import sweep_bench
-from host_emulator.sweep import chunk_size
+from host_emulator.benchmarks import sweep as sweep_bench
+from host_emulator.workbench.sweep import chunk_size
 
 
 def test_chunks_follow_the_sweep_rule():

@@ -33,10 +33,10 @@ def bench_main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
 
-    from .controller import build_solver, run_solver
-    from .firmware import load
-    from .provenance import machine_line
-    from .scene import load_scene
+    from ..controller import build_solver, run_solver
+    from ..firmware import load
+    from ..provenance import machine_line
+    from ..scene import load_scene
 
     if hasattr(os, "sched_setaffinity"):
         cpus = sorted(os.sched_getaffinity(0))
@@ -79,7 +79,7 @@ def bench_main(argv: list[str] | None = None) -> int:
 
 def _print_instructions(args: argparse.Namespace) -> None:
     """The callgrind count of the same scene (machine-independent), or one line saying why it is not there."""
-    from .benchmarks import instructions as ins
+    from . import instructions as ins
 
     if args.no_instructions:
         return

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from host_emulator.batch import run_batch, sweep_scenes
+from host_emulator.benchmarks.batch import sweep_scenes
 from host_emulator.controller import run_scene
 from host_emulator.scene import load_scene
+from host_emulator.workbench.batch import run_batch
 
 
 def _same(a, b):

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import FigureBase
 
-    from .scene import Scene
+    from ..analysis.stability import Theory
+    from ..scene import Scene
     from .trackers import Tracker
 
 __all__ = ["RunResult", "run", "load_scene", "list_scenes"]
@@ -34,21 +35,23 @@ __all__ = ["RunResult", "run", "load_scene", "list_scenes"]
 Overrides = Mapping[str, object] | Sequence[str] | str | None
 
 
-def _override_list(overrides: Overrides) -> list[str]:
+def override_list(overrides: Overrides) -> list[str]:
+    """["KEY=VALUE", ...] from a dict, a list or one string. A dict's string values are read as on the command line
+    (`run --set`): "6/125" is a fraction, "firmware" a word, "true" a boolean; numbers and booleans as they are."""
     if overrides is None:
         return []
-    if isinstance(overrides, dict):
-        return [f"{k}={_toml(v)}" for k, v in overrides.items()]
+    if isinstance(overrides, Mapping):
+        return [f"{k}={_text(v)}" for k, v in overrides.items()]
     if isinstance(overrides, str):
         return [overrides]
     return [str(o) for o in overrides]
 
 
-def _toml(v) -> str:
-    if isinstance(v, bool):
+def _text(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
         return "true" if v else "false"
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return v
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     return repr(float(v))
@@ -73,28 +76,32 @@ class RunResult:
     wall_s: float
     info: dict = field(default_factory=dict)
 
+    def __getattr__(self, name: str):
+        if name == "t":
+            raise AttributeError("RunResult has no 't': the sample times are r.time (the dataset's 'time' dimension)")
+        raise AttributeError(f"'RunResult' object has no attribute {name!r}")
+
     @property
-    def t(self) -> np.ndarray:
-        return self.time
+    def theory(self) -> Theory:
+        """The linear theory of the model that ran (analysis.stability.theory_of: inertia as the scene, the hil
+        motors' back-EMF damping): pass it to he.plot_dispersion(r.scene.params, theory=r.theory)."""
+        from ..analysis.summary import theory_for
+
+        return theory_for(self.scene)
+
+    @property
+    def source(self) -> str:
+        """What produced the data: 'emulator:<model>'."""
+        return str(self.summary.get("source") or f"emulator:{self.scene.model}")
 
     def to_xarray(self) -> xr.Dataset:
-        """xarray.Dataset: alpha, beta (time x cell, rad); coords time (s), cell (1..N); attributes: units,
-        every scene parameter (params.*, model_options.*, perturbation.*), the scalar observables and provenance."""
-        import xarray as xr
+        """The run in the one dataset layout of every run, rig or emulated (host_emulator.workbench.datasets):
+        alpha, beta (time x cell, rad) and, for the lattice and continuum models, the commanded reaction torques;
+        coords time (s), cell (1..N); attributes: source, units, every scene parameter (params.*, model_options.*,
+        perturbation.*), the scalar observables, the linear theory and provenance."""
+        from .datasets import from_run
 
-        n = self.alpha.shape[1]
-        ds = xr.Dataset(
-            {
-                "alpha": (("time", "cell"), self.alpha, {"units": "rad", "long_name": "tall (alpha) cylinder angle"}),
-                "beta": (("time", "cell"), self.beta, {"units": "rad", "long_name": "short (beta) cylinder angle"}),
-            },
-            coords={
-                "time": ("time", self.time, {"units": "s"}),
-                "cell": ("cell", np.arange(1, n + 1), {"long_name": "cell index j"}),
-            },
-        )
-        ds.attrs.update(netcdf_attrs(self.scene, self.summary))
-        return ds
+        return from_run(self.scene, self.time, self.alpha, self.beta, self.summary)
 
     def plot(self, ax: Axes | None = None) -> FigureBase:
         """Space-time map of alpha and beta (a Figure); see plots.plot_spacetime."""
@@ -125,7 +132,7 @@ def _flat(prefix, v, out):
 
 def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
     """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance."""
-    from .provenance import provenance
+    from ..provenance import provenance
 
     out: dict = {}
     d = scene.as_dict()
@@ -166,18 +173,20 @@ def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
 
 def load_scene(scene: str | Scene, overrides: Overrides = None, accuracy: str | None = None) -> Scene:
     """A validated Scene from a shipped name / TOML path (or a Scene, returned with the overrides applied)."""
-    from .scene import load_scene as _load
+    from ..scene import apply_overrides, scene_from_dict, scene_table
+    from ..scene import load_scene as _load
 
-    over = _override_list(overrides) + ([f'accuracy="{accuracy}"'] if accuracy else [])
+    over = override_list(overrides) + ([f'accuracy="{accuracy}"'] if accuracy else [])
     if hasattr(scene, "as_dict") and not isinstance(scene, str):
         if not over:
             return scene
-        scene = scene.source or scene.name
+        # the Scene as it is (a dataclasses.replace of a loaded one included), then the overrides
+        return scene_from_dict(apply_overrides(scene_table(scene), over), scene.source)
     return _load(str(scene), over)
 
 
 def list_scenes() -> list[str]:
-    from .scene import list_scenes as _ls
+    from ..scene import list_scenes as _ls
 
     return [n for n, _, _ in _ls()]
 
@@ -196,12 +205,10 @@ def run(
     (the keys of ``run --set``); accuracy: "fast" | "balanced" | "exact" (docs/accuracy.md).
     Raises ConfigError (bad scene or key) or NumericalInstability (the run blew up).
     """
-    from .cli import summarize
-    from .controller import run_scene
-    from .provenance import provenance
+    from ..analysis.summary import summarize
+    from ..controller import run_scene
 
     sc = load_scene(scene, overrides, accuracy)
     res = run_scene(sc, progress=progress, trackers=list(trackers))
     summary = summarize(sc, res)
-    summary["provenance"] = provenance()
     return RunResult(sc, res.t, res.alpha, res.beta, summary, res.wall_s, res.info)

@@ -15,15 +15,19 @@ import pytest
 pytest.importorskip("distributed")
 xr = pytest.importorskip("xarray")
 
-from host_emulator.sweep import SweepError, evaluate_points, parse_grid, point_specs, sweep  # noqa: E402
+from host_emulator.workbench.sweep import SweepError, evaluate_points, parse_grid, point_specs, sweep  # noqa: E402
 
 BIN = Path(sys.executable).parent
 
 
 def test_parse_grid():
     k, v = parse_grid("params.sigma=0.04:0.12:41")
-    assert k == "params.sigma" and len(v) == 41 and v[0] == 0.04 and v[-1] == pytest.approx(0.12)
+    assert k == "params.sigma" and len(v) == 41 and v[0] == 0.04 and v[-1] == 0.12
     assert np.allclose(np.diff(v), 0.002)
+    # exact values: each the float nearest the decimal, so ds.sel(sigma=0.056) finds it (linspace: 0.0559999...)
+    assert v[8] == 0.056 and np.linspace(0.04, 0.12, 41)[8] != 0.056
+    assert [repr(x) for x in v[:4]] == ["0.04", "0.042", "0.044", "0.046"]
+    assert parse_grid("params.sigma=6/125:14/125:3")[1] == [6 / 125, 10 / 125, 14 / 125]
     assert parse_grid("perturbation.1.torque_Nm=0.005,0.01,0.02,0.04") == (
         "perturbation.1.torque_Nm",
         [0.005, 0.01, 0.02, 0.04],
@@ -49,27 +53,28 @@ def test_local_cluster_sweep_dataset_resume_and_failures(tmp_path):
     out = tmp_path / "sw"
     grid = {"params.sigma": [0.05, 0.09], "params.eta_a": [4.18e-4, -1.0]}
     ds = sweep("default", grid, seeds=2, out=out, fixed=["t_end_s=0.5"], workers=2, progress=False)
-    assert ds["pattern_wavelength_cells"].dims == ("params.sigma", "params.eta_a", "seed")
+    assert ds["pattern_wavelength_cells"].dims == ("sigma", "eta_a", "seed")
+    assert ds["sigma"].attrs["key"] == "params.sigma" and ds["eta_a"].attrs["key"] == "params.eta_a"
     st = ds["status"].values.astype(str)
     assert (st[:, 0] == "ok").all() and (st[:, 1] == "failed").all()  # failed points kept, with reasons
     assert all("eta_a" in e for e in ds["error"].values[:, 1].ravel().astype(str))
     assert ds.attrs["sweep.failed"] == 4 and ds.attrs["provenance.git_describe"]
-    assert set(ds["regime"].values[:, 0].ravel().astype(str)) <= {
-        "conditionally_unstable",
-        "unconditionally_unstable",
-        "stable",
-    }
+    assert set(ds["regime"].values[:, 0].ravel().astype(str)) == {"broadband_pattern", "stationary_pattern"}
     back = xr.open_dataset(out / "sweep.nc", engine="scipy")
     np.testing.assert_array_equal(back["amplitude_rad"].values, ds["amplitude_rad"].values)
     assert back.attrs["provenance.firmware_build"] == ds.attrs["provenance.firmware_build"]
     assert (out / "phase_diagram.png").exists() and (out / "regime_map.png").exists()
     # the theory band drawn for sigma = 0.09 is the dispersion's own
     from host_emulator.analysis.stability import dispersion
+    from host_emulator.analysis.summary import theory_for
     from host_emulator.scene import load_scene
 
-    d = dispersion(load_scene("default", ["params.sigma=0.09"]).params, inertia=True, n_cells=16)
-    assert ds["theory_band_lo_cells"].values[1, 0, 0] == pytest.approx(d["unstable_band_cells"][0])
-    assert (ds["regime"].values[1, 0].astype(str) == d["regime"]).all()
+    sc = load_scene("default", ["params.sigma=0.09"])
+    d = dispersion(sc.params, theory=theory_for(sc), n_cells=16)
+    point = ds.sel(sigma=0.09, eta_a=4.18e-4, seed=0)
+    assert point["theory_band_lo_cells"].values[0] == pytest.approx(d["unstable_set_cells"][0][0])
+    assert str(point["theory_band_kind"].values[0]) == "stationary"
+    assert (ds["regime"].sel(sigma=0.09, eta_a=4.18e-4).values.astype(str) == d["regime"]).all()
     # resumable: a re-run evaluates nothing new (no cluster needed: every point is done)
     n_lines = len((out / "points.jsonl").read_text().splitlines())
     ds2 = sweep("default", grid, seeds=2, out=out, fixed=["t_end_s=0.5"], workers=2, progress=False, plots=False)
@@ -104,7 +109,7 @@ def test_cli_sweep_bad_grid_is_exit_2(capsys):
 
 def _start_cluster(tmp_path, n_workers=2):
     sf = tmp_path / "scheduler.json"
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[3]))
     procs = [
         subprocess.Popen(
             [str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard", "--scheduler-file", str(sf)],
@@ -190,3 +195,52 @@ def test_external_scheduler_and_a_worker_killed_mid_sweep(tmp_path):
         assert ds.attrs["provenance.command"].find("sweep") >= 0
     finally:
         _stop(procs)
+
+
+def test_api_sweep_takes_what_run_takes_and_runs_twice(tmp_path):
+    """A notebook re-runs its cells: he.sweep stays the function; a Scene object, a dict of overrides with a
+    fraction, string grid values and accuracy= are accepted as by he.run; coordinates are plain and .sel-able."""
+    import host_emulator as he
+    from host_emulator.workbench.api import load_scene
+
+    sc = load_scene("default", {"t_end_s": 0.3})
+    for i in range(2):
+        ds = he.sweep(
+            sc,
+            {"params.sigma": ["6/125", 0.072]},
+            fixed={"params.eta_scale": "3/2"},
+            accuracy="fast",
+            out=tmp_path / f"s{i}",
+            workers=1,
+            progress=False,
+            plots=False,
+        )
+        assert callable(he.sweep)
+    assert list(ds["sigma"].values) == [0.048, 0.072]
+    assert ds.attrs["params.eta_scale"] == 1.5 and ds.attrs["accuracy"] == "fast" and ds.attrs["t_end_s"] == 0.3
+    assert str(ds.sel(sigma=0.048)["status"].values) == "ok"
+    assert ds.attrs["source"] == "emulator:hil"
+
+
+def test_bare_key_gets_a_hint(tmp_path):
+    from host_emulator.models import ConfigError
+
+    with pytest.raises(ConfigError, match=r"did you mean params\.sigma"):
+        sweep("default", {"sigma": [0.05]}, out=tmp_path / "x", progress=False)
+    assert not (tmp_path / "x").exists()
+
+
+def test_coordinate_names():
+    from host_emulator.workbench.sweep import coord_names
+
+    assert coord_names(["params.sigma", "perturbation.1.torque_Nm", "seed"]) == {
+        "params.sigma": "sigma",
+        "perturbation.1.torque_Nm": "torque_Nm",
+        "seed": "seed",
+    }
+    both = coord_names(["perturbation.1.torque_Nm", "perturbation.2.torque_Nm", "model_options.noise.seed"])
+    assert both == {
+        "perturbation.1.torque_Nm": "perturbation_1_torque_Nm",
+        "perturbation.2.torque_Nm": "perturbation_2_torque_Nm",
+        "model_options.noise.seed": "model_options_noise_seed",
+    }

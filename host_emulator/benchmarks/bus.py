@@ -2,7 +2,7 @@
 
 The bus limit follows from the transaction bytes.
 
-python -m host_emulator.bus.bench [--seconds 5]
+python -m host_emulator.benchmarks.bus [--seconds 5]
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any
 
 from protocol import wire
 
-from .i2c import I2CTiming, lattice_rate_limit
-from .rig import BusOptions, EmulatedRig, make_rig
+from ..bus.i2c import I2CTiming, lattice_rate_limit
+from ..bus.rig import BusOptions, EmulatedRig, make_rig
 
 
 def measure(hz: int, seconds: float, **faults: Any) -> tuple[float, float, EmulatedRig, dict[int, float]]:
@@ -39,9 +39,9 @@ def measure(hz: int, seconds: float, **faults: Any) -> tuple[float, float, Emula
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m host_emulator.bus.bench",
+        prog="python -m host_emulator.benchmarks.bus",
         description=__doc__.split("\n\n")[0],
-        epilog="example: python -m host_emulator.bus.bench --seconds 2",
+        epilog="example: python -m host_emulator.benchmarks.bus --seconds 2",
     )
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per measurement")
     args = ap.parse_args(argv)

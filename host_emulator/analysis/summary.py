@@ -1,0 +1,103 @@
+"""The run summary (summary.json): observables of a run's trajectories and the linear theory of the model that ran.
+
+Analysis, not command-line code: ``python -m host_emulator run``, ``host_emulator.run``, sweeps and the rig's
+experiment runner all build their summaries here.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ..controller import RunResult
+    from ..params import Params
+    from ..scene import Scene
+    from .stability import Theory
+
+__all__ = ["summarize", "dispersion_summary", "theory_for", "clean", "DISPERSION_KEYS"]
+
+
+def clean(v: Any) -> Any:
+    """JSON-ready: numpy scalars/arrays to Python, non-finite floats to None (never NaN in a summary)."""
+    if isinstance(v, dict):
+        return {str(k): clean(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [clean(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return [clean(x) for x in v.tolist()]
+    if isinstance(v, (np.bool_, bool)):
+        return bool(v)
+    if isinstance(v, (np.integer, int)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v) if math.isfinite(v) else None
+    return v
+
+
+# the linear theory's keys in summary.json["dispersion"] (docs/workbench.md)
+DISPERSION_KEYS = (
+    "regime",
+    "theory",
+    "fastest_lambda_cells",
+    "fastest_growth_per_s",
+    "oscillation_period_s",
+    "unstable_set_cells",
+    "unstable_intervals",
+)
+
+
+def theory_for(scene: Scene) -> Theory:
+    """The linear theory of the scene's model (analysis.stability.theory_of with the scene's inertia switch)."""
+    from .stability import theory_of
+
+    return theory_of(scene.model, scene.params, scene.options.inertia)
+
+
+@functools.lru_cache(maxsize=256)
+def _dispersion_cached(params: Params, theory: Theory, cells: int) -> tuple[tuple[str, Any], ...]:
+    from .stability import dispersion
+
+    d = dispersion(params, theory=theory, n_cells=cells)
+    return tuple((k, d.get(k)) for k in DISPERSION_KEYS) + (("inertia", theory.inertia),)
+
+
+def dispersion_summary(params: Params, theory: Theory, cells: int) -> dict:
+    """The dispersion keys of summary.json for one parameter set and theory, cached: a sweep over seeds and pushes
+    asks for the same parameters many times, and the linear theory costs as much as the 10 s run itself (Params
+    and Theory are frozen). Returns a fresh copy (the cached lists are never shared)."""
+    return {k: copy.deepcopy(v) for k, v in _dispersion_cached(params, theory, cells)}
+
+
+def summarize(scene: Scene, res: RunResult, *, source: str | None = None) -> dict:
+    """summary.json content: run figures, observables of the trajectories, the linear theory of the model that ran,
+    parameters and provenance. source: "emulator:<model>" (default), "rehearsal:<model>" or "rig"."""
+    from ..provenance import provenance
+    from .observables import observables
+
+    obs = observables(res.t, res.alpha, res.beta)
+    try:
+        disp: dict | None = dispersion_summary(scene.params, theory_for(scene), scene.cells)
+    except ImportError:
+        disp = None
+    d = scene.as_dict()
+    out = {
+        "scene": scene.name,
+        "model": scene.model,
+        "source": source or f"emulator:{scene.model}",
+        "t_end_s": float(res.t[-1]),
+        "wall_s": res.wall_s,
+        "realtime_factor": res.realtime_factor,
+        **obs,
+        "dispersion": disp,
+        "solver": res.info,
+        "params": d["params"],
+        "model_options": d["model_options"],
+        "perturbation": d["perturbation"],
+        "provenance": provenance(),
+    }
+    return clean(out)

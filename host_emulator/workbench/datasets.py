@@ -1,0 +1,459 @@
+"""One dataset layout for every run, rig or emulated: an xarray.Dataset over (time, cell), and the NPZ file of it.
+
+``load(path)`` opens any of:
+
+* an emulator run directory (``python -m host_emulator run --out DIR``: summary.json + trajectories.npz);
+* an experiment directory (``python -m metacell_tools.experiment run|rehearse --out DIR``): the drive-on part of
+  the first repeat with data, or ``repeat=k`` (from repeat_kk.npz, the logger arrays of that repeat);
+* a logger capture (``python -m metacell_tools.rigtools.logger -o PREFIX``: PREFIX.npz or PREFIX.csv);
+* a python-can log (``python -m can.logger -f run.asc``; ASC, BLF, LOG, TRC, MF4, SQLite, python-can's CSV),
+  decoded with the project's DBC (protocol/metacell.dbc through cantools) by the logger's SampleDecoder;
+* an NPZ in this layout, or the older layouts (the emulator's ``t, alpha, beta``; the logger's ``t_s, alpha_rad,
+  ...``), and a NetCDF file written from such a dataset.
+
+The dataset (format ``metacell-run/1``):
+
+* dims ``time`` (s; emulator: from the run's start; rig and rehearsal runs: from the drive enable; captures: from
+  the first sample) and ``cell`` (1..N);
+* ``alpha``, ``beta`` (rad, CCW positive; NaN where a cell sent no sample);
+* where known: ``torque_alpha``, ``torque_beta`` (N m, the reaction torque the controller commands: the
+  lattice and continuum models' law at the sampled state; the hil model's firmware torque is not recorded),
+  ``flags`` (the cell's CELL_SAMPLE flags, -1 = no sample), ``sample_time`` (s, the primary's clock when that
+  cell was sampled), ``alpha_counts``/``beta_counts`` (encoder counts), ``host_time`` (s, Unix time of
+  reception). Velocities are in neither the emulator's sampled output nor the rig's frames: not estimated here;
+* attributes: ``source`` (``emulator:<model>``, ``rehearsal:<model>``, ``rig``, or ``unknown`` when nothing in
+  the file says which: a python-can log cannot tell an emulated primary from a real one, pass ``source=``),
+  ``format``, ``origin`` (the path read), ``scene`` and every scene parameter when known, units, provenance.
+
+The NPZ file (``to_npz``) holds the same: ``format``, ``time``, ``cell``, ``alpha``, ``beta``, the optional
+variables above, the rig's ``cycle``, ``segment`` and ``gaps`` (segment, cell, first missing cycle, count), and
+``attrs`` (the attributes as one JSON string).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from ..scene import Scene
+
+__all__ = ["FORMAT", "VARIABLES", "load", "make_dataset", "to_npz", "read_npz", "from_run", "from_logger_arrays"]
+
+FORMAT = "metacell-run/1"
+CAN_LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc", ".mf4", ".db")
+# name -> (units, long name)
+VARIABLES: dict[str, tuple[str, str]] = {
+    "alpha": ("rad", "tall (alpha, honey) cylinder angle, CCW positive"),
+    "beta": ("rad", "short (beta) cylinder angle, CCW positive"),
+    "torque_alpha": ("N m", "reaction torque commanded on the alpha cylinder"),
+    "torque_beta": ("N m", "reaction torque commanded on the beta cylinder"),
+    "flags": ("1", "CELL_SAMPLE flags: ENABLED 1, BEMF 2, PERTURBING 4, PENDING 8, FAULT 16; -1 = no sample"),
+    "sample_time": ("s", "the primary's clock when the cell was sampled"),
+    "alpha_counts": ("count", "alpha encoder counts (400 per revolution)"),
+    "beta_counts": ("count", "beta encoder counts (400 per revolution)"),
+    "host_time": ("s", "laptop clock (Unix time) when the sample was received"),
+}
+EXTRA_ARRAYS = ("cycle", "segment", "gaps")  # rig captures: per-row cycle and segment; the gap table
+
+
+class LoadError(ValueError):
+    """A path that is not a run, a capture or a log this module reads (one line: what and why)."""
+
+
+# ---- building ----------------------------------------------------------------------------------------------
+def make_dataset(
+    time: np.ndarray,
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    *,
+    attrs: Mapping[str, Any] | None = None,
+    cell: np.ndarray | None = None,
+    **extra: np.ndarray,
+) -> xr.Dataset:
+    """The layout above from arrays: time (T,), alpha/beta (T, N); extra (T, N) variables by their VARIABLES name,
+    or (T,) cycle / segment rows, or the (G, 4) gap table."""
+    import xarray as xr
+
+    a = np.asarray(alpha, dtype=float)
+    n = a.shape[1]
+    cells = np.arange(1, n + 1) if cell is None else np.asarray(cell, dtype=int)
+    data: dict[str, Any] = {}
+    for name, arr in (("alpha", a), ("beta", np.asarray(beta, dtype=float)), *extra.items()):
+        if arr is None:
+            continue
+        arr = np.asarray(arr)
+        if name in VARIABLES:
+            units, long = VARIABLES[name]
+            data[name] = (("time", "cell"), arr, {"units": units, "long_name": long})
+        elif name in ("cycle", "segment"):
+            data[name] = (("time",), arr.astype(np.int64), {"long_name": f"poll {name} of the row"})
+        elif name == "gaps":
+            data[name] = (
+                ("gap", "gap_field"),
+                arr.astype(np.int64).reshape(-1, 4),
+                {"long_name": "lost samples: segment, cell, first missing cycle, count"},
+            )
+        else:
+            raise ValueError(
+                f"make_dataset: unknown variable {name!r}; known: {', '.join([*VARIABLES, *EXTRA_ARRAYS])}"
+            )
+    ds = xr.Dataset(
+        data,
+        coords={
+            "time": ("time", np.asarray(time, dtype=float), {"units": "s", "long_name": "time"}),
+            "cell": ("cell", cells, {"long_name": "cell index j"}),
+        },
+    )
+    ds.attrs.update({"format": FORMAT, "source": "unknown", **(dict(attrs) if attrs else {})})
+    if "gap_field" in ds.dims:
+        ds = ds.assign_coords(gap_field=["segment", "cell", "first_missing_cycle", "count"])
+    return ds
+
+
+def run_arrays(scene: Scene, time, alpha, beta, source: str) -> dict[str, np.ndarray]:
+    """A run's arrays in this layout (numpy only): time, cell, alpha, beta and, for an emulated lattice or
+    continuum model, the commanded reaction torques at every sample (the law of physics.py, clipped to the
+    actuator limit on the lattice as its plant does)."""
+    a, b = np.asarray(alpha, float), np.asarray(beta, float)
+    out: dict[str, np.ndarray] = {
+        "time": np.asarray(time, float),
+        "cell": np.arange(1, a.shape[1] + 1),
+        "alpha": a,
+        "beta": b,
+    }
+    if source.startswith("emulator:") and scene.model in ("lattice", "continuum"):
+        from ..physics import reaction
+
+        ra, rb = reaction(scene.params, a, b)
+        if scene.model == "lattice":
+            lim = scene.params.torque_limit_nm
+            ra, rb = np.clip(ra, -lim, lim), np.clip(rb, -lim, lim)
+        out["torque_alpha"], out["torque_beta"] = ra, rb
+    return out
+
+
+def run_attrs(scene: Scene, summary: dict | None, source: str) -> dict:
+    """Attributes of a run: the scene (every parameter), the scalar observables and theory, provenance, source."""
+    from .api import netcdf_attrs
+
+    return {**netcdf_attrs(scene, summary), "source": source}
+
+
+def from_run(scene: Scene, time, alpha, beta, summary: dict | None = None, source: str | None = None) -> xr.Dataset:
+    """An emulator run (or a rig series with its scene) in the layout (run_arrays, run_attrs)."""
+    src = source or (summary or {}).get("source") or f"emulator:{scene.model}"
+    arr = run_arrays(scene, time, alpha, beta, src)
+    return make_dataset(arr.pop("time"), arr.pop("alpha"), arr.pop("beta"), attrs=run_attrs(scene, summary, src), **arr)
+
+
+def write_run(path: str | Path, scene: Scene, time, alpha, beta, summary: dict | None, source: str) -> Path:
+    """A run's NPZ in this layout without building a dataset (the run command writes trajectories.npz with it)."""
+    return write_npz(path, run_arrays(scene, time, alpha, beta, source), run_attrs(scene, summary, source))
+
+
+def logger_layout(arr: Mapping[str, np.ndarray], t0: float | None = None) -> dict[str, Any]:
+    """The logger's cycle x cell arrays (SampleDecoder.arrays(), or an old logger NPZ) as this layout's arrays (numpy
+    only): row time = the mean primary clock of the row's samples minus t0 (default: the first row's), as the
+    experiment runner's series; cells without a sample in a row are NaN (never held). Key t_origin_s: that t0."""
+    import warnings
+
+    from protocol.codec import RAD_PER_COUNT
+
+    ts = np.asarray(arr["t_s"], dtype=float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # rows of a cell-less segment
+        t = np.nanmean(ts, axis=1) if ts.size else np.zeros(0)
+    keep = np.isfinite(t)
+    if t0 is None:
+        t0 = float(t[keep][0]) if keep.any() else 0.0
+    a = np.asarray(arr["alpha_counts"], dtype=float)[keep]
+    b = np.asarray(arr["beta_counts"], dtype=float)[keep]
+    return {
+        "time": t[keep] - t0,
+        "cell": np.asarray(arr.get("cells", np.arange(1, a.shape[1] + 1))),
+        "alpha": a * RAD_PER_COUNT,
+        "beta": b * RAD_PER_COUNT,
+        "sample_time": ts[keep] - t0,
+        "alpha_counts": a,
+        "beta_counts": b,
+        "flags": np.asarray(arr["flags"], dtype=np.int16)[keep],
+        "host_time": np.asarray(arr["host_time"], dtype=float)[keep],
+        "cycle": np.asarray(arr["cycle"])[keep],
+        "segment": np.asarray(arr["segment"])[keep],
+        "gaps": np.asarray(arr["gaps"]).reshape(-1, 4),
+        "t_origin_s": t0,
+    }
+
+
+def from_logger_arrays(arr: Mapping[str, np.ndarray], attrs: Mapping[str, Any] | None = None, t0: float | None = None):
+    """The logger's arrays as a dataset (logger_layout); attribute t_origin_s: the primary-clock time of time 0."""
+    lay = logger_layout(arr, t0)
+    t_origin = lay.pop("t_origin_s")
+    return make_dataset(
+        lay.pop("time"),
+        lay.pop("alpha"),
+        lay.pop("beta"),
+        cell=lay.pop("cell"),
+        attrs={"t_origin_s": t_origin, **(dict(attrs) if attrs else {})},
+        **lay,
+    )
+
+
+# ---- the NPZ file -------------------------------------------------------------------------------------------
+def _json_attrs(attrs: Mapping[str, Any]) -> str:
+    def conv(v):
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+        if isinstance(v, (np.integer,)):
+            return int(v)
+        if isinstance(v, (np.floating,)):
+            return float(v) if math.isfinite(v) else None
+        return v
+
+    return json.dumps({k: conv(v) for k, v in attrs.items()}, allow_nan=False, default=str)
+
+
+def write_npz(path: str | Path, arrays: Mapping[str, Any], attrs: Mapping[str, Any]) -> Path:
+    """Write this layout's arrays (time, cell, alpha, beta, and any of VARIABLES / EXTRA_ARRAYS) and attributes as
+    NPZ, numpy only (the logger writes its captures with it); returns the path."""
+    path = Path(path)
+    out: dict[str, Any] = {
+        "format": np.array(FORMAT),
+        "attrs": np.array(_json_attrs({"format": FORMAT, **attrs})),
+    }
+    for name in ("time", "cell", *VARIABLES, *EXTRA_ARRAYS):
+        if name in arrays and arrays[name] is not None:
+            out[name] = np.asarray(arrays[name])
+    missing = [k for k in ("time", "cell", "alpha", "beta") if k not in out]
+    if missing:
+        raise ValueError(f"write_npz: missing {', '.join(missing)}")
+    np.savez_compressed(path, **out)
+    return path
+
+
+def to_npz(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write a dataset of this layout as NPZ (compressed); returns the path."""
+    arrays = {k: ds[k].values for k in ("time", "cell", *VARIABLES, *EXTRA_ARRAYS) if k in ds.variables}
+    return write_npz(path, arrays, {k: v for k, v in ds.attrs.items() if k != "origin"})
+
+
+def read_npz(path: str | Path, attrs: Mapping[str, Any] | None = None) -> xr.Dataset:
+    """An NPZ of this layout, of the emulator's older ``t, alpha, beta`` or of the logger's older arrays."""
+    path = Path(path)
+    with np.load(path, allow_pickle=False) as z:
+        keys = set(z.files)
+        if "format" in keys:
+            if str(z["format"]) != FORMAT:
+                raise LoadError(f"{path}: format {str(z['format'])!r}, this version reads {FORMAT!r}")
+            extra = {k: z[k] for k in (*VARIABLES, *EXTRA_ARRAYS) if k in keys and k not in ("alpha", "beta")}
+            a = json.loads(str(z["attrs"])) if "attrs" in keys else {}
+            return make_dataset(
+                z["time"], z["alpha"], z["beta"], cell=z["cell"], attrs={**a, **(attrs or {})}, **extra
+            ).assign_attrs(origin=str(path))
+        if {"t", "alpha", "beta"} <= keys:  # the emulator's trajectories.npz before this layout
+            return make_dataset(z["t"], z["alpha"], z["beta"], attrs=dict(attrs or {})).assign_attrs(origin=str(path))
+        if {"t_s", "alpha_counts", "beta_counts", "flags"} <= keys:  # the logger's NPZ before this layout
+            arr = {k: z[k] for k in z.files}
+            return from_logger_arrays(arr, attrs).assign_attrs(origin=str(path))
+    raise LoadError(f"{path}: not a run NPZ (no time/alpha/beta, t/alpha/beta or t_s/alpha_counts arrays)")
+
+
+# ---- captures -----------------------------------------------------------------------------------------------
+def _from_rows(rows: np.ndarray, gaps, attrs) -> xr.Dataset:
+    from metacell_tools.rigtools.logger import rows_to_arrays
+
+    n = int(rows[:, 2].max()) if len(rows) else 16
+    return from_logger_arrays(rows_to_arrays(rows, max(n, 16), gaps), attrs)
+
+
+def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
+    """A python-can log file (any format can.LogReader reads), its CELL_SAMPLE frames decoded with the project's DBC
+    by the logger's SampleDecoder (time unwrapped on the primary's heartbeat, gaps found on the sequence counters).
+    """
+    import can
+
+    from metacell_tools.rigtools.logger import SampleDecoder
+
+    notes: list[str] = []
+    dec = SampleDecoder(report=notes.append)
+    frames = 0
+    try:
+        with can.LogReader(str(path)) as reader:
+            for msg in reader:
+                if msg.is_error_frame:
+                    continue
+                dec.feed(msg)
+                frames += 1
+    except (OSError, ValueError) as e:
+        raise LoadError(f"{path}: cannot read as a python-can log: {e}") from None
+    if not dec.rows and not dec.held:
+        raise LoadError(f"{path}: {frames} frame(s), none a CELL_SAMPLE of this protocol")
+    arr = dec.arrays()
+    return from_logger_arrays(
+        arr,
+        {
+            "source": source or "unknown",
+            "source_note": "" if source else "a python-can log does not say whether a rig or an emulator sent it",
+            "capture": "python-can log",
+            "frames": frames,
+            "decoder_notes": "; ".join(notes[:20]),
+        },
+    ).assign_attrs(origin=str(path))
+
+
+def _logger_csv(path: Path, source: str | None) -> xr.Dataset:
+    from metacell_tools.rigtools.logger import read_rows
+
+    rows = read_rows(path)
+    meta = {}
+    npz = path.with_suffix(".npz")
+    if npz.exists():  # the capture's attributes (source, provenance) live in its NPZ
+        try:
+            with np.load(npz, allow_pickle=False) as z:
+                if "attrs" in z.files:
+                    meta = json.loads(str(z["attrs"]))
+        except (OSError, ValueError):
+            meta = {}
+    if source:
+        meta["source"] = source
+    meta.setdefault("source", "unknown")
+    meta["capture"] = "logger CSV"
+    return _from_rows(rows, [], meta).assign_attrs(origin=str(path))
+
+
+def _is_logger_csv(path: Path) -> bool:
+    with open(path) as f:
+        return f.readline().startswith("segment,cycle,cell,")
+
+
+# ---- run directories ----------------------------------------------------------------------------------------
+def _summary_source(s: dict) -> str:
+    """The source a summary.json names; summaries written before the key existed: emulator runs by their model,
+    rig-runner summaries (model "rig") told apart by the command line in their provenance."""
+    if s.get("source"):
+        return str(s["source"])
+    if s.get("model") != "rig":
+        return f"emulator:{s.get('model', 'unknown')}"
+    cmd = str((s.get("provenance") or {}).get("command", ""))
+    if " rehearse " in f" {cmd} ":
+        return "rehearsal:hil"
+    if " run " in f" {cmd} ":
+        return "rig"
+    return "unknown"
+
+
+def _scene_attrs(s: dict) -> dict:
+    from .api import _flat
+
+    out: dict = {}
+    _flat(
+        "",
+        {
+            "scene": s.get("scene", ""),
+            "model": s.get("model", ""),
+            "params": s.get("params") or {},
+            "perturbation": s.get("perturbation") or [],
+        },
+        out,
+    )
+    for k in ("steady", "at_rest", "domain_walls", "pattern_wavelength_cells", "oscillation_period_s"):
+        if k in s:
+            _flat(f"observable.{k}", s[k], out)
+    if s.get("provenance"):
+        _flat("provenance", s["provenance"], out)
+    return out
+
+
+def _load_dir(d: Path, source: str | None, repeat: int | None) -> xr.Dataset:
+    f = d / "summary.json"
+    try:
+        s = json.loads(f.read_text())
+    except FileNotFoundError:
+        s = None
+    except json.JSONDecodeError as e:
+        raise LoadError(f"{f}: not valid JSON: {e}") from None
+    if s is None:
+        if (d / "trajectories.npz").exists():
+            return read_npz(d / "trajectories.npz", {"source": source} if source else None)
+        raise LoadError(f"{d}: no summary.json or trajectories.npz (not a run directory)")
+    attrs = _scene_attrs(s)
+    attrs["source"] = source or _summary_source(s)
+    if repeat is not None:
+        recs = {int(r["repeat"]): r for r in s.get("per_repeat", [])}
+        if repeat not in recs:
+            raise LoadError(f"{d}: no repeat {repeat}; repeats: {', '.join(map(str, sorted(recs))) or 'none'}")
+        npz = d / f"repeat_{repeat:02d}.npz"
+        if not npz.exists():
+            raise LoadError(f"{npz}: missing")
+        t_enable = recs[repeat].get("t_enable_s")
+        ds = read_npz(npz, attrs)
+        if t_enable is not None and "t_origin_s" in ds.attrs:  # time from the drive enable, as the summary's series
+            shift = float(ds.attrs["t_origin_s"]) - float(t_enable)
+            ds = ds.assign_coords(time=ds["time"].values + shift)
+            ds["sample_time"] = ds["sample_time"] + shift
+            ds.attrs["t_origin_s"] = float(t_enable)
+        return ds.assign_attrs(repeat=repeat, origin=str(npz))
+    npz = d / "trajectories.npz"
+    if not npz.exists():
+        raise LoadError(f"{d}: summary.json but no trajectories.npz (a run that produced no data)")
+    ds = read_npz(npz, attrs)
+    ds.attrs.update(attrs)  # the summary is the authority on what ran
+    return ds.assign_attrs(origin=str(d))
+
+
+def load(path: str | Path, *, source: str | None = None, repeat: int | None = None) -> xr.Dataset:
+    """Open a run directory, an experiment directory, a logger capture, a python-can log, an NPZ or a NetCDF file
+    (module docstring) as one xarray.Dataset. source: the label for data whose file does not say what produced it
+    (``rig``, ``emulator:hil``, ...); repeat: an experiment directory's repeat (default: the summary's first)."""
+    p = Path(path)
+    if source is not None and not (source == "rig" or source.split(":")[0] in ("emulator", "rehearsal", "unknown")):
+        raise LoadError(f"source={source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
+    if p.is_dir():
+        return _load_dir(p, source, repeat)
+    if not p.exists():
+        # a logger prefix (out/run1 for out/run1.npz and .csv)
+        for suffix in (".npz", ".csv"):
+            if p.with_suffix(suffix).exists() and p.suffix == "":
+                return load(p.with_suffix(suffix), source=source)
+        raise LoadError(f"{p}: no such file or directory")
+    suf = p.suffix.lower()
+    if suf == ".npz":
+        ds = read_npz(p, {"source": source} if source else None)
+        if "source" not in ds.attrs or (ds.attrs["source"] == "unknown" and source):
+            ds.attrs["source"] = source or "unknown"
+        return ds
+    if suf == ".nc":
+        import xarray as xr
+
+        with xr.open_dataset(p, engine="scipy") as nc:
+            ds = nc.load()
+        if source:
+            ds.attrs["source"] = source
+        return ds
+    if suf == ".csv" and _is_logger_csv(p):
+        return _logger_csv(p, source)
+    if suf in CAN_LOG_SUFFIXES or suf == ".csv":
+        return read_can_log(p, source)
+    raise LoadError(
+        f"{p}: unknown kind of file (a run directory, .npz, .nc, a logger .csv or a python-can log: "
+        f"{', '.join(CAN_LOG_SUFFIXES)}, .csv)"
+    )
+
+
+def final_profile(ds: xr.Dataset, var: str = "alpha") -> np.ndarray:
+    """Each cell's last sample (N,): the final profile of a run, NaN for a cell that never sent one."""
+    a = ds[var].values
+    out = np.full(a.shape[1], np.nan)
+    for j in range(a.shape[1]):
+        ok = np.flatnonzero(np.isfinite(a[:, j]))
+        if len(ok):
+            out[j] = a[ok[-1], j]
+    return out

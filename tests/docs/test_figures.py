@@ -1,0 +1,161 @@
+"""Docs that stay true: the figures in README.md and docs/ that a fast command reproduces (the demo's printout, the
+linear theory's table, oscillation periods, code size, instruction counts, bus rates, the paper's count, lint
+paths) are compared with what that command prints today. Machine-dependent times are not compared: the docs
+name their command and machine beside them."""
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+README = (ROOT / "README.md").read_text()
+
+
+def _num(text: str) -> float:
+    return float(text.replace(",", ""))
+
+
+def test_readme_demo_printout_is_what_make_demo_prints(tmp_path):
+    """Every line of the README's `make demo` block but the first (wall time) is the run's own printout."""
+    block = re.search(r"`make demo` prints a summary and where the plots\nare:\n\n((?:    .*\n)+)", README)
+    assert block, "README: the make demo block moved"
+    quoted = [ln[4:] for ln in block.group(1).splitlines()]
+    out = tmp_path / "out" / "default"
+    r = subprocess.run(
+        [sys.executable, "-m", "host_emulator", "run", "default", "--out", str(out), "--quiet"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stderr
+    printed = r.stdout.replace(str(out), "out/default").splitlines()
+    assert re.fullmatch(r"scene default \(hil\): 10 s simulated in [\d.]+ s wall \(\d+x real time\)", quoted[0])
+    assert printed[1:] == quoted[1:]
+
+
+def test_the_linear_theory_table_of_analysis_md():
+    """Every row of docs/analysis.md's table, recomputed with `dispersion` at the table k."""
+    from host_emulator.analysis.stability import dispersion, format_set
+    from host_emulator.params import Params
+
+    text = (ROOT / "docs" / "analysis.md").read_text()
+    rows = re.findall(r"^\| (\d+/125) \| (\d+) \| (lattice|continuum) \| (no|yes|no / yes) \| (.+?) \|$", text, re.M)
+    assert len(rows) >= 14
+    for sig, eta, model, inertia, rest in rows:
+        cols = [c.strip() for c in rest.split("|")]
+        regime, fastest, growth, uset, uniform, chain = cols
+        n, d = map(int, sig.split("/"))
+        for inert in [x == "yes" for x in inertia.split(" / ")]:
+            p = Params(sigma=n / d, band_scale=0.5, eta_scale=float(eta))
+            res = dispersion(p, inertia=inert, discrete=model == "lattice", n_cells=16)
+            row = f"{sig} eta x{eta} {model} inertia={inert}"
+            assert regime.strip("*") == res["regime"], row
+            assert format_set(res["unstable_set_cells"]) == uset, row
+            assert f"{res['fastest_growth_per_s']:+.2f}" == growth, row
+            if res["fastest_lambda_cells"]:
+                assert fastest == f"{res['fastest_lambda_cells']:.3f}", row
+            else:
+                assert fastest == f"inf (uniform), period {res['oscillation_period_s']:.3f} s", row
+            um = [f"{res['uniform_mode_growth_per_s']:+.1f}"]
+            if res["uniform_mode_period_s"]:
+                um.append(f"{res['uniform_mode_period_s']:.3f}")
+            assert ", ".join(um) in uniform, row
+
+
+def test_the_fourteen_over_125_periods_in_the_readme():
+    """README: the lattice with the torque limit and the hil model with back-EMF compensation oscillate at the
+    quoted periods; the shipped hil scene decays to rest."""
+    from host_emulator.analysis.observables import observables
+    from host_emulator.controller import run_scene
+    from host_emulator.scene import load_scene
+
+    m = re.search(
+        r"the ideal lattice with the actuators' torque limit, ([\d.]+) s.*?back-EMF compensation,\s+([\d.]+) s",
+        README,
+        re.S,
+    )
+    assert m, "README: the 14/125 sentence moved"
+    for sets, quoted in ((["model=lattice"], m.group(1)), (["params.bemf_comp=true"], m.group(2))):
+        res = run_scene(load_scene("exp3_single_sigma14", sets), progress=False)
+        per = observables(res.t, res.alpha, res.beta)["oscillation_period_s"]
+        assert f"{per:.4g}" == quoted, (sets, per)
+    res = run_scene(load_scene("exp3_single_sigma14"), progress=False)
+    assert observables(res.t, res.alpha, res.beta)["oscillation_period_s"] is None
+
+
+def test_lint_paths_in_the_readme_are_the_makefiles():
+    make = re.search(r"^LINT_PATHS := (.+)$", (ROOT / "Makefile").read_text(), re.M).group(1).split()
+    m = re.search(r"`ruff format --check` \(both over ([^)]+)\)", README)
+    named = re.split(r",\s*|\s+and\s+", m.group(1).replace("\n", " "))
+    assert sorted(x.strip() for x in named if x.strip()) == sorted(make)
+
+
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc missing")
+def test_code_size_quoted_in_readme_and_firmware_proof():
+    from metacell_tools.fwcheck import armbuild
+
+    rows = armbuild.code_size(armbuild.library_objects())
+    total = next(r.text for r in rows if r.name == "total")
+    m = re.search(r"code size \(`\.text`, all objects.*?\| ([\d,]+) bytes", README)
+    assert _num(m.group(1)) == total
+    fp = (ROOT / "docs" / "firmware-proof.md").read_text()
+    assert f"total {total}" in fp
+
+
+@pytest.mark.skipif(
+    shutil.which("arm-none-eabi-gcc") is None or shutil.which("qemu-system-arm") is None,
+    reason="arm-none-eabi-gcc / qemu-system-arm missing",
+)
+def test_instruction_counts_quoted_in_readme_and_firmware_proof():
+    from metacell_tools.fwcheck import qemu
+
+    s = qemu.tick_stats()
+    base = sorted(s.select(**qemu.BUDGET_CASE))
+    bemf = sorted(s.select(**qemu.BUDGET_BEMF_CASE))
+
+    def med(v):
+        return v[len(v) // 2]
+
+    assert f"**median {med(base)}, max {base[-1]}** (budget {qemu.BUDGET})" in README
+    assert f"median {med(bemf)}, max {bemf[-1]} (budget {qemu.BUDGET_BEMF})" in README
+    quad = sorted(s.quad_update)
+    assert f"| {min(quad)}-{quad[-1]} / {max(s.snapshot)} instructions |" in README
+    fp = (ROOT / "docs" / "firmware-proof.md").read_text()
+    assert f"| **{med(base)}** | **{base[-1]}** |" in fp and f"| **{med(bemf)}** | **{bemf[-1]}** |" in fp
+
+
+def test_bus_rates_in_the_readme():
+    r = subprocess.run(
+        [sys.executable, "-m", "host_emulator.benchmarks.bus"], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert r.returncode == 0, r.stderr
+    limit = re.search(
+        r"I2C 400 kHz.*?full-lattice rate :\s+([\d.]+) Hz\s+emulated primary schedule\s+:\s+([\d.]+) Hz\s+= ([\d.]+) %",
+        r.stdout,
+        re.S,
+    )
+    lim, got, pct = (float(x) for x in limit.groups())
+    assert (
+        f"allowed by a 400 kHz bus is {lim:.1f} Hz and the primary's schedule\nreaches {got:.1f} Hz ({pct:.1f} %)"
+        in README
+    )
+
+
+def test_the_paper_count_in_the_readme(tmp_path):
+    """README's 'N of N agree' is the paper command's count (one repeat per Fig. 3 panel: the count of items does
+    not depend on the repeats)."""
+    from host_emulator.workbench.paper import build
+
+    doc = build(tmp_path, repeats=1)
+    m = re.search(r"item by item \((\d+) of (\d+) agree\)", README)
+    assert (int(m.group(1)), int(m.group(2))) == (doc["agree"], doc["total"])
+    bs = (ROOT / "docs" / "band-stiffness.md").read_text()
+    assert (
+        f"**{doc['agree']} of {doc['total']}\nitems agree**" in bs
+        or f"**{doc['agree']} of {doc['total']} items agree**" in bs
+    )
