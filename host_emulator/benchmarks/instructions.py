@@ -31,18 +31,27 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-# run in each measured process: 0.1 s of the scene (warm-up), then the scene to t_end. run_solver sizes its chunks
-# of samples by wall time (CHUNK_WALL_S); under valgrind that would follow the machine's load, so the chunks are
-# fixed at the largest, which a native run of the default scene reaches too.
+# Run in each measured process: 0.1 s of the scene (warm-up), then the scene to t_end. Nothing in it may depend on
+# wall time, which under valgrind follows the machine's load: run_solver sizes its chunks of samples by wall time
+# (CHUNK_WALL_S), so they are fixed at the largest, which a native run of the default scene reaches too; the
+# firmware build is hashed once per process (firmware.RECHECK_S would re-hash it after a second of wall time, some
+# million instructions under valgrind). Python's cyclic garbage collector is off for the measured run: when it
+# runs depends on every allocation since start-up (the environment's size included), and one collection more in
+# either run moved the figure by 1 per cell-tick.
 _CHILD = """
 import sys
 import host_emulator.controller as controller
+import host_emulator.firmware as firmware
 from host_emulator.controller import build_solver, run_solver
 controller.CHUNK_WALL_S = 1e9
+firmware.RECHECK_S = 1e9
 from host_emulator.scene import load_scene
 sets = sys.argv[3:]
 s = load_scene(sys.argv[1], sets + ["t_end_s=0.1"])
 run_solver(build_solver(s), s.t_end_s)
+import gc
+gc.collect()
+gc.disable()
 s = load_scene(sys.argv[1], sets + ["t_end_s=" + sys.argv[2]])
 run_solver(build_solver(s), s.t_end_s)
 """
