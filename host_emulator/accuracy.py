@@ -4,10 +4,13 @@ fidelity.
 Presets (chosen from the measured work-precision and fidelity tables, docs/accuracy.md). A model option the
 scene sets explicitly (model_options.stepper, .dt, .substeps, .beta_geometry) always wins over the preset.
 
-lattice (ideal reaction; step as a fraction of the computed stable limit of the preset's stepper):
+lattice (ideal reaction; a fixed step as a fraction of the computed stable limit of the preset's stepper, or an
+adaptive stepper's error tolerance):
     fast      rk4, dt = 0.8 x limit      ~1e-3 rad max angle error over 3 s of exp. 3 (16 cells)
     balanced  rk4, dt = limit / 4        ~1e-4 rad   (the default: on the measured Pareto front)
-    exact     rk4, dt = limit / 32, beta_geometry = "geometric" (the full docs/physics.md#band-torque band geometry)
+    exact     dop853 (adaptive, PI step control, steps landing on the force law's kinks), tol = 1e-8, and
+              beta_geometry = "geometric" (the full docs/physics.md#band-torque band geometry): ~1e-10 rad on the
+              small-angle scene; a scene that sets a fixed stepper gets dt = limit / 32 instead
 hil (the firmware's control rate is the model's clock; plant steps per control tick):
     fast      symplectic_euler, 1 step per tick   ~1-2 encoder counts from the converged loop over 3 s
     balanced  the same (the default): nothing cheaper exists, the loop's own quantisation dominates, and
@@ -27,8 +30,12 @@ if TYPE_CHECKING:
 LEVELS = ("fast", "balanced", "exact")
 DEFAULT = "balanced"
 
-# (stepper, fraction of the stable limit, beta_geometry or None)
-LATTICE = {"fast": ("rk4", 0.8, None), "balanced": ("rk4", 0.25, None), "exact": ("rk4", 1 / 32, "geometric")}
+# (stepper, fraction of the stable limit for a fixed-step stepper, tol for an adaptive one, beta_geometry or None)
+LATTICE = {
+    "fast": ("rk4", 0.8, None, None),
+    "balanced": ("rk4", 0.25, None, None),
+    "exact": ("dop853", 1 / 32, 1e-8, "geometric"),
+}
 # (stepper, plant steps per control tick, beta_geometry or None)
 HIL = {
     "fast": ("symplectic_euler", 1, None),
@@ -36,7 +43,7 @@ HIL = {
     "exact": ("rk4", 2, "geometric"),
 }
 
-KNOB_KEYS = ("stepper", "dt", "substeps", "beta_geometry")
+KNOB_KEYS = ("stepper", "dt", "tol", "substeps", "beta_geometry")
 
 
 def check_level(level: object) -> str:
@@ -59,10 +66,16 @@ def _preset(options, stepper, geom, explicit):
 
 def _resolve_lattice(params, perturbations, options, level, explicit):
     from .models import make_model
+    from .models.options import DEFAULT_TOL
+    from .models.steppers import STEPPERS
 
-    stepper, frac, geom = LATTICE[level]
+    stepper, frac, tol, geom = LATTICE[level]
     opts = _preset(options, stepper, geom, explicit)
-    if "dt" not in explicit:
+    if STEPPERS[opts.stepper].adaptive:
+        # the tolerance sets the accuracy; dt (a cap on the step) only where the scene sets it
+        if "tol" not in explicit:
+            opts = dataclasses.replace(opts, tol=tol if tol is not None else DEFAULT_TOL)
+    elif "dt" not in explicit:
         limit, _ = make_model("lattice", params, perturbations, opts).step_limit()
         opts = dataclasses.replace(opts, dt=frac * limit)
     return opts

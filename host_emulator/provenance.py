@@ -8,11 +8,16 @@
   (the same key that names the build directory, build/host/<hash>);
 * python, numpy, scipy, python_can (and xarray, dask when installed) versions;
 * created_utc: ISO 8601 time of the call; command: the command line (sys.argv joined, shell-quoted).
+
+``machine()`` names the machine a timing was taken on (CPU model, cores, load average, date): every speed
+figure the benchmarks print carries it, since absolute times do not transfer between machines.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import os
+import platform
 import shlex
 import subprocess
 import sys
@@ -81,3 +86,36 @@ def provenance(command: Sequence[str] | None = None) -> dict:
         "created_utc": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "command": argv if isinstance(argv, str) else shlex.join(str(a) for a in argv),
     }
+
+
+@lru_cache(maxsize=1)
+def cpu_model() -> str:
+    """The CPU's model name (/proc/cpuinfo on Linux), else what platform knows."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown CPU"
+
+
+def machine() -> dict:
+    """CPU model, logical cores, 1/5/15-minute load average (None where the OS has none) and today's UTC date."""
+    try:
+        load: list[float] | None = [round(x, 2) for x in os.getloadavg()]
+    except (OSError, AttributeError):
+        load = None
+    return {
+        "cpu": cpu_model(),
+        "cores": os.cpu_count() or 0,
+        "load": load,
+        "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d"),
+    }
+
+
+def machine_line() -> str:
+    """machine() as one line: 'AMD EPYC, 2 cores, load 1.2/1.0/0.8, 2026-11-23'."""
+    m = machine()
+    load = "/".join(f"{x:.1f}" for x in m["load"]) if m["load"] else "unknown"
+    return f"{m['cpu']}, {m['cores']} cores, load {load}, {m['date']}"

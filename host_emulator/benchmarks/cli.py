@@ -46,7 +46,9 @@ def run_workprecision(args: argparse.Namespace, out: Path) -> int:
     from . import workprecision as wp
 
     t_start = time.perf_counter()
-    summary: dict[str, Any] = {}  # written as JSON
+    from ..provenance import machine, provenance
+
+    summary: dict[str, Any] = {"machine": machine(), "provenance": provenance()}  # written as JSON
     panels: list[tuple[str, list, float | None]] = []  # (title, points, target error) per figure panel
     status = 0
 
@@ -79,6 +81,26 @@ def run_workprecision(args: argparse.Namespace, out: Path) -> int:
             + "".join(f"; {f}: not run" for f in ("diffrax", "CVODE", "scipy") if f not in peer_ratios)
         )
     summary["lattice_peer_ratios"] = peer_ratios
+    front = wp.front_ratios(pts)
+    print(
+        "\n  lattice front: CPU time to reach each max angle error, the best of ours against the best method of each "
+        "peer family (log-log on each method's Pareto front; medians of 5 runs for ours, diffrax and CVODE, all "
+        "measured in this run)"
+    )
+    print("  " + wp.front_table(front).replace("\n", "\n  "))
+    short = [r for r in front if r["ratio"] is not None and r["ratio"] < wp.FRONT_TARGET]
+    unmeasured = [r for r in front if r["ratio"] is None]
+    ratios = [r["ratio"] for r in front if r["ratio"] is not None]
+    print(
+        f"  FRONT lattice: best peer / best ours >= {wp.FRONT_TARGET:g}x at every error from "
+        f"{max(wp.FRONT_TOLS):g} to {min(wp.FRONT_TOLS):g} rad: "
+        + ("met" if not short and not unmeasured else "NOT met" if short else "not measured")
+        + (f" (ratios {min(ratios):.1f}x-{max(ratios):.1f}x)" if ratios else "")
+        + "".join(f"; {r['tol_rad']:g} rad: below target" for r in short)
+        + "".join(f"; {r['tol_rad']:g} rad: ours or every peer never reach it" for r in unmeasured)
+    )
+    status |= 1 if short else 0
+    summary["lattice_front_ratios"] = front
     summary["lattice"] = {
         "ratio": ratio,
         "best_ours": best,
@@ -136,6 +158,7 @@ def run_workprecision(args: argparse.Namespace, out: Path) -> int:
     out.mkdir(parents=True, exist_ok=True)
     png = out / "work_precision.png"
     _plot(panels, png)
+    summary["machine"]["load_end"] = machine()["load"]
     (out / "bench.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
     print(f"\nwrote {png} and {out / 'bench.json'}; bench took {time.perf_counter() - t_start:.0f} s")
     return status
@@ -166,7 +189,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"bench: error: {problem}", file=sys.stderr)
         return 2
     where = pin_one_core()
+    from ..provenance import machine_line
+
     print(f"# host_emulator bench on {where} [{platform.machine()}, python {platform.python_version()}]")
+    print(f"# machine: {machine_line()}")
     from ..firmware import load
 
     load()  # compile outside every timing

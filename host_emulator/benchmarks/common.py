@@ -1,4 +1,4 @@
-"""Shared helpers of the benchmarks: timing (best of k), work-precision interpolation, CPU pinning, table printing."""
+"""Shared helpers of the benchmarks: timing (best or median of k), work-precision interpolation, pinning, tables."""
 
 from __future__ import annotations
 
@@ -43,6 +43,21 @@ def best_time(fn: Callable[[], T], repeat: int = 3, budget_s: float = 2.0) -> tu
         best = min(best, w)
         spent += w
     return out, best
+
+
+def median_time(fn: Callable[[], T], repeat: int = 5, budget_s: float = 2.0) -> tuple[T, float]:
+    """(result of the last call, median time in s on `clock`) over `repeat` calls after one untimed warm-up call
+    (fewer timed calls once they have used `budget_s`, at least 3). Medians, not minima: on a shared machine the
+    fastest of a few runs is luck as often as it is the code."""
+    out = fn()
+    times: list[float] = []
+    while len(times) < max(1, repeat):
+        t0 = clock()
+        out = fn()
+        times.append(clock() - t0)
+        if len(times) >= 3 and sum(times) > budget_s:
+            break
+    return out, float(np.median(times))
 
 
 @dataclass

@@ -118,7 +118,7 @@ def pypde_problem(scene: Scene, m: int) -> tuple[Any, Any]:  # (pde.PDE, pde.Fie
         "b": f"{p.kb_eff / eb!r}*laplace(b) + {rb}/{eb!r}" + "".join(fb),
     }
     eq = pde.PDE(eqs, bc={"derivative": 0})
-    grid = pde.CartesianGrid([[0, scene.cells]], [scene.cells * m])
+    grid = pde.CartesianGrid([(0.0, float(scene.cells))], [scene.cells * m])
     state = pde.FieldCollection([pde.ScalarField(grid, 0.0, label="a"), pde.ScalarField(grid, 0.0, label="b")])
     return eq, state
 

@@ -1,4 +1,6 @@
-"""Speed benchmark: real-time factor of a scene (default: the 16-cell hil default) pinned to one core."""
+"""Speed benchmark: real-time factor of a scene (default: the 16-cell hil default) pinned to one core, and, for a hil
+scene with valgrind installed, its machine-independent cost: x86 instructions per cell and control tick
+(host_emulator.benchmarks.instructions)."""
 
 from __future__ import annotations
 
@@ -24,10 +26,16 @@ def bench_main(argv: list[str] | None = None) -> int:
         "--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run (repeatable)"
     )
     ap.add_argument("--cpu", type=int, default=None, help="pin to this CPU (default: the first allowed one)")
+    ap.add_argument(
+        "--no-instructions",
+        action="store_true",
+        help="skip the callgrind instruction count (hil scenes; about a minute, needs valgrind)",
+    )
     args = ap.parse_args(argv)
 
     from ..controller import build_solver, run_solver
     from ..firmware import load
+    from ..provenance import machine_line
     from ..scene import load_scene
 
     if hasattr(os, "sched_setaffinity"):
@@ -46,13 +54,15 @@ def bench_main(argv: list[str] | None = None) -> int:
     info = res.info
     print(
         f"scene {scene.name} ({scene.model}, {scene.cells} cells, {sim:g} s simulated) on one core "
-        f"[{platform.processor() or platform.machine()}, python {platform.python_version()}]"
+        f"[python {platform.python_version()}]"
     )
+    print(f"  machine: {machine_line()}")
     if scene.model == "hil":
         print(
             f"  control rate {info['control_rate_hz']} Hz, {info['substeps_per_tick']} plant step(s) per tick "
             f"({info['stepper']}), output every {info['dt_out_s']} s"
         )
+        _print_instructions(args)
     print(
         f"  wall per run: median {wall * 1e3:.1f} ms (min {min(walls) * 1e3:.1f}, max {max(walls) * 1e3:.1f}, "
         f"{len(walls)} runs)"
@@ -65,3 +75,24 @@ def bench_main(argv: list[str] | None = None) -> int:
         )
     print(f"  realtime factor: {sim / wall:.0f}x (requirement: >= 100x; target for the hil default: >= 1000x)")
     return 0 if sim / wall >= 100 or scene.name != "default" else 1
+
+
+def _print_instructions(args: argparse.Namespace) -> None:
+    """The callgrind count of the same scene (machine-independent), or one line saying why it is not there."""
+    from . import instructions as ins
+
+    if args.no_instructions:
+        return
+    if not ins.have_valgrind():
+        print("  instructions per cell-tick: not counted (valgrind is not installed)")
+        return
+    try:
+        m = ins.measure(args.scene, args.set)
+    except (ins.InstructionError, ValueError) as e:
+        print(f"  instructions per cell-tick: not counted ({e})")
+        return
+    print(
+        f"  instructions per cell-tick: {round(m.per_cell_tick)} (callgrind, whole process, {m.t1_s:g} s minus "
+        f"{m.t0_s:g} s of simulated time: machine-independent; firmware {m.by_group.get(ins.GROUPS[0][0], 0):.0f}, "
+        f"emulator C {m.by_group.get(ins.GROUPS[1][0], 0):.0f})"
+    )

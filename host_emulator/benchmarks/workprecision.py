@@ -1,11 +1,12 @@
-"""Work-precision of the emulator's steppers against scipy solve_ivp (lattice), a fine-step hil run (hil) and py-pde
-(continuum).
+"""Work-precision of the emulator's steppers against scipy solve_ivp, diffrax and CVODE (lattice), a fine-step hil
+run (hil) and py-pde (continuum).
 
 Every method is run at several step sizes / tolerances; its error is the max |angle - reference| over all
-output samples (every 10 ms), cells and both chains, its cost the best wall time of a few runs on one
-core. The reference is solved tightly on the same right-hand side (DOP853, rtol 1e-10, restarted at every
-perturbation edge). Wall time at a target error is interpolated on each method's Pareto front
-(common.wall_at); the ratio best-scipy / best-ours is the headline figure.
+output samples (every 10 ms), cells and both chains, its cost the CPU time of a run on one pinned core (ours and
+the compiled peers: the median of several runs; scipy: the best of a few). The lattice reference is scipy's
+DOP853 at rtol 1e-12 on the same right-hand side, restarted at every perturbation edge: independent of our C
+integrators. Wall time at a target error is interpolated on each method's Pareto front (common.wall_at); the
+lattice front (front_ratios) compares the best of ours with the best peer at every error from 1e-3 to 1e-8 rad.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .common import WPPoint, best_time, fmt, max_err, table, wall_at
+from .common import WPPoint, best_time, fmt, max_err, median_time, table, wall_at
 
 if TYPE_CHECKING:
     from ..models.hil import HilSolver
@@ -28,9 +29,15 @@ if TYPE_CHECKING:
 
 LATTICE_STEPPERS = ("euler", "symplectic_euler", "imex_euler", "noh_bathe", "rk4")
 DT_GRID = (2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5, 3.125e-5)
+ADAPTIVE_STEPPERS = ("dop853",)
+TOL_GRID = tuple(10.0 ** (-k / 2) for k in range(4, 23))  # 1e-2 .. 1e-11, half decades
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA")
 TARGET = 1e-4
 PEERS = ("scipy", "py-pde", "diffrax", "CVODE")  # method-name prefixes that are not ours
+REF_RTOL, REF_ATOL = 1e-12, 1e-14  # the lattice reference (tighter fails: the step underflows at the kinks)
+FRONT_TOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)  # max angle errors of the lattice front (rad)
+FRONT_PEERS = ("diffrax", "CVODE", "scipy")  # families, each represented by its best method at each error
+FRONT_TARGET = 2.0  # best peer / best ours at every error of the front
 
 
 # ---------------------------------------------------------------- lattice
@@ -48,25 +55,28 @@ def output_times(t_end_s: float, dt_out: float) -> np.ndarray:
 
 
 def _sampled_states(solver: LatticeSolver | HilSolver, t_end_s: float, n: int) -> np.ndarray:
-    """States (T, 2n) of a compiled solver at t = 0, dt_out, ..., t_end."""
+    """States (T, 2n) of a compiled solver at t = 0, dt_out, ..., t_end: one advance_many call (the compiled
+    sampled loop a run uses), so the time is the integrator's, not Python's per sample."""
     n_out = int(round(t_end_s / solver.dt_out))
     out = np.empty((n_out + 1, 2 * n))
     out[0] = solver.x
-    for k in range(n_out):
-        solver.advance()
-        out[k + 1] = solver.x
+    _, a, b = solver.advance_many(n_out)
+    out[1:, :n] = a
+    out[1:, n:] = b
     return out
 
 
-def run_ours(scene: Scene, stepper: str, dt: float) -> tuple[np.ndarray, float]:
-    """Trajectory (T, 2n) of the compiled lattice at the output times, stepper and largest step dt."""
+def run_ours(scene: Scene, stepper: str, dt: float | None = None, tol: float | None = None) -> tuple[np.ndarray, dict]:
+    """Trajectory (T, 2n) of the compiled lattice at the output times with a stepper and its largest step dt (an
+    adaptive one: its tolerance tol), and the solver's info (steps, evaluations)."""
     from ..controller import build_solver
     from ..models.lattice import LatticeSolver
 
-    s = build_solver(scene, resolve=False, options=replace(scene.options, stepper=stepper, dt=dt))
+    s = build_solver(scene, resolve=False, options=replace(scene.options, stepper=stepper, dt=dt, tol=tol))
     if not isinstance(s, LatticeSolver):
         raise TypeError(f"scene {scene.name!r} (model {scene.model!r}) is not a lattice scene")
-    return _sampled_states(s, scene.t_end_s, s.model.n), s.h
+    x = _sampled_states(s, scene.t_end_s, s.model.n)
+    return x, s.info()
 
 
 def _cuts(scene):
@@ -145,10 +155,10 @@ def lattice_workprecision(
     t_eval = output_times(scene.t_end_s, scene.options.dt_out)
     y0 = np.zeros(2 * n2)
     t0 = time.perf_counter()
-    ref, nfev = solve_segments(compiled_rhs(scene), y0, scene, t_eval, "DOP853", 1e-10, 1e-12)
+    ref, nfev = solve_segments(compiled_rhs(scene), y0, scene, t_eval, "DOP853", REF_RTOL, REF_ATOL)
     ref_x = ref[:, :n2]
     log(
-        f"  reference: DOP853 rtol 1e-10 atol 1e-12 on the compiled rhs, {nfev} rhs calls, "
+        f"  reference: scipy DOP853 rtol {REF_RTOL:g} atol {REF_ATOL:g} on the compiled rhs, {nfev} rhs calls, "
         f"{time.perf_counter() - t0:.2f} s"
     )
     points: list[WPPoint] = []
@@ -162,8 +172,13 @@ def lattice_workprecision(
         if quick:
             grid = grid[::2]
         for dt in grid:
-            (x, h), w = best_time(partial(run_ours, scene, st, dt), repeat=3)
-            points.append(WPPoint(st, f"dt={h:.3g}", w, max_err(x, ref_x), extra={"limit_s": lim}))
+            (x, info), w = median_time(partial(run_ours, scene, st, dt), repeat=5, budget_s=1.0)
+            points.append(WPPoint(st, f"dt={info['dt_s']:.3g}", w, max_err(x, ref_x), extra={"limit_s": lim}))
+    for st in ADAPTIVE_STEPPERS:
+        for tol in TOL_GRID[::3] if quick else TOL_GRID:
+            (x, info), w = median_time(partial(run_ours, scene, st, None, tol), repeat=5, budget_s=1.0)
+            extra = {k: info[k] for k in ("steps", "rejected_steps", "switch_landings", "force_evaluations")}
+            points.append(WPPoint(st, f"tol={tol:.2g}", w, max_err(x, ref_x), extra=extra))
     rhs = numpy_rhs(scene)
     rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8) if not quick else (1e-3, 1e-5, 1e-7)
     for meth in SCIPY_METHODS:
@@ -182,10 +197,67 @@ def lattice_workprecision(
 
         points += peer_points(scene, t_eval, y0, ref_x, quick=quick, log=log)
     # cross-check of the reference: the numpy rhs solved as tightly
-    (y, _), w = best_time(lambda: solve_segments(rhs, y0, scene, t_eval, "DOP853", 1e-10, 1e-12), repeat=1)
+    (y, _), w = best_time(lambda: solve_segments(rhs, y0, scene, t_eval, "DOP853", REF_RTOL, REF_ATOL), repeat=1)
     ref_check = max_err(y[:, :n2], ref_x)
-    log(f"  reference check: numpy rhs, DOP853 rtol 1e-10 differs from the reference by {ref_check:.2g} rad")
+    log(f"  reference check: numpy rhs, DOP853 rtol {REF_RTOL:g} differs from the reference by {ref_check:.2g} rad")
     return scene, points, ref_check
+
+
+def is_ours(method: str) -> bool:
+    return not method.startswith(PEERS)
+
+
+def front_ratios(points: list[WPPoint], tols: tuple[float, ...] = FRONT_TOLS) -> list[dict]:
+    """For each max angle error in `tols`: the cheapest of ours and of each peer family there (wall_at on each
+    method's Pareto front), and best peer / best ours. Keys: tol_rad, ours_ms, ours_method, best_peer, peer_ms,
+    ratio (None where nobody of a side reaches the error), and peers: {family: {method, ms, ratio}}."""
+    methods = sorted({p.method for p in points})
+    rows = []
+    for tol in tols:
+        at = {m: wall_at([p for p in points if p.method == m], tol) for m in methods}
+        reach = {m: w for m, w in at.items() if w is not None}
+        ours = {m: w for m, w in reach.items() if is_ours(m)}
+        best_ours = min(ours.items(), key=lambda kv: kv[1]) if ours else None
+        fams: dict[str, dict] = {}
+        for fam in FRONT_PEERS:
+            cand = {m: w for m, w in reach.items() if m.startswith(fam)}
+            if cand:
+                m, w = min(cand.items(), key=lambda kv: kv[1])
+                fams[fam] = {"method": m, "ms": w * 1e3, "ratio": w / best_ours[1] if best_ours else None}
+        best_peer = min(fams.values(), key=lambda d: d["ms"]) if fams else None
+        rows.append(
+            {
+                "tol_rad": tol,
+                "ours_ms": best_ours[1] * 1e3 if best_ours else None,
+                "ours_method": best_ours[0] if best_ours else None,
+                "best_peer": best_peer["method"] if best_peer else None,
+                "peer_ms": best_peer["ms"] if best_peer else None,
+                "ratio": best_peer["ratio"] if best_peer else None,
+                "peers": fams,
+            }
+        )
+    return rows
+
+
+def _ratio(r: float | None) -> str:
+    return "-" if r is None else f"{r:.1f}x" if r < 100 else f"{r:.0f}x"
+
+
+def front_table(rows: list[dict]) -> str:
+    """The lattice front as printed: per error, ours and each peer family with its ratio to ours."""
+    out = []
+    for r in rows:
+        cells = [f"{r['tol_rad']:g}", f"{fmt(r['ours_ms'])} ({r['ours_method'] or 'none'})"]
+        for fam in FRONT_PEERS:
+            d = r["peers"].get(fam)
+            cells.append(
+                f"{fmt(d['ms'])} ({d['method'].split(' ', 1)[1]}) {_ratio(d['ratio'])}" if d else "not reached"
+            )
+        cells.append(_ratio(r["ratio"]))
+        out.append(cells)
+    return table(
+        out, ["max error rad", "ours ms (method)", *(f"{f} ms, ratio" for f in FRONT_PEERS), "best peer / ours"]
+    )
 
 
 def summarize(

@@ -9,6 +9,15 @@
 
 static const uint8_t gray_ab[4] = {0u, 1u, 3u, 2u};
 
+#if defined(__GNUC__)
+#define HE_LIKELY(x) __builtin_expect(!!(x), 1)
+#else
+#define HE_LIKELY(x) (x)
+#endif
+
+/* From this many cells on, the tick prefetches the cell 4 ahead (below, the cells fit the L1 cache anyway). */
+#define HE_HIL_PREFETCH_CELLS 64
+
 int he_gray(int32_t count) { return gray_ab[(uint32_t)count & 3u]; }
 
 /* xorshift64*: 64-bit state, top 53 bits as a uniform in (0, 1) */
@@ -112,11 +121,13 @@ struct he_hil_ws {
     double dt;         /* tick_s / substeps */
     double *mv;        /* [2n] Kt V per cylinder, held over the tick */
     double *den;       /* [2n] 1 + dt C / I for the tick */
-    double *den_on;    /* [2n] ... while the driver is awake (m = Kt) */
-    double *den_off;   /* [2n] ... while it coasts (m = 0) */
+    double *den_sel;   /* [2][2n] ... while the driver coasts (m = 0), then while it is awake (m = Kt) */
     double *bond;      /* [2n] bond torques T(j, j+1) per chain, [n-1] of each used */
     double *kbl;       /* [2n] kscale_j * band_scale * lever per bond (the first two factors of T) */
     double *enc_lo;    /* [2n] (double)count[i]: the encoder needs no step while lo <= theta cpr < lo + 1 */
+    double *mvtab;     /* [volt_tab_top + 1] Kt volt_tab[d]: the fast path's |Kt V| by duty (NULL: no table) */
+    int32_t *moved;    /* [2n] encoders whose angle left the count window in the last fast step */
+    int volts_stale;   /* fast ticks ran since p->volt, p->mgain were last written (sync_volts) */
 };
 typedef struct he_hil_ws hil_ws_t;
 
@@ -132,9 +143,10 @@ int he_hil_ws_open(he_hil_t *h, he_hil_ws_t **out)
         return HE_ERR_ARG;
     const he_plant_t *p = h->plant;
     int n = h->n, n2 = 2 * n;
-    /* one block: the header, then 7 arrays of 2n doubles */
+    /* one block: the header, 7 arrays of 2n doubles, the moved list and the table of Kt V by duty */
     size_t head = (sizeof(hil_ws_t) + sizeof(double) - 1) / sizeof(double) * sizeof(double);
-    hil_ws_t *w = malloc(head + (size_t)7 * (size_t)n2 * sizeof(double));
+    int32_t tabn = h->volt_tab && h->volt_tab_top >= 1 ? h->volt_tab_top + 1 : 0;
+    hil_ws_t *w = malloc(head + ((size_t)8 * (size_t)n2 + (size_t)tabn) * sizeof(double));
     if (!w)
         return HE_ERR_NOMEM;
     double *b = (double *)(void *)((char *)w + head);
@@ -145,21 +157,26 @@ int he_hil_ws_open(he_hil_t *h, he_hil_ws_t **out)
     w->bonds_ok = 0;
     w->mv = b;
     w->den = b + n2;
-    w->den_on = b + 2 * n2;
-    w->den_off = b + 3 * n2;
+    w->den_sel = b + 2 * n2;   /* 2 x 2n */
     w->bond = b + 4 * n2;
     w->kbl = b + 5 * n2;
     w->enc_lo = b + 6 * n2;
+    w->moved = (int32_t *)(void *)(b + 7 * n2);   /* 2n int32 in n2 doubles' room */
+    w->mvtab = tabn ? b + 8 * n2 : NULL;
+    w->volts_stale = 0;
     for (int i = 0; i < n2; i++)
         w->enc_lo[i] = (double)h->count[i];
+    /* Kt (dir ? v : -v) = dir ? Kt v : -(Kt v) exactly: the table holds the products the tick would form */
+    for (int32_t d = 0; d < tabn; d++)
+        w->mvtab[d] = h->kt * h->volt_tab[d];
     if (w->fast) {
         /* 1 + h C / I with C = eta + m / S_L (he_plant_forces, he_advance) for m = Kt (driving) and m = 0
          * (coasting): the only two values a tick can give, so no division per tick is left for them */
         double dt = w->dt;
         for (int ch = 0; ch < 2; ch++)
             for (int j = 0; j < n; j++) {
-                w->den_on[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + h->kt / p->speed_const) / p->I[ch];
-                w->den_off[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + 0.0 / p->speed_const) / p->I[ch];
+                w->den_sel[n2 + ch * n + j] = 1.0 + dt * (p->eta[ch][j] + h->kt / p->speed_const) / p->I[ch];
+                w->den_sel[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + 0.0 / p->speed_const) / p->I[ch];
                 /* he_band_torque's ks * band_scale * L * (g+ - g-), evaluated left to right */
                 w->kbl[ch * n + j] = j + 1 < n ? p->kscale[ch][j] * p->band_scale * p->lever[ch] : 0.0;
             }
@@ -232,73 +249,12 @@ static inline void sympl_update(double F, double dt, double I, double den, doubl
     *v = fabs(vj) < HE_TINY_RAD ? 0.0 : vj;
 }
 
+/* floor(c) == count exactly when count <= c < count + 1 (count + 1 is exact in a double); NaN is outside */
+static inline int in_window(double lo, double c) { return lo <= c && c < lo + 1.0; }
+
 static inline int out_of_bounds(double x, double v)
 {
     return !(fabs(x) <= HE_ANGLE_LIMIT_RAD) | !(fabs(v) <= HE_SPEED_LIMIT_RAD_S);
-}
-
-/* ---- fast path of the plant step (bit-identical to he_advance for the configuration it accepts) ----
- * One step of size w->dt with the tick's w->mv = Kt V and w->den = 1 + dt C / I per cylinder (as
- * he_plant_forces / he_advance form them) and w->bond = the bond torques of x (fast_bonds):
- *   F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order (the end cylinders have one bond and no
- *   "+ 0.0", which would turn a -0.0 into +0.0); v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 (he_advance),
- *   then he_flush_tiny and he_state_check's bounds (NaN fails them);
- * then the bond torques of the new x, which the next step needs, and with them he_plant_range_check's stretch
- * test of the new x. HE_OK or the code he_advance would return (on an error w->bond is stale). */
-static int plant_step_fast(const he_plant_t *p, hil_ws_t *w, double *restrict x, double *restrict v)
-{
-    int n = w->n, bad = 0;
-    const double dt = w->dt;
-    for (int ch = 0; ch < 2; ch++) {
-        const double I = p->I[ch];
-        double *restrict xc = x + ch * n;
-        double *restrict vc = v + ch * n;
-        const double *restrict mvc = w->mv + ch * n;
-        const double *restrict denc = w->den + ch * n;
-        const double *restrict T = w->bond + ch * n;
-        if (n == 1) {
-            sympl_update(mvc[0], dt, I, denc[0], xc, vc);
-            bad |= out_of_bounds(xc[0], vc[0]);
-            continue;
-        }
-        sympl_update(mvc[0] - T[0], dt, I, denc[0], xc, vc);
-        bad |= out_of_bounds(xc[0], vc[0]);
-        int j = 1;
-#ifdef __SSE2__
-        {
-            const __m128d sign = _mm_set1_pd(-0.0), tiny = _mm_set1_pd(HE_TINY_RAD);
-            const __m128d xlim = _mm_set1_pd(HE_ANGLE_LIMIT_RAD), vlim = _mm_set1_pd(HE_SPEED_LIMIT_RAD_S);
-            const __m128d dtv = _mm_set1_pd(dt), Iv = _mm_set1_pd(I);
-            __m128d ok = _mm_castsi128_pd(_mm_set1_epi32(-1));
-            for (; j + 2 < n; j += 2) {        /* cylinders j, j+1, both interior */
-                __m128d F = _mm_sub_pd(_mm_add_pd(_mm_loadu_pd(mvc + j), _mm_loadu_pd(T + j - 1)), _mm_loadu_pd(T + j));
-                __m128d vj = _mm_div_pd(_mm_add_pd(_mm_loadu_pd(vc + j), _mm_div_pd(_mm_mul_pd(dtv, F), Iv)),
-                                        _mm_loadu_pd(denc + j));
-                __m128d xj = _mm_add_pd(_mm_loadu_pd(xc + j), _mm_mul_pd(dtv, vj));
-                xj = _mm_andnot_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, xj), tiny), xj);
-                vj = _mm_andnot_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, vj), tiny), vj);
-                _mm_storeu_pd(xc + j, xj);
-                _mm_storeu_pd(vc + j, vj);
-                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, xj), xlim));
-                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, vj), vlim));
-            }
-            bad |= _mm_movemask_pd(ok) != 3;
-        }
-#endif
-        for (; j + 1 < n; j++) {
-            sympl_update((mvc[j] + T[j - 1]) - T[j], dt, I, denc[j], xc + j, vc + j);
-            bad |= out_of_bounds(xc[j], vc[j]);
-        }
-        sympl_update(mvc[n - 1] + T[n - 2], dt, I, denc[n - 1], xc + n - 1, vc + n - 1);
-        bad |= out_of_bounds(xc[n - 1], vc[n - 1]);
-    }
-    if (bad) {
-        w->bonds_ok = 0;
-        return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
-    }
-    int over = fast_bonds(p, w, x);
-    w->bonds_ok = !over;
-    return over ? HE_ERR_BAND : HE_OK;
 }
 
 /* An encoder whose count must move: encoder_feed without its random draws (noise off), the same steps in the
@@ -322,9 +278,99 @@ static void encoder_move(he_hil_t *h, hil_ws_t *w, int i, double theta)
     w->enc_lo[i] = (double)cur;
 }
 
-/* Noise off: every encoder whose floor(theta cpr) left its count moves there. floor(c) == count exactly when
- * count <= c < count + 1 (count + 1 is exact in a double), so a quiet encoder costs two compares and no
- * conversion; NaN fails the compares and takes encoder_move's path, as before. */
+/* ---- fast path of the plant step (bit-identical to he_advance for the configuration it accepts) ----
+ * One step of size w->dt with the tick's w->mv = Kt V and w->den = 1 + dt C / I per cylinder (as
+ * he_plant_forces / he_advance form them) and w->bond = the bond torques of x (fast_bonds):
+ *   F_j = (Kt V_j + T(j-1, j)) - T(j, j+1) in he_plant_forces' order (the end cylinders have one bond and no
+ *   "+ 0.0", which would turn a -0.0 into +0.0); v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 (he_advance),
+ *   then he_flush_tiny and he_state_check's bounds (NaN fails them);
+ * then the bond torques of the new x, which the next step needs, and with them he_plant_range_check's stretch
+ * test of the new x. HE_OK or the code he_advance would return (on an error w->bond is stale).
+ * With quiet (noise off), the update pass also tests every new angle against its encoder's count window
+ * (encoders_quiet's test) and, once the step passed its checks, moves the encoders that left it (encoders_quiet's
+ * work, in one pass less over the state; the encoders are independent, so the order does not matter). */
+static int plant_step_fast(const he_plant_t *p, hil_ws_t *w, double *restrict x, double *restrict v, const int quiet)
+{
+    int n = w->n, bad = 0, nm = 0;
+    const double dt = w->dt, cpr = w->h->counts_per_rad;
+    const double *restrict lo = w->enc_lo;
+    int32_t *restrict moved = w->moved;
+    for (int ch = 0; ch < 2; ch++) {
+        const double I = p->I[ch];
+        double *restrict xc = x + ch * n;
+        double *restrict vc = v + ch * n;
+        const double *restrict mvc = w->mv + ch * n;
+        const double *restrict denc = w->den + ch * n;
+        const double *restrict T = w->bond + ch * n;
+        const double *restrict loc = lo + ch * n;
+        if (n == 1) {
+            sympl_update(mvc[0], dt, I, denc[0], xc, vc);
+            bad |= out_of_bounds(xc[0], vc[0]);
+            if (quiet && !in_window(loc[0], xc[0] * cpr))
+                moved[nm++] = ch * n;
+            continue;
+        }
+        sympl_update(mvc[0] - T[0], dt, I, denc[0], xc, vc);
+        bad |= out_of_bounds(xc[0], vc[0]);
+        if (quiet && !in_window(loc[0], xc[0] * cpr))
+            moved[nm++] = ch * n;
+        int j = 1;
+#ifdef __SSE2__
+        {
+            const __m128d sign = _mm_set1_pd(-0.0), tiny = _mm_set1_pd(HE_TINY_RAD);
+            const __m128d xlim = _mm_set1_pd(HE_ANGLE_LIMIT_RAD), vlim = _mm_set1_pd(HE_SPEED_LIMIT_RAD_S);
+            const __m128d dtv = _mm_set1_pd(dt), Iv = _mm_set1_pd(I), cp = _mm_set1_pd(cpr), one = _mm_set1_pd(1.0);
+            __m128d ok = _mm_castsi128_pd(_mm_set1_epi32(-1));
+            for (; j + 2 < n; j += 2) {        /* cylinders j, j+1, both interior */
+                __m128d F = _mm_sub_pd(_mm_add_pd(_mm_loadu_pd(mvc + j), _mm_loadu_pd(T + j - 1)), _mm_loadu_pd(T + j));
+                __m128d vj = _mm_div_pd(_mm_add_pd(_mm_loadu_pd(vc + j), _mm_div_pd(_mm_mul_pd(dtv, F), Iv)),
+                                        _mm_loadu_pd(denc + j));
+                __m128d xj = _mm_add_pd(_mm_loadu_pd(xc + j), _mm_mul_pd(dtv, vj));
+                xj = _mm_andnot_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, xj), tiny), xj);
+                vj = _mm_andnot_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, vj), tiny), vj);
+                _mm_storeu_pd(xc + j, xj);
+                _mm_storeu_pd(vc + j, vj);
+                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, xj), xlim));
+                ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, vj), vlim));
+                if (quiet) {
+                    __m128d c = _mm_mul_pd(xj, cp), l = _mm_loadu_pd(loc + j);
+                    __m128d in = _mm_and_pd(_mm_cmple_pd(l, c), _mm_cmplt_pd(c, _mm_add_pd(l, one)));
+                    if (_mm_movemask_pd(in) != 3) {
+                        moved[nm++] = ch * n + j;
+                        moved[nm++] = ch * n + j + 1;
+                    }
+                }
+            }
+            bad |= _mm_movemask_pd(ok) != 3;
+        }
+#endif
+        for (; j + 1 < n; j++) {
+            sympl_update((mvc[j] + T[j - 1]) - T[j], dt, I, denc[j], xc + j, vc + j);
+            bad |= out_of_bounds(xc[j], vc[j]);
+            if (quiet && !in_window(loc[j], xc[j] * cpr))
+                moved[nm++] = ch * n + j;
+        }
+        sympl_update(mvc[n - 1] + T[n - 2], dt, I, denc[n - 1], xc + n - 1, vc + n - 1);
+        bad |= out_of_bounds(xc[n - 1], vc[n - 1]);
+        if (quiet && !in_window(loc[n - 1], xc[n - 1] * cpr))
+            moved[nm++] = ch * n + n - 1;
+    }
+    if (bad) {
+        w->bonds_ok = 0;
+        return he_state_check(2 * n, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
+    }
+    int over = fast_bonds(p, w, x);
+    w->bonds_ok = !over;
+    if (over)
+        return HE_ERR_BAND;
+    for (int k = 0; k < nm; k++)
+        encoder_move(w->h, w, moved[k], x[moved[k]]);
+    return HE_OK;
+}
+
+/* Noise off: every encoder whose floor(theta cpr) left its count moves there (after a general plant step; the
+ * fast step does this in its update pass). A quiet encoder costs two compares and no conversion (in_window);
+ * NaN fails the compares and takes encoder_move's path, as before. */
 static void encoders_quiet(he_hil_t *h, hil_ws_t *w, const double *x)
 {
     const double cpr = h->counts_per_rad;
@@ -341,68 +387,101 @@ static void encoders_quiet(he_hil_t *h, hil_ws_t *w, const double *x)
         }
     }
 #endif
-    for (; i < n2; i++) {
-        double c = x[i] * cpr;
-        if (!(lo[i] <= c && c < lo[i] + 1.0))
+    for (; i < n2; i++)
+        if (!in_window(lo[i], x[i] * cpr))
             encoder_move(h, w, i, x[i]);
-    }
+}
+
+/* The motor voltage of a command, +-duty/top * Vs (the table holds the same quotients), as he_plant_forces gets it. */
+static inline double drive_volt(const he_hil_t *h, int32_t top, mc_drive_out_t o)
+{
+    const int tab = h->volt_tab && top == h->volt_tab_top && o.duty <= top;
+    double vlt = tab ? h->volt_tab[o.duty] : (double)o.duty / (double)top * h->supply_v;
+    return o.dir ? vlt : -vlt;
+}
+
+/* Kt duty/top Vs for a duty the table does not hold (out of line: the tick always finds the table) */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static double untabled_mv(const he_hil_t *h, int32_t top, int32_t duty)
+{
+    return h->kt * ((double)duty / (double)top * h->supply_v);
+}
+
+/* p->volt, p->mgain of every cylinder from the cells' current commands: what the general tick writes. The fast
+ * tick leaves them to this (the fast plant step reads w->mv, w->den), called before a general plant step and
+ * at the end of he_hil_run_ws. */
+static void sync_volts(he_hil_t *h, hil_ws_t *w)
+{
+    he_plant_t *p = h->plant;
+    for (int j = 0; j < w->n; j++)
+        for (int ch = 0; ch < 2; ch++) {
+            const mc_cell_t *c = &h->cells[j];
+            const mc_drive_out_t o = c->out[ch];
+            p->volt[ch][j] = o.enable ? drive_volt(h, c->drive.pwm_top, o) : 0.0;
+            p->mgain[ch][j] = o.enable ? h->kt : 0.0;
+        }
+    w->volts_stale = 0;
 }
 
 /* One control tick of every cell: the firmware tick on the decoder snapshots, then the motor terms it
- * commands (p->volt, p->mgain for he_plant_forces; with fast, w->mv and w->den for the fast step). Returns the
+ * commands: with fast, w->mv = Kt V and w->den for the fast step (p->volt, p->mgain left to sync_volts);
+ * otherwise p->volt, p->mgain for he_plant_forces. pf: prefetch the cell 4 ahead (large lattices). Returns the
  * OR of the cells' fault flags. */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
-static inline uint32_t cells_loop(he_hil_t *h, hil_ws_t *w, const int fast)
+static inline uint32_t cells_loop(he_hil_t *h, hil_ws_t *w, const int fast, const int pf)
 {
     he_plant_t *p = h->plant;
     const int n = w->n;
-    const double kt = h->kt, supply = h->supply_v;
-    const double *const vtab = h->volt_tab;
-    const int32_t vtop = h->volt_tab_top;
+    const double kt = h->kt;
+    const double *const mvtab = w->mvtab;
+    const int32_t vtop = mvtab ? h->volt_tab_top : -1;
     uint32_t fo = 0;
     mc_cell_t *const cells = h->cells;
     const mc_quad_t *const quad = h->quad;
     double *const mv = w->mv, *const den = w->den;
-    const double *const den_on = w->den_on, *const den_off = w->den_off;
+    const double *const don = w->den_sel + 2 * n, *const doff = w->den_sel;
     double *const volt[2] = {p->volt[0], p->volt[1]}, *const mg[2] = {p->mgain[0], p->mgain[1]};
     for (int j = 0; j < n; j++) {
         mc_quad_snap_t sa, sb;
         mc_cell_t *c = &cells[j];
         /* cache: the hot head of the cell 4 ahead (docs/accuracy.md, Scaling) */
-        if (j + 4 < n)
+        if (pf && j + 4 < n)
             __builtin_prefetch(&cells[j + 4]);
         mc_quad_snapshot(&quad[j], &sa);
         mc_quad_snapshot(&quad[n + j], &sb);
         fo |= mc_cell_tick(c, &sa, &sb);
         /* the commands as values: the double stores below could alias them otherwise (-fno-strict-aliasing) */
         const mc_drive_out_t out[2] = {c->out[0], c->out[1]};
-        /* V = +-duty/top * Vs, held over the tick (the table holds the same quotients) */
         const int32_t top = c->drive.pwm_top;
-        const int tab = vtab && top == vtop;
         for (int ch = 0; ch < 2; ch++) {
             const mc_drive_out_t o = out[ch];
-            int i = ch * n + j;
-            if (o.enable) {
-                double vlt = (tab && o.duty <= top) ? vtab[o.duty] : (double)o.duty / (double)top * supply;
-                double vs = o.dir ? vlt : -vlt;
-                volt[ch][j] = vs;
-                mg[ch][j] = kt;
-                if (fast) {
-                    mv[i] = kt * vs;               /* F = m V (he_plant_forces) */
-                    den[i] = den_on[i];
+            const int i = ch * n + j;
+            if (fast) {
+                /* F = m V (he_plant_forces): Kt (+-duty/top Vs) from the table, +0.0 when coasting; and
+                 * 1 + h C/I by the driver's state */
+                if (HE_LIKELY(o.enable)) {
+                    double m = HE_LIKELY(top == vtop && o.duty <= top) ? mvtab[o.duty] : untabled_mv(h, top, o.duty);
+                    mv[i] = o.dir ? m : -m;
+                    den[i] = don[i];
+                } else {
+                    mv[i] = 0.0 * 0.0;
+                    den[i] = doff[i];
                 }
+            } else if (o.enable) {
+                volt[ch][j] = drive_volt(h, top, o);
+                mg[ch][j] = kt;
             } else {
                 volt[ch][j] = 0.0;
                 mg[ch][j] = 0.0;
-                if (fast) {
-                    mv[i] = 0.0 * 0.0;
-                    den[i] = den_off[i];
-                }
             }
         }
     }
+    if (fast)
+        w->volts_stale = 1;
     return fo;
 }
 
@@ -413,7 +492,9 @@ __attribute__((noinline, flatten))
 #endif
 static uint32_t tick_cells(he_hil_t *h, hil_ws_t *w)
 {
-    return w->fast ? cells_loop(h, w, 1) : cells_loop(h, w, 0);
+    if (w->n >= HE_HIL_PREFETCH_CELLS)
+        return w->fast ? cells_loop(h, w, 1, 1) : cells_loop(h, w, 0, 1);
+    return w->fast ? cells_loop(h, w, 1, 0) : cells_loop(h, w, 0, 0);
 }
 
 int he_hil_run_ws(he_hil_ws_t *w, int64_t n_ticks, double *t, double *x, double *v)
@@ -431,17 +512,22 @@ int he_hil_run_ws(he_hil_ws_t *w, int64_t n_ticks, double *t, double *x, double 
         double tk = t0 + (double)k * h->tick_s;
         for (int s = 0; s < h->substeps; s++) {
             double ts = tk + (double)s * dt;
-            int rc;
+            int rc, stepped_fast = 0;
             if (fast && !pert_active(p, ts + HE_STAGE_EDGE * dt)) {
                 if (!w->bonds_ok)
                     fast_bonds(p, w, x);       /* torques only: the state's checks come after the step */
-                rc = plant_step_fast(p, w, x, v);
+                rc = plant_step_fast(p, w, x, v, !noisy);
+                stepped_fast = 1;
                 ts = ts + (double)1 * dt;
             } else {
                 w->bonds_ok = 0;
+                if (w->volts_stale)
+                    sync_volts(h, w);
                 rc = he_advance(p, h->stepper, dt, 1, &ts, x, v);
             }
             if (rc != HE_OK) {
+                if (w->volts_stale)
+                    sync_volts(h, w);
                 h->fault_or = fo;
                 *t = ts;
                 return rc;
@@ -449,12 +535,14 @@ int he_hil_run_ws(he_hil_ws_t *w, int64_t n_ticks, double *t, double *x, double 
             if (noisy) {
                 for (int i = 0; i < 2 * n; i++)
                     w->enc_lo[i] = (double)encoder_feed(h, i, x[i]);
-            } else {
+            } else if (!stepped_fast) {
                 encoders_quiet(h, w, x);
             }
         }
         h->ticks++;
     }
+    if (w->volts_stale)
+        sync_volts(h, w);
     h->fault_or = fo;
     *t = t0 + (double)n_ticks * h->tick_s;
     return HE_OK;

@@ -1,5 +1,8 @@
 /* Plant physics of the emulated lattice: torques, their slopes and bounds (equations beside the code; steppers in he_step.c). */
 #include <math.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include "he_plant.h"
 
 /* f(d) and f'(d) of the cubic band law; Python: physics.band_force / physics.band_slope */
@@ -69,7 +72,7 @@ double he_band_torque(const he_plant_t *p, int ch, int bond, double xs, double x
     double sj = sin(xs), cj = cos(xs);
     double ds = sj - sin(xo), dc = cj - cos(xo);
     double xp = a + L * ds, xm = a - L * ds, yy = L * dc;
-    double lp = sqrt(xp * xp + yy * yy), lm = sqrt(xm * xm + yy * yy);   /* a + Delta+- */
+    double lp = sqrt(xp * xp + yy * yy), lm = sqrt(xm * xm + yy * yy);   /* a + Delta+- (he_plant_switches too) */
     double fp = band_force(p, ch, d0 + (lp - a)) * (cj * xp - L * sj * dc) / lp;
     double fm = band_force(p, ch, d0 + (lm - a)) * (cj * xm + L * sj * dc) / lm;
     return ks * p->band_scale * L * (fp - fm);
@@ -132,15 +135,111 @@ double he_react_stiffness(const he_plant_t *p, int ch)
 
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C)
 {
+    for (int ch = 0; ch < 2; ch++)
+        for (int j = 0; j < p->n; j++)
+            C[ch * p->n + j] = he_damping(p, ch, j);              /* eta + Kt/S_L */
+    he_plant_torques(p, t, x, F);
+}
+
+/* Reciprocal bonds of one chain with cubic small-angle bands: he_band_torque's operations,
+ *   T_j = ((ks_j * band_scale) * L) * (g(d0 + u) - g(d0 - u)),  u = L (x_j - x_j+1),
+ * then Fc[j] -= T_j, Fc[j+1] += T_j in bond order, as the general loop below does. The torques of a block of
+ * bonds first, two per SSE2 instruction where there is SSE2 (each lane the scalar IEEE operations), so the
+ * forces keep every bit. */
+static void cubic_bonds(const he_plant_t *p, int ch, const double *restrict xc, double *restrict Fc)
+{
+    enum { BLK = 64 };
+    double T[BLK];
+    const int n = p->n;
+    const double *c = p->coef[ch];
+    const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale;
+    const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3], slack = p->slack_f0 ? c[0] : 0.0;
+    const double *ks = p->kscale[ch];
+    for (int j0 = 0; j0 + 1 < n; j0 += BLK) {
+        int m = n - 1 - j0 < BLK ? n - 1 - j0 : BLK, i = 0;
+        const double *xb = xc + j0, *kb = ks + j0;
+#ifdef __SSE2__
+        const __m128d Lv = _mm_set1_pd(L), d0v = _mm_set1_pd(d0), bsv = _mm_set1_pd(bs), zero = _mm_setzero_pd();
+        const __m128d c0v = _mm_set1_pd(c0), c1v = _mm_set1_pd(c1), c2v = _mm_set1_pd(c2), c3v = _mm_set1_pd(c3);
+        const __m128d slk = _mm_set1_pd(slack);
+        for (; i + 2 <= m; i += 2) {
+            __m128d u = _mm_mul_pd(Lv, _mm_sub_pd(_mm_loadu_pd(xb + i), _mm_loadu_pd(xb + i + 1)));
+            __m128d dp = _mm_add_pd(d0v, u), dm = _mm_sub_pd(d0v, u);
+            __m128d gp = _mm_add_pd(c0v, _mm_mul_pd(dp, _mm_add_pd(c1v, _mm_mul_pd(dp, _mm_add_pd(c2v, _mm_mul_pd(dp, c3v))))));
+            __m128d gm = _mm_add_pd(c0v, _mm_mul_pd(dm, _mm_add_pd(c1v, _mm_mul_pd(dm, _mm_add_pd(c2v, _mm_mul_pd(dm, c3v))))));
+            __m128d mp = _mm_cmpgt_pd(dp, zero), mm = _mm_cmpgt_pd(dm, zero);
+            gp = _mm_or_pd(_mm_and_pd(mp, gp), _mm_andnot_pd(mp, slk));
+            gm = _mm_or_pd(_mm_and_pd(mm, gm), _mm_andnot_pd(mm, slk));
+            __m128d kbl = _mm_mul_pd(_mm_mul_pd(_mm_loadu_pd(kb + i), bsv), Lv);
+            _mm_storeu_pd(T + i, _mm_mul_pd(kbl, _mm_sub_pd(gp, gm)));
+        }
+#endif
+        for (; i < m; i++) {
+            double u = L * (xb[i] - xb[i + 1]);
+            double dp = d0 + u, dm = d0 - u;
+            double gp = dp > 0.0 ? c0 + dp * (c1 + dp * (c2 + dp * c3)) : slack;
+            double gm = dm > 0.0 ? c0 + dm * (c1 + dm * (c2 + dm * c3)) : slack;
+            T[i] = kb[i] * bs * L * (gp - gm);
+        }
+        for (i = 0; i < m; i++) {
+            Fc[j0 + i] -= T[i];
+            Fc[j0 + i + 1] += T[i];
+        }
+    }
+}
+
+/* R of every cell, clipped to +-react_limit, added to F (he_reaction and the clip of he_plant_torques, the same
+ * operations; two cells per SSE2 instruction where there is SSE2). */
+static void add_reaction(const he_plant_t *p, const double *restrict x, double *restrict F)
+{
+    const int n = p->n;
+    const double lim = p->react_limit, nlim = -p->react_limit;
+    int j = 0;
+#ifdef __SSE2__
+    const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd();
+    const __m128d k2 = _mm_set1_pd(p->k2), k1 = _mm_set1_pd(p->k1), k1a = _mm_set1_pd(p->k1 * p->astar);
+    const __m128d kab = _mm_set1_pd(p->k_ab), sig = _mm_set1_pd(p->sigma);
+    const __m128d limv = _mm_set1_pd(lim), nlimv = _mm_set1_pd(nlim);
+    for (; j + 2 <= n; j += 2) {
+        __m128d al = _mm_loadu_pd(x + j), be = _mm_loadu_pd(x + n + j);
+        __m128d ax = _mm_andnot_pd(sign, al);
+        __m128d in = _mm_mul_pd(k2, ax), out = _mm_sub_pd(_mm_mul_pd(k1, ax), k1a);
+        __m128d mi = _mm_cmpgt_pd(in, out);
+        __m128d psi = _mm_or_pd(_mm_and_pd(mi, in), _mm_andnot_pd(mi, out));
+        psi = _mm_xor_pd(psi, _mm_and_pd(_mm_cmplt_pd(al, zero), sign));
+        __m128d ra = _mm_sub_pd(_mm_sub_pd(_mm_mul_pd(kab, _mm_sub_pd(be, al)), psi), _mm_mul_pd(sig, be));
+        __m128d rb = _mm_mul_pd(kab, _mm_sub_pd(al, be));
+        __m128d g = _mm_cmpgt_pd(ra, limv), l = _mm_cmplt_pd(ra, nlimv);
+        ra = _mm_or_pd(_mm_and_pd(g, limv), _mm_andnot_pd(g, _mm_or_pd(_mm_and_pd(l, nlimv), _mm_andnot_pd(l, ra))));
+        g = _mm_cmpgt_pd(rb, limv);
+        l = _mm_cmplt_pd(rb, nlimv);
+        rb = _mm_or_pd(_mm_and_pd(g, limv), _mm_andnot_pd(g, _mm_or_pd(_mm_and_pd(l, nlimv), _mm_andnot_pd(l, rb))));
+        _mm_storeu_pd(F + j, _mm_add_pd(_mm_loadu_pd(F + j), ra));
+        _mm_storeu_pd(F + n + j, _mm_add_pd(_mm_loadu_pd(F + n + j), rb));
+    }
+#endif
+    for (; j < n; j++) {
+        double ra, rb;
+        he_reaction(p, x[j], x[n + j], &ra, &rb);
+        /* actuator limit: the motor can apply at most kt*vmax in either direction */
+        ra = ra > lim ? lim : (ra < nlim ? nlim : ra);
+        rb = rb > lim ? lim : (rb < nlim ? nlim : rb);
+        F[j] += ra;
+        F[n + j] += rb;
+    }
+}
+
+void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
+{
     int n = p->n;
     for (int ch = 0; ch < 2; ch++) {
         const double *xc = x + ch * n;
         double *Fc = F + ch * n;
-        for (int j = 0; j < n; j++) {
+        for (int j = 0; j < n; j++)
             Fc[j] = p->mgain[ch][j] * p->volt[ch][j];            /* Kt*V */
-            C[ch * n + j] = he_damping(p, ch, j);                 /* eta + Kt/S_L */
-        }
-        if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+        if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+            cubic_bonds(p, ch, xc, Fc);                           /* the loop below, unrolled for this law */
+        } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
             /* reciprocal bond: torque -T on j and +T on j+1 */
             for (int j = 0; j + 1 < n; j++) {
                 double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
@@ -154,22 +253,67 @@ void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, 
             }
         }
     }
-    if (p->reaction == HE_REACT_IDEAL) {
-        for (int j = 0; j < n; j++) {
-            double ra, rb;
-            he_reaction(p, x[j], x[n + j], &ra, &rb);
-            /* actuator limit: the motor can apply at most kt*vmax in either direction */
-            ra = ra > p->react_limit ? p->react_limit : (ra < -p->react_limit ? -p->react_limit : ra);
-            rb = rb > p->react_limit ? p->react_limit : (rb < -p->react_limit ? -p->react_limit : rb);
-            F[j] += ra;
-            F[n + j] += rb;
-        }
-    }
+    if (p->reaction == HE_REACT_IDEAL)
+        add_reaction(p, x, F);
     for (int i = 0; i < p->npert; i++) {
         const he_pert_t *q = &p->pert[i];
         if (t >= q->t0 && t < q->t1)
             F[q->chain * n + q->cell] += q->torque;    /* P_j(t) */
     }
+}
+
+int he_plant_nswitch(const he_plant_t *p)
+{
+    int n = p->n, m = 0;
+    if (p->bands == HE_BANDS_CUBIC)
+        m += 4 * (n - 1);
+    if (p->reaction == HE_REACT_IDEAL)
+        m += isfinite(p->react_limit) ? 5 * n : n;
+    return m;
+}
+
+/* Each entry is the very branch condition of the force law (band_force's d > 0, he_reaction's in > out, the clip's
+ * ra > lim and ra < -lim), on operands computed by the same expressions. */
+int he_plant_switches(const he_plant_t *p, const double *x, unsigned char *side)
+{
+    int n = p->n, m = 0;
+    if (p->bands == HE_BANDS_CUBIC) {
+        for (int ch = 0; ch < 2; ch++) {
+            const double *xc = x + ch * n;
+            double L = p->lever[ch], d0 = p->delta0[ch];
+            for (int j = 0; j + 1 < n; j++) {
+                if (ch == 0 || p->beta_geometry == HE_BETA_SMALL) {
+                    double u = L * (xc[j] - xc[j + 1]);
+                    side[m++] = d0 + u > 0.0;
+                    side[m++] = d0 - u > 0.0;
+                } else {
+                    /* he_band_torque's geometric stretches (the bond seen from j+1 swaps them, bit for bit) */
+                    double a = p->lattice_m;
+                    double ds = sin(xc[j]) - sin(xc[j + 1]), dc = cos(xc[j]) - cos(xc[j + 1]);
+                    double xp = a + L * ds, xm = a - L * ds, yy = L * dc;
+                    double lp = sqrt(xp * xp + yy * yy), lm = sqrt(xm * xm + yy * yy);
+                    side[m++] = d0 + (lp - a) > 0.0;
+                    side[m++] = d0 + (lm - a) > 0.0;
+                }
+            }
+        }
+    }
+    if (p->reaction == HE_REACT_IDEAL) {
+        int clip = isfinite(p->react_limit);
+        for (int j = 0; j < n; j++) {
+            double ax = fabs(x[j]);
+            side[m++] = p->k2 * ax > p->k1 * ax - p->k1 * p->astar;     /* he_reaction's in > out */
+            if (clip) {
+                double ra, rb;
+                he_reaction(p, x[j], x[n + j], &ra, &rb);
+                side[m++] = ra > p->react_limit;
+                side[m++] = ra < -p->react_limit;
+                side[m++] = rb > p->react_limit;
+                side[m++] = rb < -p->react_limit;
+            }
+        }
+    }
+    return m;
 }
 
 void he_plant_bounds(const he_plant_t *p, double w2[2], double cmin[2], double cmax[2], double rate[2])

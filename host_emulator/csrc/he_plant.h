@@ -38,6 +38,7 @@ enum {
     HE_ERR_STEPPER = -5,    /* unknown stepper id */
     HE_ERR_BAND = -6,       /* a band stretched beyond HE_BAND_STOP_FACTOR x the fit's range */
     HE_ERR_NOMEM = -7,      /* the steppers' scratch could not be allocated */
+    HE_ERR_TOL = -8,        /* adaptive stepper: the error tolerance needs a step below its smallest step */
 };
 #define HE_ANGLE_LIMIT_RAD 1000
 #define HE_BAND_STOP_FACTOR 2
@@ -84,6 +85,8 @@ typedef struct {
 int he_plant_check(const he_plant_t *p);
 /* F and C of the header comment at time t for positions x (2n each). */
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C);
+/* F alone (the same values he_plant_forces writes), for steppers that hold C fixed over a call. */
+void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F);
 /* Band torque on cylinder x_self from the bond to x_other (chain 0/1, bond index
  * for the stiffness spread): the tau(x_self, x_other) of docs/physics.md#band-torque. */
 double he_band_torque(const he_plant_t *p, int chain, int bond, double x_self, double x_other);
@@ -108,6 +111,14 @@ double he_damping(const he_plant_t *p, int chain, int j);
  * (the motion left the range where the band law means anything), else HE_OK.
  * *where = 0-based bond index (+ n for the beta chain). */
 int he_plant_range_check(const he_plant_t *p, const double *x, int *where);
+/* The force law is smooth except where a branch of it switches: a band going slack (cubic bands; two per
+ * bond and chain), psi' changing piece (|alpha_j| = b*, ideal reaction) and the actuator clip (ideal reaction
+ * with a finite react_limit: R_a and R_b against +-react_limit). he_plant_switches writes the side of every
+ * such switch at positions x (1 or 0 per switch, the branch condition itself) and returns their number,
+ * he_plant_nswitch(p) (<= 9n). An adaptive stepper compares the sides at the two ends of a step to find the
+ * steps that cross one (he_dop853.h). */
+int he_plant_nswitch(const he_plant_t *p);
+int he_plant_switches(const he_plant_t *p, const double *x, unsigned char *side);
 /* Upper bounds used for the stable step limit: per chain the largest
  * stiffness/inertia w2 (1/s^2), the smallest and largest damping/inertia c (1/s),
  * and for the overdamped system the largest stiffness/damping rate (1/s). */

@@ -1,4 +1,4 @@
-/* Stepper dispatch by id, the shared scratch and the final state check (methods in he_explicit.c, he_noh_bathe.c, he_imex.c). */
+/* Stepper dispatch by id, the shared scratch and the final state check (methods in he_explicit.c, he_noh_bathe.c, he_imex.c, he_dop853.c). */
 #include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
@@ -34,6 +34,8 @@ double he_step_limit(const he_plant_t *p, int stepper, int *limiting_chain)
         return he_noh_bathe_limit(p, stepper, limiting_chain);
     case HE_STEP_IMEX:
         return he_imex_limit(p, stepper, limiting_chain);
+    case HE_STEP_DOP853:
+        return he_dop853_limit(p, stepper, limiting_chain);
     default:
         return -1.0;
     }
@@ -63,6 +65,9 @@ int he_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, doubl
         break;
     case HE_STEP_IMEX:
         rc = he_imex_advance(p, stepper, h, nsteps, t0, x, v, work);
+        break;
+    case HE_STEP_DOP853:
+        rc = he_dop853_advance(p, stepper, h, nsteps, t0, x, v, work);
         break;
     default:
         rc = he_explicit_advance(p, stepper, h, nsteps, t0, x, v, work);

@@ -10,12 +10,14 @@
  *   HE_STEP_EULER, HE_STEP_SYMPLECTIC, HE_STEP_RK4   he_explicit.{h,c}   (explicit one-step methods)
  *   HE_STEP_NOH_BATHE                                he_noh_bathe.{h,c}  (two-sub-step explicit)
  *   HE_STEP_IMEX                                     he_imex.{h,c}       (linearly implicit Euler)
+ *   HE_STEP_DOP853                                   he_dop853.{h,c}     (Dormand-Prince 8(5,3); fixed steps
+ *                                                                         here, adaptive through its driver)
  * he_step.c dispatches by id and does what every method shares (scratch, final state check).
  * To add one: an id here, a file with its <name>_advance and <name>_limit (the contract below), a case in
  * he_step.c's two switches, and a line in the Python registry (host_emulator/models/steppers.py).
  */
 enum { HE_STEP_EULER = 0, HE_STEP_SYMPLECTIC = 1, HE_STEP_RK4 = 2, HE_STEP_NOH_BATHE = 3, HE_STEP_IMEX = 4,
-       HE_STEP_COUNT = 5 };
+       HE_STEP_DOP853 = 5, HE_STEP_COUNT = 6 };
 
 /* Stages at the ends of a step are evaluated just inside it, at t + e h and t + (1 - e) h with
  * e = HE_STAGE_EDGE: the perturbations are piecewise constant, and with their edges on step
@@ -23,10 +25,11 @@ enum { HE_STEP_EULER = 0, HE_STEP_SYMPLECTIC = 1, HE_STEP_RK4 = 2, HE_STEP_NOH_B
  * piece and a high-order stepper drops to first order at each edge; rounding of t decides which). */
 #define HE_STAGE_EDGE 1e-9
 
-/* Scratch a stepper may use: HE_WORK_PER_STATE * 2n doubles (rk4 needs the most: 4 stages of x and v,
- * a stage state x, v, and F, C). Taken from he_plant_t.work when it is large enough, else malloc'd per
- * he_advance call (HE_ERR_NOMEM if that fails). No stepper keeps a stack array sized by the cell count. */
-#define HE_WORK_PER_STATE 12
+/* Scratch a stepper may use: HE_WORK_PER_STATE * 2n doubles (dop853 needs the most, HE_DOP853_WORK_PER_STATE:
+ * 13 stages of x and v, the state, a stage state and the new state, F, C, C/I, 1/I and the switch sides). Taken from he_plant_t.work when it is large
+ * enough, else malloc'd per he_advance call (HE_ERR_NOMEM if that fails). No stepper keeps a stack array sized
+ * by the cell count. */
+#define HE_WORK_PER_STATE 38
 
 /* Largest stable step (s) for this plant and stepper, from he_plant_bounds (the formula of each method is
  * in its header). Returns a negative value for an unknown stepper, INFINITY when nothing limits. */
@@ -61,5 +64,8 @@ double he_noh_bathe_limit(const he_plant_t *p, int stepper, int *limiting_chain)
 int he_imex_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, double t0, double *x,
                     double *v, double *work);
 double he_imex_limit(const he_plant_t *p, int stepper, int *limiting_chain);
+int he_dop853_advance(const he_plant_t *p, int stepper, double h, int64_t nsteps, double t0, double *x,
+                      double *v, double *work);
+double he_dop853_limit(const he_plant_t *p, int stepper, int *limiting_chain);
 
 #endif /* HE_STEP_H */

@@ -3,16 +3,17 @@ reaction, stepped in C."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..params import Params
-from .options import ModelOptions, Perturbation
+from .options import DEFAULT_TOL, ModelOptions, Perturbation
 from .plant import NumericalInstability, build_plant, choose_step, error_text, step_limit
 from .solver import Solver
-from .steppers import stepper_id
+from .steppers import STEPPERS, stepper_id
 
 
 class LatticeModel:
@@ -64,7 +65,9 @@ class LatticeModel:
 
 
 class LatticeSolver(Solver):
-    """Advances a LatticeModel one output interval at a time with the chosen compiled stepper."""
+    """Advances a LatticeModel one output interval at a time with the chosen compiled stepper: fixed steps (the
+    largest step h <= model_options.dt that divides the output interval), or, for an adaptive stepper (dop853),
+    error-controlled steps at model_options.tol with model_options.dt as the largest step (he_dop853.h)."""
 
     model: LatticeModel
 
@@ -75,18 +78,47 @@ class LatticeSolver(Solver):
         self.sid = stepper_id(model.lib, opt.stepper)
         self.limit, self.limit_chain = model.step_limit()
         self.dt_out = opt.dt_out
-        self.h, self.nsub = choose_step(self.limit, self.dt_out, opt.dt, opt.stepper, self.limit_chain)
+        self.adaptive = STEPPERS[opt.stepper].adaptive
+        self.tol: float | None
+        ffi, lib = model.ffi, model.lib
+        if self.adaptive:
+            self.tol = opt.tol if opt.tol is not None else DEFAULT_TOL
+            self.h, self.nsub = (opt.dt if opt.dt is not None else math.inf), 0  # largest step; steps vary
+            n2 = 2 * model.n
+            self._work = ffi.new("double[]", lib.HE_DOP853_WORK_PER_STATE * n2)
+            self._ad = ffi.new("he_dop853_t *")
+            # one tolerance for angles (rad) and speeds (rad/s), relative and absolute (he_dop853.h)
+            rc = lib.he_dop853_init(self._ad, self.tol, self.tol, self.h, self._work, lib.HE_DOP853_WORK_PER_STATE * n2)
+            if rc != lib.HE_OK:
+                raise ValueError(f"model_options.tol = {self.tol!r}, dt = {opt.dt!r}: rejected by the adaptive stepper")
+        else:
+            self.tol = None
+            self.h, self.nsub = choose_step(self.limit, self.dt_out, opt.dt, opt.stepper, self.limit_chain)
         n2 = 2 * model.n
         self.x = np.zeros(n2) if x0 is None else np.array(x0, dtype=float).reshape(n2)
         self.v = np.zeros(n2) if v0 is None else np.array(v0, dtype=float).reshape(n2)
         self.t = 0.0
         self.k = 0
-        ffi = model.ffi
         self._px = ffi.from_buffer("double[]", self.x)
         self._pv = ffi.from_buffer("double[]", self.v)
         self._pt = ffi.new("double *", 0.0)
 
     def info(self) -> dict:
+        if self.adaptive:
+            a = self._ad
+            return {
+                "stepper": self.stepper,
+                "tol": self.tol,
+                "dt_max_s": self.h,
+                "steps": int(a.steps),
+                "rejected_steps": int(a.rejects),
+                "switch_landings": int(a.landings),
+                "force_evaluations": int(a.nfev),
+                "last_step_s": float(a.h),
+                "stable_step_limit_s": self.limit,
+                "limit_chain": self.limit_chain,
+                "dt_out_s": self.dt_out,
+            }
         return {
             "stepper": self.stepper,
             "dt_s": self.h,
@@ -104,40 +136,36 @@ class LatticeSolver(Solver):
         return self.x[:n].copy(), self.x[n:].copy()
 
     def _raise(self, rc, t, samples=None):
+        if self.adaptive:
+            how = f"stepper {self.stepper}, tol {self.tol:g}, last step {float(self._ad.h):.3g} s"
+            fix = "else numerically: tighten model_options.tol or cap model_options.dt"
+        else:
+            how = f"stepper {self.stepper}, step {self.h:.3g} s, stable limit {self.limit:.3g} s"
+            fix = "else numerically: reduce model_options.dt"
         err = NumericalInstability(
-            f"{self.model.name}: {error_text(self.model.lib, rc)} at t = {t:.6g} s "
-            f"(stepper {self.stepper}, step {self.h:.3g} s, stable limit {self.limit:.3g} s); "
+            f"{self.model.name}: {error_text(self.model.lib, rc)} at t = {t:.6g} s ({how}); "
             "the run is unstable (physically, if the linear analysis predicts growth for these parameters, "
-            "else numerically: reduce model_options.dt)"
+            f"{fix})"
         )
         err.samples = samples
         raise err
 
-    def advance(self) -> None:
-        """One output interval."""
-        self.k += 1
-        self._pt[0] = (self.k - 1) * self.dt_out
-        rc = self.model.lib.he_advance(self.model.plant, self.sid, self.h, self.nsub, self._pt, self._px, self._pv)
-        if rc != self.model.lib.HE_OK:
-            self._raise(rc, self._pt[0])
-        self.t = self.k * self.dt_out
-
-    def advance_many(self, k_max: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Up to k_max output intervals in one C call (he_advance_sampled), bit-identical to k_max advance() calls.
-
-        Returns (t (k,), alpha (k, n), beta (k, n)) of the samples done. On an unstable run raises
-        NumericalInstability (same message and time as advance()) whose ``samples`` holds the samples completed
-        before the failing one, in the same form.
-        """
-        k_max = int(k_max)
-        if k_max < 1:
-            raise ValueError(f"k_max = {k_max}: must be >= 1")
+    def _sampled(self, k0, k_max, buf, done):
         m = self.model
-        n = m.n
-        buf = np.empty((k_max, 2 * n))
-        done = m.ffi.new("int64_t *", 0)
-        k0 = self.k
-        rc = m.lib.he_advance_sampled(
+        if self.adaptive:
+            return m.lib.he_dop853_sampled(
+                m.plant,
+                self._ad,
+                self.dt_out,
+                k0,
+                k_max,
+                self._pt,
+                self._px,
+                self._pv,
+                m.ffi.from_buffer("double[]", buf),
+                done,
+            )
+        return m.lib.he_advance_sampled(
             m.plant,
             self.sid,
             self.h,
@@ -151,6 +179,36 @@ class LatticeSolver(Solver):
             m.ffi.from_buffer("double[]", buf),
             done,
         )
+
+    def advance(self) -> None:
+        """One output interval."""
+        if self.adaptive:
+            self.advance_many(1)
+            return
+        self.k += 1
+        self._pt[0] = (self.k - 1) * self.dt_out
+        rc = self.model.lib.he_advance(self.model.plant, self.sid, self.h, self.nsub, self._pt, self._px, self._pv)
+        if rc != self.model.lib.HE_OK:
+            self._raise(rc, self._pt[0])
+        self.t = self.k * self.dt_out
+
+    def advance_many(self, k_max: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Up to k_max output intervals in one C call (he_advance_sampled, he_dop853_sampled), bit-identical to
+        k_max advance() calls.
+
+        Returns (t (k,), alpha (k, n), beta (k, n)) of the samples done. On an unstable run raises
+        NumericalInstability (same message and time as advance()) whose ``samples`` holds the samples completed
+        before the failing one, in the same form.
+        """
+        k_max = int(k_max)
+        if k_max < 1:
+            raise ValueError(f"k_max = {k_max}: must be >= 1")
+        m = self.model
+        n = m.n
+        buf = np.empty((k_max, 2 * n))
+        done = m.ffi.new("int64_t *", 0)
+        k0 = self.k
+        rc = self._sampled(k0, k_max, buf, done)
         k = int(done[0])
         t = np.arange(k0 + 1, k0 + k + 1) * self.dt_out  # k dt_out, as advance() computes it
         out = (t, buf[:k, :n], buf[:k, n:])

@@ -35,13 +35,17 @@ class ModelOptions:
     bands: str = "cubic"  # "cubic" (docs/physics.md#band-torque fit, slack, x band_scale) | "linear" (table k)
     beta_geometry: str = "small"  # "small" | "geometric" (docs/physics.md#band-torque full form)
     stepper: str = DEFAULT_STEPPER
-    dt: float | None = None  # largest plant step, s (None: a quarter of the stable limit)
+    dt: float | None = None  # largest plant step, s (None: a quarter of the stable limit; adaptive steppers: no cap)
+    tol: float | None = None  # adaptive steppers (dop853, lattice): error tolerance per step (None: DEFAULT_TOL)
     dt_out: float = 0.01  # output sample interval, s
     perturb_via: str = "plant"  # hil: "plant" (external torque, like a hand) | "firmware" (mc_cell_perturb)
     substeps: int | None = None  # hil: plant steps per control tick (None: from dt / stable limit)
     points_per_cell: int = 4  # continuum grid
     noise: NoiseOptions = field(default_factory=NoiseOptions)
 
+
+DEFAULT_TOL = 1e-6  # tol when an adaptive stepper runs without one (about 5e-9 rad on the 16-cell lattice scene)
+TOL_RANGE = (1e-13, 1e-1)  # tighter than 1e-13 is below double rounding for these states; looser is not a tolerance
 
 _CHOICES = {
     "bands": ("cubic", "linear"),
@@ -109,6 +113,10 @@ def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
             kw[k] = v
         elif k in ("dt", "dt_out"):
             kw[k] = _num(key, v, positive=True)
+        elif k == "tol":
+            kw[k] = _num(key, v, positive=True)
+            if not TOL_RANGE[0] <= kw[k] <= TOL_RANGE[1]:
+                raise ConfigError(f"{key} = {v!r}: expected {TOL_RANGE[0]:g} <= tol <= {TOL_RANGE[1]:g}")
         elif k in ("substeps", "points_per_cell"):
             kw[k] = _num(key, v, integer=True, positive=True)
     return ModelOptions(**kw)

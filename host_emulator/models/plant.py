@@ -118,6 +118,10 @@ def error_text(lib: Any, rc: int) -> str:
         lib.HE_ERR_ARG: "invalid plant configuration",
         lib.HE_ERR_STEPPER: "unknown stepper id",
         lib.HE_ERR_NOMEM: "out of memory for the run's scratch arrays",
+        lib.HE_ERR_TOL: (
+            "the adaptive step control needed a step below its smallest step (1e-12 s): the error tolerance "
+            "cannot be met there (a discontinuity or a stiff stretch); loosen model_options.tol"
+        ),
     }.get(rc, f"error {rc}")
 
 

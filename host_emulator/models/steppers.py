@@ -12,6 +12,7 @@ class StepperInfo:
     cid: str  # name of the HE_STEP_* constant in the compiled module
     order: int
     description: str
+    adaptive: bool = False  # the lattice runs it with error control (model_options.tol), he_dop853.h
 
 
 STEPPERS: dict[str, StepperInfo] = {}
@@ -46,6 +47,17 @@ register(
         "HE_STEP_IMEX",
         1,
         "linearly implicit Euler: bands + damping implicit (tridiagonal per chain), reaction explicit",
+    )
+)
+
+register(
+    StepperInfo(
+        "dop853",
+        "HE_STEP_DOP853",
+        8,
+        "Dormand-Prince 8(5,3), 12 force evaluations per step: adaptive with PI step control in the lattice "
+        "(model_options.tol), fixed steps in the hil loop",
+        adaptive=True,
     )
 )
 

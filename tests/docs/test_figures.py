@@ -159,3 +159,17 @@ def test_the_paper_count_in_the_readme(tmp_path):
         f"**{doc['agree']} of {doc['total']}\nitems agree**" in bs
         or f"**{doc['agree']} of {doc['total']} items agree**" in bs
     )
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind missing")
+def test_instructions_per_cell_tick_quoted_in_readme_and_docs():
+    """The README's and docs' instruction count of the hil default is what the instruction script counts today
+    (callgrind: it does not depend on the machine's speed or load, only on the compiled code)."""
+    from host_emulator.benchmarks.instructions import measure
+
+    n = round(measure().per_cell_tick)
+    assert f"**{n} x86 instructions per cell and control tick**" in README
+    acc = (ROOT / "docs" / "accuracy.md").read_text()
+    assert f"-> {n} instructions per cell-tick**" in acc
+    assert f"**{n} x86 instructions per cell and control tick**" in (ROOT / "docs" / "emulator.md").read_text()

@@ -14,11 +14,29 @@ def test_default_is_balanced_and_presets_apply():
     assert sc.accuracy == "balanced"
     from dataclasses import replace
 
-    for level, frac in (("fast", 0.8), ("balanced", 0.25), ("exact", 1 / 32)):
+    for level, frac in (("fast", 0.8), ("balanced", 0.25)):
         o = resolve_options("lattice", sc.params, sc.perturbations, sc.options, level)
         lim = make_model("lattice", sc.params, sc.perturbations, replace(o, dt=None)).step_limit()[0]
-        assert o.stepper == "rk4" and o.dt == pytest.approx(frac * lim)
-    assert resolve_options("lattice", sc.params, sc.perturbations, sc.options, "exact").beta_geometry == "geometric"
+        assert o.stepper == "rk4" and o.dt == pytest.approx(frac * lim) and o.tol is None
+    o = resolve_options("lattice", sc.params, sc.perturbations, sc.options, "exact")
+    assert (o.stepper, o.tol, o.dt, o.beta_geometry) == ("dop853", 1e-8, None, "geometric")
+
+
+def test_exact_with_a_fixed_stepper_gets_the_fine_step_and_an_adaptive_one_keeps_its_tol():
+    from dataclasses import replace
+
+    sc = load_scene("exp3_single_sigma9", ['model_options.stepper="rk4"', "accuracy=exact"])
+    o = resolve_options(sc.model, sc.params, sc.perturbations, sc.options, sc.accuracy, sc.explicit_options)
+    lim = make_model("lattice", sc.params, sc.perturbations, replace(o, dt=None)).step_limit()[0]
+    assert o.stepper == "rk4" and o.dt == pytest.approx(lim / 32) and o.tol is None
+    sc = load_scene("exp3_single_sigma9", ['model_options.stepper="dop853"', "model_options.tol=1e-5"])
+    o = resolve_options(sc.model, sc.params, sc.perturbations, sc.options, sc.accuracy, sc.explicit_options)
+    assert (o.stepper, o.tol, o.dt) == ("dop853", 1e-5, None)
+    sc = load_scene("exp3_single_sigma9", ['model_options.stepper="dop853"'])  # balanced: no preset tol
+    o = resolve_options(sc.model, sc.params, sc.perturbations, sc.options, sc.accuracy, sc.explicit_options)
+    from host_emulator.models.options import DEFAULT_TOL
+
+    assert o.tol == DEFAULT_TOL
 
 
 def test_explicit_options_win_and_bad_level_is_refused():
@@ -37,7 +55,8 @@ def test_hil_slow_control_rate_gets_enough_substeps():
 
 
 def test_presets_are_ordered_by_error_on_the_lattice_scene():
-    """fast > balanced > exact in max angle error over 1 s of exp. 3 against rk4 at a 64x finer step."""
+    """fast > balanced > exact in max angle error over 1 s of exp. 3 against the exact preset's stepper at a 1000x
+    tighter tolerance."""
     from dataclasses import replace
 
     from host_emulator.controller import run_solver
@@ -47,7 +66,7 @@ def test_presets_are_ordered_by_error_on_the_lattice_scene():
     ref_opts = replace(
         resolve_options("lattice", sc.params, sc.perturbations, sc.options, "exact", sc.explicit_options)
     )
-    ref_opts = replace(ref_opts, dt=ref_opts.dt / 2)
+    ref_opts = replace(ref_opts, tol=ref_opts.tol / 1000)
     ref = run_solver(make_model("lattice", sc.params, sc.perturbations, ref_opts).solver(), 1.0)
     for level in ("fast", "balanced", "exact"):
         o = resolve_options("lattice", sc.params, sc.perturbations, sc.options, level, sc.explicit_options)

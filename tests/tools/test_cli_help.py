@@ -25,6 +25,7 @@ def entry_points() -> list[tuple[str, str]]:
         ("metacell_tools.fwcheck.__main__", "main"),
         ("host_emulator.benchmarks.sweep", "main"),
         ("host_emulator.benchmarks.bus", "main"),
+        ("host_emulator.benchmarks.instructions", "main"),
     ]
     return list(dict.fromkeys(eps))
 

@@ -36,3 +36,31 @@ def test_peers_are_not_counted_as_ours():
     assert best[0] == "rk4" and peer[0] == "diffrax Tsit5"
     _, best, peer = wp.summarize(pts, 1e-4)
     assert best[0] == "rk4" and peer is None
+
+
+def test_front_ratios_pick_the_best_of_each_side_per_error():
+    """Two of ours (rk4 cheap and loose, dop853 tight) against two diffrax solvers and CVODE: at each error the
+    cheapest of ours and of each family, interpolated log-log on each method's front; None where nobody gets."""
+    pts = [
+        WPPoint("rk4", "a", 0.002, 1e-3),
+        WPPoint("rk4", "b", 0.020, 1e-6),
+        WPPoint("dop853", "a", 0.003, 1e-4),
+        WPPoint("dop853", "b", 0.004, 1e-8),
+        WPPoint("diffrax Tsit5", "a", 0.010, 1e-3),
+        WPPoint("diffrax Tsit5", "b", 0.100, 1e-7),
+        WPPoint("diffrax Dopri8", "a", 0.012, 1e-4),
+        WPPoint("diffrax Dopri8", "b", 0.016, 1e-8),
+        WPPoint("CVODE Adams", "a", 0.040, 1e-3),
+        WPPoint("CVODE Adams", "b", 0.080, 1e-6),
+    ]
+    rows = {r["tol_rad"]: r for r in wp.front_ratios(pts, (1e-3, 1e-8, 1e-9))}
+    r = rows[1e-3]
+    assert (r["ours_method"], r["best_peer"]) == ("rk4", "diffrax Tsit5")
+    assert np.allclose([r["ours_ms"], r["peer_ms"], r["ratio"], r["peers"]["CVODE"]["ratio"]], [2.0, 10.0, 5.0, 20.0])
+    assert "scipy" not in r["peers"]
+    r = rows[1e-8]
+    assert (r["ours_method"], r["best_peer"]) == ("dop853", "diffrax Dopri8") and abs(r["ratio"] - 4.0) < 1e-12
+    assert "CVODE" not in r["peers"]  # CVODE never reaches 1e-8 here
+    r = rows[1e-9]
+    assert r["ours_method"] is None and r["best_peer"] is None and r["ratio"] is None
+    assert set(rows[1e-3]) >= {"tol_rad", "ours_ms", "ours_method", "best_peer", "peer_ms", "ratio"}
