@@ -60,8 +60,9 @@ class Solver:
         raise NotImplementedError(f"{type(self).__name__} steps (advance / advance_many), it has no run_all")
 
     def plant_step_s(self) -> float | None:
-        """The plant step the solver will take, s, after every preset and automatic choice (None: an adaptive
-        solver with no fixed step, the continuum's BDF). limits.check_solver turns it into the run's cost."""
+        """The plant step the solver will take, s, after every preset and automatic choice (an adaptive lattice:
+        the largest step it can hold; None: a solver whose step nothing bounds, the continuum's BDF).
+        limits.check_solver turns it into the run's cost."""
         return None
 
     def faults(self) -> list[int] | None:

@@ -103,6 +103,7 @@ def test_check_run_never_raises_and_refuses_what_it_cannot_bound(key, value):
     [
         (["model_options.substeps=1000000"], "model_options.substeps = 1000000"),
         (["model=lattice", "params.I_a=1e-15"], "automatic plant step"),
+        (["model=lattice", "accuracy=exact", "params.I_a=1e-15"], "stepper dop853"),  # adaptive: its stable limit
     ],
 )
 def test_run_refuses_a_resolved_step_count_it_cannot_finish(sets, needle, tmp_path):
@@ -112,6 +113,23 @@ def test_run_refuses_a_resolved_step_count_it_cannot_finish(sets, needle, tmp_pa
     r = run(*args, timeout=300)
     assert r.returncode == 2 and needle in r.stderr and "cell steps" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_an_adaptive_lattice_run_is_judged_by_its_stable_limit():
+    """dop853 (accuracy exact on the lattice) has no fixed step: its cost is judged from the step it can hold (the
+    smaller of model_options.dt and the stable limit), so an ordinary run passes and a tiny inertia does not."""
+    from host_emulator.controller import build_solver
+    from host_emulator.limits import cell_steps, check_solver
+
+    sc = load_scene("exp3_single_sigma14", ["model=lattice", "accuracy=exact"])
+    s = build_solver(sc)
+    assert s.adaptive and s.plant_step_s() == pytest.approx(s.limit) and check_solver(sc, s) is None
+    assert cell_steps(sc, s) == pytest.approx(sc.t_end_s / s.limit * sc.cells)
+    capped = load_scene("exp3_single_sigma14", ["model=lattice", "accuracy=exact", "model_options.dt=1e-4"])
+    assert build_solver(capped).plant_step_s() == pytest.approx(1e-4)  # a dt below the limit caps the step
+    tiny = load_scene("exp3_single_sigma14", ["model=lattice", "accuracy=exact", "params.I_a=1e-15"])
+    msg = check_solver(tiny, build_solver(tiny))
+    assert msg is not None and "dop853" in msg and "cell steps" in msg
 
 
 def test_the_api_refuses_the_same_run():
