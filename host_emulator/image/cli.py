@@ -29,10 +29,17 @@ def _parser() -> argparse.ArgumentParser:
         "  python -m host_emulator image registers --board cell1 --board primary\n"
         "  python -m host_emulator image profile --board primary --seconds 0.5\n",
     )
-    sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
-    sub.add_parser("build", help="build (or find cached) the images; print their paths")
-    for name, what in (("registers", "list every register each image touched"), ("profile", "cycles per function")):
-        p = sub.add_parser(name, help=what)
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND", help="what to do with the images")
+    sub.add_parser(
+        "build",
+        help="build (or find cached) the images; print their paths",
+        epilog="example: python -m host_emulator image build",
+    )
+    for name, what, example in (
+        ("registers", "list every register each image touched", "registers --board cell1 --board primary"),
+        ("profile", "cycles per function", "profile --board primary --seconds 0.5 --top 10"),
+    ):
+        p = sub.add_parser(name, help=what, epilog=f"example: python -m host_emulator image {example}")
         p.add_argument("--board", action="append", default=[], help="cellN or primary (default: all / primary)")
         p.add_argument("--seconds", type=float, default=0.5, help="time run after the cells are configured (s)")
         p.add_argument("--json", action="store_true", help="JSON on stdout")
