@@ -31,11 +31,10 @@ class Measurement:
 
 def full_speed_counts_s() -> float:
     """Encoder counts per second at the motors' no-load speed at full supply (the CPU budget's figure)."""
-    import math
-
     from metacell_tools.fwcheck.cpubudget import NO_LOAD_RAD_PER_V_S, SUPPLY_V
+    from protocol.codec import COUNTS_PER_RAD
 
-    return NO_LOAD_RAD_PER_V_S * SUPPLY_V * 400 / (2 * math.pi)
+    return NO_LOAD_RAD_PER_V_S * SUPPLY_V * COUNTS_PER_RAD
 
 
 def _snapshot(world) -> tuple[dict[str, int], int]:

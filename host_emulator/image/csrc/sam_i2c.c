@@ -39,7 +39,7 @@
  * SCL is high) ends every slave's transaction at t + T.
  */
 
-#define SAM_BUS_TMIN_S 2.4e-6   /* 400 kHz with 4 % tolerance: Fast mode, the fastest SCL with CTRLA.SPEED = 0 */
+#define SAM_BUS_TMIN_S 2400e-9   /* 400 kHz with 4 % tolerance: Fast mode, the fastest SCL with CTRLA.SPEED = 0 */
 
 enum { S_IDLE = 0, S_AMATCH, S_RX, S_RX_HOLD, S_TX_NEED, S_TX, S_TX_DONE, S_WAIT };
 #define M_MB 0x01u
