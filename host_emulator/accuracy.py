@@ -16,6 +16,8 @@ hil (the firmware's control rate is the model's clock; plant steps per control t
     balanced  the same (the default): nothing cheaper exists, the loop's own quantisation dominates, and
               the served emulator (bus/serve) and bench-speed run exactly this loop
     exact     rk4, 2 steps per tick, geometric beta   converged plant (2e-7 rad from 64 steps per tick)
+image (the flashed images; the plant steps per 50 us window, steps chosen from the stable limit):
+    the hil presets' stepper and beta geometry (fast, balanced: symplectic_euler; exact: rk4, geometric beta)
 continuum: the knob sets nothing (models/continuum.py runs scipy BDF at its own tolerance).
 """
 
@@ -97,8 +99,13 @@ def _resolve_hil(params, perturbations, options, level, explicit):
     return opts
 
 
+def _resolve_image(params, perturbations, options, level, explicit):
+    stepper, _subs, geom = HIL[level]
+    return _preset(options, stepper, geom, explicit)
+
+
 # model name -> its preset rule; a model without one (the continuum) keeps its options
-RESOLVERS = {"lattice": _resolve_lattice, "hil": _resolve_hil}
+RESOLVERS = {"lattice": _resolve_lattice, "hil": _resolve_hil, "image": _resolve_image}
 
 
 def resolve_options(model: str, params, perturbations, options, level: str, explicit=()):

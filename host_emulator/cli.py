@@ -103,7 +103,7 @@ def _print_summary(s, out, files):
     d = s.get("dispersion") or {}
     print(
         f"scene {s['scene']} ({s['model']}): {s['t_end_s']:.3g} s simulated in {s['wall_s']:.3g} s "
-        f"wall ({s['realtime_factor']:.0f}x real time)"
+        f"wall ({s['realtime_factor']:.{0 if s['realtime_factor'] >= 10 else 2}f}x real time)"
     )
     print(
         f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
@@ -197,6 +197,7 @@ SUBCOMMANDS = {
     "animate": (".workbench.animate", "animate_main"),
     "sweep": (".workbench.sweep", "sweep_main"),
     "bench": (".benchmarks.cli", "main"),
+    "image": (".image.cli", "image_main"),
 }
 
 
@@ -326,6 +327,11 @@ def _main(argv=None) -> int:
         "bench",
         help="work-precision vs scipy/py-pde, scaling, --fidelity (see bench --help)",
         epilog="example: python -m host_emulator bench --help",
+    )
+    sub.add_parser(
+        "image",
+        help="the flashed images: build, registers each touches, cycle profile (see image --help)",
+        epilog="example: python -m host_emulator image --help",
     )
     args = ap.parse_args(argv)
     return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

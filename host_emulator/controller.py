@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .models import NumericalInstability, Solver, make_model
+from .models import ConfigError, NumericalInstability, Solver, make_model
 from .workbench.trackers import ProgressTracker, RecordTracker, Tracker
 
 if TYPE_CHECKING:
@@ -111,6 +111,12 @@ def build_solver(scene, *, resolve: bool = True, options=None, perturbations=Non
             getattr(scene, "explicit_options", ()),
         )
     model = make_model(scene.model, scene.params, list(perturbations), options)
+    faults = getattr(scene, "faults", ())
+    if faults:
+        inject = getattr(model, "inject", None)
+        if inject is None:
+            raise ConfigError(f"fault: the {scene.model} model has no boards to inject faults into")
+        inject(faults)
     return model.solver() if x0 is None else model.solver(x0=x0)
 
 

@@ -31,6 +31,9 @@ JITTER_MAX_COUNTS = 400.0  # one revolution of the encoder
 POINTS_MAX = 256
 MAX_BATCH_CELL_STEPS = 24 * MAX_CELL_STEPS  # a sweep, paper or robustness batch: about a day of one core
 REALTIME_CELL_STEPS_PER_S = MAX_CELL_STEPS / 3600  # what one core is held to: serve must keep real time
+# the image tier's cost is the boards', not the plant's: about 1.6 s of one core per board second on the default
+# scene (docs/image-tier.md), so half an hour of board time is about the hour the other limits allow
+IMAGE_MAX_T_END_S = 1800.0
 
 
 class RunTooLarge(ConfigError):
@@ -63,6 +66,11 @@ def check_run(scene: Scene) -> str | None:
     if not (math.isfinite(jit) and 0 <= jit <= JITTER_MAX_COUNTS):
         return f"model_options.noise.encoder_jitter_counts = {jit}: expected 0..{JITTER_MAX_COUNTS:g} (one revolution)"
     t_end = scene.t_end_s
+    if scene.model == "image" and t_end > IMAGE_MAX_T_END_S:
+        return (
+            f"t_end_s = {t_end} s: the image tier runs the flashed images instruction by instruction (about 1.6 s of "
+            f"a core per board second); runs are limited to {IMAGE_MAX_T_END_S:g} s (about an hour)"
+        )
     if not o.dt_out <= t_end:
         return f"model_options.dt_out = {o.dt_out} s: must not exceed t_end_s = {t_end} s"
     if o.dt is not None and not o.dt <= o.dt_out:

@@ -12,11 +12,31 @@ from pathlib import Path
 from protocol import codec
 
 from .models import model_names
-from .models.options import ConfigError, ModelOptions, Perturbation, parse_options, parse_perturbation
+from .models.options import (
+    ConfigError,
+    Fault,
+    ModelOptions,
+    Perturbation,
+    parse_fault,
+    parse_options,
+    parse_perturbation,
+)
 from .params import Params
 
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
-TOP_KEYS = ("name", "description", "model", "cells", "t_end_s", "accuracy", "params", "model_options", "perturbation")
+TOP_KEYS = (
+    "name",
+    "description",
+    "model",
+    "cells",
+    "t_end_s",
+    "accuracy",
+    "params",
+    "model_options",
+    "perturbation",
+    "fault",
+)
+LIST_KEYS = ("perturbation", "fault")  # arrays of tables: --set perturbation.N.field, fault.N.field
 REQUIRED = ("name", "model", "cells", "t_end_s")
 
 
@@ -33,6 +53,7 @@ class Scene:
     source: str = ""
     accuracy: str = "balanced"  # fast | balanced | exact (host_emulator/accuracy.py)
     explicit_options: tuple[str, ...] = ()  # model_options keys the scene set itself (they beat the preset)
+    faults: tuple[Fault, ...] = ()  # image model only ([[fault]])
 
     def as_dict(self) -> dict:
         """JSON-ready record of everything the run used."""
@@ -46,6 +67,7 @@ class Scene:
             "params": dataclasses.asdict(self.params),
             "model_options": opts,
             "perturbation": [p.as_dict() for p in self.perturbations],
+            "fault": [f.as_dict() for f in self.faults],
             "source": self.source,
             "accuracy": self.accuracy,
         }
@@ -120,16 +142,20 @@ def _parse_params(d, cells) -> Params:
 
 def known_keys() -> list[str]:
     """Every dotted key a --set / overrides item can name (perturbation fields as perturbation.N.<field>)."""
-    from .models.options import _PERT_KEYS, NoiseOptions
+    from .models.options import _PERT_KEYS, FAULT_KINDS, ImageOptions, NoiseOptions
 
-    keys = [k for k in TOP_KEYS if k not in ("params", "model_options", "perturbation")]
+    keys = [k for k in TOP_KEYS if k not in ("params", "model_options", *LIST_KEYS)]
     keys += [f"params.{f.name}" for f in dataclasses.fields(Params) if f.name != "cells"]
     for f in dataclasses.fields(ModelOptions):
         if f.name == "noise":
             keys += [f"model_options.noise.{g.name}" for g in dataclasses.fields(NoiseOptions)]
+        elif f.name == "image":
+            keys += [f"model_options.image.{g.name}" for g in dataclasses.fields(ImageOptions)]
         else:
             keys.append(f"model_options.{f.name}")
     keys += [f"perturbation.N.{k}" for k in _PERT_KEYS]
+    fault_keys = {"kind", "start_s", "cell"} | {k for _, takes in FAULT_KINDS.values() for k in takes}
+    keys += [f"fault.N.{k}" for k in sorted(fault_keys)]
     return keys
 
 
@@ -159,7 +185,24 @@ def scene_table(scene: Scene) -> dict:
         "params": params,
         "model_options": opts,
         "perturbation": d["perturbation"],
+        **({"fault": [_fault_table(f) for f in scene.faults]} if scene.faults else {}),
     }
+
+
+def _fault_table(f: Fault) -> dict:
+    """A Fault back as its [[fault]] table (only the keys its kind takes)."""
+    from .models.options import FAULT_KINDS
+
+    takes = FAULT_KINDS[f.kind][1]
+    out: dict = {"kind": f.kind, "start_s": f.start_s}
+    if "cell" in takes:
+        out["cell"] = int(f.board[4:])
+    if "board" in takes:
+        out["board"] = f.board
+    for k in ("duration_s", "chain", "rate_hz"):
+        if k in takes:
+            out[k] = getattr(f, k)
+    return out
 
 
 def scene_from_dict(d: dict, source: str = "") -> Scene:
@@ -200,12 +243,31 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
                     f"perturbation[{i + 1}].torque_Nm = {p.torque_Nm}: the firmware accepts at most "
                     f"{codec.PERTURB_MAX_NM:g} N*m"
                 )
+    faults_in = d.get("fault", [])
+    if isinstance(faults_in, dict):
+        faults_in = [faults_in]
+    if not isinstance(faults_in, list):
+        raise ConfigError("fault: expected [[fault]] tables")
+    if faults_in and d["model"] != "image":
+        raise ConfigError(f"fault: only the image model injects faults into boards (model = {d['model']!r})")
+    faults = tuple(parse_fault(f, cells, f"fault[{i + 1}]") for i, f in enumerate(faults_in))
     from .accuracy import DEFAULT, check_level
 
     accuracy = check_level(d.get("accuracy", DEFAULT))
     explicit = tuple(d.get("model_options", {}).keys())
     return Scene(
-        d["name"], desc, d["model"], cells, float(t_end), params, options, perturbations, source, accuracy, explicit
+        d["name"],
+        desc,
+        d["model"],
+        cells,
+        float(t_end),
+        params,
+        options,
+        perturbations,
+        source,
+        accuracy,
+        explicit,
+        faults,
     )
 
 
@@ -236,20 +298,23 @@ def apply_overrides(d: dict, items: Iterable[str]) -> dict:
         parts = key.strip().split(".")
         node = d
         for i, part in enumerate(parts[:-1]):
-            if part == "perturbation":
-                lst = node.setdefault("perturbation", [])
+            if part in LIST_KEYS and node is d:
+                lst = node.setdefault(part, [])
+                if isinstance(lst, dict):
+                    lst = node[part] = [lst]
                 if i + 1 >= len(parts) - 1 or not parts[i + 1].isdigit():
-                    raise ConfigError(f"--set {key}: use perturbation.N.field (N = 1..{len(lst)})")
+                    raise ConfigError(f"--set {key}: use {part}.N.field (N = 1..{len(lst) + 1})")
                 continue
-            if part.isdigit() and parts[i - 1] == "perturbation":
-                lst = node["perturbation"]
+            if part.isdigit() and i > 0 and parts[i - 1] in LIST_KEYS and node is d:
+                name = parts[i - 1]
+                lst = node[name]
                 k = int(part)
-                if k == 0 and lst:
-                    raise ConfigError(
-                        f"--set {key}: perturbations are numbered from 1 (perturbation.1 .. perturbation.{len(lst)})"
-                    )
+                if k == 0:
+                    raise ConfigError(f"--set {key}: {name}s are numbered from 1 ({name}.1 .. {name}.{len(lst)})")
+                if k == len(lst) + 1 and name == "fault":
+                    lst.append({})  # fault.N.kind=... with N one past the last adds a fault
                 if not 1 <= k <= len(lst):
-                    raise ConfigError(f"--set {key}: the scene has {len(lst)} perturbation(s)")
+                    raise ConfigError(f"--set {key}: the scene has {len(lst)} {name}(s)")
                 node = lst[k - 1]
                 continue
             nxt = node.setdefault(part, {})

@@ -224,11 +224,11 @@ def motor_damping(params: Params) -> float:
 def theory_of(model: str, params: Params, inertia: bool = True) -> Theory:
     """The linear theory of a scene's model: the continuum model has no inertia; the lattice model has the scene's
     inertia switch; the hil model is the lattice plus its motors' back-EMF damping (firmware quantisation and
-    sampling are not in the linear theory)."""
+    sampling are not in the linear theory); so is the image model (the same motors, driven by the flashed images)."""
     if model == "continuum":
         return Theory("continuum", False, False, 0.0)
-    if model == "hil":
-        return Theory("hil", bool(inertia), True, motor_damping(params))
+    if model in ("hil", "image"):
+        return Theory(model, bool(inertia), True, motor_damping(params))
     return Theory(model, bool(inertia), True, 0.0)
 
 

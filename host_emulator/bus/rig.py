@@ -298,8 +298,19 @@ def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overri
     from ..scene import load_scene
 
     sc = load_scene(scene_name, overrides)
+    if sc.model == "image":  # the flashed primary itself on the pty (host_emulator/image/serve.py)
+        if opts is not None and opts != BusOptions(i2c_hz=opts.i2c_hz):
+            raise ValueError(
+                "--absent, --stuck, --babble and --period-us drive the hil rig's bus model; the image tier runs the "
+                "real firmware: give faults as [[fault]] tables (--set fault.1.kind=silent ...)"
+            )
+        if opts is not None and opts.i2c_hz != 400_000:
+            raise ValueError("--i2c-hz: the image tier's primary sets its own bus clock (400 kHz, its firmware)")
+        from ..image.serve import make_image_rig
+
+        return make_image_rig(build_solver(sc)), sc
     if sc.model != "hil":
-        raise ValueError(f'scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = "hil"')
+        raise ValueError(f'scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = "hil" or "image"')
     solver = build_solver(sc)
     if not isinstance(solver, HilSolver):
         raise TypeError(f"model hil built a {type(solver).__name__}")

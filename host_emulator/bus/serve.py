@@ -62,7 +62,9 @@ def parser() -> argparse.ArgumentParser:
         "  python -m host_emulator serve exp1_ccw_ccw --slcan --link /tmp/rig --absent 3,7\n"
         "  python -m metacell_tools.rigtools.logger -c /dev/pts/N@115200 --out out/log   # in another shell",
     )
-    ap.add_argument("scene", nargs="?", default="default", help="hil scene name or .toml path (default: default)")
+    ap.add_argument(
+        "scene", nargs="?", default="default", help="hil or image scene name or .toml path (default: default)"
+    )
     ap.add_argument("--slcan", action="store_true", help="speak SLCAN on a pty (the only mode; accepted for clarity)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
     ap.add_argument(
@@ -259,6 +261,14 @@ def serve_main(argv: list[str] | None = None) -> int:
             except OSError:
                 pass
         os.close(master)
+    if hasattr(rig, "summary"):  # the image tier: the flashed primary's counters stay in its own RAM
+        print(
+            f"served {sim_us / 1e6:.1f} s: {rig.summary(sim_us / 1e6, time.monotonic() - t0)}, {sessions} client "
+            f"sessions, {dropped} bytes dropped (slow reader), {watch.events} second-client events (most programs "
+            f"on the pty at once: {watch.most})",
+            flush=True,
+        )
+        return status
     p = rig.p
     print(
         f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "

@@ -47,6 +47,7 @@ def make_model(name: str, params, perturbations=(), options: ModelOptions | None
 register_model("continuum", ".continuum_adapter:ContinuumModel")
 register_model("lattice", ".lattice:LatticeModel")
 register_model("hil", ".hil:HilModel")
+register_model("image", "..image.model:ImageModel")
 
 MODELS = model_names()
 

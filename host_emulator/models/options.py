@@ -28,6 +28,20 @@ class NoiseOptions:
 
 
 @dataclass(frozen=True)
+class ImageOptions:
+    """The image model's switches ([model_options.image]). None of them changes a result but cycle_model."""
+
+    threads: int = 1  # threads the boards run on (cells that cannot affect anyone run at the same time)
+    cycle_model: str = "cache"  # "cache": flash waits on NVM cache misses; "worst": a wait on every fetch
+    fast_forward: bool = True  # skip loop() passes proven idle (results unchanged; a test compares)
+    round_s: float = 0.0  # longest time the boards run apart before the world meets them (0: the plant window)
+
+
+IMAGE_THREADS_MAX = 16
+CYCLE_MODELS = ("cache", "worst")
+
+
+@dataclass(frozen=True)
 class ModelOptions:
     """[model_options] of a scene. Defaults: the physics the source's own simulations use."""
 
@@ -42,6 +56,7 @@ class ModelOptions:
     substeps: int | None = None  # hil: plant steps per control tick (None: from dt / stable limit)
     points_per_cell: int = 4  # continuum grid
     noise: NoiseOptions = field(default_factory=NoiseOptions)
+    image: ImageOptions = field(default_factory=ImageOptions)
 
 
 DEFAULT_TOL = 1e-6  # tol when an adaptive stepper runs without one (about 5e-9 rad on the 16-cell lattice scene)
@@ -88,6 +103,34 @@ def parse_noise(d: dict, prefix: str = "model_options.noise") -> NoiseOptions:
     return NoiseOptions(**kw)
 
 
+def parse_image(d: dict, prefix: str = "model_options.image") -> ImageOptions:
+    if not isinstance(d, dict):
+        raise ConfigError(f"{prefix}: expected a table")
+    known = {f.name for f in fields(ImageOptions)}
+    kw: dict[str, Any] = {}
+    for k, v in d.items():
+        key = f"{prefix}.{k}"
+        if k not in known:
+            raise ConfigError(f"unknown key {key}; known: {', '.join(sorted(known))}")
+        if k == "threads":
+            kw[k] = _num(key, v, integer=True, positive=True)
+            if kw[k] > IMAGE_THREADS_MAX:
+                raise ConfigError(f"{key} = {v!r}: expected 1..{IMAGE_THREADS_MAX}")
+        elif k == "cycle_model":
+            if v not in CYCLE_MODELS:
+                raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(CYCLE_MODELS)}")
+            kw[k] = v
+        elif k == "fast_forward":
+            if not isinstance(v, bool):
+                raise ConfigError(f"{key} = {v!r}: expected true or false")
+            kw[k] = v
+        elif k == "round_s":
+            kw[k] = _num(key, v, nonneg=True)
+            if kw[k] > 0.01:
+                raise ConfigError(f"{key} = {v!r}: expected 0 (the plant window) .. 0.01 s")
+    return ImageOptions(**kw)
+
+
 def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
@@ -99,6 +142,8 @@ def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
             raise ConfigError(f"unknown key {key}; known: {', '.join(sorted(known))}")
         if k == "noise":
             kw[k] = parse_noise(v, key)
+        elif k == "image":
+            kw[k] = parse_image(v, key)
         elif k == "inertia":
             if not isinstance(v, bool):
                 raise ConfigError(f"{key} = {v!r}: expected true or false")
@@ -166,3 +211,85 @@ def parse_perturbation(d: dict, cells: int, where: str) -> Perturbation:
         _num(f"{where}.start_s", d["start_s"], nonneg=True),
         _num(f"{where}.duration_s", d["duration_s"], nonneg=True),
     )
+
+
+# ---- faults injected into the image model's boards ([[fault]] of a scene) --------------------------------------
+FAULT_KINDS = {
+    # kind: (what it does, keys it takes besides kind and start_s)
+    "edge_storm": (
+        "glitch pairs on one encoder's A channel of a cell (a bad cable)",
+        ("cell", "chain", "rate_hz", "duration_s"),
+    ),
+    "stuck_sda": ("the bus's SDA held low (a latched-up part)", ("duration_s",)),
+    "silent": ("a board loses power, then powers up again", ("board", "duration_s")),
+    "usb_no_read": ("the laptop stops reading the primary's USB port", ("duration_s",)),
+    "hardfault": ("a HardFault on a board, as a bad pointer gives", ("board",)),
+    "tick_dead": ("a cell's TC3 loses its clock: the control tick stops", ("cell",)),
+}
+EDGE_STORM_MAX_HZ = 400_000.0
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A fault on the image model's boards from scene time start_s (s after the cells were configured)."""
+
+    kind: str
+    start_s: float
+    board: str = ""  # "primary" or "cellN" (edge_storm and tick_dead: a cell; silent, hardfault: any board)
+    duration_s: float = 0.0
+    chain: str = "alpha"
+    rate_hz: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("kind", "start_s", "board", "duration_s", "chain", "rate_hz")}
+
+
+def parse_fault(d: dict, cells: int, where: str) -> Fault:
+    """A [[fault]] table: kind, start_s, and the keys its kind takes (FAULT_KINDS); cell = N or board = "primary"
+    | "cellN" name the board."""
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: expected a table")
+    kind = d.get("kind")
+    if kind not in FAULT_KINDS:
+        raise ConfigError(f"{where}.kind = {kind!r}: expected one of {', '.join(FAULT_KINDS)}")
+    takes = FAULT_KINDS[kind][1]
+    allowed = {"kind", "start_s", *takes} | ({"cell"} if "board" in takes else set())
+    for k in d:
+        if k not in allowed:
+            raise ConfigError(f"{where}.{k}: a {kind} fault takes {', '.join(sorted(allowed))}")
+    if "start_s" not in d:
+        raise ConfigError(f"{where}: missing key start_s")
+    kw: dict[str, Any] = {"kind": kind, "start_s": _num(f"{where}.start_s", d["start_s"], nonneg=True)}
+    if "cell" in d and "board" in d:
+        raise ConfigError(f"{where}: give cell or board, not both")
+    if "cell" in takes or "board" in takes:
+        if "cell" in d:
+            j = _num(f"{where}.cell", d["cell"], integer=True)
+            if not 1 <= j <= cells:
+                raise ConfigError(f"{where}.cell = {j}: must be in 1..{cells}")
+            kw["board"] = f"cell{j}"
+        elif "board" in d:
+            b = d["board"]
+            ok = b == "primary" or (
+                isinstance(b, str) and b.startswith("cell") and b[4:].isdigit() and 1 <= int(b[4:]) <= cells
+            )
+            if not ok or "cell" in takes:
+                want = f"cell1..cell{cells}" + ("" if "cell" in takes else " or primary")
+                raise ConfigError(f"{where}.board = {b!r}: expected {want}")
+            kw["board"] = b
+        else:
+            raise ConfigError(f"{where}: a {kind} fault needs " + ("cell" if "cell" in takes else "cell or board"))
+    if "duration_s" in takes:
+        if "duration_s" not in d:
+            raise ConfigError(f"{where}: a {kind} fault needs duration_s")
+        kw["duration_s"] = _num(f"{where}.duration_s", d["duration_s"], positive=True)
+    if kind == "edge_storm":
+        if d.get("chain", "alpha") not in CHAINS:
+            raise ConfigError(f"{where}.chain = {d['chain']!r}: expected alpha or beta")
+        kw["chain"] = d.get("chain", "alpha")
+        if "rate_hz" not in d:
+            raise ConfigError(f"{where}: an edge_storm fault needs rate_hz")
+        kw["rate_hz"] = _num(f"{where}.rate_hz", d["rate_hz"], positive=True)
+        if kw["rate_hz"] > EDGE_STORM_MAX_HZ:
+            raise ConfigError(f"{where}.rate_hz = {d['rate_hz']!r}: at most {EDGE_STORM_MAX_HZ:g} glitch pairs per s")
+    return Fault(**kw)

@@ -6,7 +6,7 @@ import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .addresses import CELL_COUNT
+from .addresses import CELL_COUNT, cell_address
 from .boards import Port, xiao_ports
 from .inventory import Board
 
@@ -63,22 +63,33 @@ def parse_only(text: str | None) -> set | None:
     return sel
 
 
-def upload_step(board: Board, port: Port, pio: str = "pio", project: Path = ROOT) -> Step:
-    """One build+upload. Cells: one image per address (see docs/hardware.md), passed as
-    src-only build flags, each cell in its own build directory so rebuilds stay incremental."""
-    project = Path(project)
-    if board.role == "cell":
-        env_name = "cell"
-        env_vars = (
-            ("PLATFORMIO_BUILD_DIR", str(project / ".pio" / f"build-cell{board.cell:02d}")),
-            ("PLATFORMIO_BUILD_SRC_FLAGS", f"-DMC_CELL_INDEX={board.cell} -DMC_CELL_ADDR=0x{board.addr:02x}"),
+def board_build_env(
+    role: str, cell: int | None, project: Path = ROOT, build_root: Path | None = None
+) -> tuple[str, tuple[tuple[str, str], ...]]:
+    """(PlatformIO environment, environment variables) of one board's build: the one definition of what is flashed
+    (the upload here, the emulator's image tier runs the same builds). A cell's number and address are src-only
+    build flags (the library objects are the same for every cell), each board in its own build directory so
+    rebuilds stay incremental (see docs/hardware.md)."""
+    base = Path(build_root) if build_root is not None else Path(project) / ".pio"
+    if role == "cell":
+        if cell is None or not 1 <= cell <= CELL_COUNT:
+            raise ValueError(f"cell {cell!r}: expected 1..{CELL_COUNT}")
+        return "cell", (
+            ("PLATFORMIO_BUILD_DIR", str(base / f"build-cell{cell:02d}")),
+            ("PLATFORMIO_BUILD_SRC_FLAGS", f"-DMC_CELL_INDEX={cell} -DMC_CELL_ADDR=0x{cell_address(cell):02x}"),
         )
-    else:
-        env_name = "primary"
-        env_vars = (
-            ("PLATFORMIO_BUILD_DIR", str(project / ".pio" / "build-primary")),
+    if role == "primary":
+        return "primary", (
+            ("PLATFORMIO_BUILD_DIR", str(base / "build-primary")),
             ("PLATFORMIO_BUILD_SRC_FLAGS", ""),  # cancel any inherited cell flags
         )
+    raise ValueError(f"role {role!r}: expected 'cell' or 'primary'")
+
+
+def upload_step(board: Board, port: Port, pio: str = "pio", project: Path = ROOT) -> Step:
+    """One build+upload of the board's image (board_build_env)."""
+    project = Path(project)
+    env_name, env_vars = board_build_env(board.role, board.cell, project)
     argv = (pio, "run", "-d", str(project), "-e", env_name, "-t", "upload", "--upload-port", port.device)
     return Step(board, port, env_name, env_vars, argv)
 

@@ -1,0 +1,135 @@
+"""Build the flashed images (one per cell address, and the primary) with PlatformIO, as the flash tool builds them.
+
+``metacell_tools.flash.plan.board_build_env`` is the one definition of a board's build: the PlatformIO environment,
+its own build directory and the source-only flags that give a cell its number and I2C address; the flash tool
+uploads exactly these builds and the image tier runs them. ``build_images`` caches the ELFs by a hash of everything
+the build reads (src/, lib/, platformio.ini, the build hooks) and builds offline through a pre-installed tree's
+use.sh (MC_PIO_TREE) or with the user's own PlatformIO (~/.platformio holding the atmelsam platform).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from metacell_tools.flash.plan import board_build_env
+from protocol.wire import N_CELLS
+
+from . import ImageTierUnavailable
+
+ROOT = Path(__file__).resolve().parents[2]
+IMAGE_BUILD_INPUTS = ("src", "lib", "platformio.ini", "metacell_tools/flash/pio_fwcheck.py")
+
+
+class ImageBuildError(ImageTierUnavailable):
+    """The images cannot be built here (no PlatformIO tree) or their build failed."""
+
+
+def pio_executable() -> Path:
+    return Path(sys.executable).with_name("pio")
+
+
+def how_to_build(root: Path = ROOT) -> tuple[list[str] | None, str]:
+    """(command prefix to run ``pio ARGS``, "") or (None, the one-line reason the images cannot be built)."""
+    pio = pio_executable()
+    if not pio.exists():
+        return None, f"PlatformIO is not installed in {pio.parent} (pip install platformio==6.2.0)"
+    tree = os.environ.get("MC_PIO_TREE")
+    if tree:
+        use = Path(tree) / "use.sh"
+        if not use.is_file():
+            return None, f"MC_PIO_TREE={tree} is not an offline PlatformIO tree (no use.sh)"
+        return ["bash", str(use), str(Path(tree).resolve()), str(Path(root).resolve())], ""
+    home = Path(os.environ.get("PLATFORMIO_CORE_DIR", Path.home() / ".platformio"))
+    if (home / "platforms" / "atmelsam").is_dir():
+        return [str(pio)], ""
+    return None, (
+        "the image tier cannot build the firmware images: no offline PlatformIO tree (set MC_PIO_TREE) and no "
+        "~/.platformio with the atmelsam platform"
+    )
+
+
+def inputs_digest(root: Path = ROOT) -> str:
+    h = hashlib.sha256()
+    for name in IMAGE_BUILD_INPUTS:
+        p = root / name
+        files = sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else [p]
+        for f in files:
+            if "__pycache__" in f.parts:
+                continue
+            h.update(str(f.relative_to(root)).encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class ImageSet:
+    cells: tuple[Path, ...]  # cell j's ELF at index j - 1
+    primary: Path
+    digest: str
+
+
+def cache_dir() -> Path:
+    from .. import firmware
+
+    return firmware.BUILD_DIR.parent / "image-elf"
+
+
+def build_images(cells: int = N_CELLS, *, root: Path = ROOT, primary: bool = True, log=None, progress=None) -> ImageSet:
+    """The ELFs of cells 1..cells and (unless primary is False) the primary, built now if the cache lacks them
+    (ImageBuildError). Without the primary, ImageSet.primary names a file that may not exist."""
+    if not 1 <= cells <= N_CELLS:
+        raise ValueError(f"cells = {cells}: expected 1..{N_CELLS}")
+    digest = inputs_digest(root)
+    out = cache_dir() / digest
+    want = [("cell", j) for j in range(1, cells + 1)] + ([("primary", None)] if primary else [])
+
+    def elf(role, j):
+        return out / (f"cell{j:02d}" if role == "cell" else "primary") / "firmware.elf"
+
+    if all(elf(r, j).is_file() for r, j in want):
+        return ImageSet(tuple(elf("cell", j) for j in range(1, cells + 1)), elf("primary", None), digest)
+    prefix, why = how_to_build(root)
+    if prefix is None:
+        raise ImageBuildError(why)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # parallel test workers build once
+        for k, (role, j) in enumerate(want):
+            if elf(role, j).is_file():
+                continue
+            if progress:
+                progress(k, len(want), "primary" if role == "primary" else f"cell {j}")
+            # every cell builds in one directory (only src/, whose flags name the cell, recompiles; the core and the
+            # library are shared): the loaded segments are those of a clean build (tests/host_emulator/image)
+            env_name, env_vars = board_build_env(role, j, root, build_root=out / "pio-build")
+            if role == "cell":
+                env_vars = (("PLATFORMIO_BUILD_DIR", str(out / "pio-build" / "build-cells")), env_vars[1])
+            env = dict(os.environ)
+            env.update(env_vars)
+            pio = pio_executable()
+            env.update(
+                PIO=str(pio),
+                PATH=f"{pio.parent}{os.pathsep}{env.get('PATH', '')}",
+                PIO_OFFLINE_WORK=str(out / "pio-work"),
+            )
+            t0 = time.monotonic()
+            r = subprocess.run([*prefix, "run", "-e", env_name], cwd=root, env=env, capture_output=True, text=True)
+            logtext = r.stdout + r.stderr
+            if log:
+                log(f"built {role}{'' if j is None else f' {j}'} in {time.monotonic() - t0:.1f} s")
+            if r.returncode != 0:
+                raise ImageBuildError(f"pio run -e {env_name} ({role} {j or ''}) failed:\n{logtext[-4000:]}")
+            built = Path(dict(env_vars)["PLATFORMIO_BUILD_DIR"]) / env_name / "firmware.elf"
+            if not built.is_file():
+                raise ImageBuildError(f"pio run -e {env_name} left no {built}")
+            elf(role, j).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(built, elf(role, j))
+    return ImageSet(tuple(elf("cell", j) for j in range(1, cells + 1)), elf("primary", None), digest)

@@ -1,0 +1,250 @@
+/* Instruction-level SAMD21 boards (Unicorn Cortex-M0+ core, software NVIC, peripheral models) joined in a world. */
+#ifndef SAM_H
+#define SAM_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <unicorn/unicorn.h>
+#include "sam_api.h"
+#include "sam_regtab.h"
+
+/*
+ * Time. Every board keeps its own clock t in time units (tu) of 1/SAM_TU_HZ s, chosen so that the clocks
+ * the boards use are whole numbers of units: a 48 MHz CPU cycle is 32 tu, a 32.768 kHz cycle 46875, the 1 ms
+ * SysTick 1.536e6 (uint64: 380 years).
+ *
+ * Execution. Unicorn translates the image into blocks; a block hook runs before each block executes and
+ * charges its cycles (cycle model in sam_cycles.h). All register accesses of a block happen at its start
+ * time t_blk. Events (timer overflows, pin edges, bus and USB steps) are due at a time; each is processed at
+ * the first block boundary at or after its time, before that block runs, and so is every interrupt the event
+ * raises. Where emulation happens to stop (the world's rounds, parking) never changes this: results do not
+ * depend on the schedule nor on fast-forwarding (sam_world.c, tests/host_emulator/image).
+ */
+#define SAM_TU_HZ 1536000000ull
+#define SAM_NEVER UINT64_MAX
+
+#define SAM_FLASH_SIZE 0x40000u
+#define SAM_RAM_BASE 0x20000000u
+#define SAM_RAM_SIZE 0x8000u
+#define SAM_NVM_BASE 0x00800000u   /* NVM user row, software calibration and serial number rows (read-only) */
+#define SAM_NVM_SIZE 0x10000u
+#define SAM_APP_BASE 0x2000u       /* the UF2 bootloader's application start (vector table) */
+
+#define SAM_MAX_PERIPH 48
+#define SAM_NSLOT_EXTRA 6
+enum { SAM_SLOT_SYSTICK = SAM_MAX_PERIPH, SAM_SLOT_PINS, SAM_SLOT_BUS, SAM_SLOT_USB, SAM_SLOT_FAULT, SAM_SLOT_RESET,
+       SAM_NSLOTS };
+
+/* model read/write results */
+enum { SAM_DONE = 0, SAM_GENERIC = 1, SAM_UNCOVERED = -1 };
+
+typedef struct sam_mcu sam_mcu_t;
+
+typedef struct sam_model {
+    const char *type;                                                     /* vendor struct name, "Tc" */
+    void (*reset)(sam_mcu_t *m, int pi);
+    int (*view)(sam_mcu_t *m, int pi);                                    /* active mode view (1..), 0: none */
+    int (*read)(sam_mcu_t *m, int pi, int ri, uint32_t *v);               /* SAM_DONE / SAM_GENERIC / SAM_UNCOVERED */
+    int (*write)(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask);
+    void (*fire)(sam_mcu_t *m, int pi);                                   /* its slot's time came */
+} sam_model_t;
+
+/* Software NVIC (ARMv6-M): exception numbers 2 NMI, 3 HardFault, 11 SVCall, 14 PendSV, 15 SysTick, 16+n IRQ n */
+typedef struct {
+    uint32_t enabled;      /* ISER */
+    uint32_t pending;      /* ISPR */
+    uint32_t level;        /* peripheral request lines (level-sensitive) */
+    uint32_t active;       /* external IRQs active */
+    uint32_t sys_pending;  /* bit e for system exception e */
+    uint32_t sys_active;
+    uint8_t prio[32];      /* 0..3: the implemented top two bits of each IPR byte */
+    uint8_t prio_svc, prio_pendsv, prio_systick;
+    uint32_t ipr[8];       /* IPR words as written (only bits 7:6 of each byte are implemented) */
+    uint32_t vtor;
+    uint32_t scr, shpr2, shpr3;
+} sam_nvic_t;
+
+typedef struct {
+    uint32_t ctrl, load, val_at, countflag;
+    uint64_t t0;           /* time of the last reload (tu) */
+    uint64_t period;       /* (LOAD + 1) CPU cycles in tu */
+} sam_systick_t;
+
+/* a translated block's cost, memoised (the prefix-sum tables are large and cold) */
+typedef struct {
+    uint32_t addr;
+    uint16_t size;
+    uint8_t refund, pad;
+    uint32_t core;
+    uint16_t wait, lit;
+} sam_blkcost_t;
+#define SAM_MEMO 4096
+
+/* fast-forward of an idle main loop (sam_core.c: ff_*) */
+typedef struct {
+    int enabled;
+    uint32_t loop_pc;      /* entry of loop() */
+    int snap_valid;        /* a snapshot of the state at a loop() entry */
+    uint64_t snap_act;     /* activity counter at the snapshot */
+    uint64_t snap_t, snap_cycles;
+    uint32_t snap_regs[20];
+    uint32_t snap_cache[8];
+    uint8_t *snap_ram;
+    uint32_t snap_lo;      /* static data and heap compared: RAM offsets [0, snap_lo) */
+    int parked;            /* stopped at a verified fixed point: state == snapshot at a loop() entry */
+    int resumed;           /* just resumed at a loop() entry: that pass runs (its event is due inside it) */
+    uint64_t anchor, period, period_cycles;
+    uint64_t passes_skipped, cycles_skipped, parks, checks, misses;
+} sam_ff_t;
+
+struct sam_mcu {
+    sam_world_t *w;
+    int id;
+    char name[24];
+    uc_engine *uc;
+    uc_hook hooks[6];
+    uint8_t *flash, *ram, *nvm;
+    /* image facts (from the ELF, Python side) */
+    uint32_t entry_sp, entry_pc;
+    const uint32_t *cost_core, *cost_wait;  /* prefix sums over halfwords of flash: core cycles, worst-case waits */
+    const uint32_t *cost_lit;               /* prefix sums: PC-relative loads (a flash read each) */
+    int cycle_model;                         /* SAM_CYCLES_CACHE / SAM_CYCLES_WORST */
+    uint32_t cache_tag[8];                   /* NVM cache: 8 direct-mapped 64-bit lines (tag = address >> 6) */
+    uint32_t clk_epoch;                      /* changes with every clock configuration write (cached frequencies) */
+    const uint8_t *refund;                  /* per halfword: cycles a conditional branch there costs less untaken */
+    uint32_t app_end;                       /* first address past the image's code */
+    uint32_t heap_base;                     /* SRAM offset of the end of static data (the heap's start) */
+    uint32_t brk_var;                       /* address of the heap's break pointer (sbrk's), 0: none known */
+    sam_blkcost_t memo[SAM_MEMO];
+    /* time */
+    uint64_t t;            /* time of the next block boundary (tu) */
+    uint64_t t_blk;        /* start of the executing block: the time of its register accesses */
+    uint64_t stop_at;      /* the block hook stops before a block starting at or after this time, and takes no
+                              event due at or after it (sam_stop_before lowers it during a run) */
+    uint64_t pos;          /* the board has run to here: every event before it taken, every access before it made */
+    int ev_quiet;          /* set by an event handler that changed nothing (sam_bus_fire): no activity */
+    uint32_t cyc_tu;       /* tu per CPU cycle */
+    uint32_t rws;          /* NVMCTRL.CTRLB.RWS: flash wait states */
+    uint32_t prev_end;     /* end of the previous block, for the untaken-branch refund */
+    uint8_t prev_refund;
+    uint64_t cycles;       /* CPU cycles executed (for reports) */
+    uint64_t *prof;        /* cycles charged per block start (halfword index), NULL: not profiling */
+    uint64_t act;          /* activity counter (events, interrupts, state-changing register accesses) */
+    /* events */
+    uint64_t slot[SAM_NSLOTS];
+    uint64_t next_ev;
+    /* exceptions */
+    sam_nvic_t nvic;
+    sam_systick_t systick;
+    int irq_check;         /* re-evaluate pending exceptions at the next block */
+    int primask_wait;      /* an exception waits for PRIMASK to clear: check every block */
+    int lockup;            /* a fault while in HardFault: the core stops (only a reset helps) */
+    int halted;            /* powered off / held in reset by a fault injection */
+    int in_reset;          /* a reset is pending (processed outside emulation) */
+    uint8_t reset_cause;   /* PM.RCAUSE of the last reset */
+    uint32_t resets;
+    uint32_t hardfaults;
+    uint32_t fault_addr;   /* address of the last bus fault */
+    /* peripherals */
+    const sam_model_t *model[SAM_MAX_PERIPH];
+    void *pst[SAM_MAX_PERIPH];             /* model state */
+    uint8_t *regs[SAM_MAX_PERIPH];          /* register storage (the window's bytes, all views) */
+    int16_t *omap[SAM_MAX_PERIPH][5];       /* offset -> register index per view */
+    uint32_t *touch;                         /* [2 * sam_nregs]: reads, writes per register */
+    uint64_t mmio_reads, mmio_writes;
+    uint64_t runs;         /* emulation starts (uc_emu_start calls) */
+    /* fast-forward */
+    sam_ff_t ff;
+    /* notes (sam_note), collected by the world in board order */
+    char *notes;
+    uint32_t notes_len;
+    /* errors */
+    int err;
+    char errmsg[320];
+    /* board wiring (sam_world.c) */
+    int role;              /* SAM_ROLE_CELL / SAM_ROLE_PRIMARY */
+    int cell;              /* 0-based cell index, -1 for the primary */
+};
+
+/* indices of the peripherals and registers the models name, found once in the generated table */
+typedef struct {
+    int pm, sysctrl, gclk, wdt, eic, nvmctrl, port, iobus, usb, sercom2, tc3, tcc[3], nvic, scb, systick;
+    int pm_cpusel, wdt_ctrl, wdt_config, sercom2_i2cs_ctrlb, tc3_count16_count;
+} sam_index_t;
+extern sam_index_t sam_idx;
+void sam_index_init(void);
+
+/* ---- sam_core.c ---- */
+int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id);
+void sam_mcu_free(sam_mcu_t *m);
+void sam_mcu_power_on_reset(sam_mcu_t *m);
+void sam_mcu_system_reset(sam_mcu_t *m, uint8_t cause);
+int sam_mcu_run(sam_mcu_t *m, uint64_t t_end);
+int sam_mcu_idle_to(sam_mcu_t *m, uint64_t t_end);   /* parked through t_end: 1, pos set */
+void sam_fail(sam_mcu_t *m, const char *fmt, ...);
+void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t);
+static inline uint64_t sam_now(const sam_mcu_t *m) { return m->t_blk; }
+void sam_irq_level(sam_mcu_t *m, int irq, int on);
+void sam_irq_pend_sys(sam_mcu_t *m, int exc);
+static inline void sam_activity(sam_mcu_t *m) { m->act++; }
+const char *sam_reg_name(int ri);
+const sam_field_t *sam_field(int ri, const char *name);
+int sam_periph_index(const char *name);
+int sam_reg_index(int pi, const char *name);
+uint32_t sam_reg_get(sam_mcu_t *m, int ri);
+void sam_reg_put(sam_mcu_t *m, int ri, uint32_t v);
+void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* the table's access rule */
+int sam_reg_at(sam_mcu_t *m, int pi, uint32_t offset);   /* register at this offset in the active view, or -1 */
+uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
+void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
+
+/* ---- sam_clock.c: PM, SYSCTRL, GCLK, NVMCTRL, WDT, and plain-storage peripherals ---- */
+extern const sam_model_t sam_model_pm, sam_model_sysctrl, sam_model_gclk, sam_model_nvmctrl, sam_model_wdt,
+    sam_model_adc, sam_model_dac, sam_model_pac, sam_model_dsu;
+uint64_t sam_gclk_hz(sam_mcu_t *m, int gclk_id);         /* frequency of a peripheral channel, 0 when off */
+uint64_t sam_gen_hz(sam_mcu_t *m, int gen);
+uint64_t sam_dfll_hz(sam_mcu_t *m);
+int sam_apb_on(sam_mcu_t *m, int pi);                     /* the peripheral's bus clock is on in PM */
+
+/* ---- sam_io.c: PORT (+IOBUS), EIC, TC, TCC ---- */
+extern const sam_model_t sam_model_port, sam_model_eic, sam_model_tc, sam_model_tcc;
+void sam_pin_drive(sam_mcu_t *m, int pin, int level);    /* the board drives a pin (-1: released) */
+int sam_pin_level(sam_mcu_t *m, int pin);                 /* level on the pin (board, MCU output, pulls) */
+int sam_pin_function(sam_mcu_t *m, int pin);              /* PMUX letter 0..7 when PMUXEN, else -1 */
+int sam_pin_out(sam_mcu_t *m, int pin, int *driven);      /* GPIO output level and whether the MCU drives it */
+/* high time of WO[wo] over [t0, t1) as an exact fraction: returns the numerator in tu (counts high x tu) and
+ * sets *top to the denominator (the period in counts) */
+uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *top);
+
+/* A step to another board takes effect at t: this board stops before t + SAM_BUS_TMIN, when the other may answer. */
+static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)
+{
+    if (t < m->stop_at)
+        m->stop_at = t;
+}
+
+/* ---- sam_i2c.c: SERCOM in I2C modes, the bus steps between boards ---- */
+extern const sam_model_t sam_model_sercom;
+void sam_bus_fire(sam_mcu_t *m);                          /* SAM_SLOT_BUS */
+uint64_t sam_bus_tmin(void);                              /* shortest SCL period modelled: every step takes >= it */
+uint64_t sam_bus_eot_slave(sam_mcu_t *m);                 /* earliest effect of this slave on a master, SAM_NEVER */
+uint64_t sam_bus_eot_master(sam_mcu_t *m);                /* earliest effect of this master on a slave, SAM_NEVER */
+void sam_bus_take_quiet(sam_mcu_t *m, uint64_t t_end);    /* parked: take the steps that change nothing */
+void sam_bus_power_lost(sam_mcu_t *m);                    /* it lets go of the bus */
+void sam_bus_lines_changed(sam_mcu_t *m);                 /* the primary's SDA/SCL pins or the SDA fault changed */
+
+/* ---- sam_usb.c: USB device controller, host side ---- */
+extern const sam_model_t sam_model_usb;
+void sam_usb_fire(sam_mcu_t *m);                          /* SAM_SLOT_USB */
+
+/* ---- sam_world.c ---- */
+void sam_world_pin_event(sam_mcu_t *m);                   /* SAM_SLOT_PINS */
+void sam_world_fault_fire(sam_mcu_t *m);                  /* SAM_SLOT_FAULT */
+void sam_world_pins_will_change(sam_mcu_t *m);            /* before a pin's level or mux changes: motors integrate */
+void sam_world_pins_changed(sam_mcu_t *m);                /* after: the bus lines are re-read */
+void sam_world_tcc_will_change(sam_mcu_t *m, int tcc);    /* before a TCC's duty changes (now or later) */
+void sam_world_note(sam_world_t *w, const char *fmt, ...); /* a log line from the world, read by Python */
+void sam_note(sam_mcu_t *m, const char *fmt, ...);         /* a log line from a board (resets, faults, traces) */
+#define SAM_BOARD_NOTES (256u * 1024u)
+
+#endif /* SAM_H */

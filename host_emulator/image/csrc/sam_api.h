@@ -1,0 +1,160 @@
+/* Interface of the image tier's runtime to Python (cffi): a world of SAMD21 boards running flashed images on a plant. */
+#ifndef SAM_API_H
+#define SAM_API_H
+
+#include <stdint.h>
+#ifndef MC_CDEF /* the FFI pass sees he_plant.h in the same umbrella */
+#include "he_plant.h"
+#endif
+
+typedef struct sam_world sam_world_t;
+
+enum { SAM_ROLE_CELL = 0, SAM_ROLE_PRIMARY = 1 };
+enum { SAM_MAX_MCU = 17 };
+enum { SAM_CYCLES_CACHE = 0, SAM_CYCLES_WORST = 1 };
+
+/* Injectable faults (sam_world_fault): each active for [t0, t1) of world time. */
+enum {
+    SAM_FAULT_EDGE_STORM = 0,  /* arg Hz of glitch pairs (channel A toggles and back 1 us later) on arg2's encoder
+                                  (0 alpha, 1 beta) of the cell */
+    SAM_FAULT_STUCK_SDA = 1,   /* the bus's SDA line held low (a shorted or latched-up part) */
+    SAM_FAULT_SILENT = 2,      /* the board loses power: pins released, no answer on the bus; power-on reset at t1 */
+    SAM_FAULT_USB_NO_READ = 3, /* the USB host stops taking IN packets from the board */
+    SAM_FAULT_HARDFAULT = 4,   /* a HardFault is raised on the board at t0 (as a bad pointer would) */
+    SAM_FAULT_TICK_DEAD = 5,   /* the board's TC3 stops counting (its clock lost): the control tick dies */
+    SAM_FAULT_SPIN = 6,        /* not a fault: the cell's encoder arg2 & 1 (0 alpha, 1 beta) turns at arg counts/s
+                                  (< 0: backwards), back and forth by arg2 >> 1 counts when that is not 0: quadrature
+                                  edges without the plant (for tests and benchmarks, with the plant at rest) */
+    SAM_FAULT_COUNT = 7
+};
+
+typedef struct {
+    int32_t ncells;            /* cells on the bus, 1..16 */
+    int32_t primary;           /* 1: a primary board polls the bus and speaks USB to the host */
+    double window_s;           /* plant window: the plant steps once per window with each motor's mean voltage of the
+                                  window before (a lag of one window) */
+    int32_t substeps;          /* plant steps per window */
+    int32_t stepper;           /* HE_STEP_* */
+    double supply_v;           /* motor supply, V */
+    double kt;                 /* motor torque constant, N*m/V */
+    double counts_per_rad;     /* encoder counts per radian (400 / 2 pi) */
+    double i2c_rise_ns;        /* SCL rise time: part of every SCL period */
+    double usb_packet_us;      /* USB host: time to move one packet (full speed, with its scheduling) */
+    int32_t ff;                /* 1: fast-forward provably idle loop() passes */
+    int32_t cycle_model;       /* SAM_CYCLES_CACHE (flash waits on NVM cache misses) or SAM_CYCLES_WORST (the CPU
+                                  budget's bound: a wait on every fetch and refill) */
+    double round_s;            /* the longest stretch of time the world lets the boards run apart before it
+                                  meets them again (0: the plant window); results do not depend on it */
+    int32_t trace;             /* bit 0: log every I2C bus step in the notes; bit 2: every register access of the
+                                  boards in trace_boards (bit b: board b); bit 3: their exception entries and returns;
+                                  bit 5: every change of their state (a register access that changed something, an
+                                  exception entry or return; time in tu): the same whatever the schedule and
+                                  fast-forwarding */
+    int32_t trace_boards;
+    int32_t cyc_exc_entry, cyc_exc_exit, cyc_apb;   /* cycles of an exception entry, return, and of an access
+                                  through the AHB-APB bridge (the CPU budget's CycleModel) */
+    int32_t threads;           /* threads the boards run on (1..16): cells that cannot affect anyone for a while
+                                  run at the same time; results do not depend on it */
+    he_plant_t *plant;
+    double *x, *v;             /* plant state (2n each), updated at window ends */
+    /* board wiring, pins 0..31 = PA00..PA31, 32..63 = PB00..PB31 (docs/image-tier.md) */
+    int32_t pin_nsleep;        /* DRV8874 nSLEEP of both drivers */
+    int32_t pin_ph[2];         /* PH of the alpha and beta drivers */
+    int32_t pin_en[2];         /* EN of the alpha and beta drivers */
+    int32_t pin_enc[2][2];     /* encoder [alpha|beta][A|B] */
+    int32_t pin_sda, pin_scl;  /* I2C bus */
+} sam_world_cfg_t;
+
+typedef struct {
+    uint32_t addr;             /* load (physical) address */
+    uint32_t len;
+    const uint8_t *data;
+} sam_seg_t;
+
+typedef struct {
+    uint64_t t_tu;             /* board time (tu) */
+    uint64_t cycles;           /* CPU cycles executed */
+    uint64_t activity;
+    uint32_t pc, sp, ipsr, primask;
+    uint32_t resets, hardfaults;
+    uint8_t reset_cause;       /* PM.RCAUSE bits of the last reset */
+    int32_t lockup, halted;
+    uint64_t ff_passes_skipped, ff_cycles_skipped, ff_parks, ff_checks, ff_misses;
+    uint64_t mmio_reads, mmio_writes;
+    uint64_t runs;             /* emulation starts: each costs the emulator a fixed overhead */
+    uint32_t nvic_enabled, nvic_pending, nvic_active;
+    uint8_t nvic_prio[32];
+} sam_mcu_info_t;
+
+typedef struct {
+    uint64_t transactions, nacks, timeouts_seen, stretch_tu, busy_tu;
+    uint64_t arblost, buserr, stops, gpio_stops;
+    int32_t sda, scl;          /* line levels now */
+} sam_bus_info_t;
+
+typedef struct {
+    int32_t attached, enumerated, configured, dtr;
+    uint64_t in_bytes, out_bytes, in_packets, out_packets, control_transfers, sof;
+    int32_t error;             /* 1 when a transfer failed (the message is in the notes) */
+} sam_usb_info_t;
+
+/* world */
+int sam_world_new(sam_world_t **out, const sam_world_cfg_t *cfg);
+void sam_world_free(sam_world_t *w);
+const char *sam_world_error(const sam_world_t *w);
+/* What the world needs of a board's image (elfimage.py reads it from the ELF). */
+typedef struct {
+    const sam_seg_t *segs;     /* load segments (flash) */
+    int32_t nsegs;
+    uint32_t entry_sp, entry_pc;   /* from the vector table at the application's start */
+    /* cycle tables (cycles.py): prefix sums over the halfwords of flash, and per halfword what a conditional
+     * branch there costs less when not taken */
+    const uint32_t *cost_core, *cost_wait, *cost_lit;
+    const uint8_t *refund;
+    uint32_t code_end;         /* first address past the code */
+    uint32_t loop_pc;          /* loop(): where idle passes are fast-forwarded (0: never) */
+    uint32_t heap_base;        /* end of static data in SRAM (the heap starts there); 0: unknown */
+    uint32_t brk_var;          /* address of the heap's break pointer; 0: none (the heap is unknown if it exists) */
+} sam_image_t;
+
+/* Load a board (its role and cell index); it powers on now. */
+int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *name, int32_t role, int32_t cell);
+/* Run every board and the plant to world time t_end (tu); SAM_OK (0) or -1 (sam_world_error says why). */
+int sam_world_run(sam_world_t *w, uint64_t t_end);
+uint64_t sam_world_time(const sam_world_t *w);
+uint64_t sam_tu_hz(void);
+/* Start the plant clock: the plant's time is world time minus t_start (tu); before, the plant rests. */
+void sam_world_start_plant(sam_world_t *w, uint64_t t_start);
+int sam_world_fault(sam_world_t *w, int32_t kind, int32_t mcu, uint64_t t0, uint64_t t1, double arg, int32_t arg2);
+/* Read a board's state; RAM (addr in 0x20000000..+32K); register access counters (2 * sam_nregs: reads, writes). */
+int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *out);
+int sam_world_read_mem(const sam_world_t *w, int mcu, uint32_t addr, uint8_t *buf, uint32_t len);
+const uint32_t *sam_world_touch(const sam_world_t *w, int mcu);
+uint32_t sam_world_nregs(void);
+const char *sam_world_reg_name(uint32_t ri);
+/* The stored value of register ri of a board (its storage: what the generic layer keeps; models may add state). */
+int sam_world_reg_value(const sam_world_t *w, int mcu, uint32_t ri, uint32_t *value);
+/* Start profiling a board (first call) and return its profile: CPU cycles charged per block, indexed by the
+ * block's start address / 2 (SAM_FLASH_SIZE / 2 entries, cumulative; exception entry and return not included);
+ * NULL if out of memory. */
+const uint64_t *sam_world_profile(sam_world_t *w, int mcu);
+int sam_world_bus_info(const sam_world_t *w, sam_bus_info_t *out);
+/* Motor drive of a cell as the plant last saw it: mean voltage and awake fraction of the last window. */
+int sam_world_motor(const sam_world_t *w, int cell, int chain, double *volt, double *awake);
+/* Log lines (resets, faults, USB errors) since the last call, '\n'-separated; returns bytes written. */
+uint32_t sam_world_notes(sam_world_t *w, char *buf, uint32_t cap);
+/* Change what is traced into the notes (sam_world_cfg_t.trace, .trace_boards) from now on. */
+void sam_world_set_trace(sam_world_t *w, int32_t trace, int32_t boards);
+
+/* USB host on a board's port. attach: plug in (bus reset, enumeration, SET_CONFIGURATION); open: line coding
+ * 115200 8N1 and DTR (the laptop opening the port), close: DTR dropped. Bytes written are sent as bulk OUT
+ * packets; bytes the board sends arrive in a buffer read by sam_usb_read. */
+int sam_usb_attach(sam_world_t *w, int mcu);
+int sam_usb_set_dtr(sam_world_t *w, int mcu, int32_t dtr);
+int sam_usb_write(sam_world_t *w, int mcu, const uint8_t *data, uint32_t n);
+uint32_t sam_usb_read(sam_world_t *w, int mcu, uint8_t *buf, uint32_t cap);
+int sam_usb_info(const sam_world_t *w, int mcu, sam_usb_info_t *out);
+/* A control transfer from the host (for tests): setup packet, data for OUT stages; completes asynchronously. */
+int sam_usb_control(sam_world_t *w, int mcu, const uint8_t setup[8], const uint8_t *data, uint32_t n);
+
+#endif /* SAM_API_H */

@@ -1,0 +1,150 @@
+/* The world of the image tier: boards, the plant they drive, encoders, the I2C bus and the USB host (internal). */
+#ifndef SAM_WORLD_H
+#define SAM_WORLD_H
+
+#include <pthread.h>
+#include "sam.h"
+
+/* pin level changes the board (encoders, faults) applies to one board's pins, in time order */
+typedef struct {
+    uint64_t t;
+    int8_t pin;
+    int8_t level;   /* 0, 1; -1 released */
+} sam_pinev_t;
+
+#define SAM_PINQ 8192
+typedef struct {
+    sam_pinev_t ev[SAM_PINQ];
+    unsigned head, n;
+} sam_pinq_t;
+
+/* one DRV8874 + motor: the mean of V(t) and of "awake" over the current window, from the board's pins. The
+ * integrals are exact integers (EN's high time in tu/top, tu awake), so where they are split cannot change a bit. */
+typedef struct {
+    int64_t hi;           /* signed integral of EN's level while awake (PH's sign), in tu / den */
+    uint64_t den;         /* its denominator: the PWM period in counts (1 for a GPIO level) */
+    double hi_other;      /* the part with another denominator (a PWM period changed inside the window), tu */
+    uint64_t awake_tu;    /* time awake */
+    uint64_t t_last;      /* integrated up to here (tu) */
+    double volt, awake;   /* means of the last window (what the plant used) */
+} sam_motor_t;
+
+/* ---- I2C bus (sam_i2c.c) ----
+ * Boards affect each other only through bus steps: timestamped messages into the receiver's queue, each at least
+ * one SCL period T after its cause (sam_i2c.c lists them). No board reads another board's state. */
+enum { BUS_EV_NONE = 0,
+       /* to slaves */
+       BUS_EV_S_ADDRESS, BUS_EV_S_DRDY_RX, BUS_EV_S_DRDY_TX, BUS_EV_S_PREC, BUS_EV_S_RESET,
+       /* to the master: from a slave */
+       BUS_EV_M_CLAIM, BUS_EV_M_HOLD, BUS_EV_M_RELEASE, BUS_EV_M_MB, BUS_EV_M_SB,
+       /* to the master: its own steps */
+       BUS_EV_M_NACKCHECK, BUS_EV_M_IDLE, BUS_EV_M_ARBLOST, BUS_EV_M_TIMEOUT,
+       BUS_EV_COUNT };
+typedef struct {
+    uint64_t t;
+    uint32_t tbit;                  /* the SCL period of the transaction it belongs to (tu) */
+    uint8_t kind, arg, arg2, src;   /* src: the sending board */
+} sam_busev_t;
+#define SAM_BUSQ 64
+typedef struct {
+    sam_busev_t ev[SAM_BUSQ];
+    int n;
+} sam_busq_t;
+
+/* what a master knows of the lines (not reset with its SERCOM: the lines are not its state) */
+typedef struct {
+    int held;             /* a slave holds SCL low: the master's view, from the slave's HOLD/CLAIM ... RELEASE */
+    uint64_t hold_start;  /* when that slave began to hold (tu) */
+    int gpio_sda, gpio_scl;   /* line levels while the master drives them as GPIO (1 released) */
+} sam_lineview_t;
+
+typedef struct {
+    int sda_stuck;        /* fault (world level, changed only at a round boundary) */
+    sam_lineview_t view[SAM_MAX_MCU];
+    sam_busq_t q[SAM_MAX_MCU];
+    sam_bus_info_t info[SAM_MAX_MCU];   /* each board counts its own part; the sum is the bus's */
+} sam_bus_t;
+
+/* ---- USB host (sam_usb.c) ---- */
+#define SAM_USB_BUF 65536
+#define SAM_USB_HQ 32
+typedef struct {
+    uint64_t t;
+    int kind, arg;
+} sam_hev_t;
+typedef struct {
+    sam_hev_t hq[SAM_USB_HQ];   /* the host's pending actions on this port, in time order */
+    int hq_n;
+    int cdc_in, cdc_out;        /* the CDC data endpoints found in the configuration descriptor */
+    int attached, enumerated, configured, dtr, no_read, error;
+    int step;             /* position in the host's script (enumeration, control requests) */
+    int busy;             /* a control transfer in progress: its stage */
+    uint8_t setup[8];
+    uint8_t ctl_data[256];
+    uint32_t ctl_len, ctl_done;
+    int ctl_queue_n;
+    uint8_t ctl_queue[8][8 + 64];
+    uint32_t ctl_queue_len[8];
+    uint8_t addr;
+    uint8_t out[SAM_USB_BUF];   /* bytes to send (bulk OUT) */
+    uint32_t out_head, out_n;
+    uint8_t in[SAM_USB_BUF];    /* bytes received (bulk IN) */
+    uint32_t in_head, in_n;
+    uint64_t in_dropped;
+    uint64_t next_sof;
+    sam_usb_info_t info;
+} sam_usbhost_t;
+
+/* ---- faults ---- */
+#define SAM_MAX_FAULTS 256
+typedef struct {
+    int kind, mcu, arg2, started, ended;
+    uint64_t t0, t1;
+    double arg;
+    uint64_t next;        /* edge storm: next glitch; spin: next edge */
+    int32_t leg, dir;     /* spin back and forth: counts into the current leg, its direction */
+} sam_fault_t;
+
+/* worker threads (sam_world.c) */
+#define SAM_MAX_THREADS 16
+typedef struct {
+    int init, nworkers;
+    pthread_t th[SAM_MAX_THREADS];
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    unsigned gen;         /* a new set of jobs */
+    int quit, sleeping, busy, next, njobs;
+    sam_mcu_t *job[SAM_MAX_MCU];
+    uint64_t job_to[SAM_MAX_MCU];
+} sam_pool_t;
+
+struct sam_world {
+    sam_world_cfg_t cfg;
+    int nmcu;
+    sam_mcu_t *mcu[SAM_MAX_MCU];
+    int cell_mcu[16];     /* board index of cell j, -1 */
+    int primary_mcu;
+    uint64_t t;           /* every board is at or past this time */
+    uint64_t window_tu, round_tu, next_window;
+    uint64_t plant_start; /* SAM_NEVER: the plant rests */
+    double plant_t;       /* the plant's own time (s) */
+    double *xprev;        /* plant angles at the window start */
+    sam_motor_t motor[16][2];
+    int32_t count[16][2]; /* encoder counts */
+    uint8_t enc_level[16][2][2];
+    sam_pinq_t pinq[SAM_MAX_MCU];
+    sam_bus_t bus;
+    sam_usbhost_t usb[SAM_MAX_MCU];
+    sam_fault_t fault[SAM_MAX_FAULTS];
+    int nfault;
+    sam_pool_t pool;
+    char err[512];
+    char notes[1 << 20];
+    uint32_t notes_len;
+};
+
+int sam_world_pinq_push(sam_world_t *w, int mcu, uint64_t t, int pin, int level);
+void sam_bus_init(sam_world_t *w);
+void sam_usb_world_init(sam_world_t *w);
+
+#endif /* SAM_WORLD_H */

@@ -1,0 +1,123 @@
+"""Build and load the image tier's compiled runtime: the SAMD21 board models and world (image/csrc), the plant
+(host_emulator/csrc) and the firmware library, linked with Unicorn's static library, loaded through cffi.
+
+The register table and a host-compilable view of the vendor's device headers are generated into the build
+directory from the headers of the PlatformIO tree that builds the images (regtable.py); nothing generated is kept
+in the repository. The build is cached by a hash of every source, the generated files and the flags.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import shutil
+import sys
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any
+
+from .. import firmware
+from . import ImageTierUnavailable, regtable
+
+IMAGE_CSRC = Path(__file__).resolve().parent / "csrc"
+RUNTIME_HEADERS = ("sam_regtab.h", "sam_api.h")  # the cffi-visible part of the runtime
+
+
+class RuntimeBuildError(ImageTierUnavailable):
+    """The runtime cannot be built (Unicorn, the device headers or a C compiler missing)."""
+
+
+def unicorn_paths() -> tuple[Path, Path]:
+    """(include dir, static library) of the installed unicorn wheel."""
+    spec = importlib.util.find_spec("unicorn")
+    if spec is None or not spec.origin:
+        raise RuntimeBuildError(
+            "the image tier needs the unicorn package (Python); install the project's dependencies "
+            "(pip install -e . in the repository, or make setup)"
+        )
+    root = Path(spec.origin).resolve().parent
+    inc, lib = root / "include", root / "lib" / "libunicorn.a"
+    if not (inc / "unicorn" / "unicorn.h").is_file() or not lib.is_file():
+        raise RuntimeBuildError(f"the unicorn package at {root} lacks include/unicorn/unicorn.h or lib/libunicorn.a")
+    return inc, lib
+
+
+_lock = threading.Lock()
+_cache: dict[str, tuple[Any, Any]] = {}
+
+
+def load(pio_tree: str | None = None) -> tuple[Any, Any]:
+    """(ffi, lib) of the runtime, built on first use (RuntimeBuildError, regtable.RegTableError)."""
+    inc, libuc = unicorn_paths()
+    table = regtable.load(pio_tree)
+    gen_c = regtable.emit_c(table)
+    gen_h = regtable.emit_vendor_h(table)
+    fw_srcs = firmware._sources()
+    fw_hdrs = firmware._headers()
+    img_srcs = sorted(IMAGE_CSRC.glob("*.c"))
+    img_hdrs = sorted(IMAGE_CSRC.glob("*.h"))
+    h = hashlib.sha256()
+    for p in fw_srcs + fw_hdrs + img_srcs + img_hdrs:
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
+    h.update(gen_c.encode())
+    h.update(gen_h.encode())
+    h.update(libuc.read_bytes()[:4096])
+    h.update(str(libuc.stat().st_size).encode())
+    h.update(" ".join(firmware.CFLAGS + firmware.LDFLAGS).encode())
+    h.update(sys.version.encode())
+    key = h.hexdigest()[:16]
+    with _lock:
+        if key not in _cache:
+            mod = _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, Path(table.source), inc, libuc)
+            _cache[key] = (mod.ffi, mod.lib)
+        return _cache[key]
+
+
+def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path, uc_inc: Path, libuc: Path):
+    name = f"_mcimg_{key}"
+    outdir = firmware.BUILD_DIR.parent / "image" / key
+    so = next(outdir.glob(f"{name}*.so"), None) if outdir.exists() else None
+    if so is None:
+        import cffi
+
+        gen_dir = outdir / "gen"
+        gen_dir.mkdir(parents=True, exist_ok=True)
+        (gen_dir / "sam_regtab_gen.c").write_text(gen_c)
+        (gen_dir / "sam_vendor_gen.h").write_text(gen_h)
+        srcs = [*fw_srcs, *img_srcs, gen_dir / "sam_regtab_gen.c"]
+        incs = [firmware.LIB_SRC, firmware.HOST_CSRC, IMAGE_CSRC, gen_dir]
+        # the vendor's and Unicorn's headers are system headers: -pedantic judges only our sources
+        sys_incs = [f"-isystem{atmel_inc}", f"-isystem{uc_inc}"]
+        firmware.check_pedantic([s for s in img_srcs], incs, tuple(sys_incs))
+        ffi = cffi.FFI()
+        headers = [*fw_hdrs, *(IMAGE_CSRC / h for h in RUNTIME_HEADERS)]
+        ffi.cdef(firmware.cdef_source(headers))
+        ffi.set_source(
+            name,
+            "".join(f'#include "{h}"\n' for h in headers),
+            sources=[str(s) for s in srcs],
+            include_dirs=[str(d) for d in incs],
+            extra_compile_args=[*firmware.CFLAGS, *sys_incs, "-pthread"],
+            extra_link_args=[*firmware.LDFLAGS, str(libuc), "-pthread", "-lm"],
+        )
+        tmp = Path(tempfile.mkdtemp(prefix="mcimg-", dir=outdir.parent))
+        try:
+            try:
+                built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
+            except Exception as e:  # cffi raises VerificationError/CompileError/LinkError
+                raise RuntimeBuildError(f"compiling the image tier's runtime failed ({type(e).__name__}: {e})") from e
+            so = outdir / built.name
+            part = outdir / f".{built.name}.{os.getpid()}"
+            shutil.copy2(built, part)
+            os.replace(part, so)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    spec = importlib.util.spec_from_file_location(name, so)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load the compiled module {so}")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

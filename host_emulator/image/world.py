@@ -1,0 +1,314 @@
+"""A world of boards running flashed images on the plant: the Python face of the compiled runtime (csrc/sam_world.c)."""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.options import ModelOptions, Perturbation
+from ..models.plant import build_plant
+from ..params import Params
+from . import board, cycles, runtime
+from .build import ImageSet
+from .elfimage import FirmwareImage, load_image
+
+NOTES_KEPT = 100_000  # log lines World.notes keeps
+
+
+class WorldError(RuntimeError):
+    """The world stopped: a board did something the models do not cover, or the plant failed. The message names
+    the board, the register or the cause, the program counter and the time."""
+
+
+@dataclass
+class WorldConfig:
+    window_s: float = 50e-6  # plant window (the lag between a motor's voltage and the plant's response)
+    substeps: int = 1  # plant steps per window
+    round_s: float = 0.0  # longest time boards run apart before the world meets them again; 0: the window
+    ff: bool = True  # fast-forward provably idle loop() passes
+    cycle_model: str = "cache"  # "cache": flash waits on NVM cache misses; "worst": the CPU budget's bound
+    i2c_rise_ns: float = 125.0  # SCL rise time on the rig's bus (part of each SCL period)
+    usb_packet_us: float = 50.0  # the laptop's USB host: time to move one packet
+    trace: int = 0  # bit 0: every I2C bus step in the notes; bit 2: every register access of trace_boards
+    trace_boards: int = 0  # bit b: board b
+    threads: int = 1  # threads the boards run on (1..16); results do not depend on it
+
+
+@dataclass
+class Board:
+    index: int
+    name: str
+    role: str  # "cell" | "primary"
+    cell: int | None  # 1-based
+    image: FirmwareImage
+    keep: list = field(default_factory=list, repr=False)
+
+
+class World:
+    """Boards (16 cells and the primary by default) on the plant of `params`, from power-up (time 0)."""
+
+    def __init__(
+        self,
+        params: Params,
+        images: ImageSet,
+        *,
+        options: ModelOptions | None = None,
+        perturbations: Sequence[Perturbation] = (),
+        config: WorldConfig | None = None,
+        primary: bool = True,
+        x0=None,
+    ) -> None:
+        self.ffi, self.lib = runtime.load()
+        ffi, lib = self.ffi, self.lib
+        self.params = params
+        self.config = cfg = config or WorldConfig()
+        self.options = options or ModelOptions()
+        n = params.cells
+        if len(images.cells) < n:
+            raise ValueError(f"{n} cells but images for {len(images.cells)}")
+        self.n = n
+        self.plant = build_plant(ffi, lib, params, self.options, n, list(perturbations), ideal_reaction=False)
+        self.x = np.zeros(2 * n) if x0 is None else np.array(x0, dtype=float).reshape(2 * n)
+        self.v = np.zeros(2 * n)
+        self.tu_hz = int(lib.sam_tu_hz())
+        c = ffi.new("sam_world_cfg_t *")
+        c.ncells = n
+        c.primary = 1 if primary else 0
+        c.window_s = cfg.window_s
+        c.substeps = cfg.substeps
+        from ..models.steppers import stepper_id
+
+        c.stepper = stepper_id(lib, self.options.stepper)
+        c.supply_v = params.supply_v
+        c.kt = params.kt
+        c.counts_per_rad = lib.MC_COUNTS_PER_REV / (2 * math.pi)
+        c.i2c_rise_ns = cfg.i2c_rise_ns
+        c.usb_packet_us = cfg.usb_packet_us
+        c.ff = 1 if cfg.ff else 0
+        if cfg.cycle_model not in cycles.CYCLE_MODELS:
+            raise ValueError(f"cycle_model = {cfg.cycle_model!r}: expected one of {', '.join(cycles.CYCLE_MODELS)}")
+        c.cycle_model = cycles.CYCLE_MODELS.index(cfg.cycle_model)
+        c.round_s = cfg.round_s
+        c.threads = cfg.threads
+        cm = cycles.CycleModel()
+        c.cyc_exc_entry, c.cyc_exc_exit, c.cyc_apb = cm.exc_entry, cm.exc_exit, cm.apb_extra
+        c.trace = cfg.trace
+        c.trace_boards = cfg.trace_boards
+        c.plant = self.plant
+        self._px = ffi.from_buffer("double[]", self.x)
+        self._pv = ffi.from_buffer("double[]", self.v)
+        c.x = self._px
+        c.v = self._pv
+        board.wire(c)
+        self._cfg = c
+        wp = ffi.new("sam_world_t **")
+        rc = lib.sam_world_new(wp, c)
+        self._w = ffi.gc(wp[0], lib.sam_world_free)
+        if rc != 0:
+            raise WorldError(ffi.string(lib.sam_world_error(self._w)).decode())
+        self.boards: list[Board] = []
+        self._notes: list[str] = []
+        for j in range(1, n + 1):
+            self._load(load_image(images.cells[j - 1]), f"cell {j}", "cell", j)
+        self.primary = None
+        if primary:
+            self.primary = self._load(load_image(images.primary), "primary", "primary", None)
+
+    def _load(self, img: FirmwareImage, name: str, role: str, cell: int | None) -> Board:
+        ffi, lib = self.ffi, self.lib
+        idx = len(self.boards)
+        b = Board(idx, name, role, cell, img)
+        segs = ffi.new("sam_seg_t[]", len(img.segments))
+        for i, s in enumerate(img.segments):
+            buf = ffi.new("uint8_t[]", s.data)
+            b.keep.append(buf)
+            segs[i].addr = s.addr
+            segs[i].len = len(s.data)
+            segs[i].data = buf
+        t = img.tables
+        core = ffi.from_buffer("uint32_t[]", t.core)
+        wait = ffi.from_buffer("uint32_t[]", t.wait)
+        lit = ffi.from_buffer("uint32_t[]", t.literal)
+        refund = ffi.from_buffer("uint8_t[]", t.refund)
+        im = ffi.new("sam_image_t *")
+        im.segs = segs
+        im.nsegs = len(img.segments)
+        im.entry_sp = img.entry_sp
+        im.entry_pc = img.entry_pc
+        im.cost_core, im.cost_wait, im.cost_lit, im.refund = core, wait, lit, refund
+        im.code_end = t.code_end
+        im.loop_pc = img.symbols.get("loop", (0, 0))[0]
+        im.heap_base = img.heap_base
+        im.brk_var = img.brk_var
+        b.keep += [segs, core, wait, lit, refund, t, im]
+        rc = lib.sam_world_load(
+            self._w,
+            idx,
+            im,
+            name.encode(),
+            lib.SAM_ROLE_CELL if role == "cell" else lib.SAM_ROLE_PRIMARY,
+            (cell - 1) if cell else -1,
+        )
+        if rc != 0:
+            raise WorldError(ffi.string(lib.sam_world_error(self._w)).decode())
+        self.boards.append(b)
+        return b
+
+    # ---- time ------------------------------------------------------------------
+    def tu(self, seconds: float) -> int:
+        return round(seconds * self.tu_hz)
+
+    @property
+    def t(self) -> float:
+        return int(self.lib.sam_world_time(self._w)) / self.tu_hz
+
+    def run_to(self, t_s: float) -> None:
+        """Run every board and the plant to world time t_s (WorldError if the run stops)."""
+        if self.lib.sam_world_run(self._w, self.tu(t_s)) != 0:
+            raise WorldError(self.ffi.string(self.lib.sam_world_error(self._w)).decode())
+
+    def start_plant(self, at_s: float | None = None) -> float:
+        """The plant's clock starts (scene time 0): now, or at world time at_s."""
+        t = self.t if at_s is None else at_s
+        self.lib.sam_world_start_plant(self._w, self.tu(t))
+        return t
+
+    def trace(self, what: int, boards: int = 0) -> None:
+        """Trace into the notes from now on (WorldConfig.trace bits; boards: bit b for board b)."""
+        self.lib.sam_world_set_trace(self._w, what, boards)
+
+    def notes(self) -> list[str]:
+        """Every log line so far (resets, faults, USB errors, traces), oldest first (the newest NOTES_KEPT)."""
+        buf = self.ffi.new("char[]", 1 << 20)
+        while True:
+            n = self.lib.sam_world_notes(self._w, buf, 1 << 20)
+            if not n:
+                break
+            self._notes += [ln for ln in self.ffi.unpack(buf, n).decode(errors="replace").splitlines() if ln]
+        del self._notes[:-NOTES_KEPT]
+        return list(self._notes)
+
+    def take_notes(self) -> list[str]:
+        """The log lines since the last take_notes (for traces read as they come)."""
+        out = self.notes()
+        self._notes.clear()
+        return out
+
+    # ---- faults ----------------------------------------------------------------
+    def fault(
+        self, kind: str, t0_s: float, t1_s: float | None = None, *, board: int = -1, arg: float = 0.0, arg2: int = 0
+    ) -> None:
+        """Inject a fault (csrc/sam_api.h: SAM_FAULT_<KIND>) on board `board` for world time [t0_s, t1_s)."""
+        code = getattr(self.lib, f"SAM_FAULT_{kind.upper()}", None)
+        if not isinstance(code, int) or code >= self.lib.SAM_FAULT_COUNT:
+            raise ValueError(f"fault {kind!r}: the runtime has no such fault (csrc/sam_api.h SAM_FAULT_*)")
+        t1 = t0_s if t1_s is None else t1_s
+        rc = self.lib.sam_world_fault(self._w, code, board, self.tu(t0_s), self.tu(t1), arg, arg2)
+        if rc != 0:
+            raise ValueError(self.ffi.string(self.lib.sam_world_error(self._w)).decode())
+
+    def spin(
+        self, cell: int, chain: str, counts_per_s: float, t0_s: float, t1_s: float, back_and_forth: int = 0
+    ) -> None:
+        """Turn a cell's encoder (not its cylinder) at counts_per_s (< 0: backwards) over world time [t0_s, t1_s),
+        back and forth by `back_and_forth` counts when given: quadrature edges on its pins as the encoder gives them.
+        For tests and benchmarks with the plant at rest (refused once the plant runs: it drives the encoders)."""
+        b = next((x for x in self.boards if x.cell == cell), None)
+        if b is None or chain not in ("alpha", "beta") or back_and_forth < 0:
+            raise ValueError(f"spin: cell {cell} chain {chain!r} ({back_and_forth}): no such encoder or swing")
+        arg2 = (0 if chain == "alpha" else 1) | (back_and_forth << 1)
+        self.fault("spin", t0_s, t1_s, board=b.index, arg=counts_per_s, arg2=arg2)
+
+    # ---- boards ----------------------------------------------------------------
+    def info(self, b: int):
+        out = self.ffi.new("sam_mcu_info_t *")
+        if self.lib.sam_world_mcu_info(self._w, b, out) != 0:
+            raise IndexError(b)
+        return out
+
+    def read_mem(self, b: int, addr: int, n: int) -> bytes:
+        buf = self.ffi.new("uint8_t[]", n)
+        if self.lib.sam_world_read_mem(self._w, b, addr, buf, n) != 0:
+            raise ValueError(f"board {b}: 0x{addr:08x}+{n} is not SRAM or flash")
+        return bytes(buf)
+
+    def symbol(self, b: int, name: str, fmt: str = "<I"):
+        """A variable of a board's image, read from its SRAM (struct format)."""
+        img = self.boards[b].image
+        addr = img.symbol(name)
+        val = struct.unpack(fmt, self.read_mem(b, addr, struct.calcsize(fmt)))
+        return val[0] if len(val) == 1 else val
+
+    def touched(self, b: int) -> list[tuple[str, int, int]]:
+        """(register, reads, writes) of every register the board's image accessed."""
+        t = self.lib.sam_world_touch(self._w, b)
+        out = []
+        for i in range(int(self.lib.sam_world_nregs())):
+            r, w = int(t[2 * i]), int(t[2 * i + 1])
+            if r or w:
+                out.append((self.ffi.string(self.lib.sam_world_reg_name(i)).decode(), r, w))
+        return out
+
+    def register(self, b: int, name: str) -> int:
+        """The stored value of a register of a board, by its full name ("SERCOM2.I2CM.CTRLA")."""
+        idx = self._reg_index().get(name)
+        if idx is None:
+            raise KeyError(f"no register {name!r}")
+        out = self.ffi.new("uint32_t *")
+        self.lib.sam_world_reg_value(self._w, b, idx, out)
+        return int(out[0])
+
+    def _reg_index(self) -> dict[str, int]:
+        if not hasattr(self, "_regidx"):
+            self._regidx = {
+                self.ffi.string(self.lib.sam_world_reg_name(i)).decode(): i
+                for i in range(int(self.lib.sam_world_nregs()))
+            }
+        return self._regidx
+
+    def profile(self, b: int) -> np.ndarray:
+        """The board's cycle profile (cycles charged per block start, by address / 2), cumulative from the first
+        call: the first call starts it."""
+        p = self.lib.sam_world_profile(self._w, b)
+        if p == self.ffi.NULL:
+            raise MemoryError("profile")
+        n = cycles.FLASH_SIZE // 2
+        return np.frombuffer(self.ffi.buffer(p, 8 * n), dtype=np.uint64).copy()
+
+    def bus_info(self):
+        out = self.ffi.new("sam_bus_info_t *")
+        self.lib.sam_world_bus_info(self._w, out)
+        return out
+
+    def motor(self, cell: int, chain: int) -> tuple[float, float]:
+        v, a = self.ffi.new("double *"), self.ffi.new("double *")
+        self.lib.sam_world_motor(self._w, cell - 1, chain, v, a)
+        return float(v[0]), float(a[0])
+
+    # ---- USB host --------------------------------------------------------------
+    def usb_attach(self, b: int) -> None:
+        if self.lib.sam_usb_attach(self._w, b) != 0:
+            raise ValueError(f"board {b}: no such board")
+
+    def usb_dtr(self, b: int, on: bool) -> None:
+        if self.lib.sam_usb_set_dtr(self._w, b, 1 if on else 0) != 0:
+            raise ValueError(f"board {b}: USB not attached")
+
+    def usb_write(self, b: int, data: bytes) -> int:
+        return int(self.lib.sam_usb_write(self._w, b, data, len(data)))
+
+    def usb_read(self, b: int) -> bytes:
+        """Every byte the board sent the laptop since the last read."""
+        if not hasattr(self, "_usbbuf"):
+            self._usbbuf = self.ffi.new("uint8_t[]", 65536)
+        n = self.lib.sam_usb_read(self._w, b, self._usbbuf, 65536)
+        return bytes(self.ffi.buffer(self._usbbuf, n))
+
+    def usb_info(self, b: int):
+        out = self.ffi.new("sam_usb_info_t *")
+        self.lib.sam_usb_info(self._w, b, out)
+        return out

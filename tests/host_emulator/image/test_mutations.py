@@ -1,0 +1,210 @@
+"""Defects only execution shows, each planted in a scratch copy of the firmware and caught by running its image.
+
+Every check runs on the shipped images first (it must find nothing), then on the broken ones (it must find the
+defect): the TC3 handler that no longer clears its flag, a wrong TC3 period, the watchdog fed from the tick, a
+wrong pin-mux letter for the PWM outputs, on-demand sampling of the encoder pins, and the review's two
+execution-only defects reverted from this repository's history: the cell's USB interrupt at the encoders'
+priority (a5a8df8) and the watchdog fed while the control tick is dead (6318086).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from host_emulator.image.world import World, WorldConfig
+from host_emulator.params import Params
+
+from .conftest import configured
+
+pytestmark = pytest.mark.slow
+
+CPU_HZ = 48_000_000
+TICK_HZ = 2000
+TC3_EXC = 16 + 18  # TC3_IRQn = 18
+
+
+def _cell_alone(images, t_end: float, trace: bool = True) -> tuple[World, list[str]]:
+    """One cell without a primary, from power-up to t_end (the crystal starts in 2 s), its changes of state
+    traced from 2.5 s."""
+    w = World(Params(cells=1), images, primary=False)
+    w.run_to(2.5)
+    if trace:
+        w.trace(32, 1)
+    w.run_to(t_end)
+    return w, w.take_notes()
+
+
+def check_tick(images) -> list[str]:
+    """The control tick: TC3's interrupt every 24,000 CPU cycles (2 kHz at 48 MHz), to the cycle over 0.2 s bar the
+    interrupt latency, and no watchdog reset."""
+    w, notes = _cell_alone(images, 2.7)
+    tu = w.tu_hz // CPU_HZ
+    entries = [int(n.split()[1]) for n in notes if n.startswith("chg ") and f" enter {TC3_EXC} " in n]
+    problems = []
+    if not 0.9 * 0.2 * TICK_HZ <= len(entries) <= 1.1 * 0.2 * TICK_HZ:
+        problems.append(f"{len(entries)} TC3 interrupts in 0.2 s, expected {0.2 * TICK_HZ:.0f}")
+    if len(entries) > 2:
+        gaps = np.diff(entries) / tu
+        mean = (entries[-1] - entries[0]) / tu / (len(entries) - 1)
+        if abs(mean - CPU_HZ / TICK_HZ) > 0.05 or gaps.max() - gaps.min() > 40:
+            problems.append(f"tick period {mean:.3f} cycles (gaps {gaps.min():.0f}..{gaps.max():.0f}), expected 24000")
+    if w.info(0).resets != 1:
+        problems.append(f"{w.info(0).resets - 1} resets (cause 0x{w.info(0).reset_cause:02x})")
+    return problems
+
+
+def check_watchdog_from_loop(images) -> list[str]:
+    """The watchdog is fed, and only from thread mode (the main loop): a feed from an interrupt would keep a chip
+    whose loop hung alive."""
+    _, notes = _cell_alone(images, 2.8)
+    feeds = [n for n in notes if n.startswith("chg ") and " W WDT.CLEAR = 0xa5 " in n]
+    modes = {int(re.search(r" in (\d+)$", n).group(1)) for n in feeds}
+    if not feeds:
+        return ["the watchdog was never fed"]
+    return [] if modes == {0} else [f"the watchdog is fed from exception(s) {sorted(modes - {0})}"]
+
+
+def check_watchdog_catches_a_dead_tick(images) -> list[str]:
+    """TC3 loses its clock at 3 s: the watchdog (1 s) resets the cell."""
+    w = World(Params(cells=1), images, primary=False)
+    w.fault("tick_dead", 3.0, board=0)
+    w.run_to(4.3)
+    i = w.info(0)
+    if i.resets < 2 or not i.reset_cause >> 5 & 1:
+        return [f"no watchdog reset 1.3 s after the tick died (resets {i.resets}, cause 0x{i.reset_cause:02x})"]
+    return []
+
+
+def check_drive_reaches_the_motor(images) -> list[str]:
+    """With the drive on and the alpha angle turned by 200 counts, the alpha motor sees the command's voltage
+    (the EN pin carries TCC0's waveform through its pin-mux function)."""
+    w, lap = configured(images, 1, start_plant=False)
+    t = w.t + 0.001
+    w.spin(1, "alpha", 20000.0, t, t + 200 / 20000.0 - 1e-9)
+    lap.pump(0.03)
+    volt, awake = w.motor(1, 0)
+    return [] if awake == 1.0 and abs(volt) > 0.5 else [f"alpha motor at {volt:.3f} V (awake {awake})"]
+
+
+def _wobble(w, cell: int, rate: float, t0: float, t1: float, amplitude: int = 600) -> int:
+    """Turn the cell's alpha encoder back and forth by `amplitude` counts at `rate` counts/s (within the runaway
+    limit) over [t0, t1), an odd number of legs: it ends at +amplitude (returned, counts)."""
+    legs = int((t1 - t0) * rate / amplitude)
+    legs -= 1 - legs % 2
+    w.spin(cell, "alpha", rate, t0, t0 + legs * amplitude / rate - 1e-9, back_and_forth=amplitude)
+    return amplitude
+
+
+def _counts(lap, cell: int) -> tuple[int, int]:
+    st = lap.rx.status(cell)
+    return st.get("dec_err_a", -1), st.get("faults", -1)
+
+
+def check_encoder_counts_at_speed(images) -> list[str]:
+    """The alpha encoder turns back and forth by 600 counts at 40,000 counts/s for 0.1 s, ending at +600: the cell
+    counts every edge, no decoder error."""
+    w, lap = configured(images, 1, start_plant=False)
+    t = w.t + 0.001
+    end = _wobble(w, 1, 40000.0, t, t + 0.1)
+    lap.pump(0.2)
+    angle = lap.rx.sample(1)["alpha"]  # the cell's last CELL_SAMPLE frame
+    errors, faults = _counts(lap, 1)
+    problems = []
+    if abs(angle - end * 2 * np.pi / 400) > 1e-6:
+        problems.append(f"alpha reads {angle / (2 * np.pi / 400):.0f} counts, turned to {end}")
+    if errors or faults:
+        problems.append(f"decoder errors {errors}, faults 0x{faults:x}")
+    return problems
+
+
+def check_encoders_while_usb_talks(images) -> list[str]:
+    """A host enumerates the cell's USB port (control transfers, a slow host: 300 us a packet) while its alpha
+    encoder turns at 30,000 counts/s: no decoder error, every count."""
+    w, lap = configured(images, 1, WorldConfig(usb_packet_us=300.0), start_plant=False)
+    cell = w.boards[0].index
+    w.usb_attach(cell)
+    t = w.t + 0.001
+    _wobble(w, 1, 30000.0, t, t + 0.25)
+    lap.pump(0.35)
+    errors, faults = _counts(lap, 1)
+    problems = [] if not errors and not faults else [f"decoder errors {errors}, faults 0x{faults:x}"]
+    if not w.usb_info(cell).control_transfers:
+        problems.append("the host made no control transfer (the test tests nothing)")
+    return problems
+
+
+CHECKS = {
+    "tick": check_tick,
+    "watchdog-from-loop": check_watchdog_from_loop,
+    "watchdog-dead-tick": check_watchdog_catches_a_dead_tick,
+    "drive": check_drive_reaches_the_motor,
+    "encoder-at-speed": check_encoder_counts_at_speed,
+    "encoder-usb": check_encoders_while_usb_talks,
+}
+NEEDS_PRIMARY = {"drive", "encoder-at-speed", "encoder-usb"}
+
+
+@pytest.mark.parametrize("name", CHECKS)
+def test_the_shipped_images_pass_every_check(images, name):
+    assert CHECKS[name](images) == []
+
+
+HW = "src/cell/samd21_hw.cpp"
+MAIN = "src/cell/main.cpp"
+
+
+def _flag_clear_removed(s):
+    s.replace(HW, "    TC3->COUNT16.INTFLAG.reg = TC_INTFLAG_OVF;\n    hw_tick_handler();", "    hw_tick_handler();")
+
+
+def _tc3_period_off_by_one(s):
+    s.replace(HW, "TC3->COUNT16.CC[0].reg = (uint16_t)(period - 1u);", "TC3->COUNT16.CC[0].reg = (uint16_t)(period);")
+
+
+def _feed_in_tick(s):
+    s.replace(MAIN, "    g_ticks = g_ticks + 1u;\n}", "    g_ticks = g_ticks + 1u;\n    sys_wdt_feed();\n}")
+    s.sub(
+        MAIN,
+        r"^    if \(\(t != g_wdt_ticks \|\| g_setup_err != SETUP_OK\) && sys_wdt_feed\(\)\)$",
+        "    if (g_setup_err != SETUP_OK && sys_wdt_feed())",
+    )
+
+
+def _pmux_letter(s):
+    s.replace(HW, "PORT_PMUX_PMUXE_F | PORT_PMUX_PMUXO_F", "PORT_PMUX_PMUXE_E | PORT_PMUX_PMUXO_E")
+
+
+def _on_demand_sampling(s):
+    s.replace(HW, "    PORT->Group[PA].CTRL.reg |= ENC_SAMPLE_PA;", "")
+    s.replace(HW, "    PORT->Group[PB].CTRL.reg |= ENC_SAMPLE_PB;", "")
+
+
+def _usb_priority_reverted(s):
+    s.revert("a5a8df8")
+
+
+def _wdt_tick_fix_reverted(s):
+    s.revert("6318086")
+
+
+MUTANTS = {
+    "tc3-flag-not-cleared": (_flag_clear_removed, "tick"),
+    "tc3-period-off-by-one": (_tc3_period_off_by_one, "tick"),
+    "watchdog-fed-in-tick": (_feed_in_tick, "watchdog-from-loop"),
+    "pwm-pmux-letter": (_pmux_letter, "drive"),
+    "encoders-sampled-on-demand": (_on_demand_sampling, "encoder-at-speed"),
+    "usb-irq-at-encoder-priority (revert a5a8df8)": (_usb_priority_reverted, "encoder-usb"),
+    "watchdog-fed-while-tick-dead (revert 6318086)": (_wdt_tick_fix_reverted, "watchdog-dead-tick"),
+}
+
+
+@pytest.mark.parametrize("name", MUTANTS)
+def test_each_planted_defect_is_caught(scratch, name):
+    mutate, check = MUTANTS[name]
+    mutate(scratch)
+    images = scratch.images(1, primary=check in NEEDS_PRIMARY)
+    problems = CHECKS[check](images)
+    assert problems, f"{name}: the {check} check saw nothing"

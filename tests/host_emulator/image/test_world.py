@@ -1,0 +1,109 @@
+"""The image tier's world: what fast-forwarding, the schedule and threads may not change, and the flashed cell's
+drive outputs against the control library's own commands for the same encoder inputs."""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from host_emulator import firmware
+from host_emulator.image.world import WorldConfig
+from host_emulator.models.hil import firmware_config
+from host_emulator.params import Params
+from protocol import wire
+
+from .conftest import configured
+
+pytestmark = pytest.mark.slow
+
+
+def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray, dict]:
+    """Three cells and the primary configured, a push on cell 2, 0.25 s of motion: every board's change of state
+    (trace bit 5: each register access that changed something, each exception entry and return, with its time)
+    hashed per board, the plant's final state, and the boards' counters."""
+    w, lap = configured(images, 3, config)
+    w.trace(32, (1 << len(w.boards)) - 1)
+    lap.seq = (lap.seq + 1) & 0xFF
+    lap.send(wire.cmd_frame_id(2), wire.cmd_data("PERTURB", lap.seq, chain=0, torque=30000, ticks=100))
+    digests = {b.name: hashlib.sha256() for b in w.boards}
+    lines = dict.fromkeys(digests, 0)
+    for _ in range(25):
+        lap.pump(0.01)
+        for n in w.take_notes():
+            if n.startswith("chg "):
+                name = " ".join(n.split(" ")[2:4]) if n.split(" ")[2] == "cell" else n.split(" ")[2]
+                digests[name].update(n.encode())
+                lines[name] += 1
+    counters = {b.name: int(w.info(b.index).cycles) for b in w.boards}
+    return {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}, w.x.copy(), counters
+
+
+@pytest.fixture(scope="module")
+def reference(images):
+    return _run_traced(images, WorldConfig())
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        pytest.param(WorldConfig(ff=False), id="no-fast-forward"),
+        pytest.param(WorldConfig(round_s=2.6e-6), id="rounds-of-one-bit"),
+        pytest.param(WorldConfig(threads=2, round_s=20e-6), id="two-threads"),
+    ],
+)
+def test_fast_forward_schedule_and_threads_change_nothing(images, reference, config):
+    traces, x, cycles = _run_traced(images, config)
+    ref_traces, ref_x, ref_cycles = reference
+    assert all(int(v.split("/")[1]) > 100 for v in ref_traces.values()), ref_traces  # every board did things
+    assert traces == ref_traces
+    assert np.array_equal(x, ref_x)  # bit for bit: the plant saw the same drive
+    assert np.any(ref_x != 0)  # the push moved it
+    if config.ff:
+        assert cycles == ref_cycles
+
+
+# ---- the drive outputs against the library ------------------------------------------------------------------
+
+
+def _library_outputs(params: Params, limit_ticks: int, alpha: int, beta: int):
+    """(duty, dir, enable) of both drivers from the control library compiled for the host, for zeroed angles
+    (alpha, beta) counts, configured as the scene's commands configure the flashed cell."""
+    ffi, lib = firmware.load()
+    phys, drv = firmware_config(ffi, lib, params)
+    c = ffi.new("mc_cell_t *")
+    lib.mc_cell_init(c)
+    assert lib.mc_cell_set_params(c, phys) == lib.MC_OK
+    assert lib.mc_cell_set_drive(c, drv) == lib.MC_OK
+    lib.mc_drive_set_limit(ffi.addressof(c, "drive"), limit_ticks)
+    lib.mc_cell_zero(c, 0, 0)
+    lib.mc_cell_enable(c, 1)
+    snaps = [ffi.new("mc_quad_snap_t *") for _ in range(2)]
+    snaps[0].pos, snaps[1].pos = alpha, beta
+    for _ in range(3):
+        lib.mc_cell_tick(c, snaps[0], snaps[1])
+    return [(int(c.out[k].duty), int(c.out[k].dir), int(c.out[k].enable)) for k in range(2)]
+
+
+@pytest.mark.parametrize("alpha,beta", [(37, -12), (-180, 95), (400, 400), (-3, 0), (250, -399)])
+def test_drive_outputs_match_the_library_for_the_same_encoder_inputs(images, alpha, beta):
+    """The encoders of a cell at rest are turned to (alpha, beta) counts (quadrature edges on its pins, the plant
+    not running); the mean voltage and awake fraction the motors then see over a PWM period are the library's
+    duty / top x supply with its direction, exactly."""
+    p = Params(cells=1)
+    w, lap = configured(images, 1, start_plant=False)
+    t = w.t + 0.001
+    for chain, n in (("alpha", alpha), ("beta", beta)):
+        if n:
+            w.spin(1, chain, 20000.0 * np.sign(n), t, t + abs(n) / 20000.0 - 1e-9)
+    lap.pump(0.03)  # the edges, then ticks with the angles steady
+    status = lap.rx.status(1)
+    assert status and status["faults"] == 0 and status["dec_err_a"] == 0 and status["dec_err_b"] == 0, status
+    top = int(p.pwm_top)
+    limit = round(min(p.vmax_v, p.supply_v) / p.supply_v * top)
+    for chain, (duty, direction, enable) in enumerate(_library_outputs(p, limit, alpha, beta)):
+        volt, awake = w.motor(1, chain)
+        assert awake == (1.0 if enable else 0.0)
+        want = duty / top * p.supply_v * (1.0 if direction else -1.0)
+        assert volt == pytest.approx(want, rel=1e-12, abs=1e-12), (chain, duty, direction, volt)
