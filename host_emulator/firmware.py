@@ -227,12 +227,24 @@ def _build(srcs: list[Path], key: str):
                     "compiler with LTO (gcc, `cc`) and the Python headers (Debian: apt-get install gcc python3-dev)"
                 ) from e
             outdir.mkdir(parents=True, exist_ok=True)
-            so = outdir / built.name
-            part = outdir / f".{built.name}.{os.getpid()}"
-            shutil.copy2(built, part)
-            os.replace(part, so)  # atomic: parallel test workers may build at once
+            so = place_module(built, outdir)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+    return load_module(name, so)
+
+
+def place_module(built: Path, outdir: Path) -> Path:
+    """Copies a module cffi compiled into outdir under its own name, atomically (parallel test workers may build
+    the same module at once): the path of the copy."""
+    so = outdir / built.name
+    part = outdir / f".{built.name}.{os.getpid()}"
+    shutil.copy2(built, part)
+    os.replace(part, so)
+    return so
+
+
+def load_module(name: str, so: Path):
+    """Imports the compiled cffi module at so under name."""
     spec = importlib.util.spec_from_file_location(name, so)
     if spec is None or spec.loader is None:
         raise ImportError(f"cannot load the compiled module {so}")

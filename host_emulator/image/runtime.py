@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import os
 import shutil
 import sys
 import tempfile
@@ -109,15 +108,7 @@ def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path, uc_in
                 built = Path(ffi.compile(tmpdir=str(tmp), verbose=False))
             except Exception as e:  # cffi raises VerificationError/CompileError/LinkError
                 raise RuntimeBuildError(f"compiling the image tier's runtime failed ({type(e).__name__}: {e})") from e
-            so = outdir / built.name
-            part = outdir / f".{built.name}.{os.getpid()}"
-            shutil.copy2(built, part)
-            os.replace(part, so)
+            so = firmware.place_module(built, outdir)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-    spec = importlib.util.spec_from_file_location(name, so)
-    if spec is None or spec.loader is None:
-        raise ImportError(f"cannot load the compiled module {so}")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return firmware.load_module(name, so)
