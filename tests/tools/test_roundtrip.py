@@ -18,8 +18,10 @@ from host_emulator.workbench.datasets import FORMAT
 from metacell_tools.experiment import cli
 from metacell_tools.experiment.rehearse import Serve
 from metacell_tools.rigtools import proto
+from tests.conftest import ctrl_c_default
 
 ROOT = proto.ROOT
+RX_TIME = re.compile(r"^\s*(\d+\.\d+)\s+\d+\s+\S+\s+Rx\b", re.M)  # an ASC frame line
 RIG = re.compile(r"\brig\b")  # the label itself; "rig k" (the band stiffness) never appears in these outputs
 
 
@@ -51,10 +53,17 @@ def outputs(tmp_path_factory, served):
             [sys.executable, "-m", "can.logger", "-i", "slcan", "-c", served.channel, "-f", str(asc)],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
+            preexec_fn=ctrl_c_default,  # a suite run in the background would pass SIGINT on ignored
         )
-        time.sleep(4.0)
+        # 4 s of frames by the log's own timestamps, not from the start (a loaded machine starts python-can slowly)
+        end = time.monotonic() + 300
+        while time.monotonic() < end and lg.poll() is None:
+            ts = [float(m) for m in RX_TIME.findall(asc.read_text(errors="replace"))] if asc.exists() else []
+            if ts and ts[-1] - ts[0] >= 4.0:
+                break
+            time.sleep(0.5)
         lg.send_signal(signal.SIGINT)
-        lg.communicate(timeout=20)
+        lg.communicate(timeout=300)
         # the rigtools logger on the same primary (the channel is a pty: it labels the capture emulator:hil)
         r = subprocess.run(
             [sys.executable, "-m", "metacell_tools.rigtools.logger", "-c", served.channel, "-o", str(d / "cap")]

@@ -14,6 +14,7 @@ import pytest
 
 from host_emulator.image import build
 from metacell_tools.rigtools import proto
+from tests.conftest import ctrl_c_default
 from tests.host_emulator.bus.test_serve import WAIT_S, alphas, command, n_samples, n_samples_all, until
 
 pytestmark = pytest.mark.slow
@@ -77,6 +78,7 @@ def test_can_logger_records_every_cell_from_the_primary_image(server, tmp_path):
         [sys.executable, "-m", "can.logger", "-i", "slcan", "-c", f"{server}@115200", "-f", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
+        preexec_fn=ctrl_c_default,  # a suite run in the background would pass SIGINT on ignored
     )
 
     def cells() -> set[int]:
