@@ -77,7 +77,13 @@ def _title(scene=None, title=""):
         )
         or "no push"
     )
-    return (title or scene.name) + f"\nsigma = {p.sigma:.4g} N·m/rad; push: {push}"
+    if "sigma" in p.varying_keys:
+        sv = p.per_cell("sigma")
+        sig = f"sigma per cell {sv.min():.4g}..{sv.max():.4g}"
+    else:
+        sig = f"sigma = {p.per_cell('sigma')[0]:.4g}"
+    other = [k for k in p.varying_keys if k != "sigma"]
+    return (title or scene.name) + f"\n{sig} N·m/rad{'; per cell: ' + ', '.join(other) if other else ''}; push: {push}"
 
 
 def plot_spacetime(
