@@ -182,7 +182,10 @@ def chain_summary(params: Params, theory: Theory) -> dict:
         )
     regime = classify_regime(intervals)
     top = modes[0]
-    label = theory.label() + "; eigenmodes of the chain (per-cell parameters)"
+    what = "lattice with inertia" if theory.inertia else "lattice without inertia"
+    if theory.motor_damping > 0:
+        what += f" + the motors' back-EMF damping {theory.motor_damping:.1e} N m s"
+    label = f"{theory.model}: eigenmodes of the chain, {what} (per-cell parameters)"
     return {
         "regime": regime,
         "theory": label,

@@ -98,7 +98,7 @@ class HilModel(LatticeModel):
         )
         problem = reaction_problem(params)
         if problem:
-            raise ValueError(f"firmware rejects {problem}")
+            raise ValueError(f"firmware rejects the reaction parameters: {problem}")
         # trial configuration, so bad parameters fail here with the firmware's verdict
         c = self.ffi.new("mc_cell_t *")
         self.lib.mc_cell_init(c)
