@@ -51,7 +51,8 @@ class Cells:
     that answers RANGE to a register whatever the value (a cell with other limits)."""
 
     def __init__(self, reject=None):
-        self.reg = {j: {"K_AB": 20000, "SIGMA": 72000, "K1": 60000, "K2": -60000, "ASTAR": 1178097} for j in range(1, 17)}
+        boot = {"K_AB": 20000, "SIGMA": 72000, "K1": 60000, "K2": -60000, "ASTAR": 1178097}
+        self.reg = {j: dict(boot) for j in range(1, 17)}
         self.reject = reject
         self.sent = []
 
