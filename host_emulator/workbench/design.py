@@ -407,6 +407,11 @@ def _scene_table(base_table: dict, p: Params, pushes: Sequence[Push], torque: fl
     return t
 
 
+def noise_overrides(seed: int) -> list[str]:
+    """The --set items of the noise model with this seed (what a verification run uses)."""
+    return [f"model_options.noise.seed={seed}"] + [f"model_options.noise.{k}={v}" for k, v in NOISE.items()]
+
+
 def _noise(t: dict, seed: int | None) -> dict:
     t = json.loads(json.dumps(t))
     nz = t.setdefault("model_options", {}).setdefault("noise", {})
