@@ -91,7 +91,7 @@ def test_design_lambda_10_push_8_verified_by_running_its_scene(tmp_path, capsys)
 
 
 def test_design_api_and_dask_give_the_runs_of_the_local_batch(tmp_path):
-    from distributed import Client, LocalCluster
+    from distributed import LocalCluster
 
     sc = load_scene("default", ["t_end_s=2"])
     from host_emulator.scene import scene_table
