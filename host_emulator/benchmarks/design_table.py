@@ -40,6 +40,29 @@ def wall_layouts(count: int, cells: int = 16, spacing: int = 3, seed: int = 23) 
     return out
 
 
+def band_scan(n: int = 16, points: tuple[int, int, int] = (25, 26, 26)) -> dict:
+    """The fastest free-end mode a uniform chain can have within the firmware's gains: over a grid of k_ab in
+    0.005..0.25, k2 in -0.25..0, sigma in 0..0.25 (N m/rad), the hil theory's growth rates at kappa = pi m / n;
+    counts, per m, the laws whose fastest mode is m, stationary and growing faster than 1/s."""
+    from ..analysis.stability import growth_rates, motor_damping
+    from ..params import Params
+
+    p0 = Params(cells=n)
+    km = np.pi * np.arange(n) / n
+    count: Counter = Counter()
+    total = 0
+    for kab in np.linspace(0.005, 0.25, points[0]):
+        for k2 in np.linspace(-0.25, 0.0, points[1]):
+            for sig in np.linspace(0.0, 0.25, points[2]):
+                p = p0.with_overrides(k_ab=float(kab), k2=float(k2), sigma=float(sig))
+                g = growth_rates(p, km, inertia=True, motor_damping=motor_damping(p))[:, 0]
+                m = int(np.argmax(g.real))
+                total += 1
+                if g[m].real > 1.0 and abs(g[m].imag) < 1e-9:
+                    count[m] += 1
+    return {"laws": total, "fastest_mode_counts": dict(sorted(count.items())), "largest_m": max(count)}
+
+
 def _row(target: str, doc: dict, wall_s: float) -> dict:
     v = doc["verification"]
     missed = Counter(tuple(r.get("walls", ())) for r in v["runs"][: v["seeds"]] if not r["landed"])
@@ -66,7 +89,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=23, help="seed of the layouts (default 23)")
     ap.add_argument("--push", default="8", help="pushes of every design (default 8)")
     ap.add_argument("--only", choices=("lambda", "walls"), default=None, help="one family only")
+    ap.add_argument(
+        "--band-scan", action="store_true", help="only the scan of the firmware's gain box for the fastest mode"
+    )
     args = ap.parse_args(argv)
+    if args.band_scan:
+        res = band_scan()
+        print(
+            f"{res['laws']} uniform laws in the firmware's gain box; laws whose fastest free-end mode is stationary "
+            f"and grows, by mode index m: {res['fastest_mode_counts']}; largest m = {res['largest_m']} "
+            f"(cosine wavelength {2 * 16 / res['largest_m']:.3g} cells)"
+        )
+        return 0
     from ..workbench.design import design
 
     out = Path(args.out)

@@ -629,22 +629,76 @@ def verify(scene_path: Path, target: Target, runner: Runner, seeds: int = 20, *,
 
 
 def _neighbours(t: Target, cells: int) -> list[Target]:
-    """Targets near t, nearest first: other wall counts by wavelength; layouts with one wall moved by one bond."""
+    """Targets near t, nearest first: every other wall count by its wavelength's distance; the layouts with one
+    wall moved by one or two bonds (one bond first)."""
     if t.kind == "lambda":
         zs = sorted((z for z in range(1, cells) if z != t.z), key=lambda z: abs(2 * (cells - 1) / z - (t.lam or 0)))
-        return [Target("lambda", z, (), 2 * (cells - 1) / z, (), cells) for z in zs[:4]]
+        return [Target("lambda", z, (), 2 * (cells - 1) / z, (), cells) for z in zs]
     out = []
-    for i in range(len(t.walls)):
-        for d in (-1.0, 1.0):
-            w = list(t.walls)
-            w[i] += d
-            if (
-                1.5 <= w[i] <= cells - 0.5
-                and len(set(w)) == len(w)
-                and not any(abs(c - x) < 1 for c in t.rest for x in w)
-            ):
-                out.append(Target("walls", len(w), tuple(sorted(w)), None, t.rest, cells))
-    return out[:6]
+    for step in (1.0, 2.0):
+        for i in range(len(t.walls)):
+            for d in (-step, step):
+                w = list(t.walls)
+                w[i] += d
+                if (
+                    1.5 <= w[i] <= cells - 0.5
+                    and len(set(w)) == len(w)
+                    and not any(abs(c - x) < 1 for c in t.rest for x in w)
+                ):
+                    out.append(Target("walls", len(w), tuple(sorted(w)), None, t.rest, cells))
+    return list(dict.fromkeys(out))
+
+
+MAX_NEAREST_VERIFIED = 6  # neighbours verified with the firmware in the loop at most (those with a linear score > 1)
+
+
+def nearest_reachable(
+    target: Target,
+    base: Params,
+    vary,
+    per_cell,
+    pushes,
+    base_table: dict,
+    runner: Runner,
+    outp: Path,
+    *,
+    seeds: int,
+    require: float,
+    seed: int,
+    report: Callable[[str], None],
+    search_seeds: int = 8,
+    maxiter: int = 8,
+) -> dict | None:
+    """The nearest target (_neighbours' order) whose linear first guess has the target's mode (score > 1) and whose
+    design (first guess, then the hil search) lands in `require` of `seeds` noise seeds; its scene is left as
+    nearest_scene.toml. None if none of the first MAX_NEAREST_VERIFIED such candidates does."""
+    verified = 0
+    for cand in _neighbours(target, target.cells):
+        sp = space_for(base, vary, per_cell, cand)
+        xc, lc, _ = first_guess(sp, cand, seed)
+        if lc <= 1.0:
+            report(f"nearest: {cand.text()} has no linear first guess (score {lc:.2f})")
+            continue
+        xc, _, _ = hil_search(
+            sp, cand, pushes, base_table, xc, runner, seeds=search_seeds, maxiter=maxiter, seed=seed, report=report
+        )
+        pc = sp.params(xc)
+        cpath = outp / "nearest_scene.toml"
+        _write_scene(cpath, base_table, pc, pushes, cand, "nearest_" + cand.text().replace("=", "_"))
+        vc = verify(cpath, cand, runner, seeds, pushes_too=False)
+        verified += 1
+        report(f"nearest: {cand.text()} lands in {vc['fraction_seeds']:.2f} of the seeds")
+        if vc["fraction_seeds"] >= require:
+            return {
+                "target": cand.text(),
+                "fraction_seeds": vc["fraction_seeds"],
+                "params": _params_doc(pc),
+                "scene": cpath.name,
+            }
+        cpath.unlink()
+        if verified >= MAX_NEAREST_VERIFIED:
+            break
+    return None
 
 
 def _write_scene(path: Path, base_table: dict, p: Params, pushes, target: Target, name: str) -> None:
@@ -799,22 +853,22 @@ def design(
         reached = bool(ver["fraction_seeds"] >= require)
         near = None
         if not reached and nearest:
-            for cand in _neighbours(tgt, n):
-                xc, lc, _ = first_guess(space_for(base.params, vary, per_cell, cand), cand, seed)
-                pc = space_for(base.params, vary, per_cell, cand).params(xc)
-                cpath = outp / "nearest_scene.toml"
-                _write_scene(cpath, base_table, pc, pushes, cand, "nearest")
-                vc = verify(cpath, cand, runner, seeds, pushes_too=False)
-                report(f"nearest candidate {cand.text()}: lands in {vc['fraction_seeds']:.2f} of the seeds")
-                if vc["fraction_seeds"] >= require:
-                    near = {
-                        "target": cand.text(),
-                        "fraction_seeds": vc["fraction_seeds"],
-                        "params": _params_doc(pc),
-                        "scene": cpath.name,
-                    }
-                    break
-                cpath.unlink()
+            near = nearest_reachable(
+                tgt,
+                base.params,
+                vary,
+                per_cell,
+                pushes,
+                base_table,
+                runner,
+                outp,
+                seeds=seeds,
+                require=require,
+                seed=seed,
+                report=report,
+                search_seeds=search_seeds,
+                maxiter=maxiter,
+            )
         doc: dict[str, Any] = {
             "target": tgt.text(),
             "target_kind": tgt.kind,
