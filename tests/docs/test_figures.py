@@ -173,3 +173,26 @@ def test_instructions_per_cell_tick_quoted_in_readme_and_docs():
     acc = (ROOT / "docs" / "accuracy.md").read_text()
     assert f"-> {n} instructions per cell-tick**" in acc
     assert f"**{n} x86 instructions per cell and control tick**" in (ROOT / "docs" / "emulator.md").read_text()
+
+
+def test_design_page_lambda_10_row_is_what_design_prints(tmp_path):
+    """docs/design.md's first worked example: the fractions and the parameters are what `design` prints today."""
+    page = (ROOT / "docs" / "design.md").read_text()
+    row = re.search(
+        r"\| `design --target lambda=10 --push 8` \| (\d+) % of 20 / (\d+) % of 12 \| .*? \| (.*?) \|", page
+    )
+    assert row, "docs/design.md: the lambda=10 row moved"
+    r = subprocess.run(
+        [sys.executable, "-m", "host_emulator", "design", "--target", "lambda=10", "--push", "8", "--quiet"]
+        + ["--out", str(tmp_path / "d")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"lands in (\d+) % of 20 noise seeds and (\d+) % of 12 pushes", r.stdout)
+    assert m and m.groups() == row.groups()[:2], (r.stdout, row.groups())
+    printed = {k: float(v) for k, v in re.findall(r"^  (\w+): ([-\d.e]+)$", r.stdout, re.M)}
+    quoted = {k: float(v) for k, v in re.findall(r"(\w+) ([-\d.]+)", row.group(3))}
+    assert quoted and all(abs(printed[k] - v) <= 5e-5 for k, v in quoted.items()), (printed, quoted)

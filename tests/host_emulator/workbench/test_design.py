@@ -118,3 +118,14 @@ def test_bad_input_exits_2_and_an_unreachable_target_exits_3(tmp_path, capsys):
     )  # k1 alone cannot move the linear band: the source's law selects about 7.5 cells from this push
     doc = json.loads((tmp_path / "c" / "design.json").read_text())
     assert rc == 3 and not doc["reached"] and "NOT REACHED" in capsys.readouterr().out
+
+
+def test_the_tables_wall_layouts_keep_their_spacing_and_repeat():
+    from host_emulator.benchmarks.design_table import wall_layouts
+
+    lays = wall_layouts(20)
+    assert len(set(lays)) == 20 and lays == wall_layouts(20)
+    for w in lays:
+        assert 1 <= len(w) <= 4 and all(1.5 <= x <= 15.5 and x % 1 == 0.5 for x in w)
+        assert all(b - a >= 3 for a, b in zip(w[:-1], w[1:]))
+        D.parse_target("walls=" + ",".join(map(str, w)))  # every layout is a valid target
