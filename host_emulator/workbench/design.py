@@ -70,7 +70,7 @@ BOUNDS = {
     "k2": (-0.2, 0.05),
     "alpha_star": (0.3, 2.5),
 }
-LSB = {"k_ab": 1e-6, "sigma": 1e-6, "k1": 1e-6, "k2": 1e-6, "alpha_star": 1e-6}  # register resolution (SI)
+LSB_DIGITS = 6  # register resolution: 1 uN m/rad (gains), 1 urad (alpha*): values rounded to 6 decimals
 MIN_GROWTH_PER_S = 1.0  # the target mode must grow at least this fast (e^9 over a 10 s run)
 DOMAIN_MIN_RAD = 0.3  # every domain of a landed pattern reaches this |alpha| (about half a pattern's 0.6-0.7 rad)
 DOMAIN_FILL_MODE = 0.2  # in the linear theory, every cell of a domain off its walls this share of the mode's peak
@@ -298,10 +298,10 @@ class Space:
         for k in self.vary:
             if k in self.per_cell:
                 vals = np.asarray(x[i : i + nseg])[self.seg]
-                kw[k] = tuple(float(round(v / LSB[k]) * LSB[k]) for v in vals)
+                kw[k] = tuple(round(float(v), LSB_DIGITS) for v in vals)
                 i += nseg
             else:
-                kw[k] = float(round(x[i] / LSB[k]) * LSB[k])
+                kw[k] = round(float(x[i]), LSB_DIGITS)
                 i += 1
         return dataclasses.replace(self.base, **kw)
 
