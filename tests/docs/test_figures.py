@@ -196,3 +196,17 @@ def test_design_page_lambda_10_row_is_what_design_prints(tmp_path):
     printed = {k: float(v) for k, v in re.findall(r"^  (\w+): ([-\d.e]+)$", r.stdout, re.M)}
     quoted = {k: float(v) for k, v in re.findall(r"(\w+) ([-\d.]+)", row.group(3))}
     assert quoted and all(abs(printed[k] - v) <= 5e-5 for k, v in quoted.items()), (printed, quoted)
+
+
+def test_design_page_band_scan_is_what_the_scan_finds():
+    """docs/design.md's "linear band": the number of laws scanned and the largest fastest mode are band_scan's."""
+    from host_emulator.benchmarks.design_table import band_scan
+
+    page = (ROOT / "docs" / "design.md").read_text()
+    m = re.search(
+        r"at most m = (\d+) \(a cosine wavelength of\s+([\d.]+)\s+cells\): over a grid of ([\d,]+) laws", page
+    )
+    assert m, "docs/design.md: the band-scan sentence moved"
+    res = band_scan()
+    assert (res["largest_m"], res["laws"]) == (int(m.group(1)), int(_num(m.group(3))))
+    assert abs(2 * 16 / res["largest_m"] - float(m.group(2))) < 0.05
