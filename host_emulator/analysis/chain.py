@@ -159,7 +159,8 @@ def chain_modes(params: Params, theory: Theory | None = None, *, count: int | No
 def chain_summary(params: Params, theory: Theory) -> dict:
     """The linear-theory keys of summary.json (analysis.summary.DISPERSION_KEYS) for a chain whose cells differ:
     the chain's modes in place of the dispersion curve. unstable_intervals lists every growing mode as a point
-    interval at its cosine wavelength 2 n / m (the uniform chain's reading of the same mode)."""
+    interval at its cosine wavelength 2 n / m (the uniform chain's reading of the same mode); unstable_set_cells
+    each such wavelength once."""
     from .stability import classify_regime
 
     res = chain_modes(params, theory)
@@ -192,7 +193,7 @@ def chain_summary(params: Params, theory: Theory) -> dict:
         "fastest_lambda_cells": top["dct_lambda_cells"],
         "fastest_growth_per_s": top["growth_per_s"],
         "oscillation_period_s": top["period_s"],
-        "unstable_set_cells": [[iv["lambda_cells"][0], iv["lambda_cells"][1]] for iv in intervals],
+        "unstable_set_cells": [list(x) for x in dict.fromkeys(tuple(iv["lambda_cells"]) for iv in intervals)],
         "unstable_intervals": [{k: v for k, v in iv.items() if k != "kappa"} for iv in intervals],
         "fastest_mode_walls": top["walls"],
     }
