@@ -7,8 +7,8 @@ Every target is designed with the command's defaults (push on cell 8, 20 verific
 range) and verified by running its scene.toml (host_emulator.workbench.design). Wavelengths: lambda = 2 (n - 1) / Z
 for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's default_rng(`--seed`): 1 to 5 walls
 on bonds 1.5 .. n - 0.5, consecutive walls at least `--spacing` cells apart. Prints a markdown table per family
-(target, verified fraction of seeds and of pushes, the walls most runs showed when they missed, hil runs, wall
-time) and writes design_table.json and every design's directory under --out.
+(target, verified fraction of seeds and of pushes, why the most common miss among the seeds missed and its walls,
+hil runs, wall time) and writes design_table.json and every design's directory under --out.
 """
 
 from __future__ import annotations
@@ -65,13 +65,15 @@ def band_scan(n: int = 16, points: tuple[int, int, int] = (25, 26, 26)) -> dict:
 
 def _row(target: str, doc: dict, wall_s: float) -> dict:
     v = doc["verification"]
-    missed = Counter(tuple(r.get("walls", ())) for r in v["runs"][: v["seeds"]] if not r["landed"])
+    missed = Counter(
+        (r.get("why") or "error", tuple(r.get("walls", ()))) for r in v["runs"][: v["seeds"]] if not r["landed"]
+    )
     return {
         "target": target,
         "fraction_seeds": v["fraction_seeds"],
         "fraction_pushes": v["fraction_pushes"],
         "reached": doc["reached"],
-        "missed_walls": [list(k) for k, _ in missed.most_common(1)],
+        "missed": [{"why": k[0], "walls": list(k[1]), "runs": c} for k, c in missed.most_common(1)],
         "linear_score": doc["linear_theory"]["score"],
         "first_guess_score": doc["linear_theory"]["first_guess_score"],
         "params": doc["params"],
@@ -132,13 +134,18 @@ def main(argv: list[str] | None = None) -> int:
         fr = [r for r in rows if r["family"] == fam]
         if not fr:
             continue
-        print("\n| target | seeds landing | pushes landing | missed runs showed walls | hil runs | wall s |")
+        print(
+            "\n| target | seeds landing | pushes landing | most missed seeds: why (their walls) | hil runs | wall s |"
+        )
         print("|---|---:|---:|---|---:|---:|")
         for r in fr:
-            miss = ", ".join(f"{w:g}" for w in r["missed_walls"][0]) if r["missed_walls"] else "-"
+            miss = "-"
+            if r["missed"]:
+                m = r["missed"][0]
+                miss = f"{m['runs']}: {m['why']} ({', '.join(f'{w:g}' for w in m['walls']) or 'none'})"
             print(
                 f"| {r['target']} | {100 * r['fraction_seeds']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | "
-                f"{miss if r['missed_walls'] else '-'} | {r['hil_runs']} | {r['wall_s']:.0f} |"
+                f"{miss} | {r['hil_runs']} | {r['wall_s']:.0f} |"
             )
         ok = sum(r["fraction_seeds"] >= 0.9 for r in fr)
         print(f"\n{fam}: {ok} of {len(fr)} targets land in >= 90 % of the seeds")

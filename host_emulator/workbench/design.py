@@ -245,6 +245,30 @@ def domain_peaks(alpha: np.ndarray, walls: Sequence[float], rest: Sequence[int] 
     return out
 
 
+def miss_reason(target: Target, alpha: np.ndarray, steady: bool = True, torque_ok: bool = True) -> str | None:
+    """Why a final profile does not land (lands' tests in order), or None when it lands: "moving" (not steady),
+    "torque limit", "at rest", "rest cells moved", "walls" (other walls, or another number of them), "domain not
+    filled" (a cell off the walls within 0.1 rad, or a domain below DOMAIN_MIN_RAD)."""
+    u = np.asarray(alpha, dtype=float)
+    if not steady:
+        return "moving"
+    if not torque_ok:
+        return "torque limit"
+    if np.abs(u).max() <= WALL_THRESHOLD_RAD:
+        return "at rest"
+    if target.rest and np.abs(u[[c - 1 for c in target.rest]]).max() > WALL_THRESHOLD_RAD:
+        return "rest cells moved"
+    w = final_walls(u, target.rest)
+    if (len(w) != target.z) if target.kind == "lambda" else (tuple(w) != target.walls):
+        return "walls"
+    inner = [j - 1 for j in interior_cells(u.size, w, target.rest)]
+    if (inner and np.abs(u[inner]).min() <= WALL_THRESHOLD_RAD) or min(
+        domain_peaks(u, w, target.rest)
+    ) < DOMAIN_MIN_RAD:
+        return "domain not filled"
+    return None
+
+
 def interior_cells(n: int, walls: Sequence[float], rest: Sequence[int] = ()) -> list[int]:
     """The cells (1-based) that are neither beside a wall nor at rest: the ones a patterned domain must fill."""
     return [j for j in range(1, n + 1) if j not in rest and all(abs(j - w) > 0.5 for w in walls)]
@@ -253,19 +277,8 @@ def interior_cells(n: int, walls: Sequence[float], rest: Sequence[int] = ()) -> 
 def lands(target: Target, alpha: np.ndarray, steady: bool = True, torque_ok: bool = True) -> bool:
     """Does a final alpha profile (rad, cells 1..n) show the target? See the module docstring: steady, within the
     torque limit, the target's walls (or their number), every domain reaching DOMAIN_MIN_RAD and filled (each
-    cell off the walls beyond the wall threshold), rest cells within the wall threshold."""
-    u = np.asarray(alpha, dtype=float)
-    if not (steady and torque_ok) or np.abs(u).max() <= WALL_THRESHOLD_RAD:
-        return False
-    if target.rest and np.abs(u[[c - 1 for c in target.rest]]).max() > WALL_THRESHOLD_RAD:
-        return False
-    w = final_walls(u, target.rest)
-    if (len(w) != target.z) if target.kind == "lambda" else (tuple(w) != target.walls):
-        return False
-    inner = [j - 1 for j in interior_cells(u.size, w, target.rest)]
-    if inner and np.abs(u[inner]).min() <= WALL_THRESHOLD_RAD:
-        return False
-    return min(domain_peaks(u, w, target.rest)) >= DOMAIN_MIN_RAD
+    cell off the walls beyond the wall threshold), rest cells within the wall threshold (miss_reason's tests)."""
+    return miss_reason(target, alpha, steady, torque_ok) is None
 
 
 # ---- parameterisation -----------------------------------------------------------------------------------------
@@ -649,10 +662,12 @@ def verify(scene_path: Path, target: Target, runner: Runner, seeds: int = 20, *,
             continue
         a, b = np.asarray(r["final_alpha"]), np.asarray(r["final_beta"])
         ra, rb = reaction(p, a, b)
+        why = miss_reason(target, a, bool(r["steady"]), torque_ok(p, a, b))
         runs.append(
             {
                 **what,
-                "landed": _landed(target, p, r),
+                "landed": why is None,
+                "why": why,
                 "walls": final_walls(a, target.rest),
                 "steady": bool(r["steady"]),
                 "torque_fraction": float(max(np.abs(ra).max(), np.abs(rb).max()) / cap),

@@ -58,9 +58,13 @@ def test_landing_needs_the_walls_filled_domains_and_rest():
     lam = D.parse_target("lambda=10")
     assert D.lands(lam, np.array([0.6] * 3 + [-0.6] * 5 + [0.6] * 5 + [-0.6] * 3))
     assert not D.lands(lam, good)
+    assert D.miss_reason(t, good) is None and D.miss_reason(t, good, steady=False) == "moving"
+    assert D.miss_reason(t, shifted) == "walls" and D.miss_reason(t, bump) == "domain not filled"
+    assert D.miss_reason(t, good, torque_ok=False) == "torque limit" and D.miss_reason(t, 0 * good) == "at rest"
     half = D.parse_target("walls=2.5,5.5", rest="9-16")
     prof = np.array([0.5, 0.5, -0.5, -0.5, -0.5, 0.5, 0.5, 0.3] + [0.02] * 8)
     assert D.lands(half, prof) and not D.lands(half, np.where(np.arange(16) == 12, 0.3, prof))
+    assert D.miss_reason(half, np.where(np.arange(16) == 12, 0.3, prof)) == "rest cells moved"
 
 
 def test_linear_score_reads_the_chains_fastest_mode():
