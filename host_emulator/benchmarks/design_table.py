@@ -5,7 +5,7 @@ random wall layouts.
 
 Every target is designed with the command's defaults (push on cell 8, 20 verification seeds, the documented push
 range) and verified by running its scene.toml (host_emulator.workbench.design). Wavelengths: lambda = 2 (n - 1) / Z
-for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's default_rng(`--seed`): 1 to 5 walls
+for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's default_rng(`--seed`): 1 to 4 walls
 on bonds 1.5 .. n - 0.5, consecutive walls at least `--spacing` cells apart. Prints a markdown table per family
 (target, verified fraction of seeds and of pushes, why the most common miss among the seeds missed and its walls,
 hil runs, wall time) and writes design_table.json and every design's directory under --out.
