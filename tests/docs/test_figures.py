@@ -210,3 +210,20 @@ def test_design_page_band_scan_is_what_the_scan_finds():
     res = band_scan()
     assert (res["largest_m"], res["laws"]) == (int(m.group(1)), int(_num(m.group(3))))
     assert abs(2 * 16 / res["largest_m"] - float(m.group(2))) < 0.05
+
+
+def test_design_page_table_rows_are_the_tables_targets():
+    """docs/design.md's table: one row per wavelength that fits 16 cells and per layout design_table draws, in order."""
+    from host_emulator.benchmarks.design_table import wall_layouts
+
+    page = (ROOT / "docs" / "design.md").read_text()
+    rows = re.findall(r"^\| (lambda|walls)=([\d.,]+) \| (\d+) % \| (\d+) % \|", page, re.M)
+    lam = [float(v) for f, v, _, _ in rows if f == "lambda"]
+    walls = [tuple(float(w) for w in v.split(",")) for f, v, _, _ in rows if f == "walls"]
+    assert lam == [float(f"{30 / z:.6g}") for z in range(1, 16)]
+    assert walls == wall_layouts(20)
+    summary = re.findall(r"^(lambda|walls): (\d+) of (\d+) targets land in >= 90 % of the seeds$", page, re.M)
+    for fam, ok, total in summary:
+        fr = [int(s) for f, _, s, _ in rows if f == fam]
+        assert (int(ok), int(total)) == (sum(s >= 90 for s in fr), len(fr))
+    assert len(summary) == 2
