@@ -34,9 +34,14 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     from .limits import check_out_dir, check_run
+    from .outpaths import check_out_file
 
     out = Path(args.out or Path("out") / scene.name)
-    problem = check_run(scene) or check_out_dir(out)
+    problem = (
+        check_run(scene)
+        or check_out_dir(out)
+        or (check_out_file(args.live_png, "--live-png") if args.live_png else None)
+    )
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
@@ -130,6 +135,21 @@ def _print_summary(s, out, files):
     )
 
 
+def unexpected(e: BaseException, prog: str) -> int:
+    """An error no check foresaw (a numerical library's LinAlgError, an OS error of a dependency...): one line
+    naming it, exit 3; the traceback only with MC_DEBUG=1."""
+    import os
+
+    if os.environ.get("MC_DEBUG"):
+        raise e
+    from numpy.linalg import LinAlgError
+
+    what = "numerical failure" if isinstance(e, (ArithmeticError, LinAlgError)) else "run failed"
+    text = " ".join(str(e).split()) or "(no message)"
+    print(f"{prog}: error: {what}: {type(e).__name__}: {text[:300]} (MC_DEBUG=1 shows the traceback)", file=sys.stderr)
+    return 3
+
+
 def _positive_float(text: str) -> float:
     try:
         v = float(text)
@@ -160,6 +180,11 @@ def main(argv: list[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 3
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        return unexpected(e, "host_emulator")
 
 
 # subcommands with their own argument parsers: name -> (module, entry point), imported only when used

@@ -1,7 +1,11 @@
 """Checks of a run's values before any work: finite, in range, fit the firmware's integers, memory and step count within
 the machine.
 
-`check_run(scene)` returns the first problem as one line (the CLI prints it and exits 2) or None.
+`check_run(scene)` returns the first problem as one line (the CLI prints it and exits 2) or None. It judges the
+values as given; `check_solver(scene, solver)` judges the run's cost once every default, accuracy preset and
+automatic step choice is resolved (the built solver's plant step), so `model_options.substeps`, a tiny inertia
+that shrinks the automatic step, or a dt are all held to the same limit. controller.run_scene applies it to every
+run (the CLI, the API, paper, robustness, serve); `batch_budget` bounds runs x cost for sweeps and repeats.
 """
 
 from __future__ import annotations
@@ -9,6 +13,8 @@ from __future__ import annotations
 import math
 import os
 from typing import TYPE_CHECKING
+
+from .models.options import ConfigError
 
 if TYPE_CHECKING:
     from .scene import Scene
@@ -23,6 +29,12 @@ RANGES = {  # physically meaningful ranges; outside them the solvers slow to a h
 }
 JITTER_MAX_COUNTS = 400.0  # one revolution of the encoder
 POINTS_MAX = 256
+MAX_BATCH_CELL_STEPS = 24 * MAX_CELL_STEPS  # a sweep, paper or robustness batch: about a day of one core
+REALTIME_CELL_STEPS_PER_S = MAX_CELL_STEPS / 3600  # what one core is held to: serve must keep real time
+
+
+class RunTooLarge(ConfigError):
+    """A run (or a batch of runs) would not finish in reasonable time or memory; the message gives the figure."""
 
 
 def mem_available() -> float:
@@ -82,17 +94,87 @@ def check_run(scene: Scene) -> str | None:
     return None
 
 
-def check_out_dir(path: str | os.PathLike) -> str | None:
-    """Create the output directory now (before simulating); why not, or None."""
-    from pathlib import Path
+def check_out_dir(path: str | os.PathLike, opt: str = "--out") -> str | None:
+    """Create the output directory now (before simulating); why not, or None (outpaths.check_out_dir)."""
+    from .outpaths import check_out_dir as check
 
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        return f"--out {path}: exists and is not a directory"
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        return f"--out {path}: cannot create it: {e.strerror or e}"
-    if not os.access(path, os.W_OK):
-        return f"--out {path}: not writable"
+    return check(path, opt)
+
+
+def _step_cause(scene: Scene, solver) -> str:
+    """Which key or automatic choice set the plant step (for the message)."""
+    o, explicit = scene.options, set(getattr(scene, "explicit_options", ()))
+    if scene.model == "hil" and "substeps" in explicit:
+        return f"model_options.substeps = {o.substeps}"
+    if "dt" in explicit:
+        return f"model_options.dt = {o.dt} s"
+    limit = getattr(solver, "limit", None)
+    chain = getattr(solver, "limit_chain", "?")
+    return (
+        f"the automatic plant step (accuracy {getattr(scene, 'accuracy', 'balanced')}, stepper "
+        f"{getattr(solver, 'stepper', '?')}: stable limit {limit:.3g} s on the {chain} chain, set by params.I_a/I_b, "
+        "the band stiffness and the damping)"
+        if limit
+        else "the automatic plant step"
+    )
+
+
+def cell_steps(scene: Scene, solver) -> float:
+    """Plant steps x cells of the whole run (0 for a solver without a fixed step)."""
+    h = solver.plant_step_s()
+    if h is None:
+        return 0.0
+    if not (h > 0 and math.isfinite(h)):
+        return math.inf
+    return scene.t_end_s / h * scene.cells
+
+
+def check_solver(scene: Scene, solver) -> str | None:
+    """The run's cost from its built solver (every preset and automatic choice resolved): one line, or None."""
+    h = solver.plant_step_s()
+    steps = cell_steps(scene, solver)
+    if steps > MAX_CELL_STEPS:
+        return (
+            f"{_step_cause(scene, solver)}: plant step {h:.3g} s over t_end_s = {scene.t_end_s} s is {steps:.3g} cell "
+            f"steps (limit {MAX_CELL_STEPS:.0e}, about an hour): use a larger step, fewer cells or a shorter run"
+        )
+    return None
+
+
+def check_realtime(scene: Scene, solver, speed: float = 1.0) -> str | None:
+    """serve paces the run to the wall clock: refuse a plant step no core could keep up with (the figure given)."""
+    h = solver.plant_step_s()
+    if h is None or not h > 0:
+        return None
+    per_s = scene.cells / h * speed
+    if per_s > REALTIME_CELL_STEPS_PER_S:
+        return (
+            f"{_step_cause(scene, solver)}: plant step {h:.3g} s is {per_s:.3g} cell steps per wall second at speed "
+            f"{speed:g} (limit {REALTIME_CELL_STEPS_PER_S:.3g}): serve could not keep real time"
+        )
+    return None
+
+
+def scene_cost(scene: Scene) -> float:
+    """Cell steps of one run of the scene, from its built solver (RunTooLarge / ConfigError / ValueError if the
+    scene itself is refused)."""
+    from .controller import build_solver
+
+    problem = check_run(scene)
+    if problem:
+        raise RunTooLarge(problem)
+    solver = build_solver(scene)
+    problem = check_solver(scene, solver)
+    if problem:
+        raise RunTooLarge(problem)
+    return cell_steps(scene, solver)
+
+
+def batch_budget(total: float, what: str, limit: float = MAX_BATCH_CELL_STEPS) -> str | None:
+    """The cell steps of a batch of runs (sweep, paper, robustness) against the limit: one line with the figure."""
+    if total > limit:
+        return (
+            f"{what} is {total:.3g} cell steps in all (limit {limit:.3g}, about {limit / MAX_CELL_STEPS:g} hours of "
+            "one core): fewer points, seeds or repeats, or shorter runs"
+        )
     return None

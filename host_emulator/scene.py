@@ -324,4 +324,13 @@ def load_scene(name_or_path: str, overrides: Iterable[str] = ()) -> Scene:
             d = tomllib.load(fh)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{f}: invalid TOML: {e}") from None
-    return scene_from_dict(apply_overrides(d, overrides), str(f))
+    except RecursionError:
+        raise ConfigError(f"{f}: invalid scene: nested too deeply for a TOML scene") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{f}: not a text TOML file ({e.reason})") from None
+    except OSError as e:
+        raise ConfigError(f"{f}: cannot read it: {e.strerror or e}") from None
+    try:
+        return scene_from_dict(apply_overrides(d, overrides), str(f))
+    except RecursionError:
+        raise ConfigError(f"{f}: invalid scene: nested too deeply") from None

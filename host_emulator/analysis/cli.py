@@ -129,6 +129,13 @@ def dispersion_main(argv: list[str] | None) -> int:
         help="also draw the dispersion (lattice and continuum, band, fastest wavelength) to PNG",
     )
     args = ap.parse_args(argv)
+    if args.plot:
+        from ..outpaths import check_out_file
+
+        problem = check_out_file(args.plot, "--plot")
+        if problem:
+            print(f"dispersion: error: {problem}", file=sys.stderr)
+            return 2
     try:
         p = Params()
         if args.sigma is not None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -181,6 +182,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-scaling", action="store_true", help="skip the cost-against-cells scaling")
     ap.add_argument("--out", default="out/bench", help="directory for the PNG and JSON (default out/bench)")
     args = ap.parse_args(argv)
+    from ..outpaths import check_out_dir
+
+    problem = check_out_dir(args.out)
+    if problem:
+        print(f"bench: error: {problem}", file=sys.stderr)
+        return 2
     where = pin_one_core()
     from ..provenance import machine_line
 

@@ -201,7 +201,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", metavar="PATH", help="also write the counts as JSON")
     args = ap.parse_args(argv)
     from ..models import ConfigError
+    from ..outpaths import check_out_file
 
+    problem = check_out_file(args.json, "--json") if args.json else None  # before minutes of callgrind
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     try:
         m = measure(args.scene, args.set, args.t0, args.t1)
     except (ValueError, ConfigError, FileNotFoundError) as e:

@@ -24,6 +24,7 @@ import math
 import multiprocessing as mp
 import os
 import statistics
+import sys
 import tempfile
 import time
 from typing import TypeVar
@@ -221,6 +222,14 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     if a.points < 1 or min(a.workers) < 1 or not (math.isfinite(a.t_end) and a.t_end > 0) or a.big < 0 or a.repeat < 1:
         ap.error("--points, --workers, --repeat, --t-end must be positive and --big >= 0")
+    from ..outpaths import check_out_file, first_problem
+
+    problem = first_problem(
+        check_out_file(a.json, "--json") if a.json else None, check_out_file(a.plot, "--plot") if a.plot else None
+    )
+    if problem:
+        print(f"benchmarks.sweep: error: {problem}", file=sys.stderr)
+        return 2
     r = measure(a.points, a.workers, a.t_end, a.repeat, a.big, not a.no_baseline)
     print(report(r))
     if a.json:

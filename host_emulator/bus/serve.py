@@ -8,6 +8,10 @@ Sessions: a client's open and close of the pty are the emulated USB port's open 
 close (DTR): at each, the primary starts a new session (mc_link_session: channel
 closed, queued frames and any half line dropped) and the unread output is discarded,
 so a client that died without ``C`` leaves nothing stale for the next one.
+
+One reader per port: a pty read by two programs gives each part of the bytes. While a client holds the pty,
+serve looks every second at which processes hold it (/proc, as the tools' portlock does); a second program is
+reported on stderr when it appears and counted (``second-client events`` in the final line).
 Exit codes: 0 ok, 2 bad arguments, 3 the run failed.
 """
 
@@ -98,6 +102,61 @@ def check_args(args: argparse.Namespace) -> str | None:
     return None
 
 
+def check_link(link: str) -> str | None:
+    """--link must name a symlink we may create (an existing symlink is replaced, nothing else): why not, or None."""
+    from ..outpaths import show
+
+    try:
+        if os.path.lexists(link) and not os.path.islink(link):
+            return f"--link {show(link)}: exists and is not a symlink (not replaced)"
+        parent = os.path.dirname(link) or "."
+        os.makedirs(parent, exist_ok=True)
+        probe = os.path.join(parent, f".link-probe-{os.getpid()}")
+        os.symlink(os.devnull, probe)
+        os.unlink(probe)
+        if not os.path.islink(link):  # the name itself (its length) is checked by making it
+            os.symlink(os.devnull, link)
+            os.unlink(link)
+    except OSError as e:
+        return f"--link {show(link)}: cannot create it: {e.strerror or e}"
+    return None
+
+
+class ClientWatch:
+    """Counts the programs holding the served pty (portlock.holders, at most once per second): more than one means
+    the readers split the bytes between them; each such appearance is one event, said once on stderr."""
+
+    EVERY_S = 1.0
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.events = 0
+        self.most = 0
+        self.next = 0.0
+        self.seen: frozenset[int] = frozenset()
+
+    def poll(self) -> None:
+        now = time.monotonic()
+        if now < self.next:
+            return
+        self.next = now + self.EVERY_S
+        from metacell_tools.rigtools.portlock import holders
+
+        held = holders(self.path, exclude={os.getpid()})
+        self.most = max(self.most, len(held))
+        pids = frozenset(held)
+        if len(pids) > 1 and not pids <= self.seen:
+            self.events += 1
+            who = "; ".join(f"pid {p}: {c}" for p, c in sorted(held.items()))
+            print(
+                f"serve: {len(pids)} programs hold {self.path} ({who}): each reads part of the frames "
+                "(one reader per port)",
+                file=sys.stderr,
+                flush=True,
+            )
+        self.seen = pids if len(pids) > 1 else frozenset()
+
+
 def serve_main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     problem = check_args(args)
@@ -115,16 +174,31 @@ def serve_main(argv: list[str] | None = None) -> int:
     except (ValueError, KeyError, OSError) as e:
         print(f"serve: {e}", file=sys.stderr)
         return 2
+    from ..limits import check_realtime, check_run, check_solver
+
+    problem = check_run(scene) or check_solver(scene, rig.solver) or check_realtime(scene, rig.solver, args.speed)
+    if problem:
+        print(f"serve: {problem}", file=sys.stderr)
+        return 2
+    if args.link:
+        problem = check_link(args.link)
+        if problem:
+            print(f"serve: {problem}", file=sys.stderr)
+            return 2
     master, slave, path = open_pty()
     os.close(slave)
     client = False  # a client holds the pty open (reads of the master do not fail with EIO)
     sessions = 0
     if args.link:
         try:
-            os.unlink(args.link)
-        except FileNotFoundError:
-            pass
-        os.symlink(path, args.link)
+            if os.path.islink(args.link):
+                os.unlink(args.link)
+            os.symlink(path, args.link)
+        except OSError as e:
+            os.close(master)
+            print(f"serve: --link {args.link[:80]}: cannot create it: {e.strerror or e}", file=sys.stderr)
+            return 2
+    watch = ClientWatch(path)
     print(f"slcan pty: {path}  (python -m can.logger -i slcan -c {path}@115200)", flush=True)
     print(f"scene {scene.name}: {scene.description}; I2C {args.i2c_hz} Hz, {rig.n} cells", flush=True)
     status = 0
@@ -154,6 +228,8 @@ def serve_main(argv: list[str] | None = None) -> int:
                 sessions += present
                 rig.session()
                 backlog.clear()
+            if client:
+                watch.poll()
             if data:
                 backlog += rig.feed(data)
             out = rig.drain()
@@ -188,7 +264,8 @@ def serve_main(argv: list[str] | None = None) -> int:
         f"served {sim_us / 1e6:.1f} s: {p.cycles} poll cycles, {rig.transactions} transactions, "
         f"{sessions} client sessions, {dropped} bytes dropped (slow reader), {p.tx_drop} frames dropped "
         f"(queue full), {p.no_room} commands answered NO_ROOM, {p.ans_drop} answers dropped, "
-        f"{rig.band_stops} plant range stops reported as runaway faults",
+        f"{rig.band_stops} plant range stops reported as runaway faults, "
+        f"{watch.events} second-client events (most programs on the pty at once: {watch.most})",
         flush=True,
     )
     return status

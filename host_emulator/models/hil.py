@@ -31,7 +31,7 @@ def reaction_phys(ffi, params: Params):
     (protocol.codec: uN*m/rad, urad; the firmware judges the range)."""
     phys = ffi.new("mc_reaction_phys_t *")
     for name, member, reg in REACTION_FIELDS:
-        setattr(phys, member, codec.si_to_raw(codec.unit_of(reg, "value"), getattr(params, name)))
+        _store(phys, member, lambda n=name, r=reg: codec.si_to_raw(codec.unit_of(r, "value"), getattr(params, n)), name)
     return phys
 
 
@@ -66,14 +66,25 @@ def firmware_config(ffi, lib, params: Params):
     phys = reaction_phys(ffi, params.cell(1))
     drv = ffi.new("mc_drive_config_t *")
     lib.mc_drive_default_config(drv)
-    drv.supply_mv = round(params.supply_v * 1000)
-    drv.vmax_mv = round(params.vmax_v * 1000)
-    drv.kt_unm_per_v = round(params.kt * 1e6)
-    drv.kv_mrad_per_vs = round(params.speed_const * 1000)
-    drv.pwm_top = int(params.pwm_top)
-    drv.ctrl_rate_hz = round(params.control_rate_hz)
+    _store(drv, "supply_mv", lambda: round(params.supply_v * 1000), "supply_v")
+    _store(drv, "vmax_mv", lambda: round(params.vmax_v * 1000), "vmax_v")
+    _store(drv, "kt_unm_per_v", lambda: round(params.kt * 1e6), "kt")
+    _store(drv, "kv_mrad_per_vs", lambda: round(params.speed_const * 1000), "speed_const")
+    _store(drv, "pwm_top", lambda: int(params.pwm_top), "pwm_top")
+    _store(drv, "ctrl_rate_hz", lambda: round(params.control_rate_hz), "control_rate_hz")
     drv.vel_window_log2 = -1
     return phys, drv
+
+
+def _store(struct, member: str, value, name: str) -> None:
+    """struct.member = value(), or a ConfigError naming params.<name> when the firmware's integer cannot hold it
+    (cffi's bare "int too big to convert" names nothing)."""
+    try:
+        setattr(struct, member, value())
+    except (OverflowError, ValueError, TypeError) as e:
+        from .options import ConfigError
+
+        raise ConfigError(f"params.{name}: does not fit the firmware's integer field {member} ({e})") from None
 
 
 class HilModel(LatticeModel):
@@ -235,6 +246,9 @@ class HilSolver(Solver):
             "encoder_errors": self.encoder_errors(),
             "glitches_injected": int(self.h.glitches),
         }
+
+    def plant_step_s(self) -> float:
+        return 1.0 / self.model.rate_hz / self.substeps
 
     def encoder_errors(self) -> int:
         return int(sum(self.quad[i].errors for i in range(2 * self.model.n)))

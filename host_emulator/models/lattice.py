@@ -128,6 +128,16 @@ class LatticeSolver(Solver):
             "dt_out_s": self.dt_out,
         }
 
+    def plant_step_s(self) -> float | None:
+        """The fixed step; for the adaptive stepper, the step it can hold over a run: the smaller of model_options.dt
+        and the stable limit (an explicit method's error control keeps its steps near it where it binds, and takes
+        smaller ones where accuracy needs them), so limits.check_solver judges an estimate of the cost, not a bound:
+        enough to refuse a tiny inertia's run before it starts (None when neither bounds the step)."""
+        if self.adaptive:
+            h = min(float(self.h), float(self.limit))
+            return h if math.isfinite(h) else None
+        return float(self.h)
+
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         n = self.model.n
         return self.x[:n].copy(), self.x[n:].copy()

@@ -59,6 +59,12 @@ class Solver:
         """(t, alpha, beta) of the whole run, for whole_run solvers."""
         raise NotImplementedError(f"{type(self).__name__} steps (advance / advance_many), it has no run_all")
 
+    def plant_step_s(self) -> float | None:
+        """The plant step the solver will take, s, after every preset and automatic choice (an adaptive lattice:
+        the largest step it can hold; None: a solver whose step nothing bounds, the continuum's BDF).
+        limits.check_solver turns it into the run's cost."""
+        return None
+
     def faults(self) -> list[int] | None:
         """Per-cell firmware fault bits, or None for a model without firmware."""
         return None

@@ -171,8 +171,11 @@ def animate_main(argv: list[str] | None = None) -> int:
     if not (1 <= args.fps <= 60) or not args.t_max > 0:
         print("error: --fps must be 1..60 and --t-max > 0", file=sys.stderr)
         return 2
-    if not args.out.endswith((".gif", ".mp4")):
-        print(f"error: --out {args.out}: expected a .gif or .mp4 file", file=sys.stderr)
+    from ..outpaths import check_out_file
+
+    problem = check_out_file(args.out, "--out", (".gif", ".mp4"))
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
         return 2
     try:
         r = run(args.scene, list(args.set), progress=not args.quiet)

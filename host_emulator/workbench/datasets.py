@@ -26,8 +26,10 @@ The dataset (format ``metacell-run/1``):
   ``format``, ``origin`` (the path read), ``scene`` and every scene parameter when known, units, provenance.
 
 The NPZ file (``to_npz``) holds the same: ``format``, ``time``, ``cell``, ``alpha``, ``beta``, the optional
-variables above, the rig's ``cycle``, ``segment`` and ``gaps`` (segment, cell, first missing cycle, count), and
-``attrs`` (the attributes as one JSON string).
+variables above, the rig's ``cycle``, ``segment``, ``partial`` (per row: logging started or stopped inside that
+cycle, so some cells have no sample in it; docs/datapath.md, "Partial cycles") and ``gaps`` (segment, cell, first
+missing cycle, count), and ``attrs`` (the attributes as one JSON string). It is written to a temporary name and
+renamed (``save_npz_atomic``): a reader never finds a cut or empty NPZ, even after a full disk or a kill.
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "beta_counts": ("count", "beta encoder counts (400 per revolution)"),
     "host_time": ("s", "laptop clock (Unix time) when the sample was received"),
 }
-EXTRA_ARRAYS = ("cycle", "segment", "gaps")  # rig captures: per-row cycle and segment; the gap table
+EXTRA_ARRAYS = ("cycle", "segment", "partial", "gaps")  # rig captures: per-row cycle, segment, partial; gap table
 
 
 class LoadError(ValueError):
@@ -95,6 +97,12 @@ def make_dataset(
             data[name] = (("time", "cell"), arr, {"units": units, "long_name": long})
         elif name in ("cycle", "segment"):
             data[name] = (("time",), arr.astype(np.int64), {"long_name": f"poll {name} of the row"})
+        elif name == "partial":
+            data[name] = (
+                ("time",),
+                arr.astype(bool),
+                {"long_name": "logging started or stopped inside this cycle (some cells have no sample in it)"},
+            )
         elif name == "gaps":
             data[name] = (
                 ("gap", "gap_field"),
@@ -174,8 +182,15 @@ def logger_layout(arr: Mapping[str, np.ndarray], t0: float | None = None) -> dic
     keep = np.isfinite(t)
     if t0 is None:
         t0 = float(t[keep][0]) if keep.any() else 0.0
-    a = np.asarray(arr["alpha_counts"], dtype=float)[keep]
+    a_all = np.asarray(arr["alpha_counts"], dtype=float)
+    a = a_all[keep]
     b = np.asarray(arr["beta_counts"], dtype=float)[keep]
+    if "partial" in arr:
+        partial = np.asarray(arr["partial"], dtype=bool)
+    else:  # a logger NPZ written before the flag
+        from metacell_tools.rigtools.logger import partial_cycles
+
+        partial = partial_cycles(np.asarray(arr["segment"]), a_all)
     return {
         "time": t[keep] - t0,
         "cell": np.asarray(arr.get("cells", np.arange(1, a.shape[1] + 1))),
@@ -188,6 +203,7 @@ def logger_layout(arr: Mapping[str, np.ndarray], t0: float | None = None) -> dic
         "host_time": np.asarray(arr["host_time"], dtype=float)[keep],
         "cycle": np.asarray(arr["cycle"])[keep],
         "segment": np.asarray(arr["segment"])[keep],
+        "partial": partial[keep],
         "gaps": np.asarray(arr["gaps"]).reshape(-1, 4),
         "t_origin_s": t0,
     }
@@ -221,10 +237,34 @@ def _json_attrs(attrs: Mapping[str, Any]) -> str:
     return json.dumps({k: conv(v) for k, v in attrs.items()}, allow_nan=False, default=str)
 
 
+def save_npz_atomic(path: str | Path, arrays: Mapping[str, Any]) -> Path:
+    """np.savez_compressed to <path>.tmp, fsync, rename over <path>: a reader never sees a cut or empty NPZ (a full
+    disk or a kill leaves the previous file or none, never a 0-byte one). As numpy, '.npz' is appended to a name
+    without it; returns the path written."""
+    import os
+
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
 def write_npz(path: str | Path, arrays: Mapping[str, Any], attrs: Mapping[str, Any]) -> Path:
     """Write this layout's arrays (time, cell, alpha, beta, and any of VARIABLES / EXTRA_ARRAYS) and attributes as
-    NPZ, numpy only (the logger writes its captures with it); returns the path."""
-    path = Path(path)
+    NPZ, numpy only (the logger writes its captures with it), atomically (save_npz_atomic); returns the path."""
     out: dict[str, Any] = {
         "format": np.array(FORMAT),
         "attrs": np.array(_json_attrs({"format": FORMAT, **attrs})),
@@ -235,8 +275,7 @@ def write_npz(path: str | Path, arrays: Mapping[str, Any], attrs: Mapping[str, A
     missing = [k for k in ("time", "cell", "alpha", "beta") if k not in out]
     if missing:
         raise ValueError(f"write_npz: missing {', '.join(missing)}")
-    np.savez_compressed(path, **out)
-    return path
+    return save_npz_atomic(path, out)
 
 
 def to_npz(ds: xr.Dataset, path: str | Path) -> Path:
@@ -246,8 +285,22 @@ def to_npz(ds: xr.Dataset, path: str | Path) -> Path:
 
 
 def read_npz(path: str | Path, attrs: Mapping[str, Any] | None = None) -> xr.Dataset:
-    """An NPZ of this layout, of the emulator's older ``t, alpha, beta`` or of the logger's older arrays."""
+    """An NPZ of this layout, of the emulator's older ``t, alpha, beta`` or of the logger's older arrays. A file
+    that is no NPZ (empty, cut, another format) is a LoadError naming it, never a numpy or zipfile traceback."""
+    import zipfile
+    import zlib
+
     path = Path(path)
+    try:
+        return _read_npz(path, attrs)
+    except LoadError:
+        raise
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as e:
+        what = " ".join(str(e).split())[:200] or type(e).__name__
+        raise LoadError(f"{path}: not a readable NPZ ({type(e).__name__}: {what})") from None
+
+
+def _read_npz(path: Path, attrs: Mapping[str, Any] | None) -> xr.Dataset:
     with np.load(path, allow_pickle=False) as z:
         keys = set(z.files)
         if "format" in keys:
@@ -268,7 +321,10 @@ def read_npz(path: str | Path, attrs: Mapping[str, Any] | None = None) -> xr.Dat
 
 # ---- captures -----------------------------------------------------------------------------------------------
 def _from_rows(rows: np.ndarray, gaps, attrs) -> xr.Dataset:
-    from metacell_tools.rigtools.logger import rows_to_arrays
+    from metacell_tools.rigtools.logger import gaps_from_rows, rows_to_arrays
+
+    if gaps is None:  # a CSV alone: the gaps its cycle counters show
+        gaps = gaps_from_rows(rows)
 
     n = int(rows[:, 2].max()) if len(rows) else 16
     return from_logger_arrays(rows_to_arrays(rows, max(n, 16), gaps), attrs)
@@ -316,17 +372,19 @@ def _logger_csv(path: Path, source: str | None) -> xr.Dataset:
     meta = {}
     npz = path.with_suffix(".npz")
     if npz.exists():  # the capture's attributes (source, provenance) live in its NPZ
+        import zipfile
+
         try:
             with np.load(npz, allow_pickle=False) as z:
                 if "attrs" in z.files:
                     meta = json.loads(str(z["attrs"]))
-        except (OSError, ValueError):
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile):  # an NPZ a crash left unreadable: the CSV alone
             meta = {}
     if source:
         meta["source"] = source
     meta.setdefault("source", "unknown")
     meta["capture"] = "logger CSV"
-    return _from_rows(rows, [], meta).assign_attrs(origin=str(path))
+    return _from_rows(rows, None, meta).assign_attrs(origin=str(path))
 
 
 def _is_logger_csv(path: Path) -> bool:

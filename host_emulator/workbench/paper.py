@@ -393,6 +393,20 @@ def build(out: Path, repeats: int = 10, *, quiet: bool = False) -> dict:
     return doc
 
 
+def paper_budget(repeats: int) -> str | None:
+    """The runs of `paper` (Fig. 2's five, Fig. 3's three panels x repeats) against the batch limit."""
+    from ..limits import batch_budget, scene_cost
+
+    runs = [(s, sets) for s, sets, _ in FIG2_RUNS.values()] + [  # as fig2_runs runs them
+        ("exp3_single_sigma14", ["model=lattice", "model_options.dt_out=0.002"]),
+        ("exp3_single_sigma14", ["params.bemf_comp=true"]),
+        ("exp4_stable_eta10", []),
+    ]
+    fixed = sum(scene_cost(load_scene(n, sets)) for n, sets in runs)
+    per = sum(scene_cost(load_scene(n, ["model=hil"])) for n, _ in FIG3_RUNS.values())
+    return batch_budget(fixed + repeats * per, f"paper --repeats {repeats}")
+
+
 def _json_default(v):
     if isinstance(v, (np.floating, np.integer, np.bool_)):
         return v.item()
@@ -453,8 +467,11 @@ def paper_main(argv: list[str] | None) -> int:
         print(f"paper: error: --repeats {args.repeats}: must be in 1..1000", file=sys.stderr)
         return 2
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"paper: error: --out {out}: exists and is not a directory", file=sys.stderr)
+    from ..outpaths import check_out_dir
+
+    problem = check_out_dir(out) or paper_budget(args.repeats)
+    if problem:
+        print(f"paper: error: {problem}", file=sys.stderr)
         return 2
     doc = build(out, args.repeats, quiet=args.quiet)
     print_table(doc)

@@ -108,6 +108,25 @@ def _robustness(names, seeds, torques, durations) -> dict:
     return out
 
 
+def robustness_budget(
+    seeds: int,
+    scenes: Sequence[str] | None = None,
+    torques: Sequence[float] = ROBUST_TORQUES_NM,
+    durations: Sequence[float] = ROBUST_DURATIONS_S,
+) -> str | None:
+    """robustness's runs (per scene: seeds, seeds with jitter on hil, every push) x their cost, against the batch
+    limit, before any run: one line with the figure, or None."""
+    from ..limits import batch_budget, scene_cost
+
+    total = 0.0
+    for name in scenes or ROBUST_SCENES:
+        model, _ = ROBUST_SCENES[name]
+        scene = load_scene(name, [f"model={model}"])
+        runs = seeds * (2 if model == "hil" else 1) + (len(torques) * len(durations) if scene.perturbations else 0)
+        total += runs * scene_cost(scene)
+    return batch_budget(total, f"robustness --seeds {seeds}")
+
+
 def print_robustness(res: dict, seeds: int, file: TextIO = sys.stdout) -> None:
     def pct(v):
         return "-" if v is None else f"{100 * v:.0f} %"
@@ -165,11 +184,16 @@ def robustness_main(argv: list[str] | None) -> int:
     if not 1 <= args.seeds <= 10000:
         print(f"robustness: error: --seeds {args.seeds}: must be in 1..10000", file=sys.stderr)
         return 2
+    from ..outpaths import check_out_dir
+
+    problem = (check_out_dir(args.out) if args.out else None) or robustness_budget(args.seeds, args.scene)
+    if problem:
+        print(f"robustness: error: {problem}", file=sys.stderr)
+        return 2
     res = robustness(args.seeds, scenes=args.scene, quiet=args.quiet)
     print_robustness(res, args.seeds)
     if args.out:
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
         doc = {
             "seeds": args.seeds,
             "noise": NOISE,

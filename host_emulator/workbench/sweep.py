@@ -33,6 +33,7 @@ theory_band_kind (stationary / oscillatory). Units are attributes of each variab
 from __future__ import annotations
 
 import argparse
+import contextlib
 import itertools
 import json
 import math
@@ -71,10 +72,17 @@ OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report 
 BANDS = {"theory_band_lo_cells": "cells", "theory_band_hi_cells": "cells"}  # per unstable interval (dim band)
 STRINGS = ("regime", "outcome", "status", "error")
 OUTCOMES = ("rest", "pattern", "oscillation", "moving", "failed")
+MAX_POINTS = 1_000_000  # grid points x seeds: the point list, the store and the dataset stay within memory
+COST_SAMPLE = 8  # points whose solver is built to estimate the sweep's cost before any cluster starts
 
 
 class SweepError(ValueError):
     """A bad sweep definition (grid syntax, keys, output directory)."""
+
+
+class SweepFailed(RuntimeError):
+    """The sweep could not run on (scheduler unreachable, cluster failed to start, interrupted); points already
+    finished stay in points.jsonl and a re-run resumes."""
 
 
 # ---- the grid -------------------------------------------------------------------------------------------
@@ -104,8 +112,13 @@ def parse_grid(text: str) -> tuple[str, list]:
         a_text, b_text, n_text = spec.split(":")
         try:
             n = int(n_text)
+        except ValueError:
+            raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
+        if n > MAX_POINTS:  # before the values are made: NUM = 1e8 would fill memory
+            raise SweepError(f"--grid {text!r}: NUM = {n} exceeds the sweep's {MAX_POINTS} points")
+        try:
             vals = _exact_range(a_text, b_text, max(n, 1))
-        except (TypeError, ValueError, ZeroDivisionError):
+        except (TypeError, ValueError, ZeroDivisionError, OverflowError):
             raise SweepError(f"--grid {text!r}: START:STOP:NUM needs two numbers and an integer") from None
         if n < 1 or not all(math.isfinite(v) for v in vals):
             raise SweepError(f"--grid {text!r}: NUM must be >= 1 and START, STOP finite")
@@ -210,6 +223,7 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
     in one compiled call (host_emulator.workbench.batch.run_batch: hil lattices batched, bit-identical to run_scene;
     other models one by one), so a point costs no Python per control tick."""
     from ..analysis.summary import summarize
+    from ..limits import scene_cost
     from .batch import run_batch
 
     out: list[dict] = []
@@ -217,7 +231,9 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
     for spec in specs:
         r = {"index": spec["index"], "status": "ok", "error": ""}
         try:
-            loaded.append((r, _load_spec(spec)))
+            sc = _load_spec(spec)
+            scene_cost(sc)  # the point's own guard: a point too long is recorded as failed, with the figure
+            loaded.append((r, sc))
         except Exception as e:  # noqa: BLE001 - a failing point is recorded, never dropped
             r["status"], r["error"], r["wall_s"] = "failed", f"{type(e).__name__}: {e}", 0.0
         out.append(r)
@@ -318,6 +334,13 @@ def sweep(
             raise SweepError(f"grid[{k!r}]: expected a non-empty list of values")
     if seeds is not None and (isinstance(seeds, bool) or int(seeds) < 1):
         raise SweepError(f"seeds = {seeds!r}: expected a positive integer")
+    sizes = [len(list(v)) for v in grid.values()]
+    n_points = math.prod(sizes) * int(seeds or 1)  # before the point list is built
+    if n_points > MAX_POINTS:
+        raise SweepError(
+            f"the grid is {' x '.join(map(str, sizes))}{f' x {seeds} seeds' if seeds else ''} = "
+            f"{n_points} points (limit {MAX_POINTS}): fewer values or seeds"
+        )
     fixed = override_list(fixed) + ([f'accuracy="{accuracy}"'] if accuracy else [])
     if isinstance(scene, (str, Path)):
         scene_ref: str | dict = str(scene)
@@ -327,9 +350,16 @@ def sweep(
         raise SweepError(f"scene = {scene!r}: expected a scene name, a .toml path or a Scene")
     specs, axes = point_specs(scene_ref, grid, seeds, fixed)
     base = _load_spec({"scene": scene_ref, "overrides": fixed})
-    _load_spec(specs[0])  # a bad key fails here, before any cluster starts
+    _load_spec(specs[0])  # a bad key fails here, before anything is written
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    from ..outpaths import check_out_dir
+
+    problem = check_out_dir(out)
+    if problem:
+        raise SweepError(problem)
+    cost = estimate_cost(specs)  # a bad key, a point too long or a sweep too large fails here, before any cluster
+    if progress:
+        print(f"sweep: {len(specs)} points, about {cost:.3g} cell steps in all", file=sys.stderr)
     definition = {"scene": scene_ref, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}
     dfile = out / "sweep.json"
     if dfile.exists():
@@ -353,6 +383,33 @@ def sweep(
             names = coord_names(axes)
             _save(plot_regime_map(ds, names.get(keys[0], keys[0]), names.get(keys[1], keys[1])), out / "regime_map.png")
     return ds
+
+
+def estimate_cost(specs: list[dict]) -> float:
+    """The sweep's cell steps, from COST_SAMPLE points spread over the grid (first and last included), each built
+    as its run would be (limits.scene_cost: every preset and automatic step resolved). Raises RunTooLarge for a
+    sampled point that is too long on its own or a sweep over the batch limit (the figure in the message)."""
+    from ..limits import RunTooLarge, batch_budget, scene_cost
+
+    n = len(specs)
+    k = min(n, COST_SAMPLE)
+    picks = sorted({round(i * (n - 1) / max(1, k - 1)) for i in range(k)})
+    costs = []
+    for i in picks:
+        try:
+            costs.append(scene_cost(_load_spec(specs[i])))
+        except RunTooLarge as e:
+            raise SweepError(f"point {i} {specs[i]['coords']}: {e}") from None
+        except (KeyError, ValueError):  # a bad point is recorded as failed when it runs, as every bad point is
+            continue
+    if not costs:
+        _load_spec(specs[0])  # every sampled point is bad: say why (bad key...)
+        return 0.0
+    total = sum(costs) / len(costs) * n
+    problem = batch_budget(total, f"the sweep of {n} points (about {total / n:.3g} cell steps each)")
+    if problem:
+        raise RunTooLarge(problem)
+    return total
 
 
 def _save(fig, path):
@@ -391,10 +448,20 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
 
     cluster = None
     if scheduler:
-        client = Client(scheduler, timeout="20s")
+        _probe_scheduler(scheduler)
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as e:
+            raise SweepFailed(f"--scheduler {scheduler}: cannot connect: {_first_line(e)}") from None
     else:
-        cluster = local_cluster(int(workers or os.cpu_count() or 1))
-        client = Client(cluster)
+        try:
+            cluster = local_cluster(int(workers or os.cpu_count() or 1))
+            client = Client(cluster)
+        except Exception as e:  # noqa: BLE001 - a worker killed while starting, no ports, ...
+            if cluster is not None:
+                with contextlib.suppress(Exception):
+                    cluster.close()
+            raise SweepFailed(f"the local Dask cluster did not start: {type(e).__name__}: {_first_line(e)}") from None
     try:
         nw = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
         size = int(chunk) if chunk else chunk_size(len(todo), nw)
@@ -410,7 +477,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         with open(pf, "a") as fh:
             if cut:
                 fh.write("\n")  # a line cut by a crash stays alone (ignored when read)
-            for fut in as_completed(list(futs)):
+            for fut in _closing(bar, as_completed(list(futs))):
                 c = futs[fut]
                 try:
                     results = fut.result()
@@ -423,10 +490,53 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
                 fh.flush()
                 bar.update(len(results))
         bar.close()
+    except KeyboardInterrupt:
+        import logging
+
+        # Ctrl-C: the cluster's own shutdown chatter (asyncio cancellations) is no news to the user
+        for name in ("distributed", "asyncio", "tornado"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        raise
     finally:
-        client.close()
+        with contextlib.suppress(Exception):
+            client.close()
         if cluster is not None:
-            cluster.close()
+            with contextlib.suppress(Exception):
+                cluster.close()
+
+
+def _closing(bar, items):
+    """Iterate items; the progress bar is closed however the loop ends (Ctrl-C), so it never prints after the
+    last line."""
+    try:
+        yield from items
+    finally:
+        bar.close()
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
+
+
+def _probe_scheduler(address: str, timeout_s: float = 5.0) -> None:
+    """Fail at once (SweepFailed) on a tcp:// scheduler nobody listens at, instead of the client's 20 s wait."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return
+    u = urlsplit(address)
+    try:
+        host, port = u.hostname, u.port
+    except ValueError:
+        raise SweepError(f"--scheduler {address}: expected tcp://HOST:PORT") from None
+    if not host or not port:
+        raise SweepError(f"--scheduler {address}: expected tcp://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=timeout_s).close()
+    except OSError as e:
+        raise SweepFailed(f"--scheduler {address}: cannot connect: {e.strerror or e}") from None
 
 
 def to_dataset(specs: list[dict], axes: dict, done: dict, base: Scene, definition: dict) -> xr.Dataset:
@@ -739,7 +849,9 @@ EPILOG = """examples:
   python -m host_emulator sweep default --grid params.sigma=0.04:0.12:9 --scheduler tcp://127.0.0.1:8786 --out out/s3
 
 Re-running the same command resumes: points already in DIR/points.jsonl are skipped.
-Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2 bad input."""
+Exit codes: 0 every point ran, 1 some points failed (recorded in the dataset), 2 bad input (grid, keys, output
+directory, a sweep over the size limits: the figure is given), 3 the sweep could not run on (scheduler unreachable,
+cluster did not start, interrupted, write error; finished points are kept and a re-run resumes)."""
 
 
 def sweep_main(argv: list[str] | None = None) -> int:
@@ -829,8 +941,20 @@ def sweep_main(argv: list[str] | None = None) -> int:
             map_keys=args.map,
         )
     except (SweepError, ConfigError, KeyError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", file=sys.stderr)
         return 2
+    except SweepFailed as e:
+        print(f"error: sweep failed: {e}; finished points are kept in {args.out}/points.jsonl", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print(
+            f"sweep: interrupted; finished points are kept in {args.out}/points.jsonl (the same command resumes)",
+            file=sys.stderr,
+        )
+        return 3
+    except OSError as e:
+        print(f"error: sweep failed: cannot write {args.out}: {e.strerror or e}", file=sys.stderr)
+        return 3
     st = ds["status"].values.astype(str)
     failed = int((st == "failed").sum())
     print(f"sweep: {st.size} points, {int((st == 'ok').sum())} ok, {failed} failed; wrote {args.out}/sweep.nc")

@@ -450,6 +450,14 @@ def cmd_run(
             source = "rehearsal:hil"
             print(f"note: {channel} is a pseudo-terminal (the emulator's serve): labelled {source}", file=sys.stderr)
     out = Path(args.out or Path("out") / ("rig" if source == "rig" else "rehearsal") / scene.name)
+    from host_emulator.outpaths import check_out_dir, check_out_file, first_problem
+
+    problem = first_problem(
+        check_out_dir(out), check_out_file(args.live_png, "--live-png") if getattr(args, "live_png", None) else None
+    )
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return EXIT_USAGE
     live = make_live(args, scene, out, source)
     rc, summary = execute(
         scene,
@@ -484,6 +492,12 @@ def cmd_rehearse(args: argparse.Namespace) -> int:
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    from host_emulator.outpaths import check_out_dir
+
+    problem = check_out_dir(Path(args.out or Path("out") / "rehearsal" / scene.name))  # where cmd_run writes
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return EXIT_USAGE
     extra = []
     for name in ("absent", "stuck", "babble"):
         if getattr(args, name):
@@ -516,4 +530,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
+    try:
+        return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        from host_emulator.cli import unexpected
+
+        return unexpected(e, "experiment")

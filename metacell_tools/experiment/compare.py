@@ -81,9 +81,14 @@ def open_run(path: Path, source: str | None = None) -> Run:
     f = path / "summary.json"
     if path.is_dir() and f.exists():
         try:
-            return _from_summary(path, json.loads(f.read_text()), source)
-        except json.JSONDecodeError as e:
+            s = json.loads(f.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as e:
             raise CompareError(f"{f}: not valid JSON: {e}") from None
+        except OSError as e:
+            raise CompareError(f"{f}: cannot read it: {e.strerror or e}") from None
+        if not isinstance(s, dict):
+            raise CompareError(f"{f}: not a run summary")
+        return _from_summary(path, s, source)
     if not path.exists() and not any(path.with_suffix(x).exists() for x in (".npz", ".csv")):
         raise CompareError(
             f"{path}: not found (run `python -m metacell_tools.experiment run` or `python -m host_emulator run` first)"
@@ -192,5 +197,9 @@ def compare(
     if a.cells != b.cells:
         raise CompareError(f"different cell counts: {a.cells} vs {b.cells}")
     out = Path(out) if out else (Path(a_path) if Path(a_path).is_dir() else Path(a_path).parent) / "compare.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    from host_emulator.outpaths import check_out_file
+
+    problem = check_out_file(out, "--out")  # before the plot is drawn: one line, never a traceback
+    if problem:
+        raise CompareError(problem)
     return table(a, b), plot(a, b, out)

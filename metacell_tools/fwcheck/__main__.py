@@ -224,7 +224,14 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         if a.command == "golden-header":
+            from host_emulator.outpaths import check_out_file
+
             from . import golden
+
+            problem = check_out_file(a.out, "--out") if a.out else None
+            if problem:
+                print(f"fwcheck: {problem}", file=sys.stderr)
+                return 2
 
             path = golden.write_header(a.out)
             print(f"wrote {path}")

@@ -371,6 +371,15 @@ def build(args: argparse.Namespace) -> tuple[str, dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        from host_emulator.cli import unexpected
+
+        return unexpected(e, "command")
+
+
+def _main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         reg, values = build(args)

@@ -4,8 +4,11 @@
     python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/emu --formats asc,blf
 
 Writes <out>.<fmt> for every python-can format asked for (asc blf csv db log trc txt),
-<out>.csv (one row per cell sample, streamed to disk in chunks while logging) and, at the
-end, <out>.npz (cycle x cell arrays, see docs/datapath.md). Every gap in a cell's
+<out>.csv (one row per cell sample, on disk within 1.5 s of its frame) and, at the end,
+<out>.npz (the one run layout host_emulator.load reads, time x cell with a `partial` flag
+per cycle; written to a temporary name and renamed; see docs/datapath.md).
+`--repair PREFIX` puts the files of a killed or full-disk run right (BLF cut to its last
+object, NPZ rebuilt from the CSV). A port another program holds is refused. Every gap in a cell's
 sequence counter is reported on stderr with its length as it happens and kept in the NPZ;
 a link silent for more than a second is reported; a lost connection is reported, retried
 every second, and logged as a new segment. --duration counts from the first frame.
@@ -22,6 +25,7 @@ import argparse
 import math
 import os
 import signal
+import struct
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -73,6 +77,7 @@ class SampleDecoder:
     from the next row on; the logger holds rows (hold=True)."""
 
     HOLD_ROWS = 8192  # rows held at most while waiting for a heartbeat
+    HOLD_S = 1.25  # ... and at most this long (host clock): the 1 Hz heartbeat plus a margin, heartbeat or not
 
     def __init__(
         self,
@@ -270,6 +275,12 @@ class SampleDecoder:
         if miss > 0:
             self._rewrap(miss * T_WRAP, evidence=True)
 
+    def tick(self, host_now: float) -> None:
+        """Called by the receive loop (also while no frame arrives): rows held longer than HOLD_S are checked
+        against the host clock and finished, so no row waits on a heartbeat that does not come."""
+        if self.hold and self.held and host_now - self.held[0][3] >= self.HOLD_S:
+            self.finish()
+
     def finish(self) -> None:
         """End of the stream: rows after the last heartbeat are checked against the host clock, then flushed."""
         if self.held:
@@ -350,7 +361,8 @@ class SampleDecoder:
 def write_capture(path: Path, arr: dict, attrs: dict) -> Path:
     """Cycle x cell arrays (rows_to_arrays) as an NPZ in the one run layout of host_emulator.workbench.datasets:
     time from the first sample, alpha/beta in rad (NaN: no sample), flags, counts, each cell's primary clock, host
-    time, cycles, segments, gaps; attrs (source, capture, channel, ...) with units and provenance. he.load reads it."""
+    time, cycles, segments, partial cycles, gaps; attrs (source, capture, channel, ...) with units and provenance;
+    written to a temporary name and renamed (datasets.save_npz_atomic). he.load reads it."""
     from host_emulator.provenance import provenance
     from host_emulator.workbench.datasets import logger_layout, write_npz
 
@@ -385,6 +397,7 @@ def rows_to_arrays(rows: np.ndarray, n: int, gaps: list[tuple[int, int, int, int
     return {
         "segment": keys[:, 0],
         "cycle": keys[:, 1],
+        "partial": partial_cycles(keys[:, 0], a),
         "cells": np.arange(1, n + 1),
         "t_s": t,
         "host_time": h,
@@ -397,10 +410,34 @@ def rows_to_arrays(rows: np.ndarray, n: int, gaps: list[tuple[int, int, int, int
     }
 
 
+def partial_cycles(segment: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Per cycle: True where logging started or stopped inside it, i.e. some cell's sample lies before that cell's
+    first or after its last sample of the segment (the first and last cycles of a run or a reconnect, NaN for the
+    cells polled outside the log). Gaps inside a cell's span are not partial: they are in `gaps`."""
+    m, n = alpha.shape
+    out = np.zeros(m, dtype=bool)
+    have = ~np.isnan(alpha)
+    for s in np.unique(segment):
+        rows = np.nonzero(segment == s)[0]
+        h = have[rows]
+        seen = h.any(axis=0)
+        if not seen.any():
+            continue
+        idx = np.arange(len(rows))[:, None]
+        first = np.where(seen, h.argmax(axis=0), 0)
+        last = np.where(seen, len(rows) - 1 - h[::-1].argmax(axis=0), -1)
+        edge = seen & ~h & ((idx < first) | (idx > last))
+        out[rows] = edge.any(axis=1)
+    return out
+
+
 class CsvChunks:
-    """Rows streamed to <out>.csv in chunks: memory stays bounded, a crash loses at most the last chunk."""
+    """Rows streamed to <out>.csv in chunks: memory stays bounded, and a chunk is written (to the OS) once it holds
+    CHUNK rows or its oldest row has waited FLUSH_S (tick() is called by the receive loop, frames or not), so a
+    killed logger loses only the rows of the last FLUSH_S plus those still held for a heartbeat (HOLD_S)."""
 
     CHUNK = 2048
+    FLUSH_S = 0.25
 
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -408,16 +445,24 @@ class CsvChunks:
         self.f.write(CSV_HEADER)
         self.f.flush()
         self.buf: list[tuple] = []
+        self.since: float | None = None  # monotonic time the oldest buffered row arrived here
 
     def __call__(self, rows):
+        if rows and not self.buf:
+            self.since = time.monotonic()
         self.buf.extend(rows)
         if len(self.buf) >= self.CHUNK:
+            self.write()
+
+    def tick(self) -> None:
+        if self.buf and self.since is not None and time.monotonic() - self.since >= self.FLUSH_S:
             self.write()
 
     def write(self) -> None:
         if self.buf:
             text = format_rows(self.buf)
             self.buf = []
+            self.since = None
             self.f.write(text)
             self.f.flush()
 
@@ -462,6 +507,121 @@ def truncate_to_last_line(path: Path) -> None:
         pass
 
 
+def flush_writer(w) -> None:
+    """Push a python-can writer's buffered data to the OS: BLF's pending container (a private method of
+    BLFWriter, guarded), then the file object. Errors surface at stop()."""
+    try:
+        if hasattr(w, "_flush") and type(w).__name__ == "BLFWriter":
+            w._flush()
+        f = getattr(w, "file", None)
+        if f is not None and not f.closed:
+            f.flush()
+    except (OSError, ValueError):
+        pass  # reported by stop() at the end
+
+
+BLF_HEADER = 144  # python-can's FILE_HEADER_SIZE
+BLF_OBJ = struct.Struct("<4sHHLL")  # signature "LOBJ", header size, version, object size, type
+
+
+def repair_blf(path: Path) -> tuple[int, int] | None:
+    """Truncate a BLF to its last complete object and rewrite its header so python-can's BLFReader reads it
+    (a killed logger leaves a cut container, or a file shorter than its header). Returns (bytes before, after)
+    when it changed the file, None when the file was sound or absent."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return None
+    from can.io.blf import FILE_HEADER_STRUCT
+
+    with open(path, "rb+") as f:
+        head = f.read(BLF_HEADER)
+        if len(head) < BLF_HEADER or head[:4] != b"LOGG":
+            f.seek(0)
+            f.truncate(0)
+            _blf_header(f, None, BLF_HEADER)
+            return size, BLF_HEADER
+        pos = BLF_HEADER
+        while pos + BLF_OBJ.size <= size:
+            f.seek(pos)
+            sig, _, _, obj_size, _ = BLF_OBJ.unpack(f.read(BLF_OBJ.size))
+            end = pos + obj_size + obj_size % 4
+            if sig != b"LOBJ" or obj_size < BLF_OBJ.size or end > size:
+                break
+            pos = end
+        header = FILE_HEADER_STRUCT.unpack(head[: FILE_HEADER_STRUCT.size])
+        if pos == size and header[10] == size:
+            return None
+        f.truncate(pos)
+        _blf_header(f, header, pos)
+    return size, pos
+
+
+def _blf_header(f, header, filesize: int) -> None:
+    from can.io.blf import FILE_HEADER_STRUCT
+
+    if header is None:  # python-can's defaults (BLFWriter._write_header) with no objects
+        fields = [b"LOGG", BLF_HEADER, 5, 0, 0, 0, 2, 6, 8, 1, filesize, BLF_HEADER, 0, 0] + [0] * 16
+    else:
+        fields = list(header)
+        fields[10] = filesize
+    f.seek(0)
+    f.write(FILE_HEADER_STRUCT.pack(*fields))
+    f.write(b"\x00" * (BLF_HEADER - FILE_HEADER_STRUCT.size))
+
+
+def gaps_from_rows(rows: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """(segment, cell, first missing cycle, count) from a row table alone: the gaps a CSV shows (--repair)."""
+    gaps: list[tuple[int, int, int, int]] = []
+    if not len(rows):
+        return gaps
+    seg, cyc, cell = (rows[:, i].astype(np.int64) for i in range(3))
+    order = np.lexsort((cyc, cell, seg))
+    seg, cyc, cell = seg[order], cyc[order], cell[order]
+    same = (seg[1:] == seg[:-1]) & (cell[1:] == cell[:-1])
+    step = cyc[1:] - cyc[:-1]
+    for i in np.nonzero(same & (step > 1))[0]:
+        gaps.append((int(seg[i]), int(cell[i]), int(cyc[i] + 1), int(step[i] - 1)))
+    return sorted(gaps)
+
+
+def repair(
+    prefix: Path,
+    n_cells: int = proto.N_CELLS,
+    report: Callable[[str], None] | None = None,
+    source: str | None = None,
+) -> dict:
+    """After a crash, a kill or a full disk: cut the text logs (and the CSV) after their last complete line, cut the
+    BLF after its last complete object, and rebuild <prefix>.npz from the CSV (gaps from the cycle counters) in the
+    one run layout (write_capture), labelled source (default unknown: the CSV does not say what sent the frames).
+    Returns the logger's cycle x cell arrays the NPZ was made from."""
+    report = report or (lambda text: print(text, file=sys.stderr, flush=True))
+    prefix = Path(prefix)
+    csv = prefix.with_suffix(".csv")
+    if not csv.is_file():
+        raise RunFailed(f"--repair {prefix}: {csv} not found (the logger's CSV is what the NPZ is rebuilt from)")
+    for f in TEXT_FORMATS:
+        p = prefix.with_suffix("." + f)
+        if p.is_file():
+            truncate_to_last_line(p)
+    blf = repair_blf(prefix.with_suffix(".blf"))
+    if blf:
+        report(f"{prefix.with_suffix('.blf')}: cut from {blf[0]} to {blf[1]} bytes (last complete object)")
+    try:
+        rows = read_rows(csv)
+    except ValueError as e:
+        raise RunFailed(f"--repair {prefix}: {csv} is not the logger's CSV: {e}") from None
+    arrays = rows_to_arrays(rows, n_cells, gaps_from_rows(rows))
+    attrs = {"source": source or "unknown", "capture": "rigtools logger, rebuilt from the CSV by --repair"}
+    if not source:
+        attrs["source_note"] = "the CSV does not say whether a rig or an emulator sent it (--source LABEL)"
+    write_capture(prefix.with_suffix(".npz"), arrays, attrs)
+    stale = prefix.with_name(prefix.name + ".npz.tmp")
+    if stale.exists():
+        stale.unlink()
+    return arrays
+
+
 class RigLogger:
     """Receive loop with python-can writers, decoding, chunked CSV and reconnect."""
 
@@ -499,15 +659,15 @@ class RigLogger:
         self.command_log: list[tuple[float, str, dict]] = []  # (seconds, command, {cell: result})
         self.stop_reason: str | None = None  # set by a signal handler
         self.error: str | None = None
+        self._flushed = 0.0
+        self._watched = 0.0
+        self.others: set[int] = set()  # pids of other programs seen holding the port while logging
 
     def _open(self):
         from .slcanbus import open_bus
 
-        if self.interface == "slcan" and self.bitrate:
-            import can
-
-            return can.Bus(interface="slcan", channel=self.channel, bitrate=self.bitrate)
-        return open_bus(self.interface, self.channel)
+        # python-can's own reader when a bit rate is sent (as before); either way the port is claimed (portlock)
+        return open_bus(self.interface, self.channel, plain=bool(self.bitrate), bitrate=self.bitrate or None)
 
     def _connect(self, deadline, first: bool):
         t0 = time.time()
@@ -543,6 +703,36 @@ class RigLogger:
             self.command_log.append((t, text, res))
             self.report(f"t={t:g} s: {text} -> " + ", ".join(f"{j}:{r}" for j, r in sorted(res.items())))
 
+    WRITERS_FLUSH_S = 1.0
+
+    def _tick(self, now: float, csv: CsvChunks, writers) -> None:
+        """Bounded latency to disk, frames or not: held rows (HOLD_S) and the CSV chunk (FLUSH_S), and once a second
+        the log writers' buffers (BLF: its pending container), so a killed logger leaves little unwritten."""
+        self.decoder.tick(now)
+        csv.tick()
+        if now - self._flushed >= self.WRITERS_FLUSH_S:
+            self._flushed = now
+            for w in writers:
+                flush_writer(w)
+        if now - self._watched >= self.WATCH_S:
+            self._watched = now
+            self._watch_port()
+
+    WATCH_S = 2.0
+
+    def _watch_port(self) -> None:
+        """A program that opens the port after us (python-can's own logger takes no lock) splits the bytes with us:
+        say so once per program, and count it in the summary line."""
+        from .portlock import device_of, holders
+
+        dev = device_of(self.channel) if self.interface == "slcan" else None
+        if dev is None:
+            return
+        new = {pid: cmd for pid, cmd in holders(dev).items() if pid not in self.others}
+        for pid, cmd in new.items():
+            self.others.add(pid)
+            self.report(f"another program opened {dev} (pid {pid}: {cmd}): both lose samples (one reader per port)")
+
     def _on_signal(self, signum, frame):
         self.stop_reason = signal.Signals(signum).name
 
@@ -570,6 +760,7 @@ class RigLogger:
             silent = False
             while bus is not None and not self.stop_reason:
                 now = time.time()
+                self._tick(now, csv, writers)
                 if deadline is not None and now >= deadline:
                     break
                 if t_first is None and self.first_frame_s is not None and now - started > self.first_frame_s:
@@ -655,6 +846,8 @@ class RigLogger:
                 p = self.prefix.with_suffix("." + f)
                 if p.exists():
                     truncate_to_last_line(p)
+        if "blf" in self.formats:
+            repair_blf(self.prefix.with_suffix(".blf"))  # a stop() that failed (full disk) leaves a cut container
         try:
             self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n, self.decoder.gaps)
             write_capture(
@@ -663,7 +856,8 @@ class RigLogger:
                 {"source": self.source, "capture": "rigtools logger", "channel": f"{self.interface}:{self.channel}"},
             )
         except OSError as e:
-            self.error = self.error or f"write failed: {e.strerror or e}"
+            why = f"write failed: {e.strerror or e} (the CSV is complete: --repair rebuilds the NPZ)"
+            self.error = self.error or why
 
 
 def channel_source(interface: str, channel: str) -> str:
@@ -686,23 +880,32 @@ def channel_source(interface: str, channel: str) -> str:
 
 
 def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
-    """Why the output prefix cannot be written, or None (creates its directory)."""
+    """Why the output prefix cannot be written, or None (creates its directory and probes every file it will
+    write: a read-only place or a name too long fails here, before the port is opened)."""
+    from host_emulator.outpaths import check_out_dir, check_out_file, show
+
     if prefix.name in ("", ".", ".."):
-        return f"--out {prefix}: needs a file name prefix, e.g. out/run1"
-    try:
-        prefix.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        return f"--out {prefix}: cannot create {prefix.parent}: {e.strerror or e}"
-    for f in list(formats) + ["csv", "npz"]:
-        p = prefix.with_suffix("." + f)
-        if p.is_dir():
-            return f"--out {prefix}: {p} is a directory"
-    if not os.access(prefix.parent, os.W_OK):
-        return f"--out {prefix}: {prefix.parent} is not writable"
+        return f"--out {show(prefix)}: needs a file name prefix, e.g. out/run1"
+    problem = check_out_dir(prefix.parent, f"--out {show(prefix)}: directory")
+    if problem:
+        return problem
+    for f in list(dict.fromkeys(list(formats) + ["csv", "npz", "npz.tmp"])):
+        problem = check_out_file(prefix.with_suffix("." + f), "--out")
+        if problem:
+            return problem
     return None
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        from host_emulator.cli import unexpected
+
+        return unexpected(e, "logger")
+
+
+def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m metacell_tools.rigtools.logger",
         description=__doc__.split("\n\n")[0],
@@ -716,8 +919,15 @@ def main(argv: list[str] | None = None) -> int:
         "3 run failed (port, no frames, write error).",
     )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
-    ap.add_argument("-c", "--channel", required=True, help="e.g. /dev/ttyACM0@115200 or <pty>@115200")
-    ap.add_argument("-o", "--out", required=True, help="output prefix, e.g. out/run1")
+    ap.add_argument("-c", "--channel", default=None, help="e.g. /dev/ttyACM0@115200 or <pty>@115200 (required)")
+    ap.add_argument("-o", "--out", default=None, help="output prefix, e.g. out/run1 (required)")
+    ap.add_argument(
+        "--repair",
+        metavar="PREFIX",
+        default=None,
+        help="after a crash, kill or full disk: cut the logs after their last complete record (BLF: object) and "
+        "rebuild PREFIX.npz from PREFIX.csv; no port is opened",
+    )
     ap.add_argument(
         "--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)"
     )
@@ -733,7 +943,8 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         metavar="LABEL",
         help="what sends the frames, written into the NPZ: rig, emulator:hil, rehearsal:hil or unknown (default: "
-        "from the channel: a pty is the emulator's serve, a USB serial device the rig, else unknown)",
+        "from the channel: a pty is the emulator's serve, a USB serial device the rig, else unknown; with --repair: "
+        "the label of the rebuilt NPZ, default unknown)",
     )
     ap.add_argument(
         "--do",
@@ -749,6 +960,26 @@ def main(argv: list[str] | None = None) -> int:
         print(f"logger: {text}", file=sys.stderr)
         return 2
 
+    if args.source is not None and not (
+        args.source in ("rig", "unknown") or args.source.split(":")[0] in ("emulator", "rehearsal")
+    ):
+        return bad(f"--source {args.source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
+    if args.repair is not None:
+        try:
+            arr = repair(Path(args.repair), source=args.source)
+        except RunFailed as e:
+            return bad(str(e))
+        except OSError as e:
+            print(f"logger: --repair {args.repair}: write failed: {e.strerror or e}", file=sys.stderr)
+            return 3
+        print(
+            f"repaired {args.repair}: {int(np.sum(~np.isnan(arr['alpha_counts'])))} samples in "
+            f"{len(arr['cycle'])} cycles, {len(arr['gaps'])} gaps; wrote {args.repair}.npz"
+        )
+        return 0
+    if not args.channel or not args.out:
+        ap.error("the following arguments are required: -c/--channel, -o/--out (or --repair PREFIX)")
+
     for name in ("duration", "give_up", "wait_open", "first_frame"):
         v = getattr(args, name)
         if v is not None and not (math.isfinite(v) and 0 <= v <= 1e7 and (v > 0 or name == "wait_open")):
@@ -759,10 +990,6 @@ def main(argv: list[str] | None = None) -> int:
     known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
     if not formats or any(f not in known for f in formats):
         return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
-    if args.source is not None and not (
-        args.source in ("rig", "unknown") or args.source.split(":")[0] in ("emulator", "rehearsal")
-    ):
-        return bad(f"--source {args.source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
     problem = check_out(Path(args.out), formats)
     if problem:
         return bad(problem)
@@ -803,7 +1030,9 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"{n} frames; samples per cell min {per_cell.min() if len(per_cell) else 0} max "
         f"{per_cell.max() if len(per_cell) else 0}; {len(arr['gaps'])} gaps ({lost} samples lost); "
-        f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; wrote {args.out}.npz/.csv and "
+        f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; "
+        + (f"{len(log.others)} other program(s) read the port too; " if log.others else "")
+        + f"wrote {args.out}.npz/.csv and "
         f"{','.join(formats)}{why}"
     )
     return 0

@@ -9,6 +9,9 @@ byte at once and hands out one line (ending in CR, or BEL for an error) per call
 what `_read` returns; parsing stays python-can's `_recv_internal`. One deliberate
 difference: undecodable bytes become U+FFFD (the line then fails python-can's parse as a
 ValueError, which the runner counts as a corrupt line) instead of an "I/O error".
+
+`open_bus` also enforces one reader per port (portlock: a port another program holds is refused with one line,
+PortBusy; the port is locked while the bus is open).
 """
 
 from __future__ import annotations
@@ -55,11 +58,37 @@ class BufferedSlcanBus(slcanBus):
                     return None
 
 
-def open_bus(interface: str, channel: str, open_wait: float | None = None, plain: bool = False) -> can.BusABC:
-    """The runner's bus: BufferedSlcanBus for slcan (unless plain), else can.Bus(interface, channel)."""
+def open_bus(
+    interface: str, channel: str, open_wait: float | None = None, plain: bool = False, bitrate: int | None = None
+) -> can.BusABC:
+    """The tools' bus: BufferedSlcanBus for slcan (unless plain), else can.Bus(interface, channel).
+
+    A serial port held by another program raises portlock.PortBusy (one line) before anything is sent; the port
+    stays locked until the bus shuts down."""
+    from . import portlock
+
     kw: dict[str, Any] = {}
     if interface == "slcan" and open_wait is not None:
         kw["sleep_after_open"] = open_wait
-    if interface == "slcan" and not plain and hasattr(slcanBus, "_read") and Timeout is not None:
-        return BufferedSlcanBus(channel=channel, **kw)
-    return can.Bus(interface=interface, channel=channel, **kw)
+    if bitrate is not None:
+        kw["bitrate"] = bitrate
+    lock = portlock.claim(channel) if interface == "slcan" else None
+    try:
+        if interface == "slcan" and not plain and hasattr(slcanBus, "_read") and Timeout is not None:
+            bus: can.BusABC = BufferedSlcanBus(channel=channel, **kw)
+        else:
+            bus = can.Bus(interface=interface, channel=channel, **kw)
+    except BaseException:
+        portlock.release(lock)
+        raise
+    if lock is not None:
+        shutdown = bus.shutdown
+
+        def shutdown_and_unlock() -> None:
+            try:
+                shutdown()
+            finally:
+                portlock.release(lock)
+
+        bus.shutdown = shutdown_and_unlock  # type: ignore[method-assign]
+    return bus

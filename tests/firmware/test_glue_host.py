@@ -61,7 +61,7 @@ def programs(tmp_path_factory):
 
 
 def results(exe, *args) -> dict:
-    out = subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=60, check=True).stdout
+    out = subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=600, check=True).stdout
     return dict(line.split("=", 1) for line in out.splitlines())
 
 

@@ -720,7 +720,7 @@ def _cell_config(defines: list[str]) -> subprocess.CompletedProcess:
         input='#include "cell_config.h"\n',
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=600,
     )
 
 

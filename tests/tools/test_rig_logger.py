@@ -242,6 +242,7 @@ def test_duration_counts_from_the_first_frame_and_sighup_stops_in_order(tmp_path
     threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGHUP)).start()
     t0 = time.monotonic()
     log2.run(duration=30)
-    assert time.monotonic() - t0 < 5 and log2.stop_reason == "SIGHUP"
+    # --duration 30 would end it too: the signal must end it well before (generous for a loaded machine)
+    assert time.monotonic() - t0 < 25 and log2.stop_reason == "SIGHUP"
     assert np.sum(~np.isnan(log2.arrays["alpha_counts"])) == 400
     assert (tmp_path / "hup.npz").exists() and (tmp_path / "hup.asc").read_text().endswith("\n")

@@ -119,8 +119,9 @@ def _start_cluster(tmp_path, n_workers=2):
         )
     ]
     t0 = time.time()
-    while not sf.exists() and time.time() - t0 < 30:
+    while not sf.exists() and time.time() - t0 < 300:  # event-driven; the bound only for a badly loaded machine
         time.sleep(0.1)
+    assert sf.exists(), "the Dask scheduler wrote no scheduler file in 300 s"
     addr = json.loads(sf.read_text())["address"]
     for _ in range(n_workers):
         procs.append(
@@ -134,7 +135,7 @@ def _start_cluster(tmp_path, n_workers=2):
     from distributed import Client
 
     with Client(addr, timeout="30s") as c:
-        c.wait_for_workers(n_workers, timeout=60)
+        c.wait_for_workers(n_workers, timeout=300)
     return addr, procs
 
 
@@ -144,7 +145,7 @@ def _stop(procs):
             p.terminate()
     for p in procs:
         try:
-            p.wait(timeout=10)
+            p.wait(timeout=60)
         except subprocess.TimeoutExpired:
             p.kill()
 
@@ -179,12 +180,13 @@ def test_external_scheduler_and_a_worker_killed_mid_sweep(tmp_path):
         sw = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         t0 = time.time()
         pts = out / "points.jsonl"
-        while time.time() - t0 < 60 and (not pts.exists() or len(pts.read_text().splitlines()) < 3):
+        while time.time() - t0 < 300 and (not pts.exists() or len(pts.read_text().splitlines()) < 3):
             time.sleep(0.05)
+        assert pts.exists() and len(pts.read_text().splitlines()) >= 3, "no 3 points finished in 300 s"
         victim = procs[1]
         victim.send_signal(signal.SIGKILL)
         killed_at = len(pts.read_text().splitlines())
-        so, se = sw.communicate(timeout=180)
+        so, se = sw.communicate(timeout=900)
         assert sw.returncode in (0, 1), se
         ds = xr.open_dataset(out / "sweep.nc", engine="scipy")
         st = ds["status"].values.astype(str).ravel()
