@@ -103,10 +103,14 @@ def main(argv: list[str] | None = None) -> int:
             f"(cosine wavelength {2 * 16 / res['largest_m']:.3g} cells)"
         )
         return 0
+    from ..outpaths import check_out_dir
     from ..workbench.design import design
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    why = check_out_dir(out)
+    if why:
+        print(f"design_table: error: {why}", file=sys.stderr)
+        return 2
     n = 16
     targets = []
     if args.only in (None, "lambda"):

@@ -881,8 +881,12 @@ def design(
         raise DesignError(f"--per-cell {','.join(per_cell)}: each must also be in --vary ({','.join(vary)})")
     if not (1 <= seeds <= 1000 and 1 <= search_seeds <= 1000 and 0 <= maxiter <= 1000 and 0 < require <= 1):
         raise DesignError("seeds and search seeds in 1..1000, maxiter in 0..1000, require in (0, 1]")
+    from ..outpaths import check_out_dir
+
     outp = Path(out)
-    outp.mkdir(parents=True, exist_ok=True)
+    why = check_out_dir(outp)
+    if why:
+        raise DesignError(why)
     base_table = scene_table(base)
     base_table["model"] = "hil"
     runner = Runner(scheduler)
