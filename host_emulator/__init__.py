@@ -8,6 +8,7 @@ Python API (imports are lazy, so ``import host_emulator`` is cheap)::
     ds = he.load("out/rig1")        # any run or capture, rig or emulated, in the same Dataset layout
     he.plot_spacetime(r)                                       # a matplotlib Figure
     he.sweep("default", {"params.sigma": [0.05, 0.07]}, seeds=2, out="out/sw")   # xarray.Dataset
+    d = he.design("lambda=10", push="8", out="out/d")   # parameters for a target pattern (design.json's content)
 """
 
 __all__ = [
@@ -16,6 +17,7 @@ __all__ = [
     "load_scene",
     "list_scenes",
     "sweep",
+    "design",
     "load",
     "plot_spacetime",
     "plot_final",
@@ -36,6 +38,7 @@ _LAZY = {
     "plot_final": "workbench.plots",
     "plot_dispersion": "workbench.plots",
     "sweep": "workbench.sweep",
+    "design": "workbench.design",
     "load": "workbench.datasets",
     "plot_phase_diagram": "workbench.sweep",
     "plot_regime_map": "workbench.sweep",

@@ -196,6 +196,7 @@ SUBCOMMANDS = {
     "paper": (".workbench.paper", "paper_main"),
     "animate": (".workbench.animate", "animate_main"),
     "sweep": (".workbench.sweep", "sweep_main"),
+    "design": (".workbench.design", "design_main"),
     "bench": (".benchmarks.cli", "main"),
     "image": (".image.cli", "image_main"),
 }

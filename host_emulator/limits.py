@@ -55,9 +55,13 @@ def mem_available() -> float:
 def check_run(scene: Scene) -> str | None:
     p, o = scene.params, scene.options
     for name in FIRMWARE_PARAMS:
-        v = getattr(p, name, None)
-        if v is not None and not (math.isfinite(v) and abs(v) * 1e6 < INT32):
-            return f"params.{name} = {v}: does not fit the firmware's int32 micro-units (|value| < {INT32 / 1e6:g})"
+        if getattr(p, name, None) is None:
+            continue
+        per = name in p.per_cell_keys
+        for j, v in enumerate(p.per_cell(name)):
+            if not (math.isfinite(v) and abs(v) * 1e6 < INT32):
+                where = f"params.{name}[{j + 1}] (cell {j + 1})" if per else f"params.{name}"
+                return f"{where} = {v}: does not fit the firmware's int32 micro-units (|value| < {INT32 / 1e6:g})"
     for name, (lo, hi) in RANGES.items():
         v = getattr(p, name, None)
         if v is not None and not (math.isfinite(v) and lo <= v <= hi):

@@ -16,6 +16,11 @@ import numpy as np
 from protocol import definition as _wire_units
 
 FloatArray = float | np.ndarray  # a number, or a numpy array of them elementwise
+PerCell = float | tuple[float, ...]  # one value for every cell, or one value per cell (cell 1 first)
+
+# The reaction law's parameters (docs/physics.md#reaction-torques): each may be one value or one per cell (the
+# cells' firmware registers K_AB, SIGMA, K1, K2, ASTAR are set one cell at a time).
+REACTION_KEYS = ("k_ab", "sigma", "k1", "k2", "alpha_star")
 
 # ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
 LATTICE_M = 0.060  # a, lattice parameter
@@ -87,12 +92,12 @@ class Params:
     """
 
     cells: int = 16
-    # reaction law, N m / rad (alpha_star in rad)
-    k_ab: float = 1 / 50
-    k1: float = 3 / 50
-    k2: float = -3 / 50
-    alpha_star: float = 3 * math.pi / 8
-    sigma: float = SIGMA_MAIN
+    # reaction law, N m / rad (alpha_star in rad): one value, or a tuple of one value per cell (REACTION_KEYS)
+    k_ab: PerCell = 1 / 50
+    k1: PerCell = 3 / 50
+    k2: PerCell = -3 / 50
+    alpha_star: PerCell = 3 * math.pi / 8
+    sigma: PerCell = SIGMA_MAIN
     # mechanics
     I_a: float = I_ALPHA
     I_b: float = I_BETA
@@ -145,6 +150,59 @@ class Params:
     def eta_bemf(self) -> float:
         """Extra viscous coefficient of an uncompensated motor: Kt / S_L."""
         return self.kt / self.speed_const
+
+    # ---- per-cell reaction parameters ---------------------------------------------------------------
+    def per_cell(self, name: str) -> np.ndarray:
+        """The reaction parameter `name` of every cell, shape (cells,) (a scalar repeated for every cell)."""
+        if name not in REACTION_KEYS:
+            raise KeyError(f"{name!r} is not a reaction parameter ({', '.join(REACTION_KEYS)})")
+        v = getattr(self, name)
+        if isinstance(v, tuple):
+            if len(v) != self.cells:
+                raise ValueError(f"params.{name}: {len(v)} values for {self.cells} cells")
+            return np.array(v, dtype=float)
+        return np.full(self.cells, float(v))
+
+    @property
+    def per_cell_keys(self) -> tuple[str, ...]:
+        """The reaction parameters given one value per cell (a tuple), whether or not the values differ."""
+        return tuple(k for k in REACTION_KEYS if isinstance(getattr(self, k), tuple))
+
+    @property
+    def varying_keys(self) -> tuple[str, ...]:
+        """The reaction parameters whose per-cell values differ between cells (empty: a uniform chain)."""
+        return tuple(k for k in self.per_cell_keys if len(set(getattr(self, k))) > 1)
+
+    @property
+    def heterogeneous(self) -> bool:
+        """True when some reaction parameter differs between cells."""
+        return bool(self.varying_keys)
+
+    def value(self, name: str) -> float:
+        """The one value of reaction parameter `name` shared by every cell; ValueError naming the key when the
+        cells' values differ (a scalar-only consumer, e.g. the dispersion relation of a uniform chain)."""
+        v = getattr(self, name)
+        if not isinstance(v, tuple):
+            return float(v)
+        if len(set(v)) > 1:
+            raise ValueError(
+                f"params.{name} differs between cells ({min(v):g} .. {max(v):g}): this needs one value for every "
+                "cell (the chain's own linear theory is analysis.chain)"
+            )
+        return float(v[0])
+
+    def uniform(self) -> Params:
+        """These parameters with every per-cell tuple whose values agree made a scalar; ValueError (naming the key)
+        when some reaction parameter differs between cells."""
+        kw: dict[str, Any] = {k: self.value(k) for k in self.per_cell_keys}
+        return dataclasses.replace(self, **kw) if kw else self
+
+    def cell(self, j: int) -> Params:
+        """The scalar parameters of cell j (1-based): every per-cell tuple replaced by cell j's value."""
+        if not 1 <= j <= self.cells:
+            raise IndexError(f"cell {j} outside 1..{self.cells}")
+        kw: dict[str, Any] = {k: float(getattr(self, k)[j - 1]) for k in self.per_cell_keys}
+        return dataclasses.replace(self, **kw) if kw else self
 
     def with_overrides(self, **kw: Any) -> Params:
         names = {f.name for f in dataclasses.fields(self)}

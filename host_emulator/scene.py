@@ -21,7 +21,7 @@ from .models.options import (
     parse_options,
     parse_perturbation,
 )
-from .params import Params
+from .params import REACTION_KEYS, Params
 
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 TOP_KEYS = (
@@ -64,7 +64,7 @@ class Scene:
             "model": self.model,
             "cells": self.cells,
             "t_end_s": self.t_end_s,
-            "params": dataclasses.asdict(self.params),
+            "params": {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self.params).items()},
             "model_options": opts,
             "perturbation": [p.as_dict() for p in self.perturbations],
             "fault": [f.as_dict() for f in self.faults],
@@ -107,6 +107,9 @@ def _parse_params(d, cells) -> Params:
                 f"known: {', '.join(sorted(n for n in types if n != 'cells'))}"
             )
         cur = getattr(base, k)
+        if k in REACTION_KEYS and isinstance(v, list):
+            kw[k] = _per_cell_list(key, v, cells)
+            continue
         if isinstance(cur, bool):
             if not isinstance(v, bool):
                 raise ConfigError(f"{key} = {v!r}: expected true or false")
@@ -135,9 +138,26 @@ def _parse_params(d, cells) -> Params:
     ):
         if not getattr(p, k) > 0:
             raise ConfigError(f"params.{k} = {getattr(p, k)!r}: must be > 0")
-    if p.alpha_star < 0:
-        raise ConfigError(f"params.alpha_star = {p.alpha_star!r}: must be >= 0")
+    for j, a in enumerate(p.per_cell("alpha_star")):
+        if a < 0:
+            per = "alpha_star" in p.per_cell_keys
+            where = f"params.alpha_star[{j + 1}] (cell {j + 1})" if per else "params.alpha_star"
+            raise ConfigError(f"{where} = {float(a)!r}: must be >= 0")
     return p
+
+
+def _per_cell_list(key: str, v: list, cells: int) -> tuple[float, ...]:
+    """A reaction parameter given one value per cell: a list of `cells` finite numbers (cell 1 first)."""
+    if len(v) != cells:
+        raise ConfigError(
+            f"{key}: {len(v)} values for {cells} cells; give one number, or one per cell (a list of {cells})"
+        )
+    out = []
+    for j, x in enumerate(v):
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+            raise ConfigError(f"{key}[{j + 1}] (cell {j + 1}) = {x!r}: expected a finite number")
+        out.append(float(x))
+    return tuple(out)
 
 
 def known_keys() -> list[str]:
@@ -287,7 +307,8 @@ def _value(text: str):
 
 
 def apply_overrides(d: dict, items: Iterable[str]) -> dict:
-    """Apply KEY=VALUE (dotted keys: params.sigma, model_options.noise.seed, perturbation.1.torque_Nm, t_end_s)."""
+    """Apply KEY=VALUE (dotted keys: params.sigma, model_options.noise.seed, perturbation.1.torque_Nm, t_end_s;
+    params.sigma.8 sets cell 8's own value of a reaction parameter, the others keeping theirs)."""
     import copy
 
     d = copy.deepcopy(d)
@@ -296,6 +317,9 @@ def apply_overrides(d: dict, items: Iterable[str]) -> dict:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
         key, val = item.split("=", 1)
         parts = key.strip().split(".")
+        if len(parts) == 3 and parts[0] == "params" and parts[1] in REACTION_KEYS and parts[2].lstrip("-").isdigit():
+            _set_cell_value(d, parts[1], int(parts[2]), _value(val), key.strip())
+            continue
         node = d
         for i, part in enumerate(parts[:-1]):
             if part in LIST_KEYS and node is d:
@@ -323,6 +347,24 @@ def apply_overrides(d: dict, items: Iterable[str]) -> dict:
             node = nxt
         node[parts[-1]] = _value(val)
     return d
+
+
+def _set_cell_value(d: dict, name: str, j: int, value, key: str) -> None:
+    """params.<name>.<j> = value: cell j's own value (a scalar parameter becomes one value per cell first)."""
+    cells = d.get("cells")
+    if isinstance(cells, bool) or not isinstance(cells, int) or cells < 1:
+        raise ConfigError(f"--set {key}: the scene needs an integer `cells` first")
+    if not 1 <= j <= cells:
+        raise ConfigError(f"--set {key}: cell {j} outside 1..{cells}")
+    params = d.setdefault("params", {})
+    if not isinstance(params, dict):
+        raise ConfigError(f"--set {key}: 'params' is not a table")
+    cur = params.get(name, getattr(Params(), name))
+    vals = list(cur) if isinstance(cur, (list, tuple)) else [cur] * cells
+    if len(vals) != cells:
+        raise ConfigError(f"--set {key}: params.{name} holds {len(vals)} values for {cells} cells")
+    vals[j - 1] = value
+    params[name] = vals
 
 
 def resolve(name_or_path: str) -> Path:

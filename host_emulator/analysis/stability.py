@@ -59,7 +59,12 @@ TWO_PI = 2.0 * math.pi
 
 # ---- validation ---------------------------------------------------------------
 def _check(params, inertia=False):
-    """Reject parameters for which the linear system is not defined (clear error, nothing computed)."""
+    """Reject parameters for which the linear system is not defined (clear error, nothing computed); per-cell
+    parameters must agree between cells (a chain whose cells differ has no dispersion relation: analysis.chain)."""
+    if hasattr(params, "varying_keys") and params.varying_keys:
+        params.value(params.varying_keys[0])  # raises, naming the key
+    if hasattr(params, "uniform"):
+        params = params.uniform()
     bad = []
     for name, val in (
         ("eta_alpha", params.eta_alpha),
@@ -160,7 +165,7 @@ def turing_conditions(params: Params) -> dict:
     With psi''(0) = k2 (the inner branch). 'all' holds iff all three do (diffusion-driven instability).
     """
     _check(params)
-    kab, k2, s, g, d = params.k_ab, params.k2, params.sigma, params.gamma, params.d
+    kab, k2, s, g, d = params.value("k_ab"), params.value("k2"), params.value("sigma"), params.gamma, params.d
     c1 = kab * (1.0 + 1.0 / g) + k2
     c2 = kab * (k2 + s)
     lhs = -d * k2 - kab * (1.0 + d)
@@ -434,7 +439,7 @@ def dispersion(
         "inertia": bool(inertia),
         "theory": theory.label(),
         "motor_damping_Nms": damp,
-        "sigma": float(params.sigma),
+        "sigma": params.value("sigma"),
         "regime": regime,
         "fastest_lambda_cells": _lam(k_best) if k_best > 1e-9 else None,
         "fastest_kappa": float(k_best),

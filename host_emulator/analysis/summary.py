@@ -62,12 +62,18 @@ def theory_for(scene: Scene) -> Theory:
 def _dispersion_cached(params: Params, theory: Theory, cells: int) -> tuple[tuple[str, Any], ...]:
     from .stability import dispersion
 
-    d = dispersion(params, theory=theory, n_cells=cells)
+    if params.heterogeneous:  # cells with their own laws: the chain's eigenmodes (analysis.chain)
+        from .chain import chain_summary
+
+        d = chain_summary(params, theory)
+        return tuple((k, d.get(k)) for k in DISPERSION_KEYS) + (("inertia", theory.inertia), ("per_cell", True))
+    d = dispersion(params.uniform(), theory=theory, n_cells=cells)
     return tuple((k, d.get(k)) for k in DISPERSION_KEYS) + (("inertia", theory.inertia),)
 
 
 def dispersion_summary(params: Params, theory: Theory, cells: int) -> dict:
-    """The dispersion keys of summary.json for one parameter set and theory, cached: a sweep over seeds and pushes
+    """The dispersion keys of summary.json for one parameter set and theory (the chain's eigenmodes, analysis.chain,
+    when its cells' reaction laws differ; per_cell: true then), cached: a sweep over seeds and pushes
     asks for the same parameters many times, and the linear theory costs as much as the 10 s run itself (Params
     and Theory are frozen). Returns a fresh copy (the cached lists are never shared)."""
     return {k: copy.deepcopy(v) for k, v in _dispersion_cached(params, theory, cells)}

@@ -92,14 +92,15 @@ def diffrax_points(
         log("  diffrax: skipped (the jax right-hand side covers cubic bands with small-angle beta only)")
         return []
     ref = ReferencePlant(scene.params, scene.options, scene.perturbations)
-    p, n = scene.params, ref.n
+    p, n = scene.params.uniform(), ref.n
     band = jnp.asarray(ref.band)
     eta, inv_i = jnp.asarray(ref.eta), jnp.asarray(1.0 / ref.I)
     f0 = (P.BAND_A_COEF[0] if p.slack_f0 else 0.0, P.BAND_B_COEF[0] if p.slack_f0 else 0.0)
     coefs = (P.BAND_A_COEF, P.BAND_B_COEF)
     d0s = (P.DELTA_A0_M, P.DELTA_B0_M)
     levers = (P.R_ALPHA_M, P.R_BETA_ARM_M)
-    bstar = p.k1 * p.alpha_star / (p.k1 - p.k2)
+    k1, k2, ast = p.value("k1"), p.value("k2"), p.value("alpha_star")
+    bstar = k1 * ast / (k1 - k2)
 
     def g(ch, d):
         c0, c1, c2, c3 = coefs[ch]
@@ -119,10 +120,9 @@ def diffrax_points(
             parts.append(-jnp.concatenate([right, jnp.zeros(1)]) - jnp.concatenate([jnp.zeros(1), left]))
         F = jnp.concatenate(parts)
         a, b = x[:n], x[n:]
-        psi = jnp.where(
-            a < -bstar, p.k1 * (a + p.alpha_star), jnp.where(a > bstar, p.k1 * (a - p.alpha_star), p.k2 * a)
-        )
-        F = F + jnp.concatenate([p.k_ab * (b - a) - psi - p.sigma * b, p.k_ab * (a - b)]) + pert
+        psi = jnp.where(a < -bstar, k1 * (a + ast), jnp.where(a > bstar, k1 * (a - ast), k2 * a))
+        kab, sig = p.value("k_ab"), p.value("sigma")
+        F = F + jnp.concatenate([kab * (b - a) - psi - sig * b, kab * (a - b)]) + pert
         return jnp.concatenate([v, (F - eta * v) * inv_i])
 
     segs = _segments(scene, t_eval)

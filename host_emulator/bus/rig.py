@@ -65,7 +65,9 @@ class EmulatedRig:
         self.regs = ffi.new("mc_regs_t[]", self.n)
         for j in range(self.n):
             if (
-                lib.mc_regs_init(self.regs + j, solver.cells + j, lib.MC_ADDR_BASE + j, opts.build, solver.model.phys)
+                lib.mc_regs_init(
+                    self.regs + j, solver.cells + j, lib.MC_ADDR_BASE + j, opts.build, solver.model.cell_phys[j]
+                )
                 != lib.MC_OK
             ):
                 raise ValueError("register handler refused its address")

@@ -45,6 +45,10 @@ int he_plant_check(const he_plant_t *p)
     }
     if (!(p->lattice_m > 0.0) || !(p->speed_const > 0.0) || !isfinite(p->band_scale) || !(p->react_limit > 0.0))
         return HE_ERR_ARG;
+    if (p->react_cell)
+        for (int i = 0; i < HE_RC_COUNT * p->n; i++)
+            if (!isfinite(p->react_cell[i]))
+                return HE_ERR_ARG;
     for (int i = 0; i < p->npert; i++)
         if (p->pert[i].cell < 0 || p->pert[i].cell >= p->n || p->pert[i].chain < 0 ||
             p->pert[i].chain > 1 || !isfinite(p->pert[i].torque))
@@ -124,13 +128,53 @@ void he_reaction(const he_plant_t *p, double al, double be, double *ra, double *
     *rb = p->k_ab * (al - be);                        /* R_b = k_ab(a - b) */
 }
 
-/* Gershgorin rows of dR/dx (psi'' is k1 or k2); Python: physics.reaction_gershgorin */
+/* psi' and R of one cell from its parameters: he_reaction's operations */
+static inline void reaction_law(double kab, double sig, double k1, double k2, double ast, double al, double be,
+                                double *ra, double *rb)
+{
+    double ax = fabs(al);
+    double in = k2 * ax, out = k1 * ax - k1 * ast;
+    double psi = in > out ? in : out;
+    if (al < 0.0)
+        psi = -psi;
+    *ra = kab * (be - al) - psi - sig * be;
+    *rb = kab * (al - be);
+}
+
+void he_reaction_cell(const he_plant_t *p, int j, double al, double be, double *ra, double *rb)
+{
+    const double *c = p->react_cell;
+    if (!c) {
+        he_reaction(p, al, be, ra, rb);
+        return;
+    }
+    int n = p->n;
+    reaction_law(c[HE_RC_K_AB * n + j], c[HE_RC_SIGMA * n + j], c[HE_RC_K1 * n + j], c[HE_RC_K2 * n + j],
+                 c[HE_RC_ASTAR * n + j], al, be, ra, rb);
+}
+
+static double react_rows(double kab, double sig, double k1, double k2, int ch)
+{
+    double e1 = fabs(kab + k1), e2 = fabs(kab + k2);
+    return ch == 0 ? (e1 > e2 ? e1 : e2) + fabs(kab - sig) : 2.0 * fabs(kab);
+}
+
+/* Gershgorin rows of dR/dx (psi'' is k1 or k2), the largest over the cells; Python: physics.reaction_gershgorin */
 double he_react_stiffness(const he_plant_t *p, int ch)
 {
     if (p->reaction != HE_REACT_IDEAL)
         return 0.0;
-    double e1 = fabs(p->k_ab + p->k1), e2 = fabs(p->k_ab + p->k2);
-    return ch == 0 ? (e1 > e2 ? e1 : e2) + fabs(p->k_ab - p->sigma) : 2.0 * fabs(p->k_ab);
+    if (!p->react_cell)
+        return react_rows(p->k_ab, p->sigma, p->k1, p->k2, ch);
+    const double *c = p->react_cell;
+    int n = p->n;
+    double m = 0.0;
+    for (int j = 0; j < n; j++) {
+        double r = react_rows(c[HE_RC_K_AB * n + j], c[HE_RC_SIGMA * n + j], c[HE_RC_K1 * n + j],
+                              c[HE_RC_K2 * n + j], ch);
+        m = r > m ? r : m;
+    }
+    return m;
 }
 
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C)
@@ -195,6 +239,18 @@ static void add_reaction(const he_plant_t *p, const double *restrict x, double *
     const int n = p->n;
     const double lim = p->react_limit, nlim = -p->react_limit;
     int j = 0;
+    if (p->react_cell) {
+        /* per-cell parameters: each cell's own law, the same operations as the uniform loops below */
+        for (; j < n; j++) {
+            double ra, rb;
+            he_reaction_cell(p, j, x[j], x[n + j], &ra, &rb);
+            ra = ra > lim ? lim : (ra < nlim ? nlim : ra);
+            rb = rb > lim ? lim : (rb < nlim ? nlim : rb);
+            F[j] += ra;
+            F[n + j] += rb;
+        }
+        return;
+    }
 #ifdef __SSE2__
     const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd();
     const __m128d k2 = _mm_set1_pd(p->k2), k1 = _mm_set1_pd(p->k1), k1a = _mm_set1_pd(p->k1 * p->astar);
@@ -300,12 +356,15 @@ int he_plant_switches(const he_plant_t *p, const double *x, unsigned char *side)
     }
     if (p->reaction == HE_REACT_IDEAL) {
         int clip = isfinite(p->react_limit);
+        const double *c = p->react_cell;
         for (int j = 0; j < n; j++) {
             double ax = fabs(x[j]);
-            side[m++] = p->k2 * ax > p->k1 * ax - p->k1 * p->astar;     /* he_reaction's in > out */
+            double k1 = c ? c[HE_RC_K1 * n + j] : p->k1, k2 = c ? c[HE_RC_K2 * n + j] : p->k2;
+            double ast = c ? c[HE_RC_ASTAR * n + j] : p->astar;
+            side[m++] = k2 * ax > k1 * ax - k1 * ast;     /* he_reaction's in > out */
             if (clip) {
                 double ra, rb;
-                he_reaction(p, x[j], x[n + j], &ra, &rb);
+                he_reaction_cell(p, j, x[j], x[n + j], &ra, &rb);
                 side[m++] = ra > p->react_limit;
                 side[m++] = ra < -p->react_limit;
                 side[m++] = rb > p->react_limit;

@@ -28,6 +28,8 @@
 enum { HE_BANDS_LINEAR = 0, HE_BANDS_CUBIC = 1 };
 enum { HE_BETA_SMALL = 0, HE_BETA_GEOMETRIC = 1 };
 enum { HE_REACT_NONE = 0, HE_REACT_IDEAL = 1 };
+/* rows of he_plant_t.react_cell (per-cell reaction law) */
+enum { HE_RC_K_AB = 0, HE_RC_SIGMA = 1, HE_RC_K1 = 2, HE_RC_K2 = 3, HE_RC_ASTAR = 4, HE_RC_COUNT = 5 };
 
 enum {
     HE_OK = 0,
@@ -66,7 +68,7 @@ typedef struct {
     double delta0[2];        /* pre-stretch, m */
     double delta_max[2];     /* largest band stretch the step limit allows for (fit range: 0.3*L_rest), m */
     double coef[2][4];       /* cubic force fits f(delta) = c0 + c1 d + c2 d^2 + c3 d^3 */
-    double k_ab, sigma, k1, k2, astar;   /* reaction law, N m/rad and rad */
+    double k_ab, sigma, k1, k2, astar;   /* reaction law, N m/rad and rad (every cell, unless react_cell) */
     double speed_const;      /* S_L, rad/(V s) */
     double eta[2][HE_MAX_CELLS];     /* viscous coefficient per cell, N m s */
     double kscale[2][HE_MAX_CELLS];  /* band stiffness factor of bond (j, j+1), [n-1] used */
@@ -76,6 +78,9 @@ typedef struct {
     he_pert_t pert[HE_MAX_PERT];
     double react_limit;      /* |R_a|, |R_b| clipped to this (N*m): the drivers' voltage cap kt*vmax;
                                 INFINITY (or any value <= 0 is rejected) for no actuator limit */
+    const double *react_cell; /* NULL: the scalars k_ab..astar above hold for every cell; else per-cell reaction
+                                 law, HE_RC_COUNT rows of n doubles (row HE_RC_K_AB: cell j at [j], row r at
+                                 [r * n + j]), owned by the plant's owner */
     double *work;            /* steppers' scratch, allocated once per model by its owner (HE_WORK_PER_STATE
                                 doubles per state entry, 2n entries); NULL: he_advance mallocs per call */
     int64_t work_len;        /* doubles at work */
@@ -94,8 +99,10 @@ double he_band_torque(const he_plant_t *p, int chain, int bond, double x_self, d
  * this (C float), host_emulator/physics.py (Python), lib/metacell/src/control/mc_reaction.h (firmware,
  * fixed point); tests/host_emulator/test_physics.py checks all three against one float reference. */
 void he_reaction(const he_plant_t *p, double alpha, double beta, double *ra, double *rb);
+/* The same law with cell j's own parameters (react_cell; the scalars when it is NULL): the same operations. */
+void he_reaction_cell(const he_plant_t *p, int j, double alpha, double beta, double *ra, double *rb);
 /* Gershgorin row bound of the reaction Jacobian dR/dx on chain ch (N*m/rad), 0 without the ideal reaction:
- *   alpha: max(|k_ab + k1|, |k_ab + k2|) + |k_ab - sigma|,   beta: 2 |k_ab|
+ *   alpha: max(|k_ab + k1|, |k_ab + k2|) + |k_ab - sigma|,   beta: 2 |k_ab|   (the largest over the cells)
  * (Python: physics.reaction_gershgorin). */
 double he_react_stiffness(const he_plant_t *p, int chain);
 /* Cubic band law f(d) = c0 + c1 d + c2 d^2 + c3 d^3 (N) and its slope f'(d) = c1 + 2 c2 d + 3 c3 d^2 (N/m)

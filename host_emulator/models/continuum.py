@@ -25,12 +25,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
-from ..params import Params
+from ..params import REACTION_KEYS, Params
 from ..physics import reaction, reaction_jacobian
 
 __all__ = ["simulate_continuum", "ContinuumError", "validate_perturbations"]
@@ -91,11 +92,13 @@ def _check_params(params):
         if not (math.isfinite(v) and v > 0):
             bad.append(f"{name}={v!r} must be finite and > 0")
     for name in ("k_ab", "k1", "k2", "sigma", "alpha_star"):
-        v = getattr(params, name)
-        if not math.isfinite(v):
-            bad.append(f"{name}={v!r} must be finite")
-    if params.k1 != params.k2 and params.k1 * params.alpha_star / (params.k1 - params.k2) < 0:
-        bad.append("psi' breakpoint k1*alpha_star/(k1-k2) is negative (need k1 > k2, alpha_star >= 0)")
+        v = params.per_cell(name)
+        if not np.all(np.isfinite(v)):
+            bad.append(f"{name}={getattr(params, name)!r} must be finite")
+    k1, k2, ast = params.per_cell("k1"), params.per_cell("k2"), params.per_cell("alpha_star")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if np.any((k1 != k2) & (k1 * ast / np.where(k1 != k2, k1 - k2, 1.0) < 0)):
+            bad.append("psi' breakpoint k1*alpha_star/(k1-k2) is negative (need k1 > k2, alpha_star >= 0)")
     if bad:
         raise ValueError("invalid parameters for the continuum model: " + "; ".join(bad))
 
@@ -118,6 +121,7 @@ def simulate_continuum(
 
     t: (T,) s from 0 to t_end_s every dt_out_s (t_end_s included); alpha, beta: (T, cells) rad.
     perturbations: dicts {cell (1-based), chain, torque_Nm, start_s, duration_s} (see module docstring).
+    Per-cell reaction parameters (Params.per_cell) hold over each cell's interval [j-1, j] of x (piecewise constant).
     initial: optional callable x -> (alpha0, beta0) evaluated at the grid points x (cells, 0..cells),
         for linear-theory checks; default: rest.
     Raises ValueError for bad input, ContinuumError if the solver fails or |angle| exceeds max_angle_rad.
@@ -133,6 +137,8 @@ def simulate_continuum(
     if isinstance(points_per_cell, bool) or not isinstance(points_per_cell, (int, np.integer)) or points_per_cell < 1:
         raise ValueError(f"points_per_cell={points_per_cell!r} must be a positive integer")
     pert = validate_perturbations(perturbations, cells)
+    if params.cells != cells and params.per_cell_keys:
+        raise ValueError(f"cells={cells} but the per-cell parameters give {params.cells} cells")
 
     m = int(points_per_cell)
     n = cells * m
@@ -142,11 +148,19 @@ def simulate_continuum(
     ea, eb = params.eta_alpha, params.eta_beta
     da = (params.ka_eff / ea) * lap
     db = (params.kb_eff / eb) * lap
-    eye = sp.identity(n, format="csr")
-    j0 = reaction_jacobian(params)  # dR/d(alpha, beta); only dR_a/dalpha depends on the state
-    c_ab = sp.csr_matrix(eye * (j0[0, 1] / ea))  # d(alpha_t)/d(beta)
-    c_ba = sp.csr_matrix(eye * (j0[1, 0] / eb))  # d(beta_t)/d(alpha)
-    jbb = db + eye * (j0[1, 1] / eb)
+    if params.per_cell_keys:
+        # the law of grid point i is its cell's: per-point arrays, broadcast by physics.reaction
+        law: object = SimpleNamespace(**{k: np.repeat(params.per_cell(k), m) for k in REACTION_KEYS})
+    else:
+        law = params
+
+    def diag(v):
+        return sp.diags(np.broadcast_to(np.asarray(v, dtype=float), (n,)), format="csr")
+
+    j0 = reaction_jacobian(law)  # dR/d(alpha, beta); only dR_a/dalpha depends on the state
+    c_ab = diag(j0[0, 1] / ea)  # d(alpha_t)/d(beta)
+    c_ba = diag(j0[1, 0] / eb)  # d(beta_t)/d(alpha)
+    jbb = db + diag(j0[1, 1] / eb)
 
     y0 = np.zeros(2 * n)
     if initial is not None:
@@ -172,7 +186,7 @@ def simulate_continuum(
     def make_rhs(fa, fb):
         def rhs(_t, y):
             a, b = y[:n], y[n:]
-            ra, rb = reaction(params, a, b)  # physics.py: the one Python copy of the law
+            ra, rb = reaction(law, a, b)  # physics.py: the one Python copy of the law
             # eta_a a_t = k_a L a + R_a(a, b) + P_a ;  eta_b b_t = k_b L b + R_b(a, b) + P_b
             at = da @ a + ra / ea + fa
             bt = db @ b + rb / eb + fb
@@ -181,7 +195,7 @@ def simulate_continuum(
         return rhs
 
     def jac(_t, y):
-        jaa = da + sp.diags(reaction_jacobian(params, y[:n])[0, 0] / ea)  # dR_a/dalpha = -k_ab - psi''(alpha)
+        jaa = da + sp.diags(reaction_jacobian(law, y[:n])[0, 0] / ea)  # dR_a/dalpha = -k_ab - psi''(alpha)
         return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
 
     # output times and segment boundaries (perturbation switch-on/off)

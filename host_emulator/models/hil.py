@@ -26,12 +26,44 @@ REACTION_FIELDS = (
 )
 
 
-def firmware_config(ffi, lib, params: Params):
-    """(mc_reaction_phys_t, mc_drive_config_t) from Params: gains and a* scaled as their registers are
-    (protocol.codec: uN*m/rad, urad; the firmware judges the range), volts in mV."""
+def reaction_phys(ffi, params: Params):
+    """mc_reaction_phys_t of scalar Params (one cell's: Params.cell(j)): gains and a* scaled as their registers are
+    (protocol.codec: uN*m/rad, urad; the firmware judges the range)."""
     phys = ffi.new("mc_reaction_phys_t *")
     for name, member, reg in REACTION_FIELDS:
         _store(phys, member, lambda n=name, r=reg: codec.si_to_raw(codec.unit_of(r, "value"), getattr(params, n)), name)
+    return phys
+
+
+def reaction_problem(params: Params) -> str | None:
+    """The first reaction value the firmware would refuse, as a one-line message naming the key and, for per-cell
+    values, the cell (range: |k| <= K_MAX, 0 <= alpha* <= ASTAR_MAX; shape: k1 > max(k2, 0)); None if all pass."""
+    per = set(params.per_cell_keys)
+    for j in range(1, params.cells + 1):
+        c = params.cell(j)
+        where = {n: f"params.{n}[{j}] (cell {j})" if n in per else f"params.{n}" for n, _, _ in REACTION_FIELDS}
+        for name, _, reg in REACTION_FIELDS:
+            v = c.value(name)
+            try:
+                codec.to_register(reg, "value", v, firmware=True)
+            except codec.RangeError as e:
+                return f"{where[name]} = {v!r}: {e}"
+        k1, k2 = c.value("k1"), c.value("k2")
+        if not (k1 > 0 and k1 > k2):
+            return (
+                f"{where['k1']} = {k1!r}, {where['k2']} = {k2!r}: the firmware needs k1 > max(k2, 0) "
+                "(a bistable, continuous psi')"
+            )
+        if len(per) == 0:
+            break  # every cell the same
+    return None
+
+
+def firmware_config(ffi, lib, params: Params):
+    """(mc_reaction_phys_t, mc_drive_config_t) from Params: gains and a* scaled as their registers are
+    (protocol.codec: uN*m/rad, urad; the firmware judges the range), volts in mV. Per-cell parameters: cell 1's
+    reaction (HilModel.cell_phys holds every cell's)."""
+    phys = reaction_phys(ffi, params.cell(1))
     drv = ffi.new("mc_drive_config_t *")
     lib.mc_drive_default_config(drv)
     _store(drv, "supply_mv", lambda: round(params.supply_v * 1000), "supply_v")
@@ -69,16 +101,25 @@ class HilModel(LatticeModel):
         super().__init__(params, perturbations if (options or ModelOptions()).perturb_via == "plant" else [], options)
         self.all_perturbations = list(perturbations)
         self.phys, self.drive_cfg = firmware_config(self.ffi, self.lib, params)
+        # each cell's firmware instance gets its own reaction law (the same object when the law is uniform)
+        self.cell_phys = (
+            [reaction_phys(self.ffi, params.cell(j)) for j in range(1, self.n + 1)]
+            if params.per_cell_keys
+            else [self.phys] * self.n
+        )
+        problem = reaction_problem(params)
+        if problem:
+            raise ValueError(f"firmware rejects the reaction parameters: {problem}")
         # trial configuration, so bad parameters fail here with the firmware's verdict
         c = self.ffi.new("mc_cell_t *")
         self.lib.mc_cell_init(c)
-        if self.lib.mc_cell_set_params(c, self.phys) != self.lib.MC_OK:
-            raise ValueError(
-                f"firmware rejected the reaction parameters (|k| <= {self.lib.MC_K_MAX_UNM * 1e-6:g} N*m/rad, "
-                f"0 <= alpha_star <= {self.lib.MC_ASTAR_MAX_URAD * 1e-6:g} rad, "
-                f"k1 > max(k2, 0)): k_ab={params.k_ab}, sigma={params.sigma}, k1={params.k1}, "
-                f"k2={params.k2}, alpha_star={params.alpha_star}"
-            )
+        for j, phys in enumerate(self.cell_phys if params.per_cell_keys else [self.phys]):
+            if self.lib.mc_cell_set_params(c, phys) != self.lib.MC_OK:
+                kmax, amax = self.lib.MC_K_MAX_UNM * 1e-6, self.lib.MC_ASTAR_MAX_URAD * 1e-6
+                raise ValueError(
+                    f"firmware rejected the reaction parameters of cell {j + 1} (|k| <= {kmax:g} N*m/rad, "
+                    f"0 <= alpha_star <= {amax:g} rad, k1 > max(k2, 0)): {params.cell(j + 1)}"
+                )
         if self.lib.mc_cell_set_drive(c, self.drive_cfg) != self.lib.MC_OK:
             raise ValueError(
                 "firmware rejected the drive configuration (control_rate_hz 100..50000, pwm_top "
@@ -138,7 +179,7 @@ class HilSolver(Solver):
         for j in range(n):
             c = self.cells + j
             lib.mc_cell_init(c)
-            lib.mc_cell_set_params(c, model.phys)
+            lib.mc_cell_set_params(c, model.cell_phys[j])
             lib.mc_cell_set_drive(c, model.drive_cfg)
             lib.mc_cell_set_bemf(c, 1 if model.params.bemf_comp else 0)
         h = ffi.new("he_hil_t *")

@@ -68,7 +68,19 @@ def build_plant(
     p.delta0 = [P.DELTA_A0_M, P.DELTA_B0_M]
     p.delta_max = [0.3 * P.L_ALPHA_M, 0.3 * P.L_BETA_M]
     p.coef = [list(P.BAND_A_COEF), list(P.BAND_B_COEF)]
-    p.k_ab, p.sigma, p.k1, p.k2, p.astar = params.k_ab, params.sigma, params.k1, params.k2, params.alpha_star
+    if params.per_cell_keys:
+        # one law per cell (he_plant.h react_cell): rows k_ab, sigma, k1, k2, alpha* of n doubles each; the
+        # scalars hold cell 1's values (what code reading only them sees)
+        rows = np.concatenate([params.per_cell(k) for k in P.REACTION_KEYS])
+        if rows.size != lib.HE_RC_COUNT * n:
+            raise ValueError(f"per-cell reaction parameters: {rows.size} values for {n} cells")
+        rc = ffi.new("double[]", rows.tolist())
+        p.react_cell = rc
+        first = params.cell(1)
+        p.k_ab, p.sigma, p.k1, p.k2, p.astar = first.k_ab, first.sigma, first.k1, first.k2, first.alpha_star
+    else:
+        rc = ffi.NULL
+        p.k_ab, p.sigma, p.k1, p.k2, p.astar = params.k_ab, params.sigma, params.k1, params.k2, params.alpha_star
     p.speed_const = params.speed_const
     p.react_limit = params.torque_limit_nm  # inf: no actuator limit
     band, eta = spreads(params, options, n)
@@ -89,7 +101,7 @@ def build_plant(
     work = ffi.new("double[]", lib.HE_WORK_PER_STATE * 2 * n)
     p.work = work
     p.work_len = lib.HE_WORK_PER_STATE * 2 * n
-    _keepalive[p] = work
+    _keepalive[p] = (work, rc)
     if lib.he_plant_check(p) != lib.HE_OK:
         raise ValueError(
             "plant parameters rejected (non-positive inertia/damping or non-finite value); "

@@ -77,7 +77,13 @@ def _title(scene=None, title=""):
         )
         or "no push"
     )
-    return (title or scene.name) + f"\nsigma = {p.sigma:.4g} N·m/rad; push: {push}"
+    if "sigma" in p.varying_keys:
+        sv = p.per_cell("sigma")
+        sig = f"sigma per cell {sv.min():.4g}..{sv.max():.4g}"
+    else:
+        sig = f"sigma = {p.per_cell('sigma')[0]:.4g}"
+    other = [k for k in p.varying_keys if k != "sigma"]
+    return (title or scene.name) + f"\n{sig} N·m/rad{'; per cell: ' + ', '.join(other) if other else ''}; push: {push}"
 
 
 def plot_spacetime(
@@ -202,6 +208,45 @@ def plot_dispersion(
     return ax.figure
 
 
+def plot_chain_modes(params: Params, *, theory: Theory | None = None, count: int = 6) -> FigureBase:
+    """The linear theory of a chain whose cells differ (analysis.chain): growth rate of every mode against its
+    cosine wavelength 2n/m, and the alpha shape of the fastest modes. Returns the Figure."""
+    from ..analysis.chain import chain_modes
+
+    res = chain_modes(params, theory)
+    fig = new_figure(figsize=(7, 6), constrained_layout=True)
+    ax, bx = fig.subplots(2, 1)
+    modes = res["modes"]
+    for kind, color in (("stationary", "C0"), ("oscillatory", "C3")):
+        ms = [m for m in modes if m["kind"] == kind]
+        ax.plot(
+            [m["dct_lambda_cells"] or 4 * params.cells for m in ms],
+            [m["growth_per_s"] for m in ms],
+            "o",
+            ms=4,
+            color=color,
+            label=f"{kind} modes",
+        )
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xscale("log")
+    ax.set_xlabel("mode's cosine wavelength 2n/m (cells; uniform mode at 4n)")
+    ax.set_ylabel("growth rate Re s (1/s)")
+    ax.set_title(
+        "linear theory: " + (theory.label() if theory else "lattice with inertia") + ", per-cell law", fontsize=9
+    )
+    ax.legend(fontsize=7)
+    cells = np.arange(1, params.cells + 1)
+    for k, m in enumerate(modes[:count]):
+        if m["growth_per_s"] <= 0 and k > 0:
+            break
+        bx.plot(cells, m["alpha"], marker="o", ms=3, label=f"s = {m['growth_per_s']:.3g}/s, walls {m['domain_walls']}")
+    bx.axhline(0, color="k", lw=0.5)
+    bx.set_xlabel("cell")
+    bx.set_ylabel("alpha of the mode")
+    bx.legend(fontsize=7)
+    return fig
+
+
 def plot_dispersion_png(
     params: Params,
     path: str | Path,
@@ -210,9 +255,13 @@ def plot_dispersion_png(
     measured_period_s: float | None = None,
     theory: Theory | None = None,
 ) -> bool:
-    """Write the dispersion plot to path; False (no file) if the analysis module is unavailable."""
+    """Write the dispersion plot to path (a chain whose cells differ: its modes, plot_chain_modes); False (no file)
+    if the analysis module is unavailable."""
     try:
-        fig = plot_dispersion(params, inertia=inertia, measured_period_s=measured_period_s, theory=theory)
+        if params.heterogeneous:
+            fig = plot_chain_modes(params, theory=theory)
+        else:
+            fig = plot_dispersion(params.uniform(), inertia=inertia, measured_period_s=measured_period_s, theory=theory)
     except ImportError:
         return False
     _save(fig, path)

@@ -28,8 +28,24 @@ LOG_FORMATS = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
 EXIT_OK, EXIT_PROBLEMS, EXIT_USAGE, EXIT_ABORTED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
+def scene_arg(text: str) -> str:
+    """A scene argument as load_scene takes it: a design (`python -m host_emulator design`'s directory or its
+    design.json) means the scene.toml beside it; anything else is returned as given."""
+    p = Path(text)
+    if p.is_dir() and (p / "design.json").is_file():
+        return str(p / "scene.toml")
+    if p.name == "design.json" and p.is_file():
+        return str(p.with_name("scene.toml"))
+    return text
+
+
 def _common(p: argparse.ArgumentParser):
-    p.add_argument("scene", help="shipped scene name or .toml path (as for python -m host_emulator run)")
+    p.add_argument(
+        "scene",
+        type=scene_arg,
+        help="shipped scene name or .toml path (as for python -m host_emulator run), or a design: its directory or "
+        "design.json (python -m host_emulator design), whose scene.toml is run",
+    )
     p.add_argument(
         "--set",
         action="append",
@@ -184,6 +200,7 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
         "  python -m metacell_tools.experiment rehearse exp1_ccw_ccw --set t_end_s=4 --repeats 2\n"
+        "  python -m metacell_tools.experiment rehearse out/design_l10          # a design's scene.toml\n"
         "  python -m metacell_tools.experiment rehearse default --absent 3,7 --keep-going --live",
     )
     _common(h)

@@ -36,6 +36,7 @@ class Command:
     reg: str
     values: dict
     label: str
+    cells: tuple[int, ...] | None = None  # the cells it goes to (None: every cell of the plan)
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,10 @@ class ExperimentPlan:
             "cells": self.cells,
             "ctrl_rate_hz": self.ctrl_rate_hz,
             "t_end_s": self.t_end_s,
-            "setup": [{"reg": c.reg, **c.values, "label": c.label} for c in self.setup],
+            "setup": [
+                {"reg": c.reg, **c.values, "label": c.label, **({"cells": list(c.cells)} if c.cells else {})}
+                for c in self.setup
+            ],
             "perturbations": [
                 {"start_s": p.start_s, "cell": p.cell, **p.values, "label": p.label} for p in self.perturbations
             ],
@@ -79,6 +83,28 @@ def wire_param(name: str, value: float) -> int:
         return codec.to_register(reg, "value", value, firmware=False)
     except codec.RangeError as e:
         raise PlanError(f"params.{name} = {value!r}: {e}") from None
+
+
+def param_commands(name: str, reg: str, p: Params) -> list[Command]:
+    """The register writes of one reaction parameter: one command for every cell when the value is the same for
+    all, else one per distinct value with the cells that take it (a per-cell scene: each cell gets its own)."""
+    if name not in p.per_cell_keys:
+        v = p.value(name)
+        return [Command(reg, {"value": wire_param(name, v)}, f"{name} = {v:.6g}")]
+    from metacell_tools.experiment.runner import cells_text
+
+    vals = p.per_cell(name)
+    groups: dict[int, list[int]] = {}
+    for j, v in enumerate(vals, start=1):
+        try:
+            raw = wire_param(name, float(v))
+        except PlanError as e:
+            raise PlanError(f"params.{name}[{j}] (cell {j}): {e}") from None
+        groups.setdefault(raw, []).append(j)
+    return [
+        Command(reg, {"value": raw}, f"{name} = {vals[js[0] - 1]:.6g} (cells {cells_text(js)})", tuple(js))
+        for raw, js in groups.items()
+    ]
 
 
 def pwm_limit_ticks(p: Params, pwm_top: int = RIG_PWM_TOP) -> int:
@@ -120,7 +146,7 @@ def make_plan(
     p = scene.params
     setup = [Command("ENABLE", {"on": 0}, "drive off while configuring")]
     for name, reg in FIRMWARE_PARAMS:
-        setup.append(Command(reg, {"value": wire_param(name, getattr(p, name))}, f"{name} = {getattr(p, name):.6g}"))
+        setup += param_commands(name, reg, p)
     lim = pwm_limit_ticks(p, pwm_top) if pwm_limit is None else int(pwm_limit)
     if not 0 <= lim <= pwm_top:
         raise PlanError(f"PWM limit {lim} ticks: expected 0..{pwm_top}")

@@ -30,7 +30,7 @@ from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
 from metacell_tools.rigtools.command import RigClient
 from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
-from .plan import ExperimentPlan
+from .plan import Command, ExperimentPlan
 
 
 def cells_text(cells: Iterable[int]) -> str:
@@ -188,26 +188,36 @@ class Experiment:
         return res
 
     def _setup(self, phase: str) -> list[int]:
-        """Send the plan's setup commands; returns the cells that answered OK to all of them."""
+        """Send the plan's setup commands; returns the cells that answered OK to all of them.
+
+        A per-cell parameter is several commands of one register, each to the cells that take its value. k1 > k2
+        must hold after every single write: a cell answering SHAPE to its new k1 (below its old k2) gets that k1
+        again once the last k2 command has gone."""
         cells = self.plan.cells
         ok = set(cells)
-        k1_shape = []
-        for c in self.plan.setup:
-            res = self.command(cells, c.reg, c.values, c.label, phase)
+        k1_shape: list[tuple[Command, list[int]]] = []  # (K1 command, cells that answered SHAPE)
+        setup = self.plan.setup
+        for i, c in enumerate(setup):
+            res = self.command(list(c.cells) if c.cells else cells, c.reg, c.values, c.label, phase)
             if c.reg == "K1":
-                k1_shape = [j for j, r in res.items() if r == "SHAPE"]
+                shape = [j for j, r in res.items() if r == "SHAPE"]
+                if shape:
+                    k1_shape.append((c, shape))
                 res = {j: r for j, r in res.items() if r != "SHAPE"}
-            if c.reg == "K2" and k1_shape:
-                # k1 > k2 must hold after every single write: a new k1 below the old k2 is accepted once k2 is set
-                k1 = next(x for x in self.plan.setup if x.reg == "K1")
-                again = self.command(k1_shape, "K1", k1.values, k1.label + " (after k2)", phase)
-                fixed = {j for j, r in again.items() if r == "OK"}
-                self.failures = [
-                    f
-                    for f in self.failures
-                    if not (f["phase"] == phase and f["reg"] == "K1" and f["result"] == "SHAPE" and f["cell"] in fixed)
-                ]
-                res = {**res, **again}
+            last_k2 = c.reg == "K2" and (i + 1 == len(setup) or setup[i + 1].reg != "K2")
+            if last_k2 and k1_shape:
+                for k1, shape in k1_shape:
+                    again = self.command(shape, "K1", k1.values, k1.label + " (after k2)", phase)
+                    fixed = {j for j, r in again.items() if r == "OK"}
+                    self.failures = [
+                        f
+                        for f in self.failures
+                        if not (
+                            f["phase"] == phase and f["reg"] == "K1" and f["result"] == "SHAPE" and f["cell"] in fixed
+                        )
+                    ]
+                    ok -= {j for j, r in again.items() if r != "OK"}
+                k1_shape = []
             ok -= {j for j, r in res.items() if r != "OK"}
         return sorted(ok)
 

@@ -5,6 +5,7 @@
     python -m metacell_tools.rigtools.command -c ... enable all on | zero all | bemf 3 off | pwm-limit 5 1200
     python -m metacell_tools.rigtools.command -c ... clear-faults all
     python -m metacell_tools.rigtools.command -c ... info all      # identity, protocol map id and parameters in force
+    python -m metacell_tools.rigtools.command -c ... apply out/design/design.json   # every cell's own parameters
 
 A serial port has one reader: while the logger runs, schedule commands with its --do option.
 Every command waits for the primary's CMD_RESULT (the cell's verdict, or NACK/TIMEOUT/
@@ -115,6 +116,133 @@ class RigClient:
         return out
 
 
+# ---- apply: every cell's own reaction parameters from a design ------------------------------------------------
+APPLY_ORDER = ("K_AB", "SIGMA", "ASTAR")  # then K1 and K2 in the order that keeps k1 > k2 after each write
+PARAM_FIELDS = {"K_AB": "k_ab", "SIGMA": "sigma", "K1": "k1", "K2": "k2", "ASTAR": "astar"}  # PARAMS block fields
+
+
+class ApplyError(ValueError):
+    """A design the cells would refuse (checked before anything is sent); the message names the key and cell."""
+
+
+def design_registers(path: str) -> dict[int, dict[str, int]]:
+    """{cell: {register: raw value}} of a design.json (`python -m host_emulator design`) or a scene .toml: each
+    reaction parameter one value or one per cell, converted as the registers carry them and checked against the
+    firmware's acceptance (range, k1 > max(k2, 0)); ApplyError naming the key and the cell otherwise."""
+    import json
+    from pathlib import Path
+
+    f = Path(path)
+    if f.is_dir():
+        f = f / "design.json"
+    try:
+        if f.suffix == ".toml":
+            import tomllib
+
+            doc = tomllib.loads(f.read_text())
+            params, cells = doc.get("params", {}), doc.get("cells", proto.N_CELLS)
+        else:
+            doc = json.loads(f.read_text())
+            params, cells = doc["params"], doc.get("cells", proto.N_CELLS)
+    except (OSError, ValueError, KeyError) as e:
+        raise ApplyError(f"{path}: not a readable design.json or scene .toml ({type(e).__name__}: {e})") from None
+    if not isinstance(cells, int) or not 1 <= cells <= proto.N_CELLS:
+        raise ApplyError(f"{path}: cells = {cells!r}; the rig has {proto.N_CELLS}")
+    from host_emulator.params import Params
+
+    base = Params()
+    out: dict[int, dict[str, int]] = {j: {} for j in range(1, cells + 1)}
+    for name, reg in (("k_ab", "K_AB"), ("sigma", "SIGMA"), ("k1", "K1"), ("k2", "K2"), ("alpha_star", "ASTAR")):
+        v = params.get(name, getattr(base, name))
+        vals = v if isinstance(v, list) else [v] * cells
+        if len(vals) != cells:
+            raise ApplyError(f"params.{name}: {len(vals)} values for {cells} cells")
+        for j, x in enumerate(vals, start=1):
+            where = f"params.{name}[{j}] (cell {j})" if isinstance(v, list) else f"params.{name}"
+            try:
+                out[j][reg] = codec.to_register(reg, "value", float(x), firmware=True)
+            except (TypeError, ValueError) as e:
+                raise ApplyError(f"{where} = {x!r}: {e}") from None
+    for j, r in out.items():
+        if not (r["K1"] > 0 and r["K1"] > r["K2"]):
+            raise ApplyError(
+                f"params.k1 = {r['K1'] * 1e-6:g}, params.k2 = {r['K2'] * 1e-6:g} at cell {j}: the firmware needs "
+                "k1 > max(k2, 0)"
+            )
+    return out
+
+
+def _writes(old: dict[str, int], new: dict[str, int]) -> list[tuple[str, int]]:
+    """The register writes taking one cell from `old` to `new` (raw values), K1/K2 in an order that keeps
+    k1 > k2 after each: K1 first when the new k1 exceeds the old k2, else K2 first."""
+    w = [(reg, new[reg]) for reg in APPLY_ORDER]
+    pair = [("K1", new["K1"]), ("K2", new["K2"])]
+    return w + (pair if new["K1"] > old["K2"] else pair[::-1])
+
+
+def read_params(client: RigClient, cells: Sequence[int]) -> dict[int, dict[str, int] | None]:
+    """{cell: {register: raw value in force}} read back through the primary (None: no PARAMS block came back)."""
+    info = client.info(cells, blocks=("PARAMS",))
+    out: dict[int, dict[str, int] | None] = {}
+    for j in cells:
+        p = info.get(j, {}).get("PARAMS")
+        out[j] = None if p is None else {reg: int(p[f]) for reg, f in PARAM_FIELDS.items()}
+    return out
+
+
+def apply_design(client: RigClient, want: dict[int, dict[str, int]], report=print) -> bool:
+    """Write every cell's parameters, read them back; all or nothing: when some cell does not answer before, or
+    rejects a write, every cell already written gets its old values back (and nothing else is sent). True when
+    every cell holds the design's values afterwards."""
+    cells = sorted(want)
+    before = read_params(client, cells)
+    missing = [j for j in cells if before[j] is None]
+    if missing:
+        report(f"refused: cell(s) {','.join(map(str, missing))} did not report their parameters; nothing written")
+        return False
+    done: list[int] = []
+    failed = None
+    for j in cells:
+        old = before[j]
+        assert old is not None
+        for reg, raw in _writes(old, want[j]):
+            r = client.command([j], reg, value=raw).get(j, "NO_ANSWER")
+            if r != "OK":
+                failed = (j, reg, raw, r)
+                break
+        done.append(j)
+        if failed:
+            break
+    if failed:
+        j, reg, raw, r = failed
+        report(
+            f"refused: cell {j} answered {r} to {reg} = {codec.from_register(reg, 'value', raw):g}; "
+            f"restoring the {len(done)} cell(s) written"
+        )
+        for k in done:
+            old = before[k]
+            assert old is not None
+            for reg2, raw2 in _writes(want[k], old):
+                client.command([k], reg2, value=raw2)
+        back = read_params(client, done)
+        bad = [k for k in done if back[k] != before[k]]
+        if bad:
+            report(f"WARNING: cell(s) {','.join(map(str, bad))} could not be restored; check with `info`")
+        return False
+    after = read_params(client, cells)
+    wrong = [j for j in cells if after[j] != want[j]]
+    for j in wrong:
+        report(f"cell {j:2d}: read back {after[j]}, expected {want[j]}")
+    for j in cells:
+        if j not in wrong:
+            v = want[j]
+            report(
+                f"cell {j:2d}: k_ab {v['K_AB'] * 1e-6:g} sigma {v['SIGMA'] * 1e-6:g} k1 {v['K1'] * 1e-6:g} "
+                f"k2 {v['K2'] * 1e-6:g} N*m/rad, alpha* {v['ASTAR'] * 1e-6:g} rad: written and read back"
+            )
+    return not wrong
+
+
 def _cells(text: str) -> list[int]:
     if text == "all":
         return list(range(1, proto.N_CELLS + 1))
@@ -199,6 +327,13 @@ def parser():
     i.add_argument("cells", type=_cells, help=cells_help)
     c = add("clear-faults", "clear latched faults", "clear-faults 3,7")
     c.add_argument("cells", type=_cells, help=cells_help)
+    a = add(
+        "apply",
+        "write every cell's reaction parameters from a design (design.json, its directory, or a scene .toml), read "
+        "them back; all or nothing",
+        "apply out/design_l10/design.json",
+    )
+    a.add_argument("design", help="design.json of `python -m host_emulator design` (or its directory, or a .toml)")
     w = add("pwm-limit", "PWM duty limit in timer ticks (<= 2400; capped at 5.86 V)", "pwm-limit all 1200")
     w.add_argument("cells", type=_cells, help=cells_help)
     w.add_argument("ticks", type=int, help="timer ticks of the 2400-tick PWM period (0..65535; the cell caps it)")
@@ -228,6 +363,8 @@ def build(args: argparse.Namespace) -> tuple[str, dict]:
         return "CLEAR_FAULTS", {}
     if args.cmd == "info":
         return "POINTER", {"block": proto.D.BLOCKS["IDENT"]["id"]}
+    if args.cmd == "apply":
+        return "APPLY", {}
     if not 0 <= args.ticks <= 65535:
         raise ValueError(f"pwm-limit: {args.ticks} ticks out of range")
     return "PWM_LIMIT", {"ticks": args.ticks}
@@ -246,7 +383,9 @@ def _main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         reg, values = build(args)
-        proto.pack_payload(reg, **values)
+        want = design_registers(args.design) if args.cmd == "apply" else None
+        if reg != "APPLY":
+            proto.pack_payload(reg, **values)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -261,6 +400,11 @@ def _main(argv: list[str] | None = None) -> int:
         text = str(e).splitlines()[0] if str(e) else type(e).__name__
         print(f"error: cannot open {args.channel}: {text}", file=sys.stderr)
         return 3
+    if want is not None:
+        with bus:
+            ok = apply_design(RigClient(bus, args.timeout), want)
+        print(f"apply {args.design}: {'every cell holds its parameters' if ok else 'NOT applied'}")
+        return 0 if ok else 1
     if args.cmd == "info":
 
         def si(reg: str, raw: int) -> float:

@@ -173,3 +173,57 @@ def test_instructions_per_cell_tick_quoted_in_readme_and_docs():
     acc = (ROOT / "docs" / "accuracy.md").read_text()
     assert f"-> {n} instructions per cell-tick**" in acc
     assert f"**{n} x86 instructions per cell and control tick**" in (ROOT / "docs" / "emulator.md").read_text()
+
+
+def test_design_page_lambda_10_row_is_what_design_prints(tmp_path):
+    """docs/design.md's first worked example: the fractions and the parameters are what `design` prints today."""
+    page = (ROOT / "docs" / "design.md").read_text()
+    row = re.search(
+        r"\| `design --target lambda=10 --push 8` \| (\d+) % of 20 / (\d+) % of 12 \| .*? \| (.*?) \|", page
+    )
+    assert row, "docs/design.md: the lambda=10 row moved"
+    r = subprocess.run(
+        [sys.executable, "-m", "host_emulator", "design", "--target", "lambda=10", "--push", "8", "--quiet"]
+        + ["--out", str(tmp_path / "d")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"lands in (\d+) % of 20 noise seeds and (\d+) % of 12 pushes", r.stdout)
+    assert m and m.groups() == row.groups()[:2], (r.stdout, row.groups())
+    printed = {k: float(v) for k, v in re.findall(r"^  (\w+): ([-\d.e]+)$", r.stdout, re.M)}
+    quoted = {k: float(v) for k, v in re.findall(r"(\w+) ([-\d.]+)", row.group(3))}
+    assert quoted and all(abs(printed[k] - v) <= 5e-5 for k, v in quoted.items()), (printed, quoted)
+
+
+def test_design_page_band_scan_is_what_the_scan_finds():
+    """docs/design.md's "linear band": the number of laws scanned and the largest fastest mode are band_scan's."""
+    from host_emulator.benchmarks.design_table import band_scan
+
+    page = (ROOT / "docs" / "design.md").read_text()
+    m = re.search(
+        r"at most m = (\d+) \(a cosine wavelength of\s+([\d.]+)\s+cells\): over a grid of ([\d,]+) laws", page
+    )
+    assert m, "docs/design.md: the band-scan sentence moved"
+    res = band_scan()
+    assert (res["largest_m"], res["laws"]) == (int(m.group(1)), int(_num(m.group(3))))
+    assert abs(2 * 16 / res["largest_m"] - float(m.group(2))) < 0.05
+
+
+def test_design_page_table_rows_are_the_tables_targets():
+    """docs/design.md's table: one row per wavelength that fits 16 cells and per layout design_table draws, in order."""
+    from host_emulator.benchmarks.design_table import wall_layouts
+
+    page = (ROOT / "docs" / "design.md").read_text()
+    rows = re.findall(r"^\| (lambda|walls)=([\d.,]+) \| (\d+) % \| (\d+) % \|", page, re.M)
+    lam = [float(v) for f, v, _, _ in rows if f == "lambda"]
+    walls = [tuple(float(w) for w in v.split(",")) for f, v, _, _ in rows if f == "walls"]
+    assert lam == [float(f"{30 / z:.6g}") for z in range(1, 16)]
+    assert walls == wall_layouts(20)
+    summary = re.findall(r"^(lambda|walls): (\d+) of (\d+) targets land in >= 90 % of the seeds$", page, re.M)
+    for fam, ok, total in summary:
+        fr = [int(s) for f, _, s, _ in rows if f == fam]
+        assert (int(ok), int(total)) == (sum(s >= 90 for s in fr), len(fr))
+    assert len(summary) == 2

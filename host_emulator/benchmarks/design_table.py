@@ -1,0 +1,161 @@
+"""The design table of docs/design.md: `design`'s verified success over every wavelength that fits the chain and over
+random wall layouts.
+
+    python -m host_emulator.benchmarks.design_table --out out/design_table      # about half an hour on one core
+
+Every target is designed with the command's defaults (push on cell 8, 20 verification seeds, the documented push
+range) and verified by running its scene.toml (host_emulator.workbench.design). Wavelengths: lambda = 2 (n - 1) / Z
+for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's default_rng(`--seed`): 1 to 4 walls
+on bonds 1.5 .. n - 0.5, consecutive walls at least `--spacing` cells apart. Prints a markdown table per family
+(target, verified fraction of seeds and of pushes, why the most common miss among the seeds missed and its walls,
+hil runs, wall time) and writes design_table.json and every design's directory under --out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+
+def wall_layouts(count: int, cells: int = 16, spacing: int = 3, seed: int = 23) -> list[tuple[float, ...]]:
+    """`count` distinct layouts on bonds j + 0.5 (1 <= j <= cells - 1), consecutive walls >= spacing apart, drawn
+    with default_rng(seed): the number of walls uniform in 1..4, then their bonds uniform among the layouts that
+    keep the spacing (rejection sampling), sorted."""
+    rng = np.random.default_rng(seed)
+    out: list[tuple[float, ...]] = []
+    while len(out) < count:
+        z = int(rng.integers(1, 5))
+        while True:
+            w = tuple(sorted(float(j) + 0.5 for j in rng.choice(np.arange(1, cells), size=z, replace=False)))
+            if all(b - a >= spacing for a, b in zip(w[:-1], w[1:])):
+                break
+        if w not in out:
+            out.append(w)
+    return out
+
+
+def band_scan(n: int = 16, points: tuple[int, int, int] = (25, 26, 26)) -> dict:
+    """The fastest free-end mode a uniform chain can have within the firmware's gains: over a grid of k_ab in
+    0.005..0.25, k2 in -0.25..0, sigma in 0..0.25 (N m/rad), the hil theory's growth rates at kappa = pi m / n;
+    counts, per m, the laws whose fastest mode is m, stationary and growing faster than 1/s."""
+    from ..analysis.stability import growth_rates, motor_damping
+    from ..params import Params
+
+    p0 = Params(cells=n)
+    km = np.pi * np.arange(n) / n
+    count: Counter = Counter()
+    total = 0
+    for kab in np.linspace(0.005, 0.25, points[0]):
+        for k2 in np.linspace(-0.25, 0.0, points[1]):
+            for sig in np.linspace(0.0, 0.25, points[2]):
+                p = p0.with_overrides(k_ab=float(kab), k2=float(k2), sigma=float(sig))
+                g = growth_rates(p, km, inertia=True, motor_damping=motor_damping(p))[:, 0]
+                m = int(np.argmax(g.real))
+                total += 1
+                if g[m].real > 1.0 and abs(g[m].imag) < 1e-9:
+                    count[m] += 1
+    return {"laws": total, "fastest_mode_counts": dict(sorted(count.items())), "largest_m": max(count)}
+
+
+def _row(target: str, doc: dict, wall_s: float) -> dict:
+    v = doc["verification"]
+    missed = Counter(
+        (r.get("why") or "error", tuple(r.get("walls", ()))) for r in v["runs"][: v["seeds"]] if not r["landed"]
+    )
+    return {
+        "target": target,
+        "fraction_seeds": v["fraction_seeds"],
+        "fraction_pushes": v["fraction_pushes"],
+        "reached": doc["reached"],
+        "missed": [{"why": k[0], "walls": list(k[1]), "runs": c} for k, c in missed.most_common(1)],
+        "linear_score": doc["linear_theory"]["score"],
+        "first_guess_score": doc["linear_theory"]["first_guess_score"],
+        "params": doc["params"],
+        "per_cell": doc["per_cell"],
+        "hil_runs": doc["search"]["hil_runs"],
+        "wall_s": wall_s,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_emulator.benchmarks.design_table", description=__doc__)
+    ap.add_argument("--out", default="out/design_table", help="directory for design_table.json and the designs")
+    ap.add_argument("--layouts", type=int, default=20, help="random wall layouts (default 20)")
+    ap.add_argument("--spacing", type=int, default=3, help="least distance between walls, cells (default 3)")
+    ap.add_argument("--seed", type=int, default=23, help="seed of the layouts (default 23)")
+    ap.add_argument("--push", default="8", help="pushes of every design (default 8)")
+    ap.add_argument("--only", choices=("lambda", "walls"), default=None, help="one family only")
+    ap.add_argument(
+        "--band-scan", action="store_true", help="only the scan of the firmware's gain box for the fastest mode"
+    )
+    args = ap.parse_args(argv)
+    if args.band_scan:
+        res = band_scan()
+        print(
+            f"{res['laws']} uniform laws in the firmware's gain box; laws whose fastest free-end mode is stationary "
+            f"and grows, by mode index m: {res['fastest_mode_counts']}; largest m = {res['largest_m']} "
+            f"(cosine wavelength {2 * 16 / res['largest_m']:.3g} cells)"
+        )
+        return 0
+    from ..outpaths import check_out_dir
+    from ..workbench.design import design
+
+    out = Path(args.out)
+    why = check_out_dir(out)
+    if why:
+        print(f"design_table: error: {why}", file=sys.stderr)
+        return 2
+    n = 16
+    targets = []
+    if args.only in (None, "lambda"):
+        targets += [("lambda", f"lambda={2 * (n - 1) / z:.6g}") for z in range(1, n)]
+    if args.only in (None, "walls"):
+        targets += [
+            ("walls", "walls=" + ",".join(f"{w:g}" for w in lay))
+            for lay in wall_layouts(args.layouts, n, args.spacing, args.seed)
+        ]
+    rows = []
+    t_all = time.perf_counter()
+    for fam, tgt in targets:
+        t0 = time.perf_counter()
+        d = design(tgt, args.push, out=out / tgt.replace("=", "_").replace(",", "_"), nearest=False)
+        rows.append({"family": fam, **_row(tgt, d, time.perf_counter() - t0)})
+        r = rows[-1]
+        print(
+            f"{tgt:28s} seeds {100 * r['fraction_seeds']:5.0f} %  pushes {100 * (r['fraction_pushes'] or 0):5.0f} %  "
+            f"{r['hil_runs']:5d} runs {r['wall_s']:6.0f} s",
+            file=sys.stderr,
+            flush=True,
+        )
+        (out / "design_table.json").write_text(json.dumps({"push": args.push, "rows": rows}, indent=1) + "\n")
+    for fam in ("lambda", "walls"):
+        fr = [r for r in rows if r["family"] == fam]
+        if not fr:
+            continue
+        print(
+            "\n| target | seeds landing | pushes landing | most missed seeds: why (their walls) | hil runs | wall s |"
+        )
+        print("|---|---:|---:|---|---:|---:|")
+        for r in fr:
+            miss = "-"
+            if r["missed"]:
+                m = r["missed"][0]
+                miss = f"{m['runs']}: {m['why']} ({', '.join(f'{w:g}' for w in m['walls']) or 'none'})"
+            print(
+                f"| {r['target']} | {100 * r['fraction_seeds']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | "
+                f"{miss} | {r['hil_runs']} | {r['wall_s']:.0f} |"
+            )
+        ok = sum(r["fraction_seeds"] >= 0.9 for r in fr)
+        print(f"\n{fam}: {ok} of {len(fr)} targets land in >= 90 % of the seeds")
+    print(f"\ntotal wall time {time.perf_counter() - t_all:.0f} s", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
