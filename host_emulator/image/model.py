@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from protocol import codec
 
-from ..models.hil import REACTION_FIELDS
+from ..models.hil import REACTION_FIELDS, reaction_problem
 from ..models.lattice import LatticeModel
 from ..models.options import ConfigError, Fault, ModelOptions, Perturbation
 from ..models.plant import choose_step
@@ -35,7 +35,8 @@ WINDOW_S = 50e-6  # the plant's window (world.WorldConfig.window_s)
 
 
 def setup_commands(p: Params) -> list[tuple[str, dict]]:
-    """The commands that configure a cell for the scene, in the order the rig's experiment runner sends them."""
+    """The commands that configure a cell for the scene, in the order the rig's experiment runner sends them (p: that
+    cell's scalar parameters, Params.cell(j))."""
     cmds: list[tuple[str, dict]] = [("ENABLE", {"on": 0})]
     for name, _member, reg in REACTION_FIELDS:
         cmds.append((reg, {"value": codec.to_register(reg, "value", getattr(p, name), firmware=False)}))
@@ -56,17 +57,24 @@ def bring_up(world: World, params: Params, progress: bool = False) -> tuple[Lapt
     laptop and what happened (USB enumerated at, refused commands). LaptopError / WorldError when it cannot."""
     from ..progress import bar
 
-    cmds = setup_commands(params)
     cells = list(range(1, params.cells + 1))
+    per_cell = {j: setup_commands(params.cell(j)) for j in cells}  # per-cell reaction values: each cell its own
+    n_steps = len(per_cell[1])
     lap = Laptop(world)
     refused: dict[str, dict[int, str]] = {}
-    with bar(2 + len(cmds), desc="image: boot, USB, configure", unit="step", quiet=not progress) as pb:
+    with bar(2 + n_steps, desc="image: boot, USB, configure", unit="step", quiet=not progress) as pb:
         t_usb = lap.plug()
         pb.update()
         lap.open()
         pb.update()
-        for reg, values in cmds:
-            res = lap.command(cells, reg, **values)
+        for k in range(n_steps):
+            reg = per_cell[1][k][0]
+            groups: dict[tuple, list[int]] = {}  # cells that take the same values get one command together
+            for j in cells:
+                groups.setdefault(tuple(sorted(per_cell[j][k][1].items())), []).append(j)
+            res: dict[int, str] = {}
+            for values, group in groups.items():
+                res.update(lap.command(group, reg, **dict(values)))
             pb.update()
             bad = {j: r for j, r in res.items() if r != "OK"}
             if bad:
@@ -95,11 +103,9 @@ class ImageModel(LatticeModel):
                 f"params.control_rate_hz = {params.control_rate_hz}, params.pwm_top = {params.pwm_top}: the flashed "
                 f"images are built for {BUILD_CTRL_RATE_HZ} Hz and a PWM period of {BUILD_PWM_TOP} (platformio.ini)"
             )
-        for name, _m, reg in REACTION_FIELDS:
-            try:
-                codec.to_register(reg, "value", getattr(params, name), firmware=False)
-            except codec.RangeError as e:
-                raise ConfigError(f"params.{name} = {getattr(params, name)}: {e}") from None
+        problem = reaction_problem(params)  # the values every cell's firmware would refuse, as hil judges them
+        if problem:
+            raise ConfigError(problem)
 
         self.faults: tuple[Fault, ...] = ()
 

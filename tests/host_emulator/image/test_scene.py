@@ -28,6 +28,19 @@ def test_default_scene_selects_the_same_domain_walls_as_hil(images):
     assert img.info.get("cell_faults") == [0] * 16
 
 
+def test_per_cell_parameters_reach_each_cell_image(images):
+    """Each cell image is configured with its own reaction values (the laptop sends them per cell): the image run
+    follows the hil run of the same per-cell scene, and both leave the uniform chain's pattern."""
+    import numpy as np
+
+    per_cell = ["t_end_s=3", "params.sigma.8=0.02", "params.k_ab.3=0.05"]
+    hil = run_scene(load_scene("default", per_cell), progress=False).alpha[-1]
+    img = run_scene(load_scene("default", [*per_cell, "model=image"]), progress=False).alpha[-1]
+    uniform = run_scene(load_scene("default", ["t_end_s=3"]), progress=False).alpha[-1]
+    assert np.abs(hil - uniform).max() > 0.2  # the per-cell values change the pattern (cells 2 and 3)
+    np.testing.assert_allclose(img, hil, atol=0.05)
+
+
 def test_faults_from_a_scene_are_seen_through_the_laptop(images):
     """A HardFault in cell 3, a dead tick in cell 5 and a power loss of cell 7, 0.1 s into the scene; 3 s later
     the laptop (the same SLCAN path as the rig's tools) reads each cell's BOOT block: cell 3 was reset by its fault
