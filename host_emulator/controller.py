@@ -125,15 +125,9 @@ def run_scene(scene, *, progress: bool = True, trackers: Sequence[Tracker] = ())
 
     Refuses (limits.RunTooLarge, a ConfigError naming the key and the figure) a run whose resolved plant step
     makes it too long, before any step: every path to a run (the CLI, the API, paper, robustness) comes here."""
-    from .limits import RunTooLarge, check_run, check_solver
+    from .limits import checked_solver
 
-    problem = check_run(scene)
-    if problem:
-        raise RunTooLarge(problem)
-    solver = build_solver(scene)
-    problem = check_solver(scene, solver)
-    if problem:
-        raise RunTooLarge(problem)
+    solver = checked_solver(scene)
     extra = list(trackers)
     if progress:
         extra.append(ProgressTracker())

@@ -163,9 +163,9 @@ def check_realtime(scene: Scene, solver, speed: float = 1.0) -> str | None:
     return None
 
 
-def scene_cost(scene: Scene) -> float:
-    """Cell steps of one run of the scene, from its built solver (RunTooLarge / ConfigError / ValueError if the
-    scene itself is refused)."""
+def checked_solver(scene: Scene):
+    """The scene's built solver once the run has passed both guards: the scene (check_run) before anything is built,
+    then its resolved plant step (check_solver). RunTooLarge naming the key and the figure otherwise."""
     from .controller import build_solver
 
     problem = check_run(scene)
@@ -175,7 +175,13 @@ def scene_cost(scene: Scene) -> float:
     problem = check_solver(scene, solver)
     if problem:
         raise RunTooLarge(problem)
-    return cell_steps(scene, solver)
+    return solver
+
+
+def scene_cost(scene: Scene) -> float:
+    """Cell steps of one run of the scene, from its built solver (RunTooLarge / ConfigError / ValueError if the
+    scene itself is refused)."""
+    return cell_steps(scene, checked_solver(scene))
 
 
 def batch_budget(total: float, what: str, limit: float = MAX_BATCH_CELL_STEPS) -> str | None:
