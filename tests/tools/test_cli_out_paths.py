@@ -81,7 +81,7 @@ ENTRY = {
     "host_emulator/benchmarks/cli.py": "host_emulator",
     "host_emulator/benchmarks/sweep.py": "host_emulator.benchmarks.sweep",
     "host_emulator/benchmarks/instructions.py": "host_emulator.benchmarks.instructions",
-    "host_emulator/workbench/design.py": "host_emulator",
+    "host_emulator/workbench/design/cli.py": "host_emulator",
     "host_emulator/benchmarks/design_table.py": "host_emulator.benchmarks.design_table",
     "metacell_tools/rigtools/logger.py": "metacell_tools.rigtools.logger",
     "metacell_tools/experiment/cli.py": "metacell_tools.experiment",

@@ -1,0 +1,92 @@
+"""`python -m host_emulator design`: the command line of design(...)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .constants import REQUIRE
+from .driver import design
+from .target import DesignError
+
+
+def design_main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator design",
+        description="Find reaction-law parameters (global or per cell) that make the pushed chain land on a target "
+        "pattern, verified with the firmware in the loop (docs/design.md).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator design --target lambda=10 --push 8 --out out/design_l10\n"
+        "  python -m host_emulator design --target walls=5.5,10.5 --push 8 --out out/design_w\n"
+        "  python -m host_emulator design --target lambda=7.5 --scene exp1_ccw_ccw --out out/design_l75\n"
+        "  python -m host_emulator design --target walls=2.5,5.5 --rest 9-16 --push 4 --out out/half\n"
+        "then: python -m host_emulator run out/design_l10/scene.toml\n"
+        "      python -m metacell_tools.rigtools.command -c PORT@115200 apply out/design_l10/design.json\n"
+        "exit codes: 0 the target is reached (>= --require of the noise seeds), 2 bad input, 3 not reached "
+        "(design.json names the nearest reachable target).",
+    )
+    ap.add_argument("--target", required=True, help="lambda=N (cells; Z = 2(n-1)/N walls) or walls=A.5,B.5,...")
+    ap.add_argument(
+        "--push",
+        default=None,
+        help="CELL[:SIGN],... hand pushes on alpha, + CCW (default) or - CW (default: the scene's pushes)",
+    )
+    ap.add_argument("--rest", default=None, metavar="CELLS", help="cells that must end at rest, e.g. 9-16")
+    ap.add_argument("--scene", default="default", help="scene giving everything not designed (default: default)")
+    ap.add_argument("--vary", default="sigma,k_ab,k2", help="parameters the design may change (default sigma,k_ab,k2)")
+    ap.add_argument(
+        "--per-cell",
+        default=None,
+        help="of those, the ones that may differ between the target's domains (default: none for lambda=, "
+        "sigma,k_ab,k2 for walls=; 'none' for none)",
+    )
+    ap.add_argument("--seeds", type=int, default=20, help="noise seeds of the verification (default 20)")
+    ap.add_argument("--search-seeds", type=int, default=8, help="noise seeds per candidate in the search (default 8)")
+    ap.add_argument("--maxiter", type=int, default=8, help="generations of the hil search (default 8)")
+    ap.add_argument("--require", type=float, default=REQUIRE, help="fraction of seeds that must land (default 0.9)")
+    ap.add_argument("--no-nearest", action="store_true", help="do not look for the nearest reachable target")
+    ap.add_argument("--scheduler", default=None, help="a Dask scheduler address: the hil ensembles run there")
+    ap.add_argument("--out", default=None, help="output directory (default out/design_<target>)")
+    ap.add_argument("--quiet", action="store_true", help="no progress lines")
+    args = ap.parse_args(argv)
+    per = None if args.per_cell is None else (() if args.per_cell == "none" else tuple(args.per_cell.split(",")))
+    out = args.out or "out/design_" + args.target.replace("=", "_").replace(",", "_")
+    try:
+        doc = design(
+            args.target,
+            args.push,
+            scene=args.scene,
+            vary=tuple(v.strip() for v in args.vary.split(",") if v.strip()),
+            per_cell=per,
+            rest=args.rest,
+            seeds=args.seeds,
+            search_seeds=args.search_seeds,
+            maxiter=args.maxiter,
+            require=args.require,
+            nearest=not args.no_nearest,
+            out=out,
+            scheduler=args.scheduler,
+            quiet=args.quiet,
+        )
+    except DesignError as e:
+        print(f"design: error: {e}", file=sys.stderr)
+        return 2
+    v = doc["verification"]
+    print(
+        f"design {doc['target']} (push {doc['push_text']}): lands in {100 * v['fraction_seeds']:.0f} % of "
+        f"{v['seeds']} noise seeds and {100 * (v['fraction_pushes'] or 0):.0f} % of "
+        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it); "
+        f"{doc['search']['hil_runs']} hil runs, {doc['search']['wall_s']:.0f} s"
+    )
+    for k in doc["vary"]:
+        val = doc["params"][k]
+        print(f"  {k}: " + (" ".join(f"{x:.4g}" for x in val) if isinstance(val, list) else f"{val:.6g}"))
+    if not doc["reached"]:
+        near = doc["nearest_reachable"]
+        print(
+            f"NOT REACHED: below {100 * doc['require']:.0f} % of the seeds; nearest reachable: "
+            + (f"{near['target']} ({100 * near['fraction_seeds']:.0f} %)" if near else "none found nearby")
+        )
+    print(f"wrote {out}/design.json, scene.toml, design.png")
+    return 0 if doc["reached"] else 3
