@@ -74,7 +74,7 @@ ENTRY = {
     "host_emulator/cli.py": "host_emulator",
     "host_emulator/workbench/paper.py": "host_emulator",
     "host_emulator/workbench/robustness.py": "host_emulator",
-    "host_emulator/workbench/sweep.py": "host_emulator",
+    "host_emulator/workbench/sweep/cli.py": "host_emulator",
     "host_emulator/workbench/animate.py": "host_emulator",
     "host_emulator/analysis/cli.py": "host_emulator",
     "host_emulator/bus/serve.py": "host_emulator",
