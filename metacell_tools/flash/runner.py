@@ -91,7 +91,9 @@ class Flasher:
     def _call(
         self, argv: tuple[str, ...], env: dict[str, str], log: Path, what: str, shown: str = ""
     ) -> tuple[int, str] | str:
-        """(exit status, output) of one command (`what` in messages), appended to the log; or why it could not run."""
+        """(exit status, output) of one command (`what` in messages), appended to the log; or why it could not run.
+        The output is stdout, then stderr: both uploaders write their error to stderr, which a merged pipe can put
+        before the progress lines still buffered on stdout (bossac's "No device found on PORT" is stderr only)."""
         with log.open("a") as f:
             f.write(f"$ {shown or shlex.join(argv)}\n")
         try:
@@ -99,7 +101,7 @@ class Flasher:
                 list(argv),
                 env=env,
                 stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT,
+                stderr=subprocess.PIPE,
                 text=True,
                 timeout=self.upload_timeout,
             )
@@ -107,9 +109,10 @@ class Flasher:
             return f"cannot run {argv[0]}: {exc}"
         except subprocess.TimeoutExpired:
             return f"{what} did not finish in {self.upload_timeout:.0f} s"
+        output = (res.stdout or "") + (getattr(res, "stderr", None) or "")
         with log.open("a") as f:
-            f.write(res.stdout or "")
-        return res.returncode, res.stdout or ""
+            f.write(output if output.endswith("\n") or not output else output + "\n")
+        return res.returncode, output
 
     def _bossac(self, step: Step, env: dict[str, str], log: Path) -> Outcome | None:
         """Touch, bootloader port, bossac: None when the upload went through, else the failed Outcome."""
@@ -153,8 +156,7 @@ class Flasher:
             return Outcome(
                 step,
                 UPLOAD_FAILED,
-                f"{uploader_error(output)} (bossac exited with {rc}; the board waits in its bootloader "
-                f"on {boot.device})",
+                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)",
                 log=log,
             )
         return None

@@ -98,9 +98,10 @@ def core_dir(path: Path, atmelsam: bool = True, tool_bossac: bool = False) -> Pa
     return path
 
 
-# records its calls (CALLS_FILE: JSON lines of argv and the build's variables); a build writes firmware.bin (the
-# build's name and flags, so a stand-in board knows what it was given) and firmware.elf into the build dir; the
-# build whose dir's name is in FAKE_PIO_FAIL fails with PlatformIO's output of an offline machine
+# records its calls (calls.jsonl beside it: argv and the build's variables); a build writes firmware.bin and
+# firmware.elf into the build dir, both holding the build's name and flags (so a stand-in board knows what it was
+# given: objcopy of one is a copy); the build whose dir's name is in FAKE_PIO_FAIL fails with PlatformIO's output of
+# an offline machine, the one in FAKE_PIO_NO_BIN leaves no firmware.bin
 STANDIN_PIO = r"""
 import json, os, pathlib, sys
 args = sys.argv[1:]
@@ -121,7 +122,7 @@ out = build / env
 out.mkdir(parents=True, exist_ok=True)
 if build.name not in os.environ.get("FAKE_PIO_NO_BIN", "").split(","):
     (out / "firmware.bin").write_text(f"{build.name} {os.environ.get('PLATFORMIO_BUILD_SRC_FLAGS', '')}")
-(out / "firmware.elf").write_text("ELF " + build.name)
+(out / "firmware.elf").write_text(f"{build.name} {os.environ.get('PLATFORMIO_BUILD_SRC_FLAGS', '')}")
 print(f"Building {out}/firmware.bin")
 print("=" * 25 + " [SUCCESS] Took 1.00 seconds " + "=" * 25)
 """
