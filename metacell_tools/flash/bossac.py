@@ -121,8 +121,8 @@ _NOISE = re.compile(
     r"|\S+\s+(SUCCESS|FAILED|IGNORED)\s+[\d:.]+)$"
 )
 _HINTS = (
-    ("HTTPClientError", "PlatformIO tried to download a package: offline, see docs/hardware.md, 'Flashing offline'"),
-    ("Installing", "PlatformIO tried to install a package: offline, see docs/hardware.md, 'Flashing offline'"),
+    ("HTTPClientError", "PlatformIO tried to download a package: offline, see docs/hardware.md#flashing-offline"),
+    ("Installing", "PlatformIO tried to install a package: offline, see docs/hardware.md#flashing-offline"),
     ("No device found on", "nothing answered bossac on that port: not this board's bootloader, or it left it"),
     ("extra arguments found", "this bossac does not take that command line: use Debian's bossa-cli 1.9"),
     ("Verify failed", "the flash does not hold what was written: try again, then suspect the board"),

@@ -144,7 +144,7 @@ class Flasher:
                     NO_BOOTLOADER,
                     f"{b.name} serial {b.serial}: its bootloader's port did not appear within "
                     f"{self.bootloader_timeout:g} s of the 1200-baud touch of {app}{note}; put it in its bootloader "
-                    "by hand (short RST to GND twice, quickly) and flash it again, or allow longer with "
+                    "by hand (short its two RST pads twice, quickly) and flash it again, or allow longer with "
                     "--bootloader-timeout",
                     log=log,
                 )
@@ -187,7 +187,7 @@ class Flasher:
                 why = (
                     f"; the upload at 0x{step.upload.offset:x} overwrote the bootloader, so the board can neither "
                     "start nor take an upload over USB any more: restore the bootloader with an SWD probe "
-                    "(docs/hardware.md)"
+                    "(docs/hardware.md#when-a-board-fails-to-flash)"
                 )
             return Outcome(
                 step,

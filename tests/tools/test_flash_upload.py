@@ -214,7 +214,7 @@ def test_the_real_error_is_shown(tmp_path, monkeypatch, what):
             rn.BUILD_FAILED,
             "Processing cell (platform: atmelsam@8.3.0; board: seeed_xiao; framework: arduino) | Platform Manager: "
             "Installing atmelsam @ 8.3.0 | Error: HTTPClientError: (PlatformIO tried to download a package: offline, "
-            "see docs/hardware.md, 'Flashing offline') (pio exited with 1)",
+            "see docs/hardware.md#flashing-offline) (pio exited with 1)",
         ),
         "bossac": (
             rn.UPLOAD_FAILED,
@@ -258,8 +258,8 @@ def test_a_bootloader_port_that_never_appears_names_the_board(tmp_path, monkeypa
     assert rc == cli.EXIT_FAILED
     want = (
         f"FAILED: no bootloader port: cell 6 (0x15) serial SN05: its bootloader's port did not appear within "
-        f"{timeout or 10} s of the 1200-baud touch of /dev/ttyACM5; put it in its bootloader by hand (short RST to "
-        "GND twice, quickly) and flash it again, or allow longer with --bootloader-timeout"
+        f"{timeout or 10} s of the 1200-baud touch of /dev/ttyACM5; put it in its bootloader by hand (short its two "
+        "RST pads twice, quickly) and flash it again, or allow longer with --bootloader-timeout"
     )
     assert want in out
     assert [c["argv"][1] for c in calls(bin_dir) if "bossac" in c["argv"][0]] == [
@@ -298,7 +298,7 @@ def test_forced_upload_at_0_is_reported_as_a_lost_bootloader(tmp_path, monkeypat
     assert (
         "FAILED: did not come back: no application port with serial SN00 within 20 s after upload; the upload at 0x0 "
         "overwrote the bootloader, so the board can neither start nor take an upload over USB any more: restore the "
-        "bootloader with an SWD probe (docs/hardware.md)"
+        "bootloader with an SWD probe (docs/hardware.md#when-a-board-fails-to-flash)"
     ) in out
 
 
