@@ -160,7 +160,7 @@ if me["serial_number"] in os.environ.get("FAKE_BOSSAC_FAIL", "").split(","):
 print(f"Write {fw.stat().st_size} bytes to flash (1 pages)\nVerify successful\nDone in 0.1 seconds")
 flashed = here / "flashed.json"
 done = json.loads(flashed.read_text()) if flashed.exists() else {}
-done[me["serial_number"]] = {"content": fw.read_text(), "offset": int(offset, 16)}
+done[me["serial_number"]] = {"content": fw.read_bytes().decode("latin-1"), "offset": int(offset, 16)}
 flashed.write_text(json.dumps(done))
 if int(offset, 16) >= 0x2000:
     me["pid"], me["device"] = 0x802F, me.pop("app_device", me["device"])
