@@ -27,6 +27,7 @@ have_pkg libstdc++-arm-none-eabi-newlib || need+=(libstdc++-arm-none-eabi-newlib
 have_cmd arm-none-eabi-objdump || need+=(binutils-arm-none-eabi)   # the image tier's cycle tables
 have_cmd qemu-system-arm || need+=(qemu-system-arm)
 have_cmd clang || need+=(clang)
+have_cmd bossac || need+=(bossa-cli)   # the flash tool's uploader when PlatformIO's tool-bossac is absent (offline)
 python3 -c 'import ensurepip' 2>/dev/null || need+=(python3-venv)
 apt_install "${need[@]}"
 

@@ -4,7 +4,8 @@
 its own build directory and the source-only flags that give a cell its number and I2C address; the flash tool
 uploads exactly these builds and the image tier runs them. ``build_images`` caches the ELFs by a hash of everything
 the build reads (src/, lib/, platformio.ini, the build hooks) and builds offline through a pre-installed tree's
-use.sh (MC_PIO_TREE) or with the user's own PlatformIO (~/.platformio holding the atmelsam platform).
+use.sh (MC_PIO_TREE) or with the user's own PlatformIO (~/.platformio holding the atmelsam platform), as
+``metacell_common.target.pio.how_to_build`` says (the flash tool asks it too).
 """
 
 from __future__ import annotations
@@ -14,11 +15,11 @@ import hashlib
 import os
 import shutil
 import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from metacell_common.target.pio import how_to_build, pio_executable
 from metacell_tools.flash.plan import board_build_env
 from protocol.wire import N_CELLS
 
@@ -30,30 +31,6 @@ IMAGE_BUILD_INPUTS = ("src", "lib", "platformio.ini", "metacell_tools/flash/pio_
 
 class ImageBuildError(ImageTierUnavailable):
     """The images cannot be built here (no PlatformIO tree) or their build failed."""
-
-
-def pio_executable() -> Path:
-    return Path(sys.executable).with_name("pio")
-
-
-def how_to_build(root: Path = ROOT) -> tuple[list[str] | None, str]:
-    """(command prefix to run ``pio ARGS``, "") or (None, the one-line reason the images cannot be built)."""
-    pio = pio_executable()
-    if not pio.exists():
-        return None, f"PlatformIO is not installed in {pio.parent} (pip install platformio==6.2.0)"
-    tree = os.environ.get("MC_PIO_TREE")
-    if tree:
-        use = Path(tree) / "use.sh"
-        if not use.is_file():
-            return None, f"MC_PIO_TREE={tree} is not an offline PlatformIO tree (no use.sh)"
-        return ["bash", str(use), str(Path(tree).resolve()), str(Path(root).resolve())], ""
-    home = Path(os.environ.get("PLATFORMIO_CORE_DIR", Path.home() / ".platformio"))
-    if (home / "platforms" / "atmelsam").is_dir():
-        return [str(pio)], ""
-    return None, (
-        "the image tier cannot build the firmware images: no offline PlatformIO tree (set MC_PIO_TREE) and no "
-        "~/.platformio with the atmelsam platform"
-    )
 
 
 def inputs_digest(root: Path = ROOT) -> str:

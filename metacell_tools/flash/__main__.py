@@ -12,8 +12,9 @@ from pathlib import Path
 from . import inventory as inv
 from .boards import Port, PortListError, port_lister, xiao_ports
 from .identity import IdentityError, QueryResult, expected_fw_version, query_identity
-from .plan import ROOT, PlanError, describe, make_plan, parse_only
+from .plan import ROOT, PlanError, describe, make_plan, parse_only, with_toolchain
 from .runner import Flasher, summary
+from .toolchain import APP_OFFSET, UPLOADERS, PreflightError, check_offset, find_toolchain
 
 Lister = Callable[[], list[Port]]  # lists the connected serial ports
 Out = Callable[..., None]  # prints one line for the user (err=True: an error)
@@ -31,6 +32,13 @@ def default_pio() -> str:
     return str(sibling) if sibling.exists() else "pio"
 
 
+def _address(text: str) -> int:
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an address (0x2000, 8192)") from None
+
+
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="python -m metacell_tools.flash",
@@ -40,6 +48,7 @@ def _parser() -> argparse.ArgumentParser:
         "  python -m metacell_tools.flash inventory --assign 1 --serial <USB serial>   # once per board\n"
         "  python -m metacell_tools.flash plan                                         # what flash would do\n"
         "  python -m metacell_tools.flash flash --only 1-4,primary\n"
+        "  python -m metacell_tools.flash flash --keep-going                          # go on past a failed board\n"
         "  python -m metacell_tools.flash identify\n"
         "  python -m metacell_tools.flash SUBCOMMAND --help",
     )
@@ -67,7 +76,11 @@ def _parser() -> argparse.ArgumentParser:
 
     for name, helptext, examples in (
         ("plan", "print what flash would do, touching nothing", ("plan", "plan --only 1-4,primary")),
-        ("flash", "build, upload and verify every board", ("flash", "flash --only 7 --stop-on-error")),
+        (
+            "flash",
+            "build, upload and verify every board (stops at the first failure)",
+            ("flash", "flash --only 7", "flash --keep-going --uploader bossac"),
+        ),
     ):
         p = sub.add_parser(
             name,
@@ -82,18 +95,46 @@ def _parser() -> argparse.ArgumentParser:
             action="store_true",
             help="flash the connected boards even if some inventory boards are absent",
         )
-        p.add_argument("--pio", default=None, help="PlatformIO executable (default: pio on PATH)")
+        p.add_argument("--pio", default=None, help="PlatformIO executable (default: $MC_PIO, pio on PATH, .venv's)")
         p.add_argument("--project", default=str(ROOT), help="PlatformIO project dir")
+        p.add_argument(
+            "--uploader",
+            choices=UPLOADERS,
+            default="auto",
+            help="PlatformIO's own uploader (its tool-bossac package), or bossac after a 1200-baud touch; auto: "
+            "PlatformIO's when installed, else bossac (default %(default)s)",
+        )
+        p.add_argument("--bossac", default=None, help="the bossac executable (default: $MC_BOSSAC, bossac on PATH)")
+        p.add_argument(
+            "--offset",
+            type=_address,
+            default=APP_OFFSET,
+            metavar="ADDR",
+            help=f"where bossac writes the application (default 0x{APP_OFFSET:x}, above the bootloader; lower is "
+            "refused)",
+        )
+        p.add_argument(
+            "--overwrite-bootloader",
+            action="store_true",
+            help="let --offset go below 0x2000: the bootloader is overwritten and the board never comes back over "
+            "USB (only an SWD probe restores it)",
+        )
         if name == "flash":
-            p.add_argument(
+            go_on = p.add_mutually_exclusive_group()
+            go_on.add_argument(
+                "--keep-going",
+                action="store_true",
+                help="go on with the other boards after a failed one (default: stop at the first failure)",
+            )
+            go_on.add_argument(
                 "--stop-on-error",
                 action="store_true",
-                help="stop at the first failed board (default: continue with the rest)",
+                help="stop at the first failed board (the default; kept for old scripts)",
             )
             p.add_argument(
                 "--log-dir",
                 default=str(Path(".pio") / "flash-logs"),
-                help="directory for each board's PlatformIO output (default: %(default)s)",
+                help="directory for each board's build and upload output (default: %(default)s)",
             )
             p.add_argument(
                 "--upload-timeout",
@@ -108,6 +149,14 @@ def _parser() -> argparse.ArgumentParser:
                 default=20.0,
                 metavar="S",
                 help="seconds to wait for a board's USB port to come back after the upload (default %(default)g)",
+            )
+            p.add_argument(
+                "--bootloader-timeout",
+                type=float,
+                default=10.0,
+                metavar="S",
+                help="seconds to wait for a board's bootloader port after the 1200-baud touch (bossac; "
+                "default %(default)g)",
             )
 
     sub.add_parser(
@@ -154,16 +203,21 @@ def cmd_inventory(args: argparse.Namespace, lister: Lister, out: Out) -> int:
 
 
 def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int:
+    """The plan (boards, ports), then whether this machine can build and upload (PreflightError), all before any board
+    is touched; then flash: stop at the first failure unless --keep-going."""
+    bad_offset = check_offset(args.offset, args.overwrite_bootloader)
+    if bad_offset:
+        raise PreflightError(bad_offset)
     boards = inv.load(args.inventory)
+    pio = args.pio or default_pio()
+    project = Path(args.project)
     plan = make_plan(
-        boards,
-        lister(),
-        pio=args.pio or default_pio(),
-        project=Path(args.project),
-        only=parse_only(args.only),
-        skip_missing=args.skip_missing,
+        boards, lister(), pio=pio, project=project, only=parse_only(args.only), skip_missing=args.skip_missing
     )
+    tools = find_toolchain(pio, project, uploader=args.uploader, bossac=args.bossac, offset=args.offset)
+    plan = with_toolchain(plan, tools, project)
     out(describe(plan))
+    out(tools.describe())
     if args.cmd == "plan":
         return EXIT_OK
     flasher = Flasher(
@@ -172,9 +226,10 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         log_dir=args.log_dir,
         upload_timeout=args.upload_timeout,
         reappear_timeout=args.reappear_timeout,
+        bootloader_timeout=args.bootloader_timeout,
         out=out,
     )
-    outcomes = flasher.flash(plan, stop_on_error=args.stop_on_error)
+    outcomes = flasher.flash(plan, stop_on_error=not args.keep_going)
     out(summary(outcomes))
     for b in plan.missing:
         out(f"NOT FLASHED (not connected): {b.name} serial {b.serial}")
@@ -235,7 +290,7 @@ def main(argv: list[str] | None = None, out: Out | None = None) -> int:
         if args.cmd in ("plan", "flash"):
             return cmd_plan_or_flash(args, lister, out)
         return cmd_identify(args, lister, out)
-    except (inv.InventoryError, PlanError, PortListError) as exc:
+    except (inv.InventoryError, PlanError, PortListError, PreflightError) as exc:
         out(f"error: {exc}", err=True)
         return EXIT_USAGE
 

@@ -1,14 +1,17 @@
-"""Turn the inventory and the connected ports into an explicit list of PlatformIO upload steps."""
+"""Turn the inventory and the connected ports into an explicit list of steps: PlatformIO's build, then its upload or
+bossac's (toolchain.Toolchain says which)."""
 
 from __future__ import annotations
 
 import shlex
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .addresses import CELL_COUNT, cell_address
 from .boards import Port, xiao_ports
+from .bossac import BossacUpload
 from .inventory import Board
+from .toolchain import Toolchain
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -23,7 +26,8 @@ class Step:
     port: Port
     env_name: str  # PlatformIO environment: "cell" or "primary"
     env_vars: tuple[tuple[str, str], ...]  # set for this pio run (override the caller's)
-    argv: tuple[str, ...]
+    argv: tuple[str, ...]  # PlatformIO: builds, and uploads too unless `upload` is set
+    upload: BossacUpload | None = None  # after the build: 1200-baud touch, bootloader port, bossac
 
     def shell(self) -> str:
         """The exact command, copy-pasteable into a POSIX shell."""
@@ -86,12 +90,32 @@ def board_build_env(
     raise ValueError(f"role {role!r}: expected 'cell' or 'primary'")
 
 
-def upload_step(board: Board, port: Port, pio: str = "pio", project: Path = ROOT) -> Step:
-    """One build+upload of the board's image (board_build_env)."""
+def upload_step(
+    board: Board, port: Port, pio: str = "pio", project: Path = ROOT, tools: Toolchain | None = None
+) -> Step:
+    """One build+upload of the board's image (board_build_env): with PlatformIO's uploader (tools None: `pio` as
+    given) or, when tools.uploader is "bossac", a build followed by bossac's upload of its firmware.bin."""
     project = Path(project)
     env_name, env_vars = board_build_env(board.role, board.cell, project)
-    argv = (pio, "run", "-d", str(project), "-e", env_name, "-t", "upload", "--upload-port", port.device)
-    return Step(board, port, env_name, env_vars, argv)
+    if tools is None:
+        run: tuple[str, ...] = (pio, "run", "-d", str(project))
+    else:
+        env_vars += tools.build_env
+        run = (*tools.build_prefix, "run") if tools.through_tree else (*tools.build_prefix, "run", "-d", str(project))
+    if tools is None or tools.uploader == "pio":
+        return Step(
+            board, port, env_name, env_vars, (*run, "-e", env_name, "-t", "upload", "--upload-port", port.device)
+        )
+    assert tools.bossac is not None
+    firmware = Path(dict(env_vars)["PLATFORMIO_BUILD_DIR"]) / env_name / "firmware.bin"
+    return Step(
+        board, port, env_name, env_vars, (*run, "-e", env_name), BossacUpload(tools.bossac, firmware, tools.offset)
+    )
+
+
+def with_toolchain(plan: Plan, tools: Toolchain, project: Path = ROOT) -> Plan:
+    """The same boards, each step built and uploaded as tools says."""
+    return replace(plan, steps=[upload_step(s.board, s.port, project=project, tools=tools) for s in plan.steps])
 
 
 def make_plan(
@@ -155,5 +179,9 @@ def describe(plan: Plan) -> str:
     for p in plan.unknown:
         lines.append(f"  left alone (not in inventory): {p.device} serial {p.serial_number}")
     lines.append("commands:")
-    lines += [f"  {s.shell()}" for s in plan.steps]
+    for s in plan.steps:
+        lines.append(f"  {s.shell()}")
+        if s.upload is not None:
+            touch = "" if s.port.in_bootloader else f"1200-baud touch of {s.port.device}, then "
+            lines.append(f"    {touch}{s.upload.shell()}   (PORT: serial {s.board.serial}'s bootloader port)")
     return "\n".join(lines)

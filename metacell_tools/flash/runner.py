@@ -1,8 +1,10 @@
-"""Execute a flash plan: upload each board with PlatformIO, wait for it to come back, verify its identity."""
+"""Execute a flash plan: build and upload each board (PlatformIO's uploader, or touch + bossac), wait for it to come
+back, verify its identity; stop at the first failure unless asked to go on."""
 
 from __future__ import annotations
 
 import os
+import shlex
 import subprocess
 import time
 from collections.abc import Callable
@@ -11,10 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from .boards import Port
+from .bossac import make_bin, touch_1200, uploader_error, wait_for_port
 from .identity import Identity, IdentityError, QueryResult, query_identity
 from .plan import Plan, Step
+from .toolchain import APP_OFFSET
 
 OK = "ok"
+BUILD_FAILED = "build failed"
+NO_BOOTLOADER = "no bootloader port"
 UPLOAD_FAILED = "upload failed"
 GONE = "did not come back"
 NO_IDENTITY = "no identity"
@@ -51,14 +57,7 @@ def wait_for_app_port(
     clock: Callable[[], float] = time.monotonic,
 ) -> Port | None:
     """The application-mode port of the board with this USB serial number, once it is back."""
-    end = clock() + timeout
-    while True:
-        for p in list_ports():
-            if p.serial_number == serial and p.is_xiao and not p.in_bootloader:
-                return p
-        if clock() >= end:
-            return None
-        sleep(poll)
+    return wait_for_port(serial, list_ports, timeout, bootloader=False, poll=poll, sleep=sleep, clock=clock)
 
 
 class Flasher:
@@ -71,51 +70,130 @@ class Flasher:
         expected_fw: str,
         run: Callable[..., Any] = subprocess.run,
         query: Callable[[str], QueryResult] = query_identity,
+        touch: Callable[[str], None] = touch_1200,
         log_dir: Path | str = Path(".pio") / "flash-logs",
         upload_timeout: float = 600.0,
         reappear_timeout: float = 20.0,
+        bootloader_timeout: float = 10.0,
         sleep: Callable[[float], None] = time.sleep,
         clock: Callable[[], float] = time.monotonic,
         out: Callable[[str], None] = print,
     ) -> None:
         self.list_ports, self.expected_fw, self.run, self.query = list_ports, expected_fw, run, query
-        self.log_dir, self.upload_timeout = Path(log_dir), upload_timeout
-        self.reappear_timeout, self.sleep, self.clock, self.out = reappear_timeout, sleep, clock, out
+        self.touch, self.log_dir, self.upload_timeout = touch, Path(log_dir), upload_timeout
+        self.reappear_timeout, self.bootloader_timeout = reappear_timeout, bootloader_timeout
+        self.sleep, self.clock, self.out = sleep, clock, out
 
     def _log_path(self, step: Step) -> Path:
         name = "primary" if step.board.role == "primary" else f"cell{step.board.cell:02d}"
         return self.log_dir / f"{name}.log"
 
-    def flash_one(self, step: Step) -> Outcome:
-        log = self._log_path(step)
-        log.parent.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ)
-        env.update(dict(step.env_vars))
+    def _call(
+        self, argv: tuple[str, ...], env: dict[str, str], log: Path, what: str, shown: str = ""
+    ) -> tuple[int, str] | str:
+        """(exit status, output) of one command (`what` in messages), appended to the log; or why it could not run.
+        The output is stdout, then stderr: both uploaders write their error to stderr, which a merged pipe can put
+        before the progress lines still buffered on stdout (bossac's "No device found on PORT" is stderr only)."""
+        with log.open("a") as f:
+            f.write(f"$ {shown or shlex.join(argv)}\n")
         try:
             res = self.run(
-                list(step.argv),
+                list(argv),
                 env=env,
                 stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT,
+                stderr=subprocess.PIPE,
                 text=True,
                 timeout=self.upload_timeout,
             )
         except FileNotFoundError as exc:
-            return Outcome(step, UPLOAD_FAILED, f"cannot run {step.argv[0]}: {exc}")
+            return f"cannot run {argv[0]}: {exc}"
         except subprocess.TimeoutExpired:
-            return Outcome(step, UPLOAD_FAILED, f"pio did not finish in {self.upload_timeout:.0f} s")
-        log.write_text(f"$ {step.shell()}\n{res.stdout or ''}")
-        if res.returncode != 0:
-            return Outcome(step, UPLOAD_FAILED, f"pio exited with {res.returncode}", log=log)
+            return f"{what} did not finish in {self.upload_timeout:.0f} s"
+        output = (res.stdout or "") + (getattr(res, "stderr", None) or "")
+        with log.open("a") as f:
+            f.write(output if output.endswith("\n") or not output else output + "\n")
+        return res.returncode, output
+
+    def _bossac(self, step: Step, env: dict[str, str], log: Path) -> Outcome | None:
+        """Touch, bootloader port, bossac: None when the upload went through, else the failed Outcome."""
+        up, b = step.upload, step.board
+        assert up is not None
+        if not up.firmware.is_file():
+            why = make_bin(up.firmware, run=self.run)
+            if why:
+                return Outcome(step, BUILD_FAILED, why, log=log)
+        now = [p for p in self.list_ports() if p.serial_number == b.serial and p.is_xiao]
+        if not now:
+            return Outcome(step, UPLOAD_FAILED, f"serial {b.serial} is no longer connected", log=log)
+        boot = next((p for p in now if p.in_bootloader), None)
+        if boot is None:
+            app = now[0].device
+            note = ""
+            try:
+                self.touch(app)
+            except OSError as exc:  # serial.SerialException is an OSError
+                note = f" (the touch failed: {exc})"
+            with log.open("a") as f:
+                f.write(f"1200-baud touch of {app}{note}\n")
+            boot = wait_for_port(
+                b.serial, self.list_ports, self.bootloader_timeout, bootloader=True, sleep=self.sleep, clock=self.clock
+            )
+            if boot is None:
+                return Outcome(
+                    step,
+                    NO_BOOTLOADER,
+                    f"{b.name} serial {b.serial}: its bootloader's port did not appear within "
+                    f"{self.bootloader_timeout:g} s of the 1200-baud touch of {app}{note}; put it in its bootloader "
+                    "by hand (short its two RST pads twice, quickly) and flash it again, or allow longer with "
+                    "--bootloader-timeout",
+                    log=log,
+                )
+        res = self._call(up.argv(boot.device), env, log, "bossac")
+        if isinstance(res, str):
+            return Outcome(step, UPLOAD_FAILED, res, log=log)
+        rc, output = res
+        if rc != 0:
+            return Outcome(
+                step,
+                UPLOAD_FAILED,
+                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)",
+                log=log,
+            )
+        return None
+
+    def flash_one(self, step: Step) -> Outcome:
+        log = self._log_path(step)
+        log.parent.mkdir(parents=True, exist_ok=True)
+        log.write_text("")
+        env = dict(os.environ)
+        env.update(dict(step.env_vars))
+        res = self._call(step.argv, env, log, "pio", step.shell())
+        failed = BUILD_FAILED if step.upload is not None else UPLOAD_FAILED
+        if isinstance(res, str):
+            return Outcome(step, failed, res)
+        rc, output = res
+        if rc != 0:
+            return Outcome(step, failed, f"{uploader_error(output)} (pio exited with {rc})", log=log)
+        if step.upload is not None:
+            bad = self._bossac(step, env, log)
+            if bad is not None:
+                return bad
         port = wait_for_app_port(
             step.board.serial, self.list_ports, self.reappear_timeout, sleep=self.sleep, clock=self.clock
         )
         if port is None:
+            why = ""
+            if step.upload is not None and step.upload.offset < APP_OFFSET:
+                why = (
+                    f"; the upload at 0x{step.upload.offset:x} overwrote the bootloader, so the board can neither "
+                    "start nor take an upload over USB any more: restore the bootloader with an SWD probe "
+                    "(docs/hardware.md#when-a-board-fails-to-flash)"
+                )
             return Outcome(
                 step,
                 GONE,
                 f"no application port with serial {step.board.serial} "
-                f"within {self.reappear_timeout:.0f} s after upload",
+                f"within {self.reappear_timeout:.0f} s after upload{why}",
                 log=log,
             )
         try:
@@ -152,15 +230,21 @@ class Flasher:
 
 
 def summary(outcomes: list[Outcome]) -> str:
+    """Every board's outcome, then one line: how many were flashed and verified, which failed, which were not tried."""
     lines = ["summary:"]
     for o in outcomes:
-        lines.append(
-            f"  {o.step.board.name:18s} {o.step.board.serial:24s} "
-            f"{'OK' if o.ok else 'FAILED':6s} {o.status}: {o.detail}"
-        )
-    bad = [o for o in outcomes if not o.ok]
+        verdict = "OK" if o.ok else "NOT TRIED" if o.status == NOT_RUN else "FAILED"
+        lines.append(f"  {o.step.board.name:18s} {o.step.board.serial:24s} {verdict:9s} {o.status}: {o.detail}")
+    bad = [o for o in outcomes if not o.ok and o.status != NOT_RUN]
+    untried = [o for o in outcomes if o.status == NOT_RUN]
     lines.append(
-        f"{len(outcomes) - len(bad)} of {len(outcomes)} board(s) flashed and verified"
+        f"{sum(o.ok for o in outcomes)} of {len(outcomes)} board(s) flashed and verified"
         + (f"; FAILED: {', '.join(o.step.board.name for o in bad)}" if bad else "")
+        + (
+            f"; NOT TRIED (stopped at the first failure; --keep-going goes on): "
+            f"{', '.join(o.step.board.name for o in untried)}"
+            if untried
+            else ""
+        )
     )
     return "\n".join(lines)

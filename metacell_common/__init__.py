@@ -1,0 +1,1 @@
+"""What the emulator and the laptop tools share, below both."""

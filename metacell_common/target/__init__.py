@@ -1,0 +1,1 @@
+"""Facts and tools of the SAMD21/XIAO target."""
