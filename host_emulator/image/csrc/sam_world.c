@@ -147,12 +147,14 @@ int sam_world_pinq_push(sam_world_t *w, int mcu, uint64_t t, int pin, int level)
     e->pin = (int8_t)pin;
     e->level = (int8_t)level;
     sam_mcu_t *m = w->mcu[mcu];
-    sam_slot_set(m, SAM_SLOT_PINS, q->ev[q->head].t);
+    sam_slot_set(m, q->slot, q->ev[q->head].t);
     return 0;
 }
 
-void sam_world_pin_event(sam_mcu_t *m)
+/* the pins' event source: the edges due now */
+static void pin_fire(sam_mcu_t *m, void *ctx)
 {
+    (void)ctx;
     sam_world_t *w = m->w;
     sam_pinq_t *q = &w->pinq[m->id];
     uint64_t now = sam_now(m);
@@ -163,7 +165,7 @@ void sam_world_pin_event(sam_mcu_t *m)
         if (!m->halted)
             sam_pin_drive(m, e.pin, e.level);
     }
-    sam_slot_set(m, SAM_SLOT_PINS, q->n ? q->ev[q->head].t : SAM_NEVER);
+    sam_slot_set(m, q->slot, q->n ? q->ev[q->head].t : SAM_NEVER);
 }
 
 /* ---------------------------------------------------------------- drivers and motors */
@@ -342,13 +344,13 @@ static void fault_schedule(sam_world_t *w, int mcu)
         if (due < t)
             t = due;
     }
-    sam_slot_set(w->mcu[mcu], SAM_SLOT_FAULT, t);
+    sam_slot_set(w->mcu[mcu], w->fault_slot[mcu], t);
 }
 
-void sam_tc_stop_clock(sam_mcu_t *m, const char *name);
-
-void sam_world_fault_fire(sam_mcu_t *m)
+/* the faults' event source on a board: those that start, act or end now */
+static void fault_fire(sam_mcu_t *m, void *ctx)
 {
+    (void)ctx;
     sam_world_t *w = m->w;
     uint64_t now = sam_now(m);
     for (int k = 0; k < w->nfault; k++) {
@@ -553,7 +555,9 @@ int sam_world_new(sam_world_t **out, const sam_world_cfg_t *cfg)
     for (int j = 0; j < cfg->ncells; j++)
         for (int ch = 0; ch < 2; ch++)
             w->count[j][ch] = (int32_t)floor(cfg->x[ch * cfg->ncells + j] * cfg->counts_per_rad);
-    sam_bus_init(w);
+    if (sam_bus_init(w))
+        return fail(w, "board wiring: SERCOM%d does not have SDA (pin %d) on PAD0 and SCL (pin %d) on PAD1",
+                    cfg->bus_sercom, cfg->pin_sda, cfg->pin_scl);
     pin_tcc_table();
     if (cfg->threads < 1 || cfg->threads > SAM_MAX_THREADS)
         return fail(w, "threads = %d: expected 1..%d", cfg->threads, SAM_MAX_THREADS);
@@ -627,6 +631,11 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
     w->mcu[mcu] = m;
     if (mcu >= w->nmcu)
         w->nmcu = mcu + 1;
+    /* the world's event sources on the board, in this order (events due at the same time are taken in it) */
+    w->pinq[mcu].slot = sam_source_add(m, pin_fire, NULL, NULL, SAM_SRC_UNPOWERED);
+    sam_bus_port_init(m);
+    sam_usb_port_init(m);
+    w->fault_slot[mcu] = sam_source_add(m, fault_fire, NULL, NULL, 0);
     snprintf(m->name, sizeof m->name, "%s", name);
     m->role = role;
     m->cell = role == SAM_ROLE_CELL ? cell : -1;
