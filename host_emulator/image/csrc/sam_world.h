@@ -149,7 +149,19 @@ struct sam_world {
     uint32_t notes_len;
 };
 
+/* ---- the world's files (sam_world.c, sam_world_plant.c, sam_world_faults.c, sam_world_run.c) ---- */
+int he_gray(int32_t count);   /* he_hil.c: (A << 1) | B of an encoder count, the hil tier's own encoder */
+int sam_world_fail(sam_world_t *w, const char *fmt, ...);   /* the world's error (sam_world_error); -1 */
+void sam_world_collect_notes(sam_world_t *w);             /* the boards' notes, in board order */
 int sam_world_pinq_push(sam_world_t *w, int mcu, uint64_t t, int pin, int level);
+void sam_world_plant_init(void);                          /* the pins' TCC outputs, from the pin table */
+void sam_world_pins_init(sam_mcu_t *m);                   /* the pins' event source on a board */
+int sam_world_window(sam_world_t *w, uint64_t t0);        /* a plant window starts: motors' means, plant, edges */
+void sam_world_faults_init(sam_mcu_t *m);                 /* the faults' event source on a board */
+void sam_world_faults_apply(sam_world_t *w);              /* world-level faults that start or end now */
+uint64_t sam_world_next_fault(const sam_world_t *w);      /* when the next one does */
+int sam_world_pool_start(sam_world_t *w, int nthreads);
+void sam_world_pool_stop(sam_world_t *w);
 
 /* ---- link_i2c_bus.c: the bus ---- */
 int sam_bus_init(sam_world_t *w);                         /* the wiring's SERCOM; -1: its pads are not SDA, SCL */
