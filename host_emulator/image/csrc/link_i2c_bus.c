@@ -10,7 +10,7 @@
  * f_GCLK / (10 + BAUD + BAUDLOW) plus the bus's rise time (the datasheet's f_SCL formula); at least
  * SAM_BUS_TMIN (Fast mode, the fastest with CTRLA.SPEED = 0). Boards affect each other only through bus steps:
  * messages into the receiver's queue, each timestamped at least T after its cause, and no board reads another
- * board's state. That is what lets the world run boards apart in time (sam_world.c) with results that do not
+ * board's state. That is what lets the world run boards apart in time (sam_world_run.c) with results that do not
  * depend on how it schedules them. The steps, with the time they take effect (t: the cause):
  *
  *   master ADDR      ADDRESS to every other board at t + 9T (START and 8 address bits); each slave compares it
@@ -233,7 +233,7 @@ void sam_bus_drop_own(sam_mcu_t *m)
     sam_slot_set(m, m->w->bus.slot[m->id], q->n ? q->ev[0].t : SAM_NEVER);
 }
 
-/* The board lost power (sam_world.c): it lets go of the bus. */
+/* The board lost power (sam_world_faults.c): it lets go of the bus. */
 void sam_bus_power_lost(sam_mcu_t *m)
 {
     if (bus_sercom(m))

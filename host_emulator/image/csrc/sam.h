@@ -18,7 +18,7 @@
  * time t_blk. Events (timer overflows, pin edges, bus and USB steps) are due at a time; each is processed at
  * the first block boundary at or after its time, before that block runs, and so is every interrupt the event
  * raises. Where emulation happens to stop (the world's rounds, parking) never changes this: results do not
- * depend on the schedule nor on fast-forwarding (sam_world.c, tests/host_emulator/image).
+ * depend on the schedule nor on fast-forwarding (sam_world_run.c, tests/host_emulator/image).
  */
 #define SAM_TU_HZ 1536000000ull
 #define SAM_NEVER UINT64_MAX
@@ -267,7 +267,7 @@ static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)
         m->stop_at = t;
 }
 
-/* ---- sam_world.c ---- */
+/* ---- sam_world.c, sam_world_plant.c: what the boards do to the world ---- */
 void sam_world_pins_will_change(sam_mcu_t *m);            /* before a pin's level or mux changes: motors integrate */
 void sam_world_pins_changed(sam_mcu_t *m);                /* after: the bus lines are re-read */
 void sam_world_tcc_will_change(sam_mcu_t *m, int tcc);    /* before a TCC's duty changes (now or later) */

@@ -110,7 +110,7 @@ typedef struct {
     int32_t leg, dir;     /* spin back and forth: counts into the current leg, its direction */
 } sam_fault_t;
 
-/* worker threads (sam_world.c) */
+/* worker threads (sam_world_run.c) */
 #define SAM_MAX_THREADS 16
 typedef struct {
     int init, nworkers;

@@ -13,7 +13,7 @@
  *
  * The boards then run the window apart in time, each as far as nothing another board does can still reach it
  * (conservative parallel simulation). Boards affect each other only through bus steps that take effect at least
- * T_MIN (the shortest SCL period, sam_i2c.c) after their cause, and a board that sends a step stops T_MIN after
+ * T_MIN (the shortest SCL period, link_i2c_bus.c) after their cause, and a board that sends a step stops T_MIN after
  * the step takes effect (the receiver may answer then). The primary runs as far as the cells let it (a cell that
  * holds SCL may answer any time from T_MIN on; one with a step to take may answer it); each cell then runs as far
  * as the primary lets it: T_MIN past the primary, or to the window's end while the primary sees SCL held and has
