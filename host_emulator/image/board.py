@@ -26,6 +26,8 @@ CELL_WIRING = {
 }
 # the primary shares the bus pins (its other pins are unconnected)
 PRIMARY_WIRING = {"sda": "PA08", "scl": "PA09"}
+# the SERCOM on the bus: SDA and SCL are its PAD0 and PAD1 (docs/hardware.md: "I2C secondary (SERCOM2)")
+BUS_SERCOM = "SERCOM2"
 
 
 _PIN = re.compile(r"P([AB])([0-2][0-9]|3[01])", re.ASCII)
@@ -48,3 +50,4 @@ def wire(cfg) -> None:
     cfg.pin_enc = [[p["enc_alpha_a"], p["enc_alpha_b"]], [p["enc_beta_a"], p["enc_beta_b"]]]
     cfg.pin_sda = p["sda"]
     cfg.pin_scl = p["scl"]
+    cfg.bus_sercom = int(BUS_SERCOM.removeprefix("SERCOM"))

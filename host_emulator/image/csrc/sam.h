@@ -18,7 +18,7 @@
  * time t_blk. Events (timer overflows, pin edges, bus and USB steps) are due at a time; each is processed at
  * the first block boundary at or after its time, before that block runs, and so is every interrupt the event
  * raises. Where emulation happens to stop (the world's rounds, parking) never changes this: results do not
- * depend on the schedule nor on fast-forwarding (sam_world.c, tests/host_emulator/image).
+ * depend on the schedule nor on fast-forwarding (sam_world_run.c, tests/host_emulator/image).
  */
 #define SAM_TU_HZ 1536000000ull
 #define SAM_NEVER UINT64_MAX
@@ -30,10 +30,15 @@
 #define SAM_NVM_SIZE 0x10000u
 #define SAM_APP_BASE 0x2000u       /* the UF2 bootloader's application start (vector table) */
 
+/*
+ * Events. Every board has one slot per source of events, holding the time its next event is due (SAM_NEVER:
+ * none): one per peripheral (its model's fire), SysTick, then the sources the world and the links between boards
+ * register for the board (sam_source_add: the plant's pin edges, the I2C bus, the USB host, faults), in the order
+ * they registered. Events due at the same time are taken in slot order.
+ */
 #define SAM_MAX_PERIPH 48
-#define SAM_NSLOT_EXTRA 6
-enum { SAM_SLOT_SYSTICK = SAM_MAX_PERIPH, SAM_SLOT_PINS, SAM_SLOT_BUS, SAM_SLOT_USB, SAM_SLOT_FAULT, SAM_SLOT_RESET,
-       SAM_NSLOTS };
+#define SAM_MAX_SOURCES 5
+enum { SAM_SLOT_SYSTICK = SAM_MAX_PERIPH, SAM_SLOT_SOURCE0, SAM_NSLOTS = SAM_SLOT_SOURCE0 + SAM_MAX_SOURCES };
 
 /* model read/write results */
 enum { SAM_DONE = 0, SAM_GENERIC = 1, SAM_UNCOVERED = -1 };
@@ -48,6 +53,17 @@ typedef struct sam_model {
     int (*write)(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask);
     void (*fire)(sam_mcu_t *m, int pi);                                   /* its slot's time came */
 } sam_model_t;
+
+/* An event source registered for a board (sam_sched.c): it belongs to the world, not to the chip, so a reset of the
+ * board leaves its slot alone. */
+enum { SAM_SRC_UNPOWERED = 1 };   /* it also fires while the board has no power */
+typedef struct {
+    void (*fire)(sam_mcu_t *m, void *ctx);                    /* its slot's time came */
+    void (*quiet)(sam_mcu_t *m, void *ctx, uint64_t t_end);   /* parked board: take now its events before t_end
+                                                                 that cannot change the board (or NULL) */
+    void *ctx;
+    unsigned flags;
+} sam_source_t;
 
 /* Software NVIC (ARMv6-M): exception numbers 2 NMI, 3 HardFault, 11 SVCall, 14 PendSV, 15 SysTick, 16+n IRQ n */
 typedef struct {
@@ -80,7 +96,7 @@ typedef struct {
 } sam_blkcost_t;
 #define SAM_MEMO 4096
 
-/* fast-forward of an idle main loop (sam_core.c: ff_*) */
+/* fast-forward of an idle main loop (sam_ff.c) */
 typedef struct {
     int enabled;
     uint32_t loop_pc;      /* entry of loop() */
@@ -133,6 +149,8 @@ struct sam_mcu {
     /* events */
     uint64_t slot[SAM_NSLOTS];
     uint64_t next_ev;
+    sam_source_t src[SAM_MAX_SOURCES];   /* slot SAM_SLOT_SOURCE0 + k */
+    int nsrc;
     /* exceptions */
     sam_nvic_t nvic;
     sam_systick_t systick;
@@ -153,6 +171,7 @@ struct sam_mcu {
     uint32_t *touch;                         /* [2 * sam_nregs]: reads, writes per register */
     uint64_t mmio_reads, mmio_writes;
     uint64_t runs;         /* emulation starts (uc_emu_start calls) */
+    void *regions[8];      /* the peripheral regions mapped into Unicorn (sam_mmio.c) */
     /* fast-forward */
     sam_ff_t ff;
     /* notes (sam_note), collected by the world in board order */
@@ -168,25 +187,38 @@ struct sam_mcu {
 
 /* indices of the peripherals and registers the models name, found once in the generated table */
 typedef struct {
-    int pm, sysctrl, gclk, wdt, eic, nvmctrl, port, iobus, usb, sercom2, tc3, tcc[3], nvic, scb, systick;
-    int pm_cpusel, wdt_ctrl, wdt_config, sercom2_i2cs_ctrlb, tc3_count16_count;
+    int pm, sysctrl, gclk, wdt, eic, nvmctrl, port, iobus, usb, tc3, tcc[3], nvic, scb, systick;
+    int pm_cpusel, wdt_ctrl, wdt_config, tc3_count16_count;
 } sam_index_t;
 extern sam_index_t sam_idx;
 void sam_index_init(void);
 
-/* ---- sam_core.c ---- */
+/* ---- sam_mcu.c: a board's life cycle ---- */
 int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id);
 void sam_mcu_free(sam_mcu_t *m);
 void sam_mcu_power_on_reset(sam_mcu_t *m);
 void sam_mcu_system_reset(sam_mcu_t *m, uint8_t cause);
+
+/* ---- sam_sched.c: time, events, the run loop ---- */
 int sam_mcu_run(sam_mcu_t *m, uint64_t t_end);
 int sam_mcu_idle_to(sam_mcu_t *m, uint64_t t_end);   /* parked through t_end: 1, pos set */
-void sam_fail(sam_mcu_t *m, const char *fmt, ...);
 void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t);
+/* Register an event source for the board (before it powers on): its slot, -1 when the table is full. */
+int sam_source_add(sam_mcu_t *m, void (*fire)(sam_mcu_t *m, void *ctx),
+                   void (*quiet)(sam_mcu_t *m, void *ctx, uint64_t t_end), void *ctx, unsigned flags);
 static inline uint64_t sam_now(const sam_mcu_t *m) { return m->t_blk; }
+static inline void sam_activity(sam_mcu_t *m) { m->act++; }
+
+/* ---- sam_cpu.c: the CPU (Unicorn), cycle charging, memory ---- */
+void sam_fail(sam_mcu_t *m, const char *fmt, ...);
+uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
+void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
+
+/* ---- sam_nvic.c: exceptions ---- */
 void sam_irq_level(sam_mcu_t *m, int irq, int on);
 void sam_irq_pend_sys(sam_mcu_t *m, int exc);
-static inline void sam_activity(sam_mcu_t *m) { m->act++; }
+
+/* ---- sam_mmio.c: the register layer ---- */
 const char *sam_reg_name(int ri);
 const sam_field_t *sam_field(int ri, const char *name);
 int sam_periph_index(const char *name);
@@ -195,23 +227,35 @@ uint32_t sam_reg_get(sam_mcu_t *m, int ri);
 void sam_reg_put(sam_mcu_t *m, int ri, uint32_t v);
 void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* the table's access rule */
 int sam_reg_at(sam_mcu_t *m, int pi, uint32_t offset);   /* register at this offset in the active view, or -1 */
-uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
-void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
+static inline uint32_t sam_rd32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
 
-/* ---- sam_clock.c: PM, SYSCTRL, GCLK, NVMCTRL, WDT, and plain-storage peripherals ---- */
-extern const sam_model_t sam_model_pm, sam_model_sysctrl, sam_model_gclk, sam_model_nvmctrl, sam_model_wdt,
-    sam_model_adc, sam_model_dac, sam_model_pac, sam_model_dsu;
+/* ---- sam_models.c: the models by the vendor's struct type of the peripherals they serve ---- */
+const sam_model_t *sam_model_for(const char *type);
+
+/* write-synchronisation of a peripheral: a few cycles of its generic clock (DS40001882 "Synchronization") */
+#define SAM_SYNC_GCLK_CYCLES 3u
+
+/* ---- clocks: sam_pm.c, sam_sysctrl.c, sam_gclk.c ---- */
+int sam_apb_on(sam_mcu_t *m, int pi);                     /* the peripheral's bus clock is on in PM */
+uint64_t sam_dfll_hz(sam_mcu_t *m);
+uint64_t sam_sysctrl_osc_hz(sam_mcu_t *m, uint32_t src); /* a generator's source when a SYSCTRL oscillator */
 uint64_t sam_gclk_hz(sam_mcu_t *m, int gclk_id);         /* frequency of a peripheral channel, 0 when off */
 uint64_t sam_gen_hz(sam_mcu_t *m, int gen);
-uint64_t sam_dfll_hz(sam_mcu_t *m);
-int sam_apb_on(sam_mcu_t *m, int pi);                     /* the peripheral's bus clock is on in PM */
+uint64_t sam_tu_per_tick(sam_mcu_t *m, uint64_t hz, uint32_t presc, const char *what);   /* 0: no clock */
 
-/* ---- sam_io.c: PORT (+IOBUS), EIC, TC, TCC ---- */
-extern const sam_model_t sam_model_port, sam_model_eic, sam_model_tc, sam_model_tcc;
+/* ---- sam_port.c, sam_eic.c: pins ---- */
 void sam_pin_drive(sam_mcu_t *m, int pin, int level);    /* the board drives a pin (-1: released) */
 int sam_pin_level(sam_mcu_t *m, int pin);                 /* level on the pin (board, MCU output, pulls) */
 int sam_pin_function(sam_mcu_t *m, int pin);              /* PMUX letter 0..7 when PMUXEN, else -1 */
 int sam_pin_out(sam_mcu_t *m, int pin, int *driven);      /* GPIO output level and whether the MCU drives it */
+void sam_eic_pin_input(sam_mcu_t *m, int pin, int level); /* a pin's level changed */
+void sam_eic_lines_update(sam_mcu_t *m);                  /* the pins' mux changed */
+
+/* ---- sam_tc.c, sam_tcc.c: timers ---- */
+void sam_tc_stop_clock(sam_mcu_t *m, const char *name);   /* fault injection: the TC's clock is lost */
 /* high time of WO[wo] over [t0, t1) as an exact fraction: returns the numerator in tu (counts high x tu) and
  * sets *top to the denominator (the period in counts) */
 uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *top);
@@ -223,23 +267,7 @@ static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)
         m->stop_at = t;
 }
 
-/* ---- sam_i2c.c: SERCOM in I2C modes, the bus steps between boards ---- */
-extern const sam_model_t sam_model_sercom;
-void sam_bus_fire(sam_mcu_t *m);                          /* SAM_SLOT_BUS */
-uint64_t sam_bus_tmin(void);                              /* shortest SCL period modelled: every step takes >= it */
-uint64_t sam_bus_eot_slave(sam_mcu_t *m);                 /* earliest effect of this slave on a master, SAM_NEVER */
-uint64_t sam_bus_eot_master(sam_mcu_t *m);                /* earliest effect of this master on a slave, SAM_NEVER */
-void sam_bus_take_quiet(sam_mcu_t *m, uint64_t t_end);    /* parked: take the steps that change nothing */
-void sam_bus_power_lost(sam_mcu_t *m);                    /* it lets go of the bus */
-void sam_bus_lines_changed(sam_mcu_t *m);                 /* the primary's SDA/SCL pins or the SDA fault changed */
-
-/* ---- sam_usb.c: USB device controller, host side ---- */
-extern const sam_model_t sam_model_usb;
-void sam_usb_fire(sam_mcu_t *m);                          /* SAM_SLOT_USB */
-
-/* ---- sam_world.c ---- */
-void sam_world_pin_event(sam_mcu_t *m);                   /* SAM_SLOT_PINS */
-void sam_world_fault_fire(sam_mcu_t *m);                  /* SAM_SLOT_FAULT */
+/* ---- sam_world.c, sam_world_plant.c: what the boards do to the world ---- */
 void sam_world_pins_will_change(sam_mcu_t *m);            /* before a pin's level or mux changes: motors integrate */
 void sam_world_pins_changed(sam_mcu_t *m);                /* after: the bus lines are re-read */
 void sam_world_tcc_will_change(sam_mcu_t *m, int tcc);    /* before a TCC's duty changes (now or later) */

@@ -63,6 +63,7 @@ typedef struct {
     int32_t pin_en[2];         /* EN of the alpha and beta drivers */
     int32_t pin_enc[2][2];     /* encoder [alpha|beta][A|B] */
     int32_t pin_sda, pin_scl;  /* I2C bus */
+    int32_t bus_sercom;        /* n of the SERCOMn whose PAD0, PAD1 carry SDA, SCL: the bus (image/board.py) */
 } sam_world_cfg_t;
 
 typedef struct {

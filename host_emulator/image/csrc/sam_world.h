@@ -16,6 +16,7 @@ typedef struct {
 typedef struct {
     sam_pinev_t ev[SAM_PINQ];
     unsigned head, n;
+    int slot;             /* its event source on the board */
 } sam_pinq_t;
 
 /* one DRV8874 + motor: the mean of V(t) and of "awake" over the current window, from the board's pins. The
@@ -29,9 +30,10 @@ typedef struct {
     double volt, awake;   /* means of the last window (what the plant used) */
 } sam_motor_t;
 
-/* ---- I2C bus (sam_i2c.c) ----
+/* ---- the I2C bus between the boards (link_i2c_bus.c) ----
  * Boards affect each other only through bus steps: timestamped messages into the receiver's queue, each at least
- * one SCL period T after its cause (sam_i2c.c lists them). No board reads another board's state. */
+ * one SCL period T after its cause (link_i2c_bus.c lists them). No board reads another board's state. */
+#define SAM_BUS_TMIN_S 2400e-9   /* 400 kHz with 4 % tolerance: Fast mode, the fastest SCL with CTRLA.SPEED = 0 */
 enum { BUS_EV_NONE = 0,
        /* to slaves */
        BUS_EV_S_ADDRESS, BUS_EV_S_DRDY_RX, BUS_EV_S_DRDY_TX, BUS_EV_S_PREC, BUS_EV_S_RESET,
@@ -59,13 +61,15 @@ typedef struct {
 } sam_lineview_t;
 
 typedef struct {
+    int pi;               /* the SERCOM on the bus (the board's wiring: cfg.bus_sercom), -1 none */
+    int slot[SAM_MAX_MCU];   /* its event source on each board */
     int sda_stuck;        /* fault (world level, changed only at a round boundary) */
     sam_lineview_t view[SAM_MAX_MCU];
     sam_busq_t q[SAM_MAX_MCU];
     sam_bus_info_t info[SAM_MAX_MCU];   /* each board counts its own part; the sum is the bus's */
 } sam_bus_t;
 
-/* ---- USB host (sam_usb.c) ---- */
+/* ---- the USB host on each board's port (link_usb_host.c) ---- */
 #define SAM_USB_BUF 65536
 #define SAM_USB_HQ 32
 typedef struct {
@@ -75,6 +79,7 @@ typedef struct {
 typedef struct {
     sam_hev_t hq[SAM_USB_HQ];   /* the host's pending actions on this port, in time order */
     int hq_n;
+    int slot;                   /* its event source on the board */
     int cdc_in, cdc_out;        /* the CDC data endpoints found in the configuration descriptor */
     int attached, enumerated, configured, dtr, no_read, error;
     int step;             /* position in the host's script (enumeration, control requests) */
@@ -105,7 +110,7 @@ typedef struct {
     int32_t leg, dir;     /* spin back and forth: counts into the current leg, its direction */
 } sam_fault_t;
 
-/* worker threads (sam_world.c) */
+/* worker threads (sam_world_run.c) */
 #define SAM_MAX_THREADS 16
 typedef struct {
     int init, nworkers;
@@ -137,14 +142,45 @@ struct sam_world {
     sam_usbhost_t usb[SAM_MAX_MCU];
     sam_fault_t fault[SAM_MAX_FAULTS];
     int nfault;
+    int fault_slot[SAM_MAX_MCU];   /* the faults' event source on each board */
     sam_pool_t pool;
     char err[512];
     char notes[1 << 20];
     uint32_t notes_len;
 };
 
+/* ---- the world's files (sam_world.c, sam_world_plant.c, sam_world_faults.c, sam_world_run.c) ---- */
+int he_gray(int32_t count);   /* he_hil.c: (A << 1) | B of an encoder count, the hil tier's own encoder */
+int sam_world_fail(sam_world_t *w, const char *fmt, ...);   /* the world's error (sam_world_error); -1 */
+void sam_world_collect_notes(sam_world_t *w);             /* the boards' notes, in board order */
 int sam_world_pinq_push(sam_world_t *w, int mcu, uint64_t t, int pin, int level);
-void sam_bus_init(sam_world_t *w);
+void sam_world_plant_init(void);                          /* the pins' TCC outputs, from the pin table */
+void sam_world_pins_init(sam_mcu_t *m);                   /* the pins' event source on a board */
+int sam_world_window(sam_world_t *w, uint64_t t0);        /* a plant window starts: motors' means, plant, edges */
+void sam_world_faults_init(sam_mcu_t *m);                 /* the faults' event source on a board */
+void sam_world_faults_apply(sam_world_t *w);              /* world-level faults that start or end now */
+uint64_t sam_world_next_fault(const sam_world_t *w);      /* when the next one does */
+int sam_world_pool_start(sam_world_t *w, int nthreads);
+void sam_world_pool_stop(sam_world_t *w);
+
+/* ---- link_i2c_bus.c: the bus ---- */
+int sam_bus_init(sam_world_t *w);                         /* the wiring's SERCOM; -1: its pads are not SDA, SCL */
+void sam_bus_port_init(sam_mcu_t *m);                     /* the bus's event source on a board */
+uint64_t sam_bus_tmin(void);                              /* shortest SCL period modelled: every step takes >= it */
+uint64_t sam_bus_eot_slave(sam_mcu_t *m);                 /* earliest effect of this slave on a master, SAM_NEVER */
+uint64_t sam_bus_eot_master(sam_mcu_t *m);                /* earliest effect of this master on a slave, SAM_NEVER */
+void sam_bus_power_lost(sam_mcu_t *m);                    /* it lets go of the bus */
+void sam_bus_lines_changed(sam_mcu_t *m);                 /* the primary's SDA/SCL pins or the SDA fault changed */
+/* for the SERCOM's I2C mode */
+int sam_bus_sercom(sam_mcu_t *m);                         /* peripheral index of the SERCOM on the bus, -1 */
+int sam_bus_pins_connected(sam_mcu_t *m);                 /* SDA, SCL muxed to that SERCOM's PAD0, PAD1 */
+void sam_bus_push(sam_mcu_t *from, int to, uint64_t t, int kind, int arg, int arg2, uint64_t T);   /* a step */
+void sam_bus_drop_own(sam_mcu_t *m);                      /* its own pending steps are gone */
+sam_bus_info_t *sam_bus_counts(sam_mcu_t *m);             /* the board's part of the bus's counters */
+sam_lineview_t *sam_bus_view(sam_mcu_t *m);               /* what a master knows of the lines */
+
+/* ---- link_usb_host.c: the USB host ---- */
 void sam_usb_world_init(sam_world_t *w);
+void sam_usb_port_init(sam_mcu_t *m);                     /* the host's event source on a board */
 
 #endif /* SAM_WORLD_H */

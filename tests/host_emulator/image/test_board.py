@@ -139,6 +139,17 @@ def test_wire_sets_the_runtime_config_by_motor_and_channel():
     assert list(cfg.pin_en) == [n["en_alpha"], n["en_beta"]]
     assert [list(p) for p in cfg.pin_enc] == [[n["enc_alpha_a"], n["enc_alpha_b"]], [n["enc_beta_a"], n["enc_beta_b"]]]
     assert (cfg.pin_sda, cfg.pin_scl) == (n["sda"], n["scl"])
+    assert f"SERCOM{cfg.bus_sercom}" == board.BUS_SERCOM
+
+
+def test_the_bus_sercom_is_the_one_the_wiring_table_names():
+    """The runtime's I2C bus is the SERCOM board.BUS_SERCOM names (no instance is wired in the C); docs/hardware.md's
+    SDA row says which ("I2C secondary (SERCOMn)"). Its pads on SDA/SCL: test_regtable's bus-pins test."""
+    sda = board.CELL_WIRING["sda"]
+    rows = [line for line in (ROOT / "docs/hardware.md").read_text().splitlines() if f"| {sda} |" in line]
+    assert len(rows) == 1, rows
+    named = re.findall(r"\((SERCOM\d)\)", rows[0])
+    assert named == [board.BUS_SERCOM], rows[0]
 
 
 # ---------------------------------------------------------------- pin_number

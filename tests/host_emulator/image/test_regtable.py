@@ -482,7 +482,7 @@ def test_the_bus_pins_are_sercom2_pads_0_and_1_under_the_function_the_core_selec
         arduino = vendor.variant_define("PIN_WIRE_SDA" if pad == "PAD0" else "PIN_WIRE_SCL")
         vp = vendor.variant_pins()[arduino]
         assert vp.port_pin == pin
-        assert f[vendor.pio_type_letter(vp.pio_type)] == ("SERCOM2", pad)
+        assert f[vendor.pio_type_letter(vp.pio_type)] == ("SERCOM2", pad) == (board.BUS_SERCOM, pad)
 
 
 def test_the_en_pins_are_tcc0_wo2_and_wo3_under_the_firmwares_pmux_letter(table):

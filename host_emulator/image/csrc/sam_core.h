@@ -1,0 +1,60 @@
+/* Internals the board core's files share (CPU, NVIC, SCS, MMIO, scheduling, fast-forward, life cycle); not for models. */
+#ifndef SAM_CORE_H
+#define SAM_CORE_H
+
+#include "sam.h"
+#include "sam_world.h"
+
+/* exception entry and return, an access through the AHB-APB bridge: the CPU budget's cycle model (sam_world_cfg_t,
+ * from metacell_tools.fwcheck.cpubudget.CycleModel) */
+#define EXC_ENTRY_CYCLES ((uint64_t)m->w->cfg.cyc_exc_entry)
+#define EXC_EXIT_CYCLES ((uint64_t)m->w->cfg.cyc_exc_exit)
+#define APB_EXTRA_CYCLES ((uint64_t)m->w->cfg.cyc_apb)
+#define TAIL_CHAIN_CYCLES 11  /* ARMv6-M tail-chaining: no unstacking, a new vector fetch */
+
+#define EXC_RETURN_THREAD 0xFFFFFFF9u
+#define EXC_RETURN_HANDLER 0xFFFFFFF1u
+
+/* the core registers a fast-forward snapshot compares (the first 13, R0..R12, are zeroed by a reset) */
+#define SAM_NCORE_REGS 19
+extern const int sam_core_regs[SAM_NCORE_REGS];
+
+/* ---- sam_cpu.c ---- */
+uint32_t sam_cpu_reg(sam_mcu_t *m, int id);
+void sam_cpu_set(sam_mcu_t *m, int id, uint32_t v);
+void sam_cpu_rebuild_hflags(sam_mcu_t *m);
+void sam_cpu_lockup(sam_mcu_t *m, const char *why);
+int sam_cpu_open(sam_mcu_t *m);                    /* Unicorn, the CPU model, flash, SRAM and NVM rows */
+int sam_cpu_hooks(sam_mcu_t *m);                   /* the block, exception, memory-fault and TLB hooks */
+int sam_cpu_ram_write32(sam_mcu_t *m, uint32_t addr, uint32_t v);
+void sam_cpu_enter_fault(sam_mcu_t *m, uc_err e);  /* the memory system faulted: HardFault (or lockup) */
+
+/* ---- sam_nvic.c ---- */
+int sam_nvic_best_pending(const sam_mcu_t *m, int *prio);
+int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret);   /* stack a frame and enter exception e; 1 on success */
+int sam_nvic_take(sam_mcu_t *m, uint32_t ret);           /* take the best pending exception if it may pre-empt */
+void sam_nvic_return(sam_mcu_t *m);                      /* an exception return (EXC_RETURN in handler mode) */
+
+/* ---- sam_scs.c ---- */
+extern const sam_model_t sam_model_scs;
+void sam_systick_fire(sam_mcu_t *m);
+void sam_systick_reclock(sam_mcu_t *m, uint32_t old_cyc_tu);
+
+/* ---- sam_mmio.c ---- */
+int sam_mmio_map(sam_mcu_t *m);                   /* the peripheral regions, through the models */
+void sam_mmio_free(sam_mcu_t *m);
+
+/* ---- sam_sched.c ---- */
+void sam_next_event(sam_mcu_t *m);
+void sam_process_events(sam_mcu_t *m);            /* every event due at or before the current block boundary */
+
+/* ---- sam_ff.c ---- */
+int sam_ff_boundary(sam_mcu_t *m);                /* at a loop() entry: 1 when parked (the pass repeats exactly) */
+void sam_ff_resume(sam_mcu_t *m);                 /* leave the park at the last loop() entry before the next event */
+
+/* ---- sam_mcu.c ---- */
+int sam_init_fail(sam_mcu_t *m, const char *what, uc_err e);
+void sam_request_reset(sam_mcu_t *m, uint8_t cause);   /* processed outside emulation */
+void sam_do_reset(sam_mcu_t *m, uint8_t cause);
+
+#endif /* SAM_CORE_H */

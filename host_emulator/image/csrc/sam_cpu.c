@@ -1,0 +1,294 @@
+/* The CPU: Unicorn's Cortex-M0 with flash, SRAM and the NVM rows, the block hook that charges cycles, memory faults. */
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "sam_core.h"
+
+const int sam_core_regs[SAM_NCORE_REGS] = {
+    UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2,  UC_ARM_REG_R3,  UC_ARM_REG_R4,  UC_ARM_REG_R5,   UC_ARM_REG_R6,
+    UC_ARM_REG_R7, UC_ARM_REG_R8, UC_ARM_REG_R9,  UC_ARM_REG_R10, UC_ARM_REG_R11, UC_ARM_REG_R12,  UC_ARM_REG_SP,
+    UC_ARM_REG_LR, UC_ARM_REG_PC, UC_ARM_REG_XPSR, UC_ARM_REG_PRIMASK, UC_ARM_REG_CONTROL};
+
+/* ---------------------------------------------------------------- errors */
+
+void sam_fail(sam_mcu_t *m, const char *fmt, ...)
+{
+    if (m->err)
+        return;
+    uint32_t pc = 0;
+    uc_reg_read(m->uc, UC_ARM_REG_PC, &pc);
+    char msg[256];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    snprintf(m->errmsg, sizeof m->errmsg, "%s: %s (pc 0x%05x, t = %.6f s)", m->name, msg, pc,
+             (double)m->t / (double)SAM_TU_HZ);
+    m->err = 1;
+    uc_emu_stop(m->uc);
+}
+
+/* ---------------------------------------------------------------- memory */
+
+uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok)
+{
+    const uint8_t *p = NULL;
+    if (addr + 4 <= SAM_FLASH_SIZE)
+        p = m->flash + addr;
+    else if (addr >= SAM_RAM_BASE && addr + 4 <= SAM_RAM_BASE + SAM_RAM_SIZE)
+        p = m->ram + (addr - SAM_RAM_BASE);
+    if (!p || (addr & 3)) {
+        if (ok)
+            *ok = 0;
+        return 0;
+    }
+    if (ok)
+        *ok = 1;
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+int sam_cpu_ram_write32(sam_mcu_t *m, uint32_t addr, uint32_t v)
+{
+    if (addr < SAM_RAM_BASE || addr + 4 > SAM_RAM_BASE + SAM_RAM_SIZE || (addr & 3))
+        return 0;
+    uint8_t *p = m->ram + (addr - SAM_RAM_BASE);
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
+    return 1;
+}
+
+/* ---------------------------------------------------------------- registers of the core, its clock */
+
+uint32_t sam_cpu_reg(sam_mcu_t *m, int id)
+{
+    uint32_t v = 0;
+    uc_reg_read(m->uc, id, &v);
+    return v;
+}
+
+void sam_cpu_set(sam_mcu_t *m, int id, uint32_t v) { uc_reg_write(m->uc, id, &v); }
+
+/* Unicorn caches the handler-mode flag of the TB state (hflags); an IPSR/XPSR write does not rebuild it, a write
+ * of APSR's NZCV does (and changes nothing when it writes the flags back as they are). */
+void sam_cpu_rebuild_hflags(sam_mcu_t *m)
+{
+    uint32_t nzcv = sam_cpu_reg(m, UC_ARM_REG_APSR_NZCV);
+    sam_cpu_set(m, UC_ARM_REG_APSR_NZCV, nzcv);
+}
+
+void sam_cpu_lockup(sam_mcu_t *m, const char *why)
+{
+    if (!m->lockup)
+        sam_note(m, "%s: core lockup (%s) at t = %.6f s; only a reset ends it", m->name, why,
+                       (double)m->t / (double)SAM_TU_HZ);
+    m->lockup = 1;
+    uc_emu_stop(m->uc);
+}
+
+void sam_set_cpu_clock(sam_mcu_t *m)
+{
+    uint64_t hz = sam_gen_hz(m, 0);
+    int sel = (int)(sam_reg_get(m, sam_idx.pm_cpusel) & 7u);
+    m->clk_epoch++;
+    hz >>= sel;
+    if (hz == 0) {
+        sam_fail(m, "the CPU clock (GCLK0) stopped");
+        return;
+    }
+    if (SAM_TU_HZ % hz) {
+        sam_fail(m, "CPU clock %llu Hz is not modelled (the time unit must divide it)", (unsigned long long)hz);
+        return;
+    }
+    uint32_t old = m->cyc_tu;
+    m->cyc_tu = (uint32_t)(SAM_TU_HZ / hz);
+    if (old != m->cyc_tu)
+        sam_systick_reclock(m, old);
+}
+
+/* A fault of the memory system (the run loop: Unicorn stopped with an error): HardFault, or lockup in it. */
+void sam_cpu_enter_fault(sam_mcu_t *m, uc_err e)
+{
+    uint32_t pc = sam_cpu_reg(m, UC_ARM_REG_PC);
+    uint32_t ipsr = sam_cpu_reg(m, UC_ARM_REG_XPSR) & 0x3Fu;
+    sam_note(m, "%s: HardFault (%s at 0x%08x, pc 0x%05x) at t = %.6f s", m->name, uc_strerror(e),
+                   m->fault_addr, pc, (double)m->t / (double)SAM_TU_HZ);
+    if (ipsr == 3 || ipsr == 2) {
+        sam_cpu_lockup(m, "fault in the HardFault handler");
+        return;
+    }
+    m->nvic.sys_pending |= 1u << 3;
+    sam_nvic_enter(m, 3, pc);
+}
+
+/* ---------------------------------------------------------------- hooks */
+
+/* Exception return (Unicorn raises EXCP_EXCEPTION_EXIT for a branch to EXC_RETURN in handler mode). */
+#define EXCP_EXCEPTION_EXIT 8
+
+static void hook_intr(uc_engine *uc, uint32_t intno, void *ud)
+{
+    sam_mcu_t *m = ud;
+    (void)uc;
+    if (intno != EXCP_EXCEPTION_EXIT) {
+        m->fault_addr = sam_cpu_reg(m, UC_ARM_REG_PC);
+        sam_fail(m, "CPU exception %u (an instruction the model does not execute: SVC, BKPT, UDF, WFI)", intno);
+        return;
+    }
+    sam_nvic_return(m);
+}
+
+/* ---------------------------------------------------------------- faults from the memory system */
+
+static bool hook_badmem(uc_engine *uc, uc_mem_type type, uint64_t address, int size, int64_t value, void *ud)
+{
+    sam_mcu_t *m = ud;
+    (void)uc;
+    (void)type;
+    (void)size;
+    (void)value;
+    m->fault_addr = (uint32_t)address;
+    return false;   /* the emulation stops with an error; the run loop enters HardFault */
+}
+
+
+/* The TLB entry of a page (Unicorn's virtual TLB): flash read and execute, SRAM read and write, the NVM rows
+ * read only, peripherals read and write; anywhere else the memory system reports the fault. SRAM is not
+ * executable: Unicorn then lets stores to it take the fast path (it keeps pages that could hold code on a slow
+ * path for every store), and code there has no cycle model anyway. */
+static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_entry *e, void *ud)
+{
+    (void)uc;
+    (void)type;
+    (void)ud;
+    uint32_t a = (uint32_t)vaddr;
+    e->paddr = vaddr;
+    if (a < SAM_FLASH_SIZE)
+        e->perms = UC_PROT_READ | UC_PROT_EXEC;
+    else if (a >= SAM_RAM_BASE && a < SAM_RAM_BASE + SAM_RAM_SIZE)
+        e->perms = UC_PROT_READ | UC_PROT_WRITE;
+    else if (a >= SAM_NVM_BASE && a < SAM_NVM_BASE + SAM_NVM_SIZE)
+        e->perms = UC_PROT_READ;
+    else if (a >= 0x40000000u && a < 0x60000000u)
+        e->perms = UC_PROT_READ | UC_PROT_WRITE;
+    else
+        e->perms = UC_PROT_ALL;
+    return true;
+}
+
+/* ---------------------------------------------------------------- the block hook */
+
+static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
+{
+    sam_mcu_t *m = ud;
+    uint32_t addr = (uint32_t)address;
+    if (addr == m->prev_end) {   /* the previous block ended in a conditional branch that was not taken */
+        uint32_t back = (m->prev_refund & 15u) + (m->cycle_model == SAM_CYCLES_WORST ? m->rws * (m->prev_refund >> 4) : 0u);
+        m->t -= (uint64_t)back * m->cyc_tu;
+        m->cycles -= back;
+    }
+    m->prev_end = 0xFFFFFFFFu;
+    if (m->t >= m->next_ev)
+        sam_process_events(m);   /* those due before stop_at; an answer they send may lower stop_at */
+    if (m->err || m->in_reset || m->lockup || m->t >= m->stop_at) {
+        uc_emu_stop(uc);
+        return;
+    }
+    if ((m->irq_check | m->primask_wait) && sam_nvic_take(m, addr))
+        return;   /* the PC moved to the handler: this block does not run now */
+    if (addr == m->ff.loop_pc && m->ff.enabled && sam_ff_boundary(m)) {
+        uc_emu_stop(uc);
+        return;
+    }
+    if (addr + size > m->app_end || size == 0) {
+        if (size == 0)
+            return;
+        sam_fail(m, "execution at 0x%05x outside the image's code (ends 0x%05x)", addr, m->app_end);
+        return;
+    }
+    /* the block's cost (sam_cycles: prefix sums over its halfwords), memoised per block start */
+    sam_blkcost_t *bc = &m->memo[(addr >> 1) & (SAM_MEMO - 1)];
+    if (bc->addr != addr || bc->size != size) {
+        uint32_t h0 = addr >> 1, h1 = (addr + size) >> 1;
+        bc->addr = addr;
+        bc->size = (uint16_t)size;
+        bc->core = m->cost_core[h1] - m->cost_core[h0];
+        bc->wait = (uint16_t)(m->cost_wait[h1] - m->cost_wait[h0]);
+        bc->lit = (uint16_t)(m->cost_lit[h1] - m->cost_lit[h0]);
+        bc->refund = m->refund[h1 - 1];
+    }
+    uint64_t cyc = bc->core;
+    if (m->cycle_model == SAM_CYCLES_WORST) {
+        cyc += (uint64_t)m->rws * bc->wait;
+    } else if (m->rws) {
+        /* the NVM cache: a fetch of a 64-bit line that is not cached waits RWS cycles and fills its line */
+        uint32_t waits = bc->lit;
+        for (uint32_t a = addr & ~7u; a < addr + size; a += 8) {
+            uint32_t idx = (a >> 3) & 7u, tag = (a >> 6) | 0x80000000u;
+            if (m->cache_tag[idx] != tag) {
+                m->cache_tag[idx] = tag;
+                waits++;
+            }
+        }
+        cyc += (uint64_t)m->rws * waits;
+    }
+    m->t_blk = m->t;
+    m->t += cyc * m->cyc_tu;
+    m->cycles += cyc;
+    if (m->prof)
+        m->prof[addr >> 1] += cyc;
+    m->prev_end = addr + size;
+    m->prev_refund = bc->refund;
+}
+
+/* ---------------------------------------------------------------- set-up */
+
+/* uc_hook_add takes its callback as void *, a conversion ISO C does not define for function pointers: the
+ * pointer's bytes are copied instead (the platforms Unicorn runs on give both the same representation). */
+typedef void (*any_fn)(void);
+static void *hook_fn(any_fn f)
+{
+    void *p;
+    _Static_assert(sizeof(void *) == sizeof(any_fn), "function and object pointers differ in size");
+    memcpy(&p, &f, sizeof p);
+    return p;
+}
+
+int sam_cpu_open(sam_mcu_t *m)
+{
+    uc_err ue;
+    if ((ue = uc_open(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS, &m->uc)) != UC_ERR_OK)
+        return sam_init_fail(m, "uc_open", ue);
+    if ((ue = uc_ctl_set_cpu_model(m->uc, UC_CPU_ARM_CORTEX_M0)) != UC_ERR_OK)
+        return sam_init_fail(m, "the Cortex-M0 CPU model", ue);
+    if ((ue = uc_mem_map_ptr(m->uc, 0, SAM_FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC, m->flash)) ||
+        (ue = uc_mem_map_ptr(m->uc, SAM_RAM_BASE, SAM_RAM_SIZE, UC_PROT_READ | UC_PROT_WRITE, m->ram)) ||
+        (ue = uc_mem_map_ptr(m->uc, SAM_NVM_BASE, SAM_NVM_SIZE, UC_PROT_READ, m->nvm)))
+        return sam_init_fail(m, "mapping flash, SRAM and the NVM rows", ue);
+    return 0;
+}
+
+int sam_cpu_hooks(sam_mcu_t *m)
+{
+    uc_err ue;
+    if ((ue = uc_hook_add(m->uc, &m->hooks[0], UC_HOOK_BLOCK, hook_fn((any_fn)hook_block), m, 0, SAM_FLASH_SIZE - 1)))
+        return sam_init_fail(m, "the block hook", ue);
+    if ((ue = uc_hook_add(m->uc, &m->hooks[1], UC_HOOK_INTR, hook_fn((any_fn)hook_intr), m, 1, 0)))
+        return sam_init_fail(m, "the exception hook", ue);
+    /* Memory fault hooks everywhere but SRAM: Unicorn sends every store to a page a memory hook covers down its
+     * slow path. SRAM cannot fault but for a fetch (it is mapped without execute: code there has no cycle model),
+     * which the run loop reports. */
+    if ((ue = uc_hook_add(m->uc, &m->hooks[2], UC_HOOK_MEM_UNMAPPED | UC_HOOK_MEM_PROT, hook_fn((any_fn)hook_badmem),
+                          m, 0, SAM_RAM_BASE - 1)) ||
+        (ue = uc_hook_add(m->uc, &m->hooks[3], UC_HOOK_MEM_UNMAPPED | UC_HOOK_MEM_PROT, hook_fn((any_fn)hook_badmem),
+                          m, SAM_RAM_BASE + SAM_RAM_SIZE, 0xFFFFFFFFu)))
+        return sam_init_fail(m, "the memory fault hook", ue);
+    if ((ue = uc_ctl_tlb_mode(m->uc, UC_TLB_VIRTUAL)) != UC_ERR_OK ||
+        (ue = uc_hook_add(m->uc, &m->hooks[4], UC_HOOK_TLB_FILL, hook_fn((any_fn)hook_tlb), m, 1, 0)) != UC_ERR_OK)
+        return sam_init_fail(m, "the TLB", ue);
+    if ((ue = uc_ctl_exits_enable(m->uc)) != UC_ERR_OK)
+        return sam_init_fail(m, "exits mode", ue);
+    return 0;
+}

@@ -1,0 +1,168 @@
+/* Time and scheduling of a board: event slots and sources, events in time order, the run loop (and its idle forms). */
+#include "sam_core.h"
+
+/* ---------------------------------------------------------------- events */
+
+void sam_next_event(sam_mcu_t *m)
+{
+    uint64_t t = SAM_NEVER;
+    for (int s = 0; s < SAM_NSLOTS; s++)
+        if (m->slot[s] < t)
+            t = m->slot[s];
+    m->next_ev = t;
+}
+
+void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t)
+{
+    uint64_t old = m->slot[slot];
+    m->slot[slot] = t;
+    if (t < m->next_ev)
+        m->next_ev = t;
+    else if (old == m->next_ev && t != old)
+        sam_next_event(m);
+}
+
+int sam_source_add(sam_mcu_t *m, void (*fire)(sam_mcu_t *m, void *ctx),
+                   void (*quiet)(sam_mcu_t *m, void *ctx, uint64_t t_end), void *ctx, unsigned flags)
+{
+    if (m->nsrc >= SAM_MAX_SOURCES)
+        return -1;
+    sam_source_t *x = &m->src[m->nsrc];
+    x->fire = fire;
+    x->quiet = quiet;
+    x->ctx = ctx;
+    x->flags = flags;
+    return SAM_SLOT_SOURCE0 + m->nsrc++;
+}
+
+static void fire_slot(sam_mcu_t *m, int s)
+{
+    if (s < SAM_MAX_PERIPH) {
+        if (m->model[s] && m->model[s]->fire)
+            m->model[s]->fire(m, s);
+    } else if (s == SAM_SLOT_SYSTICK) {
+        sam_systick_fire(m);
+    } else if (s - SAM_SLOT_SOURCE0 < m->nsrc) {
+        const sam_source_t *x = &m->src[s - SAM_SLOT_SOURCE0];
+        x->fire(m, x->ctx);
+    }
+}
+
+/* Every event due at or before the current boundary, in time order, each at its own time. */
+void sam_process_events(sam_mcu_t *m)
+{
+    uint64_t saved = m->t_blk;
+    while (m->next_ev <= m->t && m->next_ev < m->stop_at && !m->err && !m->in_reset) {
+        int s = 0;
+        for (int k = 1; k < SAM_NSLOTS; k++)
+            if (m->slot[k] < m->slot[s])
+                s = k;
+        uint64_t ts = m->slot[s];
+        m->slot[s] = SAM_NEVER;
+        sam_next_event(m);
+        m->t_blk = ts;
+        m->ev_quiet = 0;
+        fire_slot(m, s);
+        if (!m->ev_quiet)
+            m->act++;
+    }
+    m->t_blk = saved;
+}
+
+/* Events only (the core is stopped: lockup): peripherals keep running, a watchdog may reset the board. */
+static void run_events_only(sam_mcu_t *m)
+{
+    while (m->next_ev < m->stop_at && !m->err && !m->in_reset) {
+        m->t = m->next_ev;
+        sam_process_events(m);
+    }
+    if (m->t < m->stop_at && !m->in_reset)
+        m->t = m->stop_at;
+}
+
+/* No power: nothing runs; the sources that fire unpowered still do (the bus sees the board as an absent slave, the
+ * encoders still turn); on a tie the later registered first (the pins' edges do nothing to an unpowered board). */
+static void run_unpowered(sam_mcu_t *m)
+{
+    for (;;) {
+        int s = -1;
+        for (int k = 0; k < m->nsrc; k++)
+            if ((m->src[k].flags & SAM_SRC_UNPOWERED) && (s < 0 || m->slot[SAM_SLOT_SOURCE0 + k] <= m->slot[s]))
+                s = SAM_SLOT_SOURCE0 + k;
+        if (s < 0)
+            break;
+        uint64_t ts = m->slot[s];
+        if (ts >= m->stop_at || m->err)
+            break;
+        sam_slot_set(m, s, SAM_NEVER);
+        m->t_blk = ts;
+        fire_slot(m, s);
+    }
+    if (m->t < m->stop_at)
+        m->t = m->stop_at;
+}
+
+/* Parked: the steps before t_end that change nothing (an address that is not its own) are taken as they would
+ * be; it stays parked when no other event comes before t_end. */
+static int stays_parked(sam_mcu_t *m, uint64_t t_end)
+{
+    if (m->next_ev >= t_end)
+        return 1;
+    for (int k = 0; k < m->nsrc; k++)
+        if (m->src[k].quiet)
+            m->src[k].quiet(m, m->src[k].ctx, t_end);
+    return m->next_ev >= t_end;
+}
+
+/* A parked board that stays parked until t_end has run to it (1); 0: it needs to run. */
+int sam_mcu_idle_to(sam_mcu_t *m, uint64_t t_end)
+{
+    if (m->err || m->halted || !m->ff.parked || !stays_parked(m, t_end))
+        return 0;
+    m->pos = t_end;
+    return 1;
+}
+
+/* Run the board until t_end, or until the earlier time it was told to stop before (sam_stop_before): m->pos. */
+int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
+{
+    if (m->err)
+        return -1;
+    m->stop_at = t_end;
+    if (m->halted) {
+        run_unpowered(m);
+        m->pos = m->stop_at;
+        return m->err ? -1 : 0;
+    }
+    while (!m->err) {
+        if (m->ff.parked) {
+            if (stays_parked(m, m->stop_at))
+                break;   /* the pass repeats unchanged up to stop_at */
+            sam_ff_resume(m);
+        }
+        if (m->t >= m->stop_at)
+            break;
+        if (m->in_reset) {
+            sam_do_reset(m, (uint8_t)m->in_reset);
+            continue;
+        }
+        if (m->lockup) {
+            run_events_only(m);
+            continue;
+        }
+        uint32_t pc = sam_cpu_reg(m, UC_ARM_REG_PC);
+        m->runs++;
+        uc_err e = uc_emu_start(m->uc, pc | 1u, 0, 0, 0);
+        if (m->err)
+            break;
+        if (e == UC_ERR_FETCH_PROT && (pc = sam_cpu_reg(m, UC_ARM_REG_PC)) >= SAM_RAM_BASE &&
+            pc < SAM_RAM_BASE + SAM_RAM_SIZE) {
+            sam_fail(m, "code executed from SRAM at 0x%08x: only flash has a cycle model", pc);
+            break;
+        }
+        if (e != UC_ERR_OK)
+            sam_cpu_enter_fault(m, e);
+    }
+    m->pos = m->stop_at;
+    return m->err ? -1 : 0;
+}

@@ -1,0 +1,215 @@
+/* The world's plant side: pin edges into the boards, the drivers and motors from the boards' pins, plant windows. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "sam_world.h"
+#include "he_step.h"
+
+/* ---------------------------------------------------------------- pin events */
+
+int sam_world_pinq_push(sam_world_t *w, int mcu, uint64_t t, int pin, int level)
+{
+    sam_pinq_t *q = &w->pinq[mcu];
+    if (q->n >= SAM_PINQ)
+        return -1;
+    unsigned i = q->n++;
+    /* insertion from the tail: events come nearly in order */
+    while (i > 0) {
+        sam_pinev_t *prev = &q->ev[(q->head + i - 1) % SAM_PINQ];
+        if (prev->t <= t)
+            break;
+        q->ev[(q->head + i) % SAM_PINQ] = *prev;
+        i--;
+    }
+    sam_pinev_t *e = &q->ev[(q->head + i) % SAM_PINQ];
+    e->t = t;
+    e->pin = (int8_t)pin;
+    e->level = (int8_t)level;
+    sam_mcu_t *m = w->mcu[mcu];
+    sam_slot_set(m, q->slot, q->ev[q->head].t);
+    return 0;
+}
+
+/* the pins' event source: the edges due now */
+static void pin_fire(sam_mcu_t *m, void *ctx)
+{
+    (void)ctx;
+    sam_world_t *w = m->w;
+    sam_pinq_t *q = &w->pinq[m->id];
+    uint64_t now = sam_now(m);
+    while (q->n && q->ev[q->head].t <= now) {
+        sam_pinev_t e = q->ev[q->head];
+        q->head = (q->head + 1) % SAM_PINQ;
+        q->n--;
+        if (!m->halted)
+            sam_pin_drive(m, e.pin, e.level);
+    }
+    sam_slot_set(m, q->slot, q->n ? q->ev[q->head].t : SAM_NEVER);
+}
+
+/* ---------------------------------------------------------------- drivers and motors */
+
+/* level a DRV8874 input sees: the board's GPIO output, its pull-up, else the driver's own pull-down */
+static int driver_input(sam_mcu_t *m, int pin)
+{
+    if (m->halted)
+        return 0;
+    int driven;
+    int o = sam_pin_out(m, pin, &driven);
+    return o == 1;
+}
+
+/* high time of an EN input over [t0, t1): a TCC waveform output through the pin mux (numerator in tu, *den its
+ * period in counts), or a GPIO level (*den = 1) */
+/* what function f of a pin is, for the drivers: (tcc << 8) | wo of a TCC waveform output, -1 another peripheral's
+ * signal (it drives nothing here) or a letter the pin does not have; from the generated pin table, once */
+static int16_t pin_tcc[64][8];
+
+void sam_world_plant_init(void)
+{
+    static int done;
+    if (done)
+        return;
+    for (int pin = 0; pin < 64; pin++)
+        for (int f = 0; f < 8; f++)
+            pin_tcc[pin][f] = -1;
+    for (unsigned k = 0; k < sam_npinmux; k++) {
+        const sam_pinmux_t *p = &sam_pinmux[k];
+        int pin = p->pin, f = p->func;
+        if (pin >= 0 && pin < 64 && f >= 0 && f < 8 && !strncmp(p->periph, "TCC", 3) && !strncmp(p->signal, "WO", 2))
+            pin_tcc[pin][f] = (int16_t)(((p->periph[3] - '0') << 8) | atoi(p->signal + 2));
+    }
+    done = 1;
+}
+
+static uint64_t enable_high(sam_mcu_t *m, int pin, uint64_t t0, uint64_t t1, uint64_t *den)
+{
+    *den = 1;
+    if (m->halted)
+        return 0;
+    int f = sam_pin_function(m, pin);
+    if (f < 0)
+        return driver_input(m, pin) ? t1 - t0 : 0;
+    int tw = pin_tcc[pin][f];
+    return tw < 0 ? 0 : sam_tcc_high(m, tw >> 8, tw & 0xFF, t0, t1, den);
+}
+
+static void motor_integrate(sam_world_t *w, int j, uint64_t t)
+{
+    int mi = w->cell_mcu[j];
+    if (mi < 0)
+        return;
+    sam_mcu_t *m = w->mcu[mi];
+    int awake = driver_input(m, w->cfg.pin_nsleep);
+    for (int ch = 0; ch < 2; ch++) {
+        sam_motor_t *mo = &w->motor[j][ch];
+        if (t <= mo->t_last)
+            continue;
+        if (awake) {
+            int ph = driver_input(m, w->cfg.pin_ph[ch]);
+            uint64_t den, hi = enable_high(m, w->cfg.pin_en[ch], mo->t_last, t, &den);
+            if (!mo->den)
+                mo->den = den;
+            if (mo->den == 1 && den > 1) {   /* GPIO time so far, in the PWM's units from now on */
+                mo->hi *= (int64_t)den;
+                mo->den = den;
+            }
+            if (den == mo->den)
+                mo->hi += ph ? (int64_t)hi : -(int64_t)hi;
+            else if (den == 1 && mo->den > 1)
+                mo->hi += (ph ? 1 : -1) * (int64_t)(hi * mo->den);
+            else
+                mo->hi_other += (ph ? 1.0 : -1.0) * (double)hi / (double)den;
+            mo->awake_tu += t - mo->t_last;
+        }
+        mo->t_last = t;
+    }
+}
+
+void sam_world_pins_will_change(sam_mcu_t *m)
+{
+    if (m->role == SAM_ROLE_CELL && m->cell >= 0)
+        motor_integrate(m->w, m->cell, sam_now(m));
+}
+
+void sam_world_pins_changed(sam_mcu_t *m) { sam_bus_lines_changed(m); }
+
+void sam_world_tcc_will_change(sam_mcu_t *m, int tcc)
+{
+    (void)tcc;
+    sam_world_pins_will_change(m);
+}
+
+/* ---------------------------------------------------------------- plant windows */
+
+int sam_world_window(sam_world_t *w, uint64_t t0)
+{
+    uint64_t t1 = t0 + w->window_tu;
+    he_plant_t *p = w->cfg.plant;
+    int n = w->cfg.ncells;
+    double W = (double)w->window_tu / (double)SAM_TU_HZ;
+    /* the window that just ended: each motor's means */
+    for (int j = 0; j < n; j++) {
+        motor_integrate(w, j, t0);
+        for (int ch = 0; ch < 2; ch++) {
+            sam_motor_t *mo = &w->motor[j][ch];
+            double hi = (double)mo->hi / (double)(mo->den ? mo->den : 1) + mo->hi_other;   /* tu */
+            mo->volt = mo->awake_tu ? w->cfg.supply_v * hi / (double)mo->awake_tu : 0.0;
+            mo->awake = (double)mo->awake_tu / (double)w->window_tu;
+            mo->hi = 0;
+            mo->den = 0;
+            mo->hi_other = 0.0;
+            mo->awake_tu = 0;
+            /* the plant's motor term m (V - omega/S_L) with m = Kt * awake fraction: torque Kt (Vmean - a omega/S_L) */
+            p->mgain[ch][j] = w->cfg.kt * mo->awake;
+            p->volt[ch][j] = mo->volt;
+        }
+    }
+    if (w->plant_start == SAM_NEVER || t0 < w->plant_start)
+        return 0;
+    memcpy(w->xprev, w->cfg.x, sizeof(double) * 2 * (size_t)n);
+    double h = W / w->cfg.substeps;
+    int rc = he_advance(p, w->cfg.stepper, h, w->cfg.substeps, &w->plant_t, w->cfg.x, w->cfg.v);
+    if (rc != HE_OK)
+        return sam_world_fail(w, "plant: error %d (%s) at t = %.6f s (plant time %.6f s): numerically unstable or out of its "
+                    "physical range", rc, rc == HE_ERR_BAND ? "a band stretched past its fit's range" : "state",
+                    (double)t0 / (double)SAM_TU_HZ, w->plant_t);
+    /* encoder edges inside the window */
+    double cpr = w->cfg.counts_per_rad;
+    for (int j = 0; j < n; j++) {
+        int mi = w->cell_mcu[j];
+        if (mi < 0)
+            continue;
+        for (int ch = 0; ch < 2; ch++) {
+            int i = ch * n + j;
+            double c0 = w->xprev[i] * cpr, c1 = w->cfg.x[i] * cpr;
+            double cf = floor(c1);
+            if (cf > 2.0e9 || cf < -2.0e9)
+                return sam_world_fail(w, "encoder %d of cell %d beyond 2e9 counts", ch, j + 1);
+            int32_t target = (int32_t)cf, cur = w->count[j][ch];
+            while (cur != target) {
+                int32_t next = cur + (target > cur ? 1 : -1);
+                double boundary = target > cur ? (double)next : (double)cur;
+                double frac = c1 != c0 ? (boundary - c0) / (c1 - c0) : 1.0;
+                frac = frac < 0.0 ? 0.0 : frac > 1.0 ? 1.0 : frac;
+                uint64_t te = t0 + (uint64_t)(frac * (double)w->window_tu);
+                int g0 = he_gray(cur), g1 = he_gray(next), diff = g0 ^ g1;
+                int chan = diff & 2 ? 0 : 1;   /* A is bit 1, B bit 0 */
+                int level = chan == 0 ? (g1 >> 1) & 1 : g1 & 1;
+                if (sam_world_pinq_push(w, mi, te, w->cfg.pin_enc[ch][chan], level))
+                    return sam_world_fail(w, "cell %d: more than %d encoder edges pending (the plant moved too fast for the "
+                                "window)", j + 1, SAM_PINQ);
+                cur = next;
+            }
+            w->count[j][ch] = cur;
+        }
+    }
+    (void)t1;
+    return 0;
+}
+
+/* The pins' event source on a board (registered when the world loads it). */
+void sam_world_pins_init(sam_mcu_t *m)
+{
+    m->w->pinq[m->id].slot = sam_source_add(m, pin_fire, NULL, NULL, SAM_SRC_UNPOWERED);
+}
