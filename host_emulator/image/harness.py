@@ -9,10 +9,11 @@ firmware's own, at the board's time and with the cycles it costs (csrc/sam_harne
 are driven from outside as the encoders drive them; what the plant sees of a cell's drivers is ``motor``.
 
 No firmware, PlatformIO tree or ARM toolchain is needed: the runtime is built from the register table's snapshot
-when the vendor's headers are absent (regtable.load_or_snapshot), and the stub is assembled here.
+when the vendor's headers are absent (regsnapshot.load_or_snapshot), and the stub is assembled here.
 
     h = Harness()                       # one cell board, from power-up
-    h.write("PM.APBCMASK", h.read("PM.APBCMASK") | 1 << 11)
+    h.write("PM.APBCMASK", h.read("PM.APBCMASK") | 1 << 11)   # TC3's bus clock
+    h.write("GCLK.CLKCTRL", 0x1B | 1 << 14)                    # its generic clock from GCLK0 (1 MHz)
     h.write("TC3.COUNT16.CC[0]", 999)
     h.advance(1e-3)
 """
@@ -32,7 +33,7 @@ from ..models.options import ModelOptions
 from ..models.plant import build_plant
 from ..params import Params
 from . import board as wiring
-from . import cycles, regtable, runtime
+from . import cycles, regsnapshot, runtime
 from .elfimage import APP_BASE
 
 SRAM_TOP = 0x2000_8000
@@ -220,7 +221,7 @@ class Harness:
         ff: bool = True,
     ) -> None:
         self.ffi, self.lib = ffi, lib = runtime.load()
-        self.table = regtable.load_or_snapshot()
+        self.table = regsnapshot.load_or_snapshot()
         self._regs = {r.full: (p.base + r.offset, r.size) for p in self.table.peripherals for r in p.registers}
         self.roles = list(boards or [board])
         ncells = max(1, sum(r == "cell" for r in self.roles))

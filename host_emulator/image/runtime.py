@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import firmware
-from . import ImageTierUnavailable, regtable
+from . import ImageTierUnavailable, regsnapshot, regtable
 
 IMAGE_CSRC = Path(__file__).resolve().parent / "csrc"
 RUNTIME_HEADERS = ("sam_regtab.h", "sam_api.h")  # the cffi-visible part of the runtime
@@ -51,7 +51,7 @@ _cache: dict[str, tuple[Any, Any]] = {}
 def load(pio_tree: str | None = None) -> tuple[Any, Any]:
     """(ffi, lib) of the runtime, built on first use (RuntimeBuildError, regtable.RegTableError)."""
     inc, libuc = unicorn_paths()
-    table = regtable.load_or_snapshot(pio_tree)
+    table = regsnapshot.load_or_snapshot(pio_tree)
     gen_c = regtable.emit_c(table)
     gen_h = regtable.emit_vendor_h(table)
     fw_srcs = firmware._sources()
