@@ -2,8 +2,9 @@
 (host_emulator/csrc) and the firmware library, linked with Unicorn's static library, loaded through cffi.
 
 The register table and a host-compilable view of the vendor's device headers are generated into the build
-directory from the headers of the PlatformIO tree that builds the images (regtable.py); nothing generated is kept
-in the repository. The build is cached by a hash of every source, the generated files and the flags.
+directory from the headers of the PlatformIO tree that builds the images (regtable.py); where the tree is absent
+(the register-level harness needs no images), from the table's committed snapshot and the vendor macros it keeps.
+The build is cached by a hash of every source, the generated files and the flags.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import firmware
-from . import ImageTierUnavailable, regtable
+from . import ImageTierUnavailable, regsnapshot, regtable
 
 IMAGE_CSRC = Path(__file__).resolve().parent / "csrc"
 RUNTIME_HEADERS = ("sam_regtab.h", "sam_api.h")  # the cffi-visible part of the runtime
@@ -50,7 +51,7 @@ _cache: dict[str, tuple[Any, Any]] = {}
 def load(pio_tree: str | None = None) -> tuple[Any, Any]:
     """(ffi, lib) of the runtime, built on first use (RuntimeBuildError, regtable.RegTableError)."""
     inc, libuc = unicorn_paths()
-    table = regtable.load(pio_tree)
+    table = regsnapshot.load_or_snapshot(pio_tree)
     gen_c = regtable.emit_c(table)
     gen_h = regtable.emit_vendor_h(table)
     fw_srcs = firmware._sources()
@@ -70,12 +71,13 @@ def load(pio_tree: str | None = None) -> tuple[Any, Any]:
     key = h.hexdigest()[:16]
     with _lock:
         if key not in _cache:
-            mod = _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, Path(table.source), inc, libuc)
+            atmel = None if table.vendor_macros is not None else Path(table.source)
+            mod = _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel, inc, libuc)
             _cache[key] = (mod.ffi, mod.lib)
         return _cache[key]
 
 
-def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path, uc_inc: Path, libuc: Path):
+def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path | None, uc_inc: Path, libuc: Path):
     name = f"_mcimg_{key}"
     outdir = firmware.BUILD_DIR.parent / "image" / key
     so = next(outdir.glob(f"{name}*.so"), None) if outdir.exists() else None
@@ -89,7 +91,7 @@ def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path, uc_in
         srcs = [*fw_srcs, *img_srcs, gen_dir / "sam_regtab_gen.c"]
         incs = [firmware.LIB_SRC, firmware.HOST_CSRC, IMAGE_CSRC, gen_dir]
         # the vendor's and Unicorn's headers are system headers: -pedantic judges only our sources
-        sys_incs = [f"-isystem{atmel_inc}", f"-isystem{uc_inc}"]
+        sys_incs = [*([f"-isystem{atmel_inc}"] if atmel_inc else []), f"-isystem{uc_inc}"]
         firmware.check_pedantic([s for s in img_srcs], incs, tuple(sys_incs))
         ffi = cffi.FFI()
         headers = [*fw_hdrs, *(IMAGE_CSRC / h for h in RUNTIME_HEADERS)]

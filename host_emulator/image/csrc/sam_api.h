@@ -158,4 +158,31 @@ int sam_usb_info(const sam_world_t *w, int mcu, sam_usb_info_t *out);
 /* A control transfer from the host (for tests): setup packet, data for OUT stages; completes asynchronously. */
 int sam_usb_control(sam_world_t *w, int mcu, const uint8_t setup[8], const uint8_t *data, uint32_t n);
 
+/* ---- register-level harness (sam_harness.c): a board loaded with a stub program instead of an image ---- */
+typedef struct {
+    int32_t level;             /* the pad's level */
+    int32_t out;               /* what the MCU puts on it: 0, 1 (GPIO output or pull direction), -1 nothing */
+    int32_t driven;            /* 1: a GPIO output drives it */
+    int32_t function;          /* PMUX letter 0..7 when PINCFG.PMUXEN, else -1 */
+} sam_pin_info_t;
+
+typedef struct {
+    uint32_t enabled, pending, active, level;   /* external IRQs: ISER, ISPR, active, request lines */
+    uint32_t sys_pending, sys_active;           /* bit e: system exception e */
+    uint32_t cyc_tu;                            /* tu per CPU cycle now */
+} sam_nvic_info_t;
+
+/* The board's time (tu): past the world's by the accesses made since the world last ran. */
+uint64_t sam_harness_now(const sam_world_t *w, int mcu);
+/* The board's error message, NULL while it has none. */
+const char *sam_harness_error(const sam_world_t *w, int mcu);
+/* Run the board's CPU through a routine of its stub from pc to done_pc with R0 = r0 and R1 = *r1 (out: R1 at
+ * done_pc), from the world's time on; the context is restored. *t_start: when the routine began (its access). */
+int sam_harness_call(sam_world_t *w, int mcu, uint32_t pc, uint32_t done_pc, uint32_t r0, uint32_t *r1,
+                     uint64_t *t_start);
+/* Drive a pin from outside the board (0, 1; -1 released) from the board's time on. */
+int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level);
+int sam_harness_pin_state(const sam_world_t *w, int mcu, int32_t pin, sam_pin_info_t *out);
+int sam_harness_nvic(const sam_world_t *w, int mcu, sam_nvic_info_t *out);
+
 #endif /* SAM_API_H */
