@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 
 # Python code the linters hold to the style and typing rules (config in pyproject.toml)
-LINT_PATHS := host_emulator protocol metacell_tools tests
+LINT_PATHS := host_emulator metacell_common protocol metacell_tools tests
 
 .PHONY: setup demo lint test bench clean proto
 

@@ -11,7 +11,7 @@ between them: that marginal count divided by the cell-ticks is the figure, last 
 the plant, and the Python that handles the output samples. Both processes run with PYTHONHASHSEED=0 and one
 BLAS/OpenMP thread, so the counts repeat to a few hundred instructions (a spinning BLAS thread alone made them
 wander by 20 million). Instruction counts do not depend on the machine's load or clock, only on the compiled
-code: the compiler, its flags (host_emulator/firmware.py) and the x86-64 baseline instruction set (SSE2).
+code: the compiler, its flags (metacell_common/firmware.py) and the x86-64 baseline instruction set (SSE2).
 
 With callgrind_annotate on the PATH the marginal is also split by source: the firmware (lib/metacell), the
 emulator's C (host_emulator/csrc) and everything else (Python, numpy, libc).
@@ -41,7 +41,7 @@ from pathlib import Path
 _CHILD = """
 import sys
 import host_emulator.controller as controller
-import host_emulator.firmware as firmware
+import metacell_common.firmware as firmware
 from host_emulator.controller import build_solver, run_solver
 controller.CHUNK_WALL_S = 1e9
 firmware.RECHECK_S = 1e9

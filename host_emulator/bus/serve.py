@@ -26,6 +26,8 @@ import sys
 import time
 import tty
 
+from metacell_common.portlock import holders
+
 from ..models.plant import NumericalInstability
 from .rig import BusOptions, make_rig
 
@@ -142,8 +144,6 @@ class ClientWatch:
         if now < self.next:
             return
         self.next = now + self.EVERY_S
-        from metacell_tools.rigtools.portlock import holders
-
         held = holders(self.path, exclude={os.getpid()})
         self.most = max(self.most, len(held))
         pids = frozenset(held)

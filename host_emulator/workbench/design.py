@@ -124,7 +124,7 @@ class Target:
 
 
 def _cells_text(cells: Sequence[int]) -> str:
-    from metacell_tools.experiment.runner import cells_text
+    from metacell_common.cli import cells_text
 
     return cells_text(cells).replace(", ", ",").replace(" ", "")
 

@@ -197,7 +197,7 @@ def compare(
     if a.cells != b.cells:
         raise CompareError(f"different cell counts: {a.cells} vs {b.cells}")
     out = Path(out) if out else (Path(a_path) if Path(a_path).is_dir() else Path(a_path).parent) / "compare.png"
-    from host_emulator.outpaths import check_out_file
+    from metacell_common.outpaths import check_out_file
 
     problem = check_out_file(out, "--out")  # before the plot is drawn: one line, never a traceback
     if problem:
