@@ -12,11 +12,13 @@ setup:
 demo: setup
 	$(PY) -m host_emulator run default --out out/default
 
-# each linter fails the run on its own; pytest runs only when all three pass
+# each linter fails the run on its own; pytest runs only when all four pass (lint-imports: the layers and the
+# forbidden imports, contracts in pyproject.toml)
 lint: setup
 	.venv/bin/ruff check $(LINT_PATHS)
 	.venv/bin/ruff format --check $(LINT_PATHS)
 	.venv/bin/mypy
+	.venv/bin/lint-imports --no-cache
 
 test: lint
 	$(PY) -m pytest -q -n 2 tests
