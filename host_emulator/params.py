@@ -53,7 +53,7 @@ SIGMA_REGIMES = {"conditional": 9 / 125, "unconditional": 6 / 125, "stable": 14 
 
 
 # the band law and the reaction law are written once, in physics.py (re-exported here for old callers)
-from .physics import band_force, band_slope  # noqa: E402,F401
+from .physics import band_force, band_slope, psi_prime  # noqa: E402,F401
 
 
 @dataclass(frozen=True)
@@ -213,6 +213,4 @@ class Params:
 
     def psi_prime(self, alpha):
         """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array): physics.psi_prime."""
-        from .physics import psi_prime
-
         return psi_prime(self, alpha)

@@ -29,6 +29,7 @@ import numpy as np
 
 from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
 from metacell_common.cli import cells_text
+from metacell_tools.rigtools import proto
 from metacell_tools.rigtools.command import RigClient
 from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
@@ -241,8 +242,6 @@ class Experiment:
 
         Returns {cell: record}; a cell that did not send its block gets {"error": ...}. A map id that differs
         from this protocol definition's is reported (the cell would read our frames with another layout)."""
-        from metacell_tools.rigtools import proto
-
         try:
             info = self.client.info(list(self.plan.cells), blocks=("IDENT",))
         except Exception as e:

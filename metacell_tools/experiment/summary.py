@@ -23,6 +23,7 @@ from host_emulator.analysis.summary import summarize
 from host_emulator.controller import RunResult
 from host_emulator.scene import Scene
 from metacell_common.cli import cells_text
+from metacell_common.provenance import provenance
 
 from .runner import Experiment, Repeat, Series, series
 
@@ -205,8 +206,6 @@ def build(
         }
     )
     out.pop("solver", None)
-    from metacell_common.provenance import provenance
-
     out["provenance"] = provenance() | identity_provenance(exp.identity)  # code, libraries, time, command, cells
     out["cell_identity"] = {str(j): r for j, r in sorted(exp.identity.items())}
     out["cell_identity_mismatch"] = sorted(j for j, r in exp.identity.items() if r.get("map_id_matches") is False)
