@@ -29,6 +29,8 @@ MOVED = [
     ("host_emulator.limits", "scene_cost", "host_emulator.construct"),
     ("host_emulator.image.cycles", "CycleModel", "metacell_common.target.cycles"),
     ("host_emulator.image.cycles", "FLASH_SIZE", "metacell_common.target.board"),
+    ("host_emulator.image.board", "CELL_WIRING", "metacell_common.target.wiring"),
+    ("host_emulator.image.board", "pin_number", "metacell_common.target.wiring"),
     ("metacell_tools.fwcheck.cpubudget", "CycleModel", "metacell_common.target.cycles"),
     ("metacell_tools.fwcheck.cpubudget", "parse_disassembly", "metacell_common.target.cycles"),
     ("metacell_tools.fwcheck.cpubudget", "max_edge_rate_hz", "metacell_common.target.board"),
