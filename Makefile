@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 
 # Python code the linters hold to the style and typing rules (config in pyproject.toml)
-LINT_PATHS := host_emulator protocol metacell_tools metacell_common tests
+LINT_PATHS := host_emulator metacell_common protocol metacell_tools tests
 
 .PHONY: setup demo lint test bench clean proto
 
@@ -12,11 +12,13 @@ setup:
 demo: setup
 	$(PY) -m host_emulator run default --out out/default
 
-# each linter fails the run on its own; pytest runs only when all three pass
+# each linter fails the run on its own; pytest runs only when all four pass (lint-imports: the layers and the
+# forbidden imports, contracts in pyproject.toml)
 lint: setup
 	.venv/bin/ruff check $(LINT_PATHS)
 	.venv/bin/ruff format --check $(LINT_PATHS)
 	.venv/bin/mypy
+	.venv/bin/lint-imports --no-cache
 
 test: lint
 	$(PY) -m pytest -q -n 2 tests

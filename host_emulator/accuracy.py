@@ -26,6 +26,10 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
+from .models import make_model
+from .models.options import DEFAULT_TOL
+from .models.steppers import STEPPERS
+
 if TYPE_CHECKING:
     pass
 
@@ -67,10 +71,6 @@ def _preset(options, stepper, geom, explicit):
 
 
 def _resolve_lattice(params, perturbations, options, level, explicit):
-    from .models import make_model
-    from .models.options import DEFAULT_TOL
-    from .models.steppers import STEPPERS
-
     stepper, frac, tol, geom = LATTICE[level]
     opts = _preset(options, stepper, geom, explicit)
     if STEPPERS[opts.stepper].adaptive:
@@ -85,8 +85,6 @@ def _resolve_lattice(params, perturbations, options, level, explicit):
 
 def _resolve_hil(params, perturbations, options, level, explicit):
     import math
-
-    from .models import make_model
 
     stepper, subs, geom = HIL[level]
     opts = _preset(options, stepper, geom, explicit)

@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from metacell_common.cli import unexpected
+
+from .firmware import FirmwareBuildError
+from .outpaths import check_out_file
 
 if TYPE_CHECKING:
     from .workbench.trackers import PlotTracker, Tracker
@@ -34,7 +41,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     from .limits import check_out_dir, check_run
-    from .outpaths import check_out_file
 
     out = Path(args.out or Path("out") / scene.name)
     problem = (
@@ -135,21 +141,6 @@ def _print_summary(s, out, files):
     )
 
 
-def unexpected(e: BaseException, prog: str) -> int:
-    """An error no check foresaw (a numerical library's LinAlgError, an OS error of a dependency...): one line
-    naming it, exit 3; the traceback only with MC_DEBUG=1."""
-    import os
-
-    if os.environ.get("MC_DEBUG"):
-        raise e
-    from numpy.linalg import LinAlgError
-
-    what = "numerical failure" if isinstance(e, (ArithmeticError, LinAlgError)) else "run failed"
-    text = " ".join(str(e).split()) or "(no message)"
-    print(f"{prog}: error: {what}: {type(e).__name__}: {text[:300]} (MC_DEBUG=1 shows the traceback)", file=sys.stderr)
-    return 3
-
-
 def _positive_float(text: str) -> float:
     try:
         v = float(text)
@@ -168,16 +159,12 @@ def cmd_bench(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
-    from .firmware import FirmwareBuildError
-
     try:
         return _main(argv)
     except FirmwareBuildError as e:  # no sources, no compiler: say what is missing, not a traceback
         print(f"error: {e}", file=sys.stderr)
         return 3
     except BrokenPipeError:  # e.g. `dispersion --json | head`: the reader left, not an error
-        import os
-
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except KeyboardInterrupt:
@@ -205,8 +192,6 @@ SUBCOMMANDS = {
 def _main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in SUBCOMMANDS:
-        import importlib
-
         module, func = SUBCOMMANDS[argv[0]]
         return getattr(importlib.import_module(module, __package__), func)(argv[1:])
     ap = argparse.ArgumentParser(

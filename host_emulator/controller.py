@@ -1,32 +1,22 @@
-"""Controller: runs a model's solver to t_end, feeding every output sample to the trackers (py-pde style)."""
+"""Controller: runs a model's solver to t_end, feeding every output sample to the trackers (py-pde style).
+
+Below it: the trackers it needs (tracking.py), the solver's construction behind limits' guards (construct.py) and
+RunResult (result.py); nothing of the workbench (an import-linter contract in pyproject.toml holds it)."""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .models import ConfigError, NumericalInstability, Solver, make_model
-from .workbench.trackers import ProgressTracker, RecordTracker, Tracker
+from .construct import build_solver, checked_solver
+from .models import NumericalInstability, Solver
+from .result import RunResult
+from .tracking import ProgressTracker, RecordTracker, Tracker
 
-if TYPE_CHECKING:
-    from .models import Solver
-
-
-@dataclass
-class RunResult:
-    t: np.ndarray
-    alpha: np.ndarray  # (T, N) rad
-    beta: np.ndarray  # (T, N) rad
-    wall_s: float
-    info: dict = field(default_factory=dict)
-
-    @property
-    def realtime_factor(self) -> float:
-        return float(self.t[-1] / self.wall_s) if self.wall_s > 0 else float("inf")
+# build_solver (the one construction path) and RunResult have their own modules; here under their old names
+__all__ = ["RunResult", "build_solver", "run_scene", "run_solver"]
 
 
 def run_solver(solver: Solver, t_end_s: float, trackers: Sequence[Tracker] = ()) -> RunResult:
@@ -91,42 +81,11 @@ def _run_chunked(solver, n_out: int, trackers: Sequence[Tracker]):
         chunk = max(1, min(CHUNK_MAX_SAMPLES, int(CHUNK_WALL_S / per) if per > 0 else CHUNK_MAX_SAMPLES))
 
 
-def build_solver(scene, *, resolve: bool = True, options=None, perturbations=None, x0=None) -> Solver:
-    """The one construction path of a scene's solver (runs, the bus rig, bench-speed and the benchmarks).
-
-    resolve: apply the scene's accuracy preset (accuracy.resolve_options) to its model options, as a run does;
-    False keeps the options as given (benchmarks sweeping steppers and steps set them themselves).
-    options / perturbations replace the scene's; x0 is the initial state (2n angles) where the model takes one."""
-    from .accuracy import resolve_options
-
-    options = scene.options if options is None else options
-    perturbations = scene.perturbations if perturbations is None else perturbations
-    if resolve:
-        options = resolve_options(
-            scene.model,
-            scene.params,
-            perturbations,
-            options,
-            getattr(scene, "accuracy", "balanced"),
-            getattr(scene, "explicit_options", ()),
-        )
-    model = make_model(scene.model, scene.params, list(perturbations), options)
-    faults = getattr(scene, "faults", ())
-    if faults:
-        inject = getattr(model, "inject", None)
-        if inject is None:
-            raise ConfigError(f"fault: the {scene.model} model has no boards to inject faults into")
-        inject(faults)
-    return model.solver() if x0 is None else model.solver(x0=x0)
-
-
 def run_scene(scene, *, progress: bool = True, trackers: Sequence[Tracker] = ()) -> RunResult:
     """Build the scene's model, run it and return the recorded trajectories.
 
     Refuses (limits.RunTooLarge, a ConfigError naming the key and the figure) a run whose resolved plant step
     makes it too long, before any step: every path to a run (the CLI, the API, paper, robustness) comes here."""
-    from .limits import checked_solver
-
     solver = checked_solver(scene)
     extra = list(trackers)
     if progress:

@@ -5,7 +5,9 @@ the machine.
 values as given; `check_solver(scene, solver)` judges the run's cost once every default, accuracy preset and
 automatic step choice is resolved (the built solver's plant step), so `model_options.substeps`, a tiny inertia
 that shrinks the automatic step, or a dt are all held to the same limit. controller.run_scene applies it to every
-run (the CLI, the API, paper, robustness, serve); `batch_budget` bounds runs x cost for sweeps and repeats.
+run (the CLI, the API, paper, robustness, serve) through construct.checked_solver; `batch_budget` bounds runs x cost
+for sweeps and repeats. The checks build nothing: checked_solver and scene_cost (construct.py) build the solver and
+apply them, and are importable from here under their old names.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ from __future__ import annotations
 import math
 import os
 from typing import TYPE_CHECKING
+
+from metacell_common.outpaths import check_out_dir as _check_out_dir
 
 from .models.options import ConfigError
 
@@ -104,9 +108,7 @@ def check_run(scene: Scene) -> str | None:
 
 def check_out_dir(path: str | os.PathLike, opt: str = "--out") -> str | None:
     """Create the output directory now (before simulating); why not, or None (outpaths.check_out_dir)."""
-    from .outpaths import check_out_dir as check
-
-    return check(path, opt)
+    return _check_out_dir(path, opt)
 
 
 def _step_cause(scene: Scene, solver) -> str:
@@ -163,27 +165,6 @@ def check_realtime(scene: Scene, solver, speed: float = 1.0) -> str | None:
     return None
 
 
-def checked_solver(scene: Scene):
-    """The scene's built solver once the run has passed both guards: the scene (check_run) before anything is built,
-    then its resolved plant step (check_solver). RunTooLarge naming the key and the figure otherwise."""
-    from .controller import build_solver
-
-    problem = check_run(scene)
-    if problem:
-        raise RunTooLarge(problem)
-    solver = build_solver(scene)
-    problem = check_solver(scene, solver)
-    if problem:
-        raise RunTooLarge(problem)
-    return solver
-
-
-def scene_cost(scene: Scene) -> float:
-    """Cell steps of one run of the scene, from its built solver (RunTooLarge / ConfigError / ValueError if the
-    scene itself is refused)."""
-    return cell_steps(scene, checked_solver(scene))
-
-
 def batch_budget(total: float, what: str, limit: float = MAX_BATCH_CELL_STEPS) -> str | None:
     """The cell steps of a batch of runs (sweep, paper, robustness) against the limit: one line with the figure."""
     if total > limit:
@@ -192,3 +173,4 @@ def batch_budget(total: float, what: str, limit: float = MAX_BATCH_CELL_STEPS) -
             "one core): fewer points, seeds or repeats, or shorter runs"
         )
     return None
+

@@ -13,14 +13,15 @@ from typing import Any
 
 import numpy as np
 
+from metacell_common.reaction import REACTION_DEFAULTS, REACTION_KEYS
 from protocol import definition as _wire_units
 
 FloatArray = float | np.ndarray  # a number, or a numpy array of them elementwise
 PerCell = float | tuple[float, ...]  # one value for every cell, or one value per cell (cell 1 first)
 
 # The reaction law's parameters (docs/physics.md#reaction-torques): each may be one value or one per cell (the
-# cells' firmware registers K_AB, SIGMA, K1, K2, ASTAR are set one cell at a time).
-REACTION_KEYS = ("k_ab", "sigma", "k1", "k2", "alpha_star")
+# cells' firmware registers K_AB, SIGMA, K1, K2, ASTAR are set one cell at a time). REACTION_KEYS, their defaults
+# and SIGMA_MAIN are metacell_common.reaction's (the command tool's `apply` uses them too).
 
 # ---- measured constants (docs/physics.md#constants, #band-torque) -------------------------------------
 LATTICE_M = 0.060  # a, lattice parameter
@@ -48,12 +49,11 @@ VMAX_V = 5.86  # DRV8874 2.1 A limit at 9 V
 COUNTS_PER_REV = _wire_units.COUNTS_PER_REV  # the wire definition (protocol/definition.py); C: MC_COUNTS_PER_REV
 
 # ---- reaction law (docs/physics.md#reaction-torques) -------------------------------------------------
-SIGMA_MAIN = 9 / 125
 SIGMA_REGIMES = {"conditional": 9 / 125, "unconditional": 6 / 125, "stable": 14 / 125}
 
 
 # the band law and the reaction law are written once, in physics.py (re-exported here for old callers)
-from .physics import band_force, band_slope  # noqa: E402,F401
+from .physics import band_force, band_slope, psi_prime  # noqa: E402,F401
 
 
 @dataclass(frozen=True)
@@ -93,11 +93,11 @@ class Params:
 
     cells: int = 16
     # reaction law, N m / rad (alpha_star in rad): one value, or a tuple of one value per cell (REACTION_KEYS)
-    k_ab: PerCell = 1 / 50
-    k1: PerCell = 3 / 50
-    k2: PerCell = -3 / 50
-    alpha_star: PerCell = 3 * math.pi / 8
-    sigma: PerCell = SIGMA_MAIN
+    k_ab: PerCell = REACTION_DEFAULTS["k_ab"]
+    k1: PerCell = REACTION_DEFAULTS["k1"]
+    k2: PerCell = REACTION_DEFAULTS["k2"]
+    alpha_star: PerCell = REACTION_DEFAULTS["alpha_star"]
+    sigma: PerCell = REACTION_DEFAULTS["sigma"]
     # mechanics
     I_a: float = I_ALPHA
     I_b: float = I_BETA
@@ -213,6 +213,4 @@ class Params:
 
     def psi_prime(self, alpha):
         """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array): physics.psi_prime."""
-        from .physics import psi_prime
-
         return psi_prime(self, alpha)

@@ -11,11 +11,16 @@ from pathlib import Path
 
 from protocol import codec
 
+from .accuracy import DEFAULT, check_level
 from .models import model_names
 from .models.options import (
+    _PERT_KEYS,
+    FAULT_KINDS,
     ConfigError,
     Fault,
+    ImageOptions,
     ModelOptions,
+    NoiseOptions,
     Perturbation,
     parse_fault,
     parse_options,
@@ -162,8 +167,6 @@ def _per_cell_list(key: str, v: list, cells: int) -> tuple[float, ...]:
 
 def known_keys() -> list[str]:
     """Every dotted key a --set / overrides item can name (perturbation fields as perturbation.N.<field>)."""
-    from .models.options import _PERT_KEYS, FAULT_KINDS, ImageOptions, NoiseOptions
-
     keys = [k for k in TOP_KEYS if k not in ("params", "model_options", *LIST_KEYS)]
     keys += [f"params.{f.name}" for f in dataclasses.fields(Params) if f.name != "cells"]
     for f in dataclasses.fields(ModelOptions):
@@ -211,8 +214,6 @@ def scene_table(scene: Scene) -> dict:
 
 def _fault_table(f: Fault) -> dict:
     """A Fault back as its [[fault]] table (only the keys its kind takes)."""
-    from .models.options import FAULT_KINDS
-
     takes = FAULT_KINDS[f.kind][1]
     out: dict = {"kind": f.kind, "start_s": f.start_s}
     if "cell" in takes:
@@ -271,8 +272,6 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     if faults_in and d["model"] != "image":
         raise ConfigError(f"fault: only the image model injects faults into boards (model = {d['model']!r})")
     faults = tuple(parse_fault(f, cells, f"fault[{i + 1}]") for i, f in enumerate(faults_in))
-    from .accuracy import DEFAULT, check_level
-
     accuracy = check_level(d.get("accuracy", DEFAULT))
     explicit = tuple(d.get("model_options", {}).keys())
     return Scene(

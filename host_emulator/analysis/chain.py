@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .stability import Theory, classify_regime
+
 if TYPE_CHECKING:
     from ..params import Params
     from .stability import Theory
@@ -59,8 +61,6 @@ def chain_matrices(
 
     band_factors, eta_factors: (2, n) stiffness factors of each bond (the last column unused) and viscosity
     factors of each cylinder, as models.plant.spreads draws them for the noise model (default: all 1)."""
-    from .stability import Theory
-
     theory = theory or Theory("lattice", True, True, 0.0)
     n = params.cells
     kab, sig, k2 = params.per_cell("k_ab"), params.per_cell("sigma"), params.per_cell("k2")
@@ -109,8 +109,6 @@ def chain_modes(params: Params, theory: Theory | None = None, *, count: int | No
     largest cosine component: the uniform chain's mode index) and dct_lambda_cells (2 n / m; None for m = 0)]}.
     factors: band_factors, eta_factors of chain_matrices."""
     from scipy.fft import dct
-
-    from .stability import Theory
 
     theory = theory or Theory("lattice", True, True, 0.0)
     a, e, i = chain_matrices(params, theory, **factors)
@@ -161,8 +159,6 @@ def chain_summary(params: Params, theory: Theory) -> dict:
     the chain's modes in place of the dispersion curve. unstable_intervals lists every growing mode as a point
     interval at its cosine wavelength 2 n / m (the uniform chain's reading of the same mode); unstable_set_cells
     each such wavelength once."""
-    from .stability import classify_regime
-
     res = chain_modes(params, theory)
     modes = res["modes"]
     grow = [md for md in modes if md["growth_per_s"] > 0]

@@ -13,6 +13,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..provenance import provenance
+from .observables import observables
+from .stability import dispersion, theory_of
+
 if TYPE_CHECKING:
     from ..controller import RunResult
     from ..params import Params
@@ -53,15 +57,11 @@ DISPERSION_KEYS = (
 
 def theory_for(scene: Scene) -> Theory:
     """The linear theory of the scene's model (analysis.stability.theory_of with the scene's inertia switch)."""
-    from .stability import theory_of
-
     return theory_of(scene.model, scene.params, scene.options.inertia)
 
 
 @functools.lru_cache(maxsize=256)
 def _dispersion_cached(params: Params, theory: Theory, cells: int) -> tuple[tuple[str, Any], ...]:
-    from .stability import dispersion
-
     if params.heterogeneous:  # cells with their own laws: the chain's eigenmodes (analysis.chain)
         from .chain import chain_summary
 
@@ -82,9 +82,6 @@ def dispersion_summary(params: Params, theory: Theory, cells: int) -> dict:
 def summarize(scene: Scene, res: RunResult, *, source: str | None = None) -> dict:
     """summary.json content: run figures, observables of the trajectories, the linear theory of the model that ran,
     parameters and provenance. source: "emulator:<model>" (default), "rehearsal:<model>" or "rig"."""
-    from ..provenance import provenance
-    from .observables import observables
-
     obs = observables(res.t, res.alpha, res.beta)
     try:
         disp: dict | None = dispersion_summary(scene.params, theory_for(scene), scene.cells)

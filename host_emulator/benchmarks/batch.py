@@ -12,6 +12,8 @@ import time
 from typing import TYPE_CHECKING
 
 from ..controller import RunResult
+from ..firmware import load
+from ..scene import apply_overrides, resolve, scene_from_dict
 from ..workbench.batch import KEEP, run_batch
 
 if TYPE_CHECKING:
@@ -21,8 +23,6 @@ if TYPE_CHECKING:
 def sweep_scenes(points: int, t_end_s: float = 10.0, base: str = "default") -> list[Scene]:
     """`points` variants of a scene: sigma, push cell and torque and the band-spread seed differ per point."""
     import tomllib
-
-    from ..scene import apply_overrides, resolve, scene_from_dict
 
     f = resolve(base)
     with open(f, "rb") as fh:
@@ -56,8 +56,6 @@ def _worker(args):
 def bench_sweep(points: int, workers: int, t_end_s: float = 10.0, keep: str = "final") -> dict:
     """Wall time of a `points`-point sweep over `workers` processes (process start and set-up included)."""
     import multiprocessing as mp
-
-    from ..firmware import load
 
     load()  # compile outside the timing
     bounds = [(points * w // workers, points * (w + 1) // workers, t_end_s, keep) for w in range(workers)]

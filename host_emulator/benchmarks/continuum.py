@@ -21,7 +21,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..models import make_model
+from ..models.continuum import simulate_continuum
+from ..models.options import ModelOptions, Perturbation
 from ..physics import pypde_reaction
+from ..scene import load_scene
 from .common import WPPoint, best_time, max_err
 
 if TYPE_CHECKING:
@@ -46,8 +50,6 @@ def as_lattice(
     params: Params, cells: int, m: int, perturbations: Sequence[Perturbation]
 ) -> tuple[Params, list[Perturbation]]:
     """(params, perturbations) of the equivalent overdamped lattice with cells*m nodes."""
-    from ..models.options import Perturbation
-
     p = params.with_overrides(cells=cells * m, k_a=params.k_a * m * m, k_b=params.k_b * m * m)
     perts = [
         Perturbation((q.cell - 1) * m + i + 1, q.chain, q.torque_Nm, q.start_s, q.duration_s)
@@ -59,9 +61,6 @@ def as_lattice(
 
 def run_fast(scene: Scene, stepper: str, dt: float, m: int) -> tuple[np.ndarray, float, float]:
     """The continuum on the compiled lattice engine; (T, 2*cells) at the cell centres."""
-    from ..models import make_model
-    from ..models.options import ModelOptions
-
     p, perts = as_lattice(scene.params, scene.cells, m, scene.perturbations)
     model = make_model(
         "lattice",
@@ -82,8 +81,6 @@ def run_fast(scene: Scene, stepper: str, dt: float, m: int) -> tuple[np.ndarray,
 
 
 def run_bdf(scene: Scene, m: int, rtol: float, atol: float) -> np.ndarray:
-    from ..models.continuum import simulate_continuum
-
     _, a, b = simulate_continuum(
         scene.params,
         scene.cells,
@@ -137,8 +134,6 @@ def run_pypde(scene: Scene, m: int, solver: str, **kw: Any) -> np.ndarray:
 def continuum_workprecision(
     t_end_s: float = 3.0, m: int = 4, quick: bool = False, log: Callable[..., None] = print
 ) -> tuple[Scene, list[WPPoint], bool]:
-    from ..scene import load_scene
-
     scene = load_scene("continuum_single", [f"t_end_s={t_end_s}", f"model_options.points_per_cell={m}"])
     t0 = time.perf_counter()
     ref = run_bdf(scene, m, 1e-10, 1e-13)

@@ -22,6 +22,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..analysis.observables import observables
+from ..controller import build_solver, run_solver
+from ..models.hil import HilSolver
+from ..models.options import NoiseOptions
+from ..scene import load_scene
 from .common import best_time, fmt, table
 
 if TYPE_CHECKING:
@@ -31,8 +36,6 @@ TILT_RAD = 0.05
 
 
 def _base(question):
-    from ..scene import load_scene
-
     if question == "pattern":
         sc = load_scene("default", ["t_end_s=10"])
     else:
@@ -43,8 +46,6 @@ def _base(question):
 
 def variants(question: str) -> list[tuple[str, str, Scene]]:
     """(component, variant label, scene) rows; the first is the reference."""
-    from ..models.options import NoiseOptions
-
     b = _base(question)
     P = b.params
     o = b.options
@@ -112,10 +113,6 @@ def _x0(question, n):
 
 
 def run_one(scene: Scene, question: str) -> tuple[dict | None, float, str]:
-    from ..analysis.observables import observables
-    from ..controller import build_solver, run_solver
-    from ..models.hil import HilSolver
-
     def go():
         perts = scene.perturbations if question == "pattern" else []
         x0 = None if scene.model == "hil" else _x0(question, scene.cells)

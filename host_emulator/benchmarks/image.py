@@ -19,6 +19,20 @@ import sys
 import time
 from dataclasses import dataclass
 
+from metacell_common.target.board import NO_LOAD_RAD_PER_V_S, SUPPLY_V
+from protocol.codec import COUNTS_PER_RAD
+
+from ..construct import build_solver
+from ..image import ImageTierUnavailable
+from ..image.build import build_images
+from ..image.model import ImageSolver, bring_up
+from ..image.world import World, WorldConfig
+from ..models.options import ConfigError
+from ..params import Params
+from ..progress import bar
+from ..provenance import machine_line
+from ..scene import load_scene
+
 
 @dataclass
 class Measurement:
@@ -31,9 +45,6 @@ class Measurement:
 
 def full_speed_counts_s() -> float:
     """Encoder counts per second at the motors' no-load speed at full supply (the CPU budget's figure)."""
-    from metacell_tools.fwcheck.cpubudget import NO_LOAD_RAD_PER_V_S, SUPPLY_V
-    from protocol.codec import COUNTS_PER_RAD
-
     return NO_LOAD_RAD_PER_V_S * SUPPLY_V * COUNTS_PER_RAD
 
 
@@ -48,21 +59,12 @@ def _snapshot(world) -> tuple[dict[str, int], int]:
 
 def measure(scenario: str, seconds: float, threads: int) -> Measurement:
     """One measurement: a fresh world brought up (not timed), then `seconds` of board time timed."""
-    from ..controller import build_solver
-    from ..image.build import build_images
-    from ..image.model import bring_up
-    from ..image.world import World, WorldConfig
-    from ..params import Params
-    from ..scene import load_scene
-
     edges = 0
     if scenario == "default":
         scene = load_scene(
             "default", ["model=image", f"t_end_s={seconds + 1}", f"model_options.image.threads={threads}"]
         )
         solver = build_solver(scene)
-        from ..image.model import ImageSolver
-
         assert isinstance(solver, ImageSolver)
         w = solver.world
     else:  # the plant at rest, every encoder at full speed
@@ -108,10 +110,6 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.1 <= args.seconds <= 60 or not 1 <= args.reps <= 20 or not all(1 <= t <= 16 for t in args.threads):
         print("benchmark: --seconds 0.1..60, --reps 1..20, --threads 1..16", file=sys.stderr)
         return 2
-    from ..image import ImageTierUnavailable
-    from ..models.options import ConfigError
-    from ..progress import bar
-    from ..provenance import machine_line
 
     print(f"machine: {machine_line()}")
     print(f"image tier, {args.seconds:g} board seconds per measurement, median of {args.reps}")

@@ -11,7 +11,7 @@ between them: that marginal count divided by the cell-ticks is the figure, last 
 the plant, and the Python that handles the output samples. Both processes run with PYTHONHASHSEED=0 and one
 BLAS/OpenMP thread, so the counts repeat to a few hundred instructions (a spinning BLAS thread alone made them
 wander by 20 million). Instruction counts do not depend on the machine's load or clock, only on the compiled
-code: the compiler, its flags (host_emulator/firmware.py) and the x86-64 baseline instruction set (SSE2).
+code: the compiler, its flags (metacell_common/firmware.py) and the x86-64 baseline instruction set (SSE2).
 
 With callgrind_annotate on the PATH the marginal is also split by source: the firmware (lib/metacell), the
 emulator's C (host_emulator/csrc) and everything else (Python, numpy, libc).
@@ -31,6 +31,11 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from ..firmware import load
+from ..models import ConfigError
+from ..outpaths import check_out_file
+from ..scene import load_scene
+
 # Run in each measured process: 0.1 s of the scene (warm-up), then the scene to t_end. Nothing in it may depend on
 # wall time, which under valgrind follows the machine's load: run_solver sizes its chunks of samples by wall time
 # (CHUNK_WALL_S), so they are fixed at the largest, which a native run of the default scene reaches too; the
@@ -41,7 +46,7 @@ from pathlib import Path
 _CHILD = """
 import sys
 import host_emulator.controller as controller
-import host_emulator.firmware as firmware
+import metacell_common.firmware as firmware
 from host_emulator.controller import build_solver, run_solver
 controller.CHUNK_WALL_S = 1e9
 firmware.RECHECK_S = 1e9
@@ -147,9 +152,6 @@ def count(scene: str, sets: list[str], t_end_s: float, workdir: Path) -> Count:
 
 def measure(scene: str = "default", sets: list[str] | None = None, t0: float = 0.5, t1: float = 2.5) -> Marginal:
     """The marginal instructions per cell and control tick of a hil scene between t0 and t1 of simulated time."""
-    from ..firmware import load
-    from ..scene import load_scene
-
     sets = list(sets or [])
     if not have_valgrind():
         raise InstructionError("valgrind is not installed (Debian: apt-get install valgrind)")
@@ -200,9 +202,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--t1", type=float, default=2.5, help="longer run, s simulated (default 2.5)")
     ap.add_argument("--json", metavar="PATH", help="also write the counts as JSON")
     args = ap.parse_args(argv)
-    from ..models import ConfigError
-    from ..outpaths import check_out_file
-
     problem = check_out_file(args.json, "--json") if args.json else None  # before minutes of callgrind
     if problem:
         print(f"error: {problem}", file=sys.stderr)

@@ -25,7 +25,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import params as P
+from ..models.reference import ReferencePlant
 from .common import WPPoint, clock, max_err, median_time
+from .workprecision import _cuts, compiled_rhs
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -49,8 +52,6 @@ def rtols(quick: bool) -> tuple[float, ...]:
 
 
 def _segments(scene, t_eval):
-    from .workprecision import _cuts
-
     cuts = _cuts(scene)
     segs = []
     for a, b in zip(cuts[:-1], cuts[1:]):
@@ -85,9 +86,6 @@ def diffrax_points(
     except ImportError as e:
         log(f"  diffrax: skipped ({e.name or e} not installed; pip install -e '.[bench]')")
         return []
-    from .. import params as P
-    from ..models.reference import ReferencePlant
-
     if scene.options.bands != "cubic" or scene.options.beta_geometry != "small":
         log("  diffrax: skipped (the jax right-hand side covers cubic bands with small-angle beta only)")
         return []
@@ -209,8 +207,6 @@ def cvode_points(
     except ImportError as e:
         log(f"  CVODE: skipped ({e.name or e} not installed; pip install -e '.[bench]')")
         return []
-    from .workprecision import compiled_rhs
-
     rhs = compiled_rhs(scene)
     n2 = 2 * scene.cells
 

@@ -10,24 +10,22 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..controller import build_solver, run_solver
+from ..models.hil import HilSolver
+from ..models.lattice import LatticeSolver
+from ..scene import load_scene
 from .common import clock, fmt, table
 
 CELLS = (16, 64, 256, 1024, 4096)
 
 
 def _scene(model, cells, t_end_s, dt_out=0.01):
-    from ..scene import load_scene
-
     name = "exp3_single_sigma9" if model == "lattice" else "default"
     return load_scene(name, [f"t_end_s={t_end_s}", f"cells={cells}", f"model_options.dt_out={dt_out}"])
 
 
 def kernel_time(model_name: str, cells: int, t_end_s: float) -> float:
     """Wall time of the compiled loop alone over t_end_s (one C call), best of 3."""
-    from ..controller import build_solver
-    from ..models.hil import HilSolver
-    from ..models.lattice import LatticeSolver
-
     sc = _scene(model_name, cells, t_end_s)
 
     def go() -> float:
@@ -52,8 +50,6 @@ def kernel_time(model_name: str, cells: int, t_end_s: float) -> float:
 def e2e_time(model_name: str, cells: int, t_end_s: float, dt_out: float = 0.01, repeat: int = 5) -> float:
     """Wall time of the controller run (run_solver: chunks of output samples per C call); the model and solver
     construction (a per-cell setup cost, not a per-cell-second one) is outside the timing. Best of `repeat`."""
-    from ..controller import build_solver, run_solver
-
     sc = _scene(model_name, cells, t_end_s, dt_out)
     best = float("inf")
     for _ in range(repeat):

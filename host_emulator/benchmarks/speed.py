@@ -10,6 +10,12 @@ import platform
 import statistics
 import time
 
+from ..controller import build_solver, run_solver
+from ..firmware import load
+from ..provenance import machine_line
+from ..scene import load_scene
+from . import instructions as ins
+
 
 def bench_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
@@ -32,11 +38,6 @@ def bench_main(argv: list[str] | None = None) -> int:
         help="skip the callgrind instruction count (hil scenes; about a minute, needs valgrind)",
     )
     args = ap.parse_args(argv)
-
-    from ..controller import build_solver, run_solver
-    from ..firmware import load
-    from ..provenance import machine_line
-    from ..scene import load_scene
 
     if hasattr(os, "sched_setaffinity"):
         cpus = sorted(os.sched_getaffinity(0))
@@ -79,8 +80,6 @@ def bench_main(argv: list[str] | None = None) -> int:
 
 def _print_instructions(args: argparse.Namespace) -> None:
     """The callgrind count of the same scene (machine-independent), or one line saying why it is not there."""
-    from . import instructions as ins
-
     if args.no_instructions:
         return
     if not ins.have_valgrind():

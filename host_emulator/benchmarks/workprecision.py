@@ -20,6 +20,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..controller import build_solver
+from ..models.hil import HilSolver
+from ..models.lattice import LatticeModel, LatticeSolver
+from ..models.reference import ReferencePlant
+from ..scene import load_scene
 from .common import WPPoint, best_time, fmt, max_err, median_time, table, wall_at
 
 if TYPE_CHECKING:
@@ -44,8 +49,6 @@ FRONT_TARGET = 2.0  # best peer / best ours at every error of the front
 def lattice_scene(t_end_s: float = 3.0, cells: int = 16) -> Scene:
     """experiment 3 (docs/physics.md#experiments) as a lattice scene: 16 cells, sigma 9/125, a 20 mN*m push on alpha_8
     at 0.1-0.2 s."""
-    from ..scene import load_scene
-
     return load_scene("exp3_single_sigma9", [f"t_end_s={t_end_s}", f"cells={cells}"])
 
 
@@ -69,9 +72,6 @@ def _sampled_states(solver: LatticeSolver | HilSolver, t_end_s: float, n: int) -
 def run_ours(scene: Scene, stepper: str, dt: float | None = None, tol: float | None = None) -> tuple[np.ndarray, dict]:
     """Trajectory (T, 2n) of the compiled lattice at the output times with a stepper and its largest step dt (an
     adaptive one: its tolerance tol), and the solver's info (steps, evaluations)."""
-    from ..controller import build_solver
-    from ..models.lattice import LatticeSolver
-
     s = build_solver(scene, resolve=False, options=replace(scene.options, stepper=stepper, dt=dt, tol=tol))
     if not isinstance(s, LatticeSolver):
         raise TypeError(f"scene {scene.name!r} (model {scene.model!r}) is not a lattice scene")
@@ -117,8 +117,6 @@ def solve_segments(
 
 def numpy_rhs(scene: Scene) -> Callable[[float, np.ndarray], np.ndarray]:
     """First-order rhs y = [x, v] of the numpy reference plant (models/reference.py): what a researcher writes."""
-    from ..models.reference import ReferencePlant
-
     ref = ReferencePlant(scene.params, scene.options, scene.perturbations)
     n2 = 2 * ref.n
     inv_i = 1.0 / ref.I
@@ -133,8 +131,6 @@ def numpy_rhs(scene: Scene) -> Callable[[float, np.ndarray], np.ndarray]:
 
 def compiled_rhs(scene: Scene) -> Callable[[float, np.ndarray], np.ndarray]:
     """The same rhs on the compiled plant (he_plant_forces): the reference is solved on exactly our physics."""
-    from ..models.lattice import LatticeModel
-
     m = LatticeModel(scene.params, scene.perturbations, scene.options)
     n2 = 2 * m.n
     inv_i = 1.0 / np.r_[np.full(m.n, scene.params.I_a), np.full(m.n, scene.params.I_b)]
@@ -162,8 +158,6 @@ def lattice_workprecision(
         f"{time.perf_counter() - t0:.2f} s"
     )
     points: list[WPPoint] = []
-    from ..models.lattice import LatticeModel
-
     for st in LATTICE_STEPPERS:
         lim, chain = LatticeModel(scene.params, scene.perturbations, replace(scene.options, stepper=st)).step_limit()
         grid = [dt for dt in DT_GRID if dt <= lim]
@@ -283,9 +277,6 @@ HIL_STEPPERS = ("symplectic_euler", "imex_euler", "noh_bathe", "rk4")
 
 
 def run_hil(scene: Scene, stepper: str, substeps: int) -> np.ndarray:
-    from ..controller import build_solver
-    from ..models.hil import HilSolver
-
     opts = replace(scene.options, stepper=stepper, substeps=substeps, dt=None)
     s = build_solver(scene, resolve=False, options=opts)
     if not isinstance(s, HilSolver):
@@ -298,8 +289,6 @@ def hil_workprecision(
 ) -> tuple[Scene, list[WPPoint]]:
     """The default hil scene (16 cells, 2 kHz firmware) with 1..8 plant steps per control tick, against the
     same loop at 64 RK4 plant steps per tick (the firmware is discrete: the control rate stays)."""
-    from ..scene import load_scene
-
     scene = load_scene("default", [f"t_end_s={t_end_s}"])
     ref = run_hil(scene, "rk4", 64)
     h_ref = 1 / scene.params.control_rate_hz / 64

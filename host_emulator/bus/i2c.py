@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from protocol import wire
+
 T_BUF_S = {100_000: 4.7e-6, 400_000: 1.3e-6}
 
 
@@ -49,8 +51,6 @@ class I2CTiming:
 
 def lattice_rate_limit(hz: int = 400_000, cells: int | None = None, snapshot_len: int | None = None) -> float:
     """Full-lattice samples per second the bus allows: one snapshot read per cell, nothing else on the bus."""
-    from protocol import wire
-
     cells = wire.N_CELLS if cells is None else cells
     if snapshot_len is None:
         snapshot_len = wire.block_len("SNAPSHOT")

@@ -23,7 +23,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .. import firmware
+from ..controller import build_solver
+from ..models.hil import HilSolver
 from ..models.plant import NumericalInstability
+from ..scene import load_scene
 from .i2c import I2CTiming
 
 if TYPE_CHECKING:
@@ -295,10 +298,6 @@ class EmulatedRig:
 def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overrides=()):
     """EmulatedRig over the hil model of a scene (the scene must use model = "hil"), built as a run builds it
     (controller.build_solver: the scene's accuracy preset applies)."""
-    from ..controller import build_solver
-    from ..models.hil import HilSolver
-    from ..scene import load_scene
-
     sc = load_scene(scene_name, overrides)
     if sc.model == "image":  # the flashed primary itself on the pty (host_emulator/image/serve.py)
         if opts is not None and opts != BusOptions(i2c_hz=opts.i2c_hz):

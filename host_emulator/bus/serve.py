@@ -26,7 +26,11 @@ import sys
 import time
 import tty
 
+from metacell_common.portlock import holders
+
+from ..limits import check_realtime, check_run, check_solver
 from ..models.plant import NumericalInstability
+from ..outpaths import show
 from .rig import BusOptions, make_rig
 
 CHUNK_S = 0.005  # simulated time advanced per loop pass
@@ -106,8 +110,6 @@ def check_args(args: argparse.Namespace) -> str | None:
 
 def check_link(link: str) -> str | None:
     """--link must name a symlink we may create (an existing symlink is replaced, nothing else): why not, or None."""
-    from ..outpaths import show
-
     try:
         if os.path.lexists(link) and not os.path.islink(link):
             return f"--link {show(link)}: exists and is not a symlink (not replaced)"
@@ -142,8 +144,6 @@ class ClientWatch:
         if now < self.next:
             return
         self.next = now + self.EVERY_S
-        from metacell_tools.rigtools.portlock import holders
-
         held = holders(self.path, exclude={os.getpid()})
         self.most = max(self.most, len(held))
         pids = frozenset(held)
@@ -176,8 +176,6 @@ def serve_main(argv: list[str] | None = None) -> int:
     except (ValueError, KeyError, OSError) as e:
         print(f"serve: {e}", file=sys.stderr)
         return 2
-    from ..limits import check_realtime, check_run, check_solver
-
     problem = check_run(scene) or check_solver(scene, rig.solver) or check_realtime(scene, rig.solver, args.speed)
     if problem:
         print(f"serve: {problem}", file=sys.stderr)

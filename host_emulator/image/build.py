@@ -1,6 +1,6 @@
 """Build the flashed images (one per cell address, and the primary) with PlatformIO, as the flash tool builds them.
 
-``metacell_tools.flash.plan.board_build_env`` is the one definition of a board's build: the PlatformIO environment,
+``metacell_common.target.build.board_build_env`` is the one definition of a board's build: the PlatformIO environment,
 its own build directory and the source-only flags that give a cell its number and I2C address; the flash tool
 uploads exactly these builds and the image tier runs them. ``build_images`` caches the ELFs by a hash of everything
 the build reads (src/, lib/, platformio.ini, the build hooks) and builds offline through a pre-installed tree's
@@ -19,8 +19,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from metacell_common import firmware
+from metacell_common.target.build import board_build_env
 from metacell_common.target.pio import how_to_build, pio_executable
-from metacell_tools.flash.plan import board_build_env
 from protocol.wire import N_CELLS
 
 from . import ImageTierUnavailable
@@ -54,8 +55,6 @@ class ImageSet:
 
 
 def cache_dir() -> Path:
-    from .. import firmware
-
     return firmware.BUILD_DIR.parent / "image-elf"
 
 

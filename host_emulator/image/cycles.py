@@ -1,14 +1,15 @@
 """Cortex-M0+ cycle model of the SAMD21 at 48 MHz, per instruction, from a linked image's disassembly.
 
-One model serves the static CPU budget (``metacell_tools.fwcheck.cpubudget``, where it is defined: worst paths)
-and the image tier (time charged per executed block: the tables here). Core timings are the Cortex-M0+ ones
-(ARMv6-M): data processing and MULS (the SAMD21 has the single-cycle multiplier) 1, load/store 2, LDM/STM/PUSH
-1+N, POP with PC 3+N, B taken 2 / not taken 1, BL 3, BX/BLX 2, MRS/MSR/barriers 3. On top of them, flash wait
-states (NVMCTRL.CTRLB.RWS, one at 48 MHz): one on every instruction's fetch, one more on every change of flow (the
-refill) and on every PC-relative load, and a surcharge on every access through the AHB-APB bridge. The model is
-conservative: the core reads 32 bits per fetch and the NVM cache may hit, so real code pays less. In the image
-tier the APB surcharge is charged when an access reaches a peripheral (exactly), loads of flash through a register
-are not surcharged, and a conditional branch is charged taken and refunded when execution falls through.
+One model (``metacell_common.target.cycles``, where it is defined) serves the static CPU budget
+(``metacell_tools.fwcheck.cpubudget``: worst paths) and the image tier (time charged per executed block: the tables
+here). Core timings are the Cortex-M0+ ones (ARMv6-M): data processing and MULS (the SAMD21 has the single-cycle
+multiplier) 1, load/store 2, LDM/STM/PUSH 1+N, POP with PC 3+N, B taken 2 / not taken 1, BL 3, BX/BLX 2,
+MRS/MSR/barriers 3. On top of them, flash wait states (NVMCTRL.CTRLB.RWS, one at 48 MHz): one on every instruction's
+fetch, one more on every change of flow (the refill) and on every PC-relative load, and a surcharge on every access
+through the AHB-APB bridge. The model is conservative: the core reads 32 bits per fetch and the NVM cache may hit,
+so real code pays less. In the image tier the APB surcharge is charged when an access reaches a peripheral
+(exactly), loads of flash through a register are not surcharged, and a conditional branch is charged taken and
+refunded when execution falls through.
 
 The image tier has two models of the flash (``CYCLE_MODELS``): ``"cache"`` (default, the typical case) charges
 RWS wait states per miss of the NVM controller's cache (8 direct-mapped lines of 64 bits, DS40001882 "Cache")
@@ -23,8 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# the one cycle model (instruction classes, wait states) and the disassembly it reads: the CPU budget's
-from metacell_tools.fwcheck.cpubudget import (
+# the one cycle model (instruction classes, wait states) and the disassembly it reads: the target's, shared with the
+# CPU budget (metacell_common/target/cycles.py)
+from metacell_common.target.board import FLASH_SIZE
+from metacell_common.target.cycles import (
     F_CPU_HZ,
     LOADS,
     STORES,
@@ -85,9 +88,6 @@ class BlockTables:
     refund: np.ndarray  # uint8 per halfword: low nibble core cycles, high nibble waits (worst-case model)
     code_end: int  # end of the last instruction
     unsupported: list[str]  # instructions the model has no time for (they fault in the image tier)
-
-
-FLASH_SIZE = 0x40000  # SAMD21G18A: 256 KiB of flash (SAM_FLASH_SIZE in csrc/sam.h)
 
 
 def block_tables(image: Image, flash_size: int = FLASH_SIZE, model: CycleModel | None = None) -> BlockTables:

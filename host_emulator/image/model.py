@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from protocol import codec
+from protocol import definition as d
 
 from ..models.hil import REACTION_FIELDS, reaction_problem
 from ..models.lattice import LatticeModel
@@ -23,6 +24,7 @@ from ..models.options import ConfigError, Fault, ModelOptions, Perturbation
 from ..models.plant import choose_step
 from ..models.solver import Solver
 from ..params import Params
+from ..progress import bar
 from . import ImageTierUnavailable
 from .build import build_images
 from .laptop import Laptop, LaptopError
@@ -55,8 +57,6 @@ def bring_up(world: World, params: Params, progress: bool = False) -> tuple[Lapt
     """As on the rig: the laptop plugs the primary's USB in (the boards boot meanwhile: the crystal takes 2 s), opens
     the port and configures every cell with the scene's commands (setup_commands), the drive on last. Returns the
     laptop and what happened (USB enumerated at, refused commands). LaptopError / WorldError when it cannot."""
-    from ..progress import bar
-
     cells = list(range(1, params.cells + 1))
     per_cell = {j: setup_commands(params.cell(j)) for j in cells}  # per-cell reaction values: each cell its own
     n_steps = len(per_cell[1])
@@ -278,6 +278,4 @@ class ImageSolver(Solver):
 
 def reset_cause_names(bits: int) -> list[str]:
     """RESET_CAUSE bits (PM.RCAUSE as the firmware reports it) as names, from the one protocol definition."""
-    from protocol import definition as d
-
     return [name for name, bit in d.RESET_CAUSE.items() if bits >> bit & 1]

@@ -10,7 +10,9 @@ laptop opening the rig's port does.
 from __future__ import annotations
 
 from ..models.options import ConfigError
+from ..models.plant import NumericalInstability
 from .model import ImageSolver
+from .world import WorldError
 
 
 class ImageRig:
@@ -34,9 +36,6 @@ class ImageRig:
         self.transactions = 0
 
     def advance_to(self, sim_us: int) -> None:
-        from ..models.plant import NumericalInstability
-        from .world import WorldError
-
         try:
             self.world.run_to(self.t0 + sim_us * 1e-6)
         except WorldError as e:

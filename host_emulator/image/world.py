@@ -11,6 +11,7 @@ import numpy as np
 
 from ..models.options import ModelOptions, Perturbation
 from ..models.plant import build_plant
+from ..models.steppers import stepper_id
 from ..params import Params
 from . import board, cycles, runtime
 from .build import ImageSet
@@ -80,8 +81,6 @@ class World:
         c.primary = 1 if primary else 0
         c.window_s = cfg.window_s
         c.substeps = cfg.substeps
-        from ..models.steppers import stepper_id
-
         c.stepper = stepper_id(lib, self.options.stepper)
         c.supply_v = params.supply_v
         c.kt = params.kt

@@ -15,6 +15,7 @@ from .lattice import LatticeModel
 from .options import ModelOptions, Perturbation
 from .plant import NumericalInstability, choose_step, error_text
 from .solver import Solver
+from .steppers import stepper_id
 
 # Params field -> (mc_reaction_phys_t member, register carrying the same value on the wire)
 REACTION_FIELDS = (
@@ -150,8 +151,6 @@ class HilSolver(Solver):
     model: HilModel
 
     def __init__(self, model: HilModel, x0: ArrayLike | None = None, v0: ArrayLike | None = None) -> None:
-        from .steppers import stepper_id
-
         self.model = model
         ffi, lib = model.ffi, model.lib
         opt = model.options

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .. import firmware
 from ..params import Params
 from .options import DEFAULT_TOL, ModelOptions, Perturbation
 from .plant import NumericalInstability, build_plant, choose_step, error_text, step_limit
@@ -29,8 +30,6 @@ class LatticeModel:
     def __init__(
         self, params: Params, perturbations: Sequence[Perturbation] = (), options: ModelOptions | None = None
     ) -> None:
-        from .. import firmware
-
         self.params = params
         self.n = params.cells
         self.options = options or ModelOptions()

@@ -14,6 +14,12 @@ import sys
 
 import numpy as np
 
+from ..models import ConfigError, NumericalInstability
+from ..outpaths import check_out_file
+from ..progress import bar
+from .api import run
+from .plots import _title, cell_ticks
+
 MP4_HINT = "pip install imageio-ffmpeg, or the project's extra: pip install 'metamaterial-rig[video]'"
 
 
@@ -37,8 +43,6 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
     quiet=False: a progress bar over the frames drawn (on a terminal only)."""
     from matplotlib.animation import FuncAnimation
     from matplotlib.figure import Figure
-
-    from .plots import _title
 
     path = str(path)
     if not path.endswith((".gif", ".mp4")):
@@ -72,8 +76,6 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
     bot.set_ylim(-1.1 * lim, 1.1 * lim)
     bot.axhline(0, color="0.7", lw=0.8)
     bot.set_xlabel("cell j")
-    from .plots import cell_ticks
-
     cell_ticks(bot.xaxis, n)
     bot.set_ylabel("alpha (rad)")
     (prof,) = bot.plot([], [], "o-", color="C0")
@@ -92,8 +94,6 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
         return pa, pb, prof, txt
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
-    from ..progress import bar
-
     pbar = bar(len(frames), desc=f"animate {path.rsplit('/', 1)[-1]}", unit="frame", quiet=quiet)
 
     def advance(i: int, total: int) -> None:
@@ -165,14 +165,9 @@ def animate_main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--quiet", action="store_true", help="no progress bars (they show on a terminal only anyway)")
     args = ap.parse_args(argv)
-    from ..models import ConfigError, NumericalInstability
-    from .api import run
-
     if not (1 <= args.fps <= 60) or not args.t_max > 0:
         print("error: --fps must be 1..60 and --t-max > 0", file=sys.stderr)
         return 2
-    from ..outpaths import check_out_file
-
     problem = check_out_file(args.out, "--out", (".gif", ".mp4"))
     if problem:
         print(f"error: {problem}", file=sys.stderr)

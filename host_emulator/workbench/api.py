@@ -19,6 +19,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..provenance import provenance
+from ..scene import apply_overrides, scene_from_dict, scene_table
+from ..scene import list_scenes as _ls
+from ..scene import load_scene as _load
+from .plots import plot_spacetime
+
 if TYPE_CHECKING:
     import xarray as xr
     from matplotlib.axes import Axes
@@ -105,8 +111,6 @@ class RunResult:
 
     def plot(self, ax: Axes | None = None) -> FigureBase:
         """Space-time map of alpha and beta (a Figure); see plots.plot_spacetime."""
-        from .plots import plot_spacetime
-
         return plot_spacetime(self, ax=ax)
 
 
@@ -132,8 +136,6 @@ def _flat(prefix, v, out):
 
 def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
     """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance."""
-    from ..provenance import provenance
-
     out: dict = {}
     d = scene.as_dict()
     _flat(
@@ -173,9 +175,6 @@ def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
 
 def load_scene(scene: str | Scene, overrides: Overrides = None, accuracy: str | None = None) -> Scene:
     """A validated Scene from a shipped name / TOML path (or a Scene, returned with the overrides applied)."""
-    from ..scene import apply_overrides, scene_from_dict, scene_table
-    from ..scene import load_scene as _load
-
     over = override_list(overrides) + ([f'accuracy="{accuracy}"'] if accuracy else [])
     if hasattr(scene, "as_dict") and not isinstance(scene, str):
         if not over:
@@ -186,8 +185,6 @@ def load_scene(scene: str | Scene, overrides: Overrides = None, accuracy: str | 
 
 
 def list_scenes() -> list[str]:
-    from ..scene import list_scenes as _ls
-
     return [n for n, _, _ in _ls()]
 
 

@@ -21,7 +21,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..accuracy import resolve_options
 from ..controller import RunResult, run_scene
+from ..models import make_model
 from ..models.plant import NumericalInstability
 
 if TYPE_CHECKING:
@@ -35,9 +37,6 @@ def _batchable(scene) -> bool:
 
 
 def _build(scene):
-    from ..accuracy import resolve_options
-    from ..models import make_model
-
     options = resolve_options(
         scene.model,
         scene.params,

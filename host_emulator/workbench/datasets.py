@@ -7,7 +7,8 @@
   the first repeat with data, or ``repeat=k`` (from repeat_kk.npz, the logger arrays of that repeat);
 * a logger capture (``python -m metacell_tools.rigtools.logger -o PREFIX``: PREFIX.npz or PREFIX.csv);
 * a python-can log (``python -m can.logger -f run.asc``; ASC, BLF, LOG, TRC, MF4, SQLite, python-can's CSV),
-  decoded with the project's DBC (protocol/metacell.dbc through cantools) by the logger's SampleDecoder;
+  decoded with the project's DBC (protocol/metacell.dbc through cantools) by the capture decoder
+  (protocol.capture.SampleDecoder, the logger's);
 * an NPZ in this layout, or the older layouts (the emulator's ``t, alpha, beta``; the logger's ``t_s, alpha_rad,
   ...``), and a NetCDF file written from such a dataset.
 
@@ -35,35 +36,51 @@ renamed (``save_npz_atomic``): a reader never finds a cut or empty NPZ, even aft
 from __future__ import annotations
 
 import json
-import math
+import zipfile
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from metacell_common.runlayout import (
+    EXTRA_ARRAYS,
+    FORMAT,
+    VARIABLES,
+    _json_attrs,
+    logger_layout,
+    save_npz_atomic,
+    write_npz,
+)
+from protocol.capture import SampleDecoder, gaps_from_rows, read_rows, rows_to_arrays
+
+from ..physics import reaction
+from .api import _flat, netcdf_attrs
+
 if TYPE_CHECKING:
     import xarray as xr
 
     from ..scene import Scene
 
-__all__ = ["FORMAT", "VARIABLES", "load", "make_dataset", "to_npz", "read_npz", "from_run", "from_logger_arrays"]
+__all__ = [
+    "FORMAT",
+    "VARIABLES",
+    "load",
+    "make_dataset",
+    "to_npz",
+    "read_npz",
+    "from_run",
+    "from_logger_arrays",
+    # the run layout's NPZ writer (metacell_common.runlayout), here under its old names
+    "EXTRA_ARRAYS",
+    "logger_layout",
+    "save_npz_atomic",
+    "write_npz",
+    "_json_attrs",
+]
 
-FORMAT = "metacell-run/1"
 CAN_LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc", ".mf4", ".db")
-# name -> (units, long name)
-VARIABLES: dict[str, tuple[str, str]] = {
-    "alpha": ("rad", "tall (alpha, honey) cylinder angle, CCW positive"),
-    "beta": ("rad", "short (beta) cylinder angle, CCW positive"),
-    "torque_alpha": ("N m", "reaction torque commanded on the alpha cylinder"),
-    "torque_beta": ("N m", "reaction torque commanded on the beta cylinder"),
-    "flags": ("1", "CELL_SAMPLE flags: ENABLED 1, BEMF 2, PERTURBING 4, PENDING 8, FAULT 16; -1 = no sample"),
-    "sample_time": ("s", "the primary's clock when the cell was sampled"),
-    "alpha_counts": ("count", "alpha encoder counts (400 per revolution)"),
-    "beta_counts": ("count", "beta encoder counts (400 per revolution)"),
-    "host_time": ("s", "laptop clock (Unix time) when the sample was received"),
-}
-EXTRA_ARRAYS = ("cycle", "segment", "partial", "gaps")  # rig captures: per-row cycle, segment, partial; gap table
 
 
 class LoadError(ValueError):
@@ -138,8 +155,6 @@ def run_arrays(scene: Scene, time, alpha, beta, source: str) -> dict[str, np.nda
         "beta": b,
     }
     if source.startswith("emulator:") and scene.model in ("lattice", "continuum"):
-        from ..physics import reaction
-
         ra, rb = reaction(scene.params, a, b)
         if scene.model == "lattice":
             lim = scene.params.torque_limit_nm
@@ -150,8 +165,6 @@ def run_arrays(scene: Scene, time, alpha, beta, source: str) -> dict[str, np.nda
 
 def run_attrs(scene: Scene, summary: dict | None, source: str) -> dict:
     """Attributes of a run: the scene (every parameter), the scalar observables and theory, provenance, source."""
-    from .api import netcdf_attrs
-
     return {**netcdf_attrs(scene, summary), "source": source}
 
 
@@ -165,48 +178,6 @@ def from_run(scene: Scene, time, alpha, beta, summary: dict | None = None, sourc
 def write_run(path: str | Path, scene: Scene, time, alpha, beta, summary: dict | None, source: str) -> Path:
     """A run's NPZ in this layout without building a dataset (the run command writes trajectories.npz with it)."""
     return write_npz(path, run_arrays(scene, time, alpha, beta, source), run_attrs(scene, summary, source))
-
-
-def logger_layout(arr: Mapping[str, np.ndarray], t0: float | None = None) -> dict[str, Any]:
-    """The logger's cycle x cell arrays (SampleDecoder.arrays(), or an old logger NPZ) as this layout's arrays (numpy
-    only): row time = the mean primary clock of the row's samples minus t0 (default: the first row's), as the
-    experiment runner's series; cells without a sample in a row are NaN (never held). Key t_origin_s: that t0."""
-    import warnings
-
-    from protocol.codec import RAD_PER_COUNT
-
-    ts = np.asarray(arr["t_s"], dtype=float)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # rows of a cell-less segment
-        t = np.nanmean(ts, axis=1) if ts.size else np.zeros(0)
-    keep = np.isfinite(t)
-    if t0 is None:
-        t0 = float(t[keep][0]) if keep.any() else 0.0
-    a_all = np.asarray(arr["alpha_counts"], dtype=float)
-    a = a_all[keep]
-    b = np.asarray(arr["beta_counts"], dtype=float)[keep]
-    if "partial" in arr:
-        partial = np.asarray(arr["partial"], dtype=bool)
-    else:  # a logger NPZ written before the flag
-        from metacell_tools.rigtools.logger import partial_cycles
-
-        partial = partial_cycles(np.asarray(arr["segment"]), a_all)
-    return {
-        "time": t[keep] - t0,
-        "cell": np.asarray(arr.get("cells", np.arange(1, a.shape[1] + 1))),
-        "alpha": a * RAD_PER_COUNT,
-        "beta": b * RAD_PER_COUNT,
-        "sample_time": ts[keep] - t0,
-        "alpha_counts": a,
-        "beta_counts": b,
-        "flags": np.asarray(arr["flags"], dtype=np.int16)[keep],
-        "host_time": np.asarray(arr["host_time"], dtype=float)[keep],
-        "cycle": np.asarray(arr["cycle"])[keep],
-        "segment": np.asarray(arr["segment"])[keep],
-        "partial": partial[keep],
-        "gaps": np.asarray(arr["gaps"]).reshape(-1, 4),
-        "t_origin_s": t0,
-    }
 
 
 def from_logger_arrays(arr: Mapping[str, np.ndarray], attrs: Mapping[str, Any] | None = None, t0: float | None = None):
@@ -224,60 +195,6 @@ def from_logger_arrays(arr: Mapping[str, np.ndarray], attrs: Mapping[str, Any] |
 
 
 # ---- the NPZ file -------------------------------------------------------------------------------------------
-def _json_attrs(attrs: Mapping[str, Any]) -> str:
-    def conv(v):
-        if isinstance(v, np.ndarray):
-            return v.tolist()
-        if isinstance(v, (np.integer,)):
-            return int(v)
-        if isinstance(v, (np.floating,)):
-            return float(v) if math.isfinite(v) else None
-        return v
-
-    return json.dumps({k: conv(v) for k, v in attrs.items()}, allow_nan=False, default=str)
-
-
-def save_npz_atomic(path: str | Path, arrays: Mapping[str, Any]) -> Path:
-    """np.savez_compressed to <path>.tmp, fsync, rename over <path>: a reader never sees a cut or empty NPZ (a full
-    disk or a kill leaves the previous file or none, never a 0-byte one). As numpy, '.npz' is appended to a name
-    without it; returns the path written."""
-    import os
-
-    path = Path(path)
-    if path.suffix != ".npz":
-        path = path.with_name(path.name + ".npz")
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
-
-
-def write_npz(path: str | Path, arrays: Mapping[str, Any], attrs: Mapping[str, Any]) -> Path:
-    """Write this layout's arrays (time, cell, alpha, beta, and any of VARIABLES / EXTRA_ARRAYS) and attributes as
-    NPZ, numpy only (the logger writes its captures with it), atomically (save_npz_atomic); returns the path."""
-    out: dict[str, Any] = {
-        "format": np.array(FORMAT),
-        "attrs": np.array(_json_attrs({"format": FORMAT, **attrs})),
-    }
-    for name in ("time", "cell", *VARIABLES, *EXTRA_ARRAYS):
-        if name in arrays and arrays[name] is not None:
-            out[name] = np.asarray(arrays[name])
-    missing = [k for k in ("time", "cell", "alpha", "beta") if k not in out]
-    if missing:
-        raise ValueError(f"write_npz: missing {', '.join(missing)}")
-    return save_npz_atomic(path, out)
-
-
 def to_npz(ds: xr.Dataset, path: str | Path) -> Path:
     """Write a dataset of this layout as NPZ (compressed); returns the path."""
     arrays = {k: ds[k].values for k in ("time", "cell", *VARIABLES, *EXTRA_ARRAYS) if k in ds.variables}
@@ -287,9 +204,6 @@ def to_npz(ds: xr.Dataset, path: str | Path) -> Path:
 def read_npz(path: str | Path, attrs: Mapping[str, Any] | None = None) -> xr.Dataset:
     """An NPZ of this layout, of the emulator's older ``t, alpha, beta`` or of the logger's older arrays. A file
     that is no NPZ (empty, cut, another format) is a LoadError naming it, never a numpy or zipfile traceback."""
-    import zipfile
-    import zlib
-
     path = Path(path)
     try:
         return _read_npz(path, attrs)
@@ -321,8 +235,6 @@ def _read_npz(path: Path, attrs: Mapping[str, Any] | None) -> xr.Dataset:
 
 # ---- captures -----------------------------------------------------------------------------------------------
 def _from_rows(rows: np.ndarray, gaps, attrs) -> xr.Dataset:
-    from metacell_tools.rigtools.logger import gaps_from_rows, rows_to_arrays
-
     if gaps is None:  # a CSV alone: the gaps its cycle counters show
         gaps = gaps_from_rows(rows)
 
@@ -332,11 +244,9 @@ def _from_rows(rows: np.ndarray, gaps, attrs) -> xr.Dataset:
 
 def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
     """A python-can log file (any format can.LogReader reads), its CELL_SAMPLE frames decoded with the project's DBC
-    by the logger's SampleDecoder (time unwrapped on the primary's heartbeat, gaps found on the sequence counters).
-    """
+    by the capture decoder (protocol.capture.SampleDecoder: time unwrapped on the primary's heartbeat, gaps found
+    on the sequence counters)."""
     import can
-
-    from metacell_tools.rigtools.logger import SampleDecoder
 
     notes: list[str] = []
     dec = SampleDecoder(report=notes.append)
@@ -366,14 +276,10 @@ def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
 
 
 def _logger_csv(path: Path, source: str | None) -> xr.Dataset:
-    from metacell_tools.rigtools.logger import read_rows
-
     rows = read_rows(path)
     meta = {}
     npz = path.with_suffix(".npz")
     if npz.exists():  # the capture's attributes (source, provenance) live in its NPZ
-        import zipfile
-
         try:
             with np.load(npz, allow_pickle=False) as z:
                 if "attrs" in z.files:
@@ -409,8 +315,6 @@ def _summary_source(s: dict) -> str:
 
 
 def _scene_attrs(s: dict) -> dict:
-    from .api import _flat
-
     out: dict = {}
     _flat(
         "",

@@ -37,8 +37,12 @@ import numpy as np
 
 from ..analysis.observables import observables
 from ..analysis.stability import Theory, dispersion, format_set
+from ..construct import scene_cost
 from ..controller import run_scene
+from ..limits import batch_budget
+from ..outpaths import check_out_dir
 from ..params import Params
+from ..progress import bar
 from ..scene import load_scene
 from .plots import cell_ticks
 
@@ -362,8 +366,6 @@ def draw_fig3(runs: dict[str, Any], path: Path) -> None:
 def build(out: Path, repeats: int = 10, *, quiet: bool = False) -> dict:
     """Run every item, draw the figures into out/, write out/paper.json; returns its content. A progress bar (one
     step per run) on a terminal unless quiet."""
-    from ..progress import bar
-
     t0 = time.perf_counter()
     items: list[Item] = []
     curves = fig2_theory(items)
@@ -395,8 +397,6 @@ def build(out: Path, repeats: int = 10, *, quiet: bool = False) -> dict:
 
 def paper_budget(repeats: int) -> str | None:
     """The runs of `paper` (Fig. 2's five, Fig. 3's three panels x repeats) against the batch limit."""
-    from ..limits import batch_budget, scene_cost
-
     runs = [(s, sets) for s, sets, _ in FIG2_RUNS.values()] + [  # as fig2_runs runs them
         ("exp3_single_sigma14", ["model=lattice", "model_options.dt_out=0.002"]),
         ("exp3_single_sigma14", ["params.bemf_comp=true"]),
@@ -467,8 +467,6 @@ def paper_main(argv: list[str] | None) -> int:
         print(f"paper: error: --repeats {args.repeats}: must be in 1..1000", file=sys.stderr)
         return 2
     out = Path(args.out)
-    from ..outpaths import check_out_dir
-
     problem = check_out_dir(out) or paper_budget(args.repeats)
     if problem:
         print(f"paper: error: {problem}", file=sys.stderr)

@@ -10,6 +10,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
+from ..construct import scene_cost
+from ..limits import batch_budget
+from ..outpaths import check_out_dir
+from ..progress import bar
 from ..scene import load_scene
 from .paper import _BAR, NOISE, PERIOD_TOL, SOURCE_PERIOD_S, _json_default, _noise_sets, _run, aligned
 
@@ -58,8 +62,6 @@ def robustness(
     """Per scene: the fraction of noise seeds (5 % band and viscosity spread; and the same with encoder jitter)
     and of hand pushes (every torque x duration, no noise) that select the source's result. quiet=False: a progress
     bar (one step per run) on a terminal."""
-    from ..progress import bar
-
     names = list(scenes or ROBUST_SCENES)
     total = 0
     for name in names:
@@ -116,8 +118,6 @@ def robustness_budget(
 ) -> str | None:
     """robustness's runs (per scene: seeds, seeds with jitter on hil, every push) x their cost, against the batch
     limit, before any run: one line with the figure, or None."""
-    from ..limits import batch_budget, scene_cost
-
     total = 0.0
     for name in scenes or ROBUST_SCENES:
         model, _ = ROBUST_SCENES[name]
@@ -184,8 +184,6 @@ def robustness_main(argv: list[str] | None) -> int:
     if not 1 <= args.seeds <= 10000:
         print(f"robustness: error: --seeds {args.seeds}: must be in 1..10000", file=sys.stderr)
         return 2
-    from ..outpaths import check_out_dir
-
     problem = (check_out_dir(args.out) if args.out else None) or robustness_budget(args.seeds, args.scene)
     if problem:
         print(f"robustness: error: {problem}", file=sys.stderr)

@@ -450,7 +450,7 @@ def cmd_run(
             source = "rehearsal:hil"
             print(f"note: {channel} is a pseudo-terminal (the emulator's serve): labelled {source}", file=sys.stderr)
     out = Path(args.out or Path("out") / ("rig" if source == "rig" else "rehearsal") / scene.name)
-    from host_emulator.outpaths import check_out_dir, check_out_file, first_problem
+    from metacell_common.outpaths import check_out_dir, check_out_file, first_problem
 
     problem = first_problem(
         check_out_dir(out), check_out_file(args.live_png, "--live-png") if getattr(args, "live_png", None) else None
@@ -492,7 +492,7 @@ def cmd_rehearse(args: argparse.Namespace) -> int:
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    from host_emulator.outpaths import check_out_dir
+    from metacell_common.outpaths import check_out_dir
 
     problem = check_out_dir(Path(args.out or Path("out") / "rehearsal" / scene.name))  # where cmd_run writes
     if problem:
@@ -533,6 +533,6 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
     except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
-        from host_emulator.cli import unexpected
+        from metacell_common.cli import unexpected
 
         return unexpected(e, "experiment")

@@ -18,6 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from host_emulator.analysis.observables import spatial_period
+from host_emulator.workbench.datasets import LoadError, _summary_source, final_profile, load
+from metacell_common.outpaths import check_out_file
+
 
 class CompareError(ValueError):
     """A path without a usable run, or runs that cannot be compared."""
@@ -46,8 +50,6 @@ def _arr(v) -> np.ndarray:
 
 
 def _from_summary(d: Path, s: dict, source: str | None) -> Run:
-    from host_emulator.workbench.datasets import _summary_source
-
     for k in ("scene", "final_alpha_rad", "final_beta_rad"):
         if k not in s:
             raise CompareError(f"{d / 'summary.json'}: no {k!r} key (not a run summary)")
@@ -74,9 +76,6 @@ def _from_summary(d: Path, s: dict, source: str | None) -> Run:
 
 def open_run(path: Path, source: str | None = None) -> Run:
     """The final profile of whatever host_emulator.load opens at path."""
-    from host_emulator.analysis.observables import spatial_period
-    from host_emulator.workbench.datasets import LoadError, final_profile, load
-
     path = Path(path)
     f = path / "summary.json"
     if path.is_dir() and f.exists():
@@ -197,8 +196,6 @@ def compare(
     if a.cells != b.cells:
         raise CompareError(f"different cell counts: {a.cells} vs {b.cells}")
     out = Path(out) if out else (Path(a_path) if Path(a_path).is_dir() else Path(a_path).parent) / "compare.png"
-    from host_emulator.outpaths import check_out_file
-
     problem = check_out_file(out, "--out")  # before the plot is drawn: one line, never a traceback
     if problem:
         raise CompareError(problem)

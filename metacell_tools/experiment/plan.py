@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from host_emulator.params import Params
+from metacell_common.cli import cells_text
 from metacell_tools.rigtools import proto
 from metacell_tools.rigtools.command import CTRL_RATE_HZ
 from protocol import codec
@@ -91,8 +92,6 @@ def param_commands(name: str, reg: str, p: Params) -> list[Command]:
     if name not in p.per_cell_keys:
         v = p.value(name)
         return [Command(reg, {"value": wire_param(name, v)}, f"{name} = {v:.6g}")]
-    from metacell_tools.experiment.runner import cells_text
-
     vals = p.per_cell(name)
     groups: dict[int, list[int]] = {}
     for j, v in enumerate(vals, start=1):

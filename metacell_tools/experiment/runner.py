@@ -3,7 +3,8 @@ always disable.
 
 One `Experiment` owns the bus for the whole session. Every frame received (also while a
 command waits for its result) goes to the python-can writers and to the current repeat's
-`SampleDecoder` (metacell_tools/rigtools/logger.py), which finds the gaps in the sequence counters.
+`SampleDecoder` (metacell_tools/rigtools/logger/files.py, on protocol/capture.py), which finds the gaps in the
+sequence counters.
 Every command goes through `RigClient` (metacell_tools/rigtools/command.py) and its per-cell result
 is checked and kept. Experiment time (perturbation starts, t_end, settle and relax windows)
 runs on the primary's clock as carried by the samples, so a rehearsal on an emulator that
@@ -19,7 +20,7 @@ import math
 import sys
 import time
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,26 +28,12 @@ import can
 import numpy as np
 
 from host_emulator.analysis.observables import DEFAULT_TOL_RAD, is_steady
+from metacell_common.cli import cells_text
+from metacell_tools.rigtools import proto
 from metacell_tools.rigtools.command import RigClient
 from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
 from .plan import Command, ExperimentPlan
-
-
-def cells_text(cells: Iterable[int]) -> str:
-    """[1, 2, 3, 5] -> '1-3, 5'."""
-    out: list[str] = []
-    run: list[int] = []
-    for j in sorted(cells):
-        if run and j == run[-1] + 1:
-            run.append(j)
-            continue
-        if run:
-            out.append(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)))
-        run = [j]
-    if run:
-        out.append(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)))
-    return ", ".join(out)
 
 
 class LinkError(RuntimeError):
@@ -255,8 +242,6 @@ class Experiment:
 
         Returns {cell: record}; a cell that did not send its block gets {"error": ...}. A map id that differs
         from this protocol definition's is reported (the cell would read our frames with another layout)."""
-        from metacell_tools.rigtools import proto
-
         try:
             info = self.client.info(list(self.plan.cells), blocks=("IDENT",))
         except Exception as e:

@@ -22,6 +22,8 @@ from host_emulator.analysis.observables import observables, spatial_period
 from host_emulator.analysis.summary import summarize
 from host_emulator.controller import RunResult
 from host_emulator.scene import Scene
+from metacell_common.cli import cells_text
+from metacell_common.provenance import provenance
 
 from .runner import Experiment, Repeat, Series, series
 
@@ -204,8 +206,6 @@ def build(
         }
     )
     out.pop("solver", None)
-    from host_emulator.provenance import provenance
-
     out["provenance"] = provenance() | identity_provenance(exp.identity)  # code, libraries, time, command, cells
     out["cell_identity"] = {str(j): r for j, r in sorted(exp.identity.items())}
     out["cell_identity_mismatch"] = sorted(j for j, r in exp.identity.items() if r.get("map_id_matches") is False)
@@ -215,8 +215,6 @@ def build(
 def identity_provenance(identity: dict) -> dict:
     """Flat strings for the provenance block: each distinct firmware version, build and protocol map id with the
     cells that reported it (e.g. "1.0 (cells 1-16)"), and the cells that sent no identity."""
-    from .runner import cells_text
-
     out = {}
     for key, name in (("fw_version", "cell_fw_version"), ("build", "cell_build"), ("map_id", "cell_map_id")):
         groups: dict = {}

@@ -7,7 +7,9 @@ import shlex
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from .addresses import CELL_COUNT, cell_address
+from metacell_common.target.build import board_build_env  # the one definition of a board's build
+
+from .addresses import CELL_COUNT
 from .boards import Port, xiao_ports
 from .bossac import BossacUpload
 from .inventory import Board
@@ -65,29 +67,6 @@ def parse_only(text: str | None) -> set | None:
     if not sel:
         raise PlanError("--only selects nothing")
     return sel
-
-
-def board_build_env(
-    role: str, cell: int | None, project: Path = ROOT, build_root: Path | None = None
-) -> tuple[str, tuple[tuple[str, str], ...]]:
-    """(PlatformIO environment, environment variables) of one board's build: the one definition of what is flashed
-    (the upload here, the emulator's image tier runs the same builds). A cell's number and address are src-only
-    build flags (the library objects are the same for every cell), each board in its own build directory so
-    rebuilds stay incremental (see docs/hardware.md)."""
-    base = Path(build_root) if build_root is not None else Path(project) / ".pio"
-    if role == "cell":
-        if cell is None or not 1 <= cell <= CELL_COUNT:
-            raise ValueError(f"cell {cell!r}: expected 1..{CELL_COUNT}")
-        return "cell", (
-            ("PLATFORMIO_BUILD_DIR", str(base / f"build-cell{cell:02d}")),
-            ("PLATFORMIO_BUILD_SRC_FLAGS", f"-DMC_CELL_INDEX={cell} -DMC_CELL_ADDR=0x{cell_address(cell):02x}"),
-        )
-    if role == "primary":
-        return "primary", (
-            ("PLATFORMIO_BUILD_DIR", str(base / "build-primary")),
-            ("PLATFORMIO_BUILD_SRC_FLAGS", ""),  # cancel any inherited cell flags
-        )
-    raise ValueError(f"role {role!r}: expected 'cell' or 'primary'")
 
 
 def upload_step(

@@ -15,8 +15,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
-from . import armbuild
+from metacell_common.outpaths import check_out_file
+
+from . import armbuild, cpubudget, golden, irqmap, qemu
+from .cpubudget import BUDGET_LIMIT
+from .qemu import DEFAULT_SEED
 
 
 def _softfloat(objs) -> bool:
@@ -45,8 +50,6 @@ def _size(objs) -> None:
 
 
 def _vectors(seed: int) -> bool:
-    from . import qemu
-
     c = qemu.golden_compare(seed)
     print(
         f"QEMU golden vectors (seed {seed:#x}): {c.identical}/{c.n_host} bit-identical, "
@@ -60,10 +63,6 @@ def _vectors(seed: int) -> bool:
 
 def _variant(lib_src, cflags):
     """(objects, bench ELF or None) for a variant library / flags, or the real one."""
-    from pathlib import Path
-
-    from . import qemu
-
     if not lib_src and not cflags:
         return armbuild.library_objects(), None
     src = Path(lib_src).resolve() if lib_src else armbuild.LIB_SRC
@@ -73,8 +72,6 @@ def _variant(lib_src, cflags):
 
 
 def _profile(elf, verbose: bool) -> None:
-    from . import qemu
-
     total, per, lines = qemu.tick_profile(elf)
     print(f"one enabled, fault-free tick with a perturbation: {total} instructions")
     for name, n in per:
@@ -84,8 +81,6 @@ def _profile(elf, verbose: bool) -> None:
 
 
 def _ticks(elf=None) -> bool:
-    from . import qemu
-
     s = qemu.tick_stats(elf)
     calib_ok = s.calibration == s.expected
     print(
@@ -112,8 +107,6 @@ def _ticks(elf=None) -> bool:
 
 
 def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
-    from pathlib import Path
-
     if not elf or not Path(elf).is_file():
         print(f"fwcheck lint: --elf must name a linked image (got {elf!r})", file=sys.stderr)
         return 2
@@ -133,10 +126,6 @@ def _lint(elf: str | None, extra_roots: list[str], role: str = "cell") -> int:
 
 
 def _irq(elf: str | None, role: str) -> int:
-    from pathlib import Path
-
-    from . import irqmap
-
     if not elf or not Path(elf).is_file():
         print(f"fwcheck irq: --elf must name a linked image (got {elf!r})", file=sys.stderr)
         return 2
@@ -150,10 +139,6 @@ def _irq(elf: str | None, role: str) -> int:
 
 
 def _cpu_budget(elf: str | None, limit: float) -> int:
-    from pathlib import Path
-
-    from . import cpubudget, irqmap
-
     path = Path(elf) if elf else cpubudget.DEFAULT_ELF
     if not path.is_file():
         print(
@@ -224,10 +209,6 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         if a.command == "golden-header":
-            from host_emulator.outpaths import check_out_file
-
-            from . import golden
-
             problem = check_out_file(a.out, "--out") if a.out else None
             if problem:
                 print(f"fwcheck: {problem}", file=sys.stderr)
@@ -241,8 +222,6 @@ def main(argv: list[str] | None = None) -> int:
         if a.command == "irq":
             return _irq(a.elf, a.role)
         if a.command == "cpu-budget":
-            from .cpubudget import BUDGET_LIMIT
-
             return _cpu_budget(a.elf, BUDGET_LIMIT if a.limit is None else a.limit)
         objs, bench_elf = _variant(a.lib_src, a.cflags)
         if a.command == "profile":
@@ -255,8 +234,6 @@ def main(argv: list[str] | None = None) -> int:
                 ok &= _division(objs)
             _size(objs)
         if a.command in ("report", "vectors"):
-            from .qemu import DEFAULT_SEED
-
             ok &= _vectors(a.seed if a.seed is not None else DEFAULT_SEED)
         if a.command in ("report", "ticks"):
             ok &= _ticks(bench_elf)

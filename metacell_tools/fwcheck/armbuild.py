@@ -18,12 +18,14 @@ import hashlib
 import os
 import re
 import shutil
-import subprocess
 import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
+
+from metacell_common.target.toolchain import ToolError
+from metacell_common.target.toolchain import run as _run
 
 ROOT = Path(__file__).resolve().parents[2]
 LIB_SRC = ROOT / "lib" / "metacell" / "src"
@@ -76,19 +78,6 @@ DIVISION_RE = re.compile(
     r"^(__aeabi_u?idiv(mod)?|__aeabi_u?ldivmod|__u?(div|mod)[sdt]i3|__udivmod[sdt]i4"
     r"|__divmod[sdt]i4|__gnu_u?ldivmod_helper)$"
 )
-
-
-class ToolError(RuntimeError):
-    """A cross tool is missing or failed; the message names it."""
-
-
-def _run(cmd: list[str], cwd: Path | None = None) -> str:
-    if shutil.which(cmd[0]) is None:
-        raise ToolError(f"{cmd[0]} not found: run tools/setup.sh (Debian gcc-arm-none-eabi)")
-    p = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
-    if p.returncode != 0:
-        raise ToolError(f"{' '.join(cmd)} failed:\n{p.stdout}{p.stderr}")
-    return p.stdout
 
 
 def library_sources() -> list[Path]:

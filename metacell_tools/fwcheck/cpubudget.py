@@ -19,493 +19,67 @@ Method (docs/hardware.md, "CPU budget"):
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-F_CPU_HZ = 48_000_000
+# the target's facts and the analysis, under the names this module always had (tests, image tier, fwcheck)
+from metacell_common.target.board import (
+    COUNTS_PER_REV,
+    ENCODERS,
+    F_CPU_HZ,
+    NO_LOAD_RAD_PER_V_S,
+    SUPPLY_V,
+    TICK_HZ,
+    max_edge_rate_hz,
+)
+from metacell_common.target.cycles import (
+    CORE_ONLY,
+    LOADS,
+    STORES,
+    CycleModel,
+    Function,
+    Image,
+    Insn,
+    UnsupportedInsn,
+    base_cycles,
+    disassemble,
+    parse_disassembly,
+)
+
+from .wcet import Analyser, AnalysisError, Cost, access_cycles
+
+__all__ = [
+    "COUNTS_PER_REV",
+    "ENCODERS",
+    "F_CPU_HZ",
+    "NO_LOAD_RAD_PER_V_S",
+    "SUPPLY_V",
+    "TICK_HZ",
+    "max_edge_rate_hz",
+    "CORE_ONLY",
+    "LOADS",
+    "STORES",
+    "CycleModel",
+    "Function",
+    "Image",
+    "Insn",
+    "UnsupportedInsn",
+    "base_cycles",
+    "disassemble",
+    "parse_disassembly",
+    "AnalysisError",
+    "Analyser",
+    "Cost",
+    "access_cycles",
+    "BUDGET_LIMIT",
+    "DEFAULT_ELF",
+    "cell_budget",
+    "format_budget",
+]
+
 #: The interrupts may take at most this fraction of the CPU (the rest: bus service, USB, the main loop).
 BUDGET_LIMIT = 0.5
 DEFAULT_ELF = Path(__file__).resolve().parents[2] / ".pio" / "build" / "cell" / "firmware.elf"
-
-# --------------------------------------------------------------------------- parsing
-
-_LABEL = re.compile(r"^([0-9a-f]+) <(.+)>:$")
-_LINE = re.compile(r"^\s+([0-9a-f]+):\s+(\S+)\s*(.*)$")
-_LITERAL_REF = re.compile(r"@ \(([0-9a-f]+) <")
-_TARGET = re.compile(r"^([0-9a-f]+) <([^>+]+)(?:\+0x([0-9a-f]+))?>")
-_COND = "eq|ne|cs|cc|hs|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le"
-_BCOND = re.compile(rf"^b({_COND})(\.n|\.w)?$")
-_REGLIST = re.compile(r"\{([^}]*)\}")
-
-
-@dataclass(frozen=True)
-class Insn:
-    addr: int
-    mnem: str  # without .n/.w
-    ops: str  # operands, comment stripped
-    comment: str
-
-
-@dataclass
-class Function:
-    name: str
-    start: int
-    insns: list[Insn] = field(default_factory=list)
-
-
-@dataclass
-class Image:
-    functions: dict[str, Function]
-    by_addr: dict[int, str]  # start address -> function name
-    words: dict[int, int]  # literal-pool address -> 32-bit value
-
-
-def parse_disassembly(text: str) -> Image:
-    """Functions, their instructions and the literal words of ``objdump -d --no-show-raw-insn`` output."""
-    funcs: dict[str, Function] = {}
-    words: dict[int, int] = {}
-    cur: Function | None = None
-    for ln in text.splitlines():
-        m = _LABEL.match(ln)
-        if m:
-            cur = Function(m.group(2), int(m.group(1), 16))
-            funcs[cur.name] = cur
-            continue
-        m = _LINE.match(ln)
-        if not m or cur is None:
-            continue
-        addr, mnem, rest = int(m.group(1), 16), m.group(2), m.group(3)
-        if mnem == ".word":
-            words[addr] = int(rest.split()[0], 16) & 0xFFFFFFFF
-            continue
-        if mnem.startswith("."):
-            continue
-        ops, _, comment = rest.partition("@")
-        mnem = mnem.removesuffix(".n").removesuffix(".w")
-        cur.insns.append(Insn(addr, mnem, ops.strip(), comment.strip()))
-    by_addr = {f.start: f.name for f in funcs.values()}
-    return Image(funcs, by_addr, words)
-
-
-# --------------------------------------------------------------------------- cycle model
-
-
-@dataclass(frozen=True)
-class CycleModel:
-    """Cycles per instruction class on the SAMD21's Cortex-M0+ at 48 MHz (conservative).
-
-    Core timings are the Cortex-M0+ ones (ARMv6-M): data processing and MULS (the SAMD21 has the
-    single-cycle multiplier) 1, load/store 2, LDM/STM/PUSH 1+N, POP with PC 3+N, B taken 2 / not
-    taken 1, BL 3, BX/BLX 2, MRS/MSR/barriers 3. On top:
-
-    * ``fetch_wait``: one flash wait state (NVMCTRL RWS=1 at 48 MHz) charged on *every*
-      instruction, as if each 16-bit instruction were its own flash read (the core reads 32 bits
-      and the NVM cache may hit: real code pays less);
-    * ``refill_wait``: a further wait state for every change of flow (taken branch, call, return);
-    * ``literal_wait``: a PC-relative load reads flash;
-    * ``apb_extra``: a load/store through the AHB-APB bridge; charged whenever the base is not
-      proven SRAM, stack or flash (IOBUS PORT accesses are single-cycle, charged as SRAM);
-    * ``exc_entry`` / ``exc_exit``: 15 cycles each (zero-wait-state latency), plus the vector
-      read and the first fetch (entry) or the refill (exit) from flash.
-    """
-
-    fetch_wait: int = 1
-    refill_wait: int = 1
-    literal_wait: int = 1
-    apb_extra: int = 3
-    exc_entry: int = 15 + 2
-    exc_exit: int = 15 + 1
-
-
-#: The core's own timings only (zero-wait memory): not a bound, a reference for what the surcharges add.
-CORE_ONLY = CycleModel(fetch_wait=0, refill_wait=0, literal_wait=0, apb_extra=0, exc_entry=15, exc_exit=15)
-
-LOADS = {"ldr", "ldrb", "ldrh", "ldrsb", "ldrsh"}
-STORES = {"str", "strb", "strh"}
-_SRAM = (0x2000_0000, 0x2000_8000)
-_FLASH = (0x0000_0000, 0x0004_0000)
-_IOBUS = (0x6000_0000, 0x6000_0200)
-
-
-def _nregs(ops: str) -> int:
-    m = _REGLIST.search(ops)
-    if not m:
-        raise ValueError(f"no register list in {ops!r}")
-    n = 0
-    for part in m.group(1).split(","):
-        part = part.strip()
-        if "-" in part:
-            a, b = (int(x.strip()[1:]) for x in part.split("-"))
-            n += b - a + 1
-        elif part:
-            n += 1
-    return n
-
-
-class UnsupportedInsn(ValueError):
-    """An instruction the model has no timing for (e.g. WFI in an interrupt path)."""
-
-
-def base_cycles(insn: Insn) -> int:
-    """Core cycles of one instruction (branches: the not-taken / non-branch part; see edge costs)."""
-    m, ops = insn.mnem, insn.ops
-    if m in LOADS or m in STORES:
-        return 2
-    if m in ("push", "stmia", "stm", "ldmia", "ldm"):
-        return 1 + _nregs(ops)
-    if m == "pop":
-        return (3 if "pc" in ops else 1) + _nregs(ops)
-    if m in ("mrs", "msr", "isb", "dsb", "dmb"):
-        return 3
-    if m in ("wfi", "wfe", "svc", "bkpt", "udf", "sev"):
-        raise UnsupportedInsn(f"{m} at {insn.addr:#x}")
-    if m == "bl":
-        return 3
-    if m in ("bx", "blx"):
-        return 2
-    if m == "b":
-        return 2
-    if _BCOND.match(m) or m in ("beq", "bne"):
-        return 1  # not taken; taken adds 1 (edge cost)
-    return 1
-
-
-# --------------------------------------------------------------------------- per-block constants
-
-_REG = r"(r\d+|ip|sl|fp|sp|lr)"
-_MEM = re.compile(r"^" + _REG + r", \[" + _REG + r"(?:, (#-?\d+|" + _REG + r"))?\]")
-
-
-def _imm(s: str) -> int | None:
-    s = s.strip()
-    if s.startswith("#"):
-        try:
-            return int(s[1:], 0)
-        except ValueError:
-            return None
-    return None
-
-
-def _region(value: int | None, base: str) -> str:
-    if base == "sp":
-        return "sram"
-    if base == "pc":
-        return "flash"
-    if value is None:
-        return "unknown"
-    for lo_hi, name in ((_SRAM, "sram"), (_FLASH, "flash"), (_IOBUS, "iobus")):
-        if lo_hi[0] <= value < lo_hi[1]:
-            return name
-    return "apb"
-
-
-def access_cycles(insns: list[Insn], image: Image, model: CycleModel) -> list[int]:
-    """Extra cycles of each instruction of one basic block for the memory it touches."""
-    regs: dict[str, int | None] = {}
-    out = []
-    for ins in insns:
-        extra = 0
-        m, ops = ins.mnem, ins.ops
-        parts = [p.strip() for p in ops.split(",")]
-        if m in LOADS or m in STORES:
-            mm = _MEM.match(ops)
-            if "[pc" in ops:
-                extra = model.literal_wait
-                ref = _LITERAL_REF.search("@ " + ins.comment)
-                val = image.words.get(int(ref.group(1), 16)) if ref else None
-                if m == "ldr":
-                    regs[parts[0]] = val
-            elif mm:
-                base, off = mm.group(2), mm.group(3)
-                bval = regs.get(base)
-                # a register offset (a table index) is taken to stay in the base's region
-                offv = _imm(off) if off and off.startswith("#") else 0
-                addr = None if bval is None or offv is None else (bval + offv) & 0xFFFFFFFF
-                region = _region(addr if base not in ("sp", "pc") else None, base)
-                if region == "flash":
-                    extra = model.literal_wait
-                elif region in ("apb", "unknown"):
-                    extra = model.apb_extra
-                if m in LOADS:
-                    regs[mm.group(1)] = None
-            else:
-                extra = model.apb_extra
-        elif m in ("movs", "mov") and len(parts) == 2:
-            v = _imm(parts[1])
-            regs[parts[0]] = v if v is not None else regs.get(parts[1])
-        elif m in ("lsls", "lsrs", "adds", "subs") and len(parts) in (2, 3):
-            dst = parts[0]
-            src = parts[1] if len(parts) == 3 else parts[0]
-            v, k = regs.get(src), _imm(parts[-1])
-            if v is None or k is None:
-                regs[dst] = None
-            elif m == "lsls":
-                regs[dst] = (v << k) & 0xFFFFFFFF
-            elif m == "lsrs":
-                regs[dst] = v >> k
-            elif m == "adds":
-                regs[dst] = (v + k) & 0xFFFFFFFF
-            else:
-                regs[dst] = (v - k) & 0xFFFFFFFF
-        elif m in ("ldmia", "ldm", "stmia", "stm"):
-            base = parts[0].rstrip("!")
-            if base != "sp" and _region(regs.get(base), base) in ("apb", "unknown"):
-                extra = model.apb_extra * _nregs(ops)
-            regs = {}
-        elif m in ("bl", "blx", "pop"):
-            regs = {}  # caller-saved registers are gone; callee-saved ones are not tracked across calls
-        elif m in ("cmp", "cmn", "tst", "push"):
-            pass
-        elif parts and re.fullmatch(_REG, parts[0]):
-            regs[parts[0]] = None
-        out.append(extra)
-    return out
-
-
-# --------------------------------------------------------------------------- control flow
-
-
-class AnalysisError(ValueError):
-    """The path cannot be bounded: an unbounded loop, an unresolved indirect call, recursion."""
-
-
-@dataclass
-class Cost:
-    cycles: int
-    insns: int
-
-    def __add__(self, o: Cost) -> Cost:
-        return Cost(self.cycles + o.cycles, self.insns + o.insns)
-
-    def scale(self, k: int) -> Cost:
-        return Cost(self.cycles * k, self.insns * k)
-
-
-def _is_cond_branch(m: str) -> bool:
-    return bool(_BCOND.match(m))
-
-
-@dataclass
-class Analyser:
-    """Worst-case cycles (and instructions) of functions of an :class:`Image`.
-
-    ``loop_bounds``: function -> largest number of back-edge traversals per call (one number
-    for all the function's loops). ``indirect``: function -> the functions its ``blx rN`` may
-    call (an empty tuple: the call's own cost only, the callees are charged elsewhere).
-    ``metric``: "cycles" or "insns", what the longest path maximises.
-    """
-
-    image: Image
-    model: CycleModel = field(default_factory=CycleModel)
-    loop_bounds: dict[str, int] = field(default_factory=dict)
-    indirect: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    metric: str = "cycles"
-    _memo: dict[str, Cost] = field(default_factory=dict)
-    _active: set[str] = field(default_factory=set)
-
-    def _key(self, c: Cost) -> int:
-        return c.cycles if self.metric == "cycles" else c.insns
-
-    def _max(self, costs: list[Cost]) -> Cost:
-        return max(costs, key=self._key) if costs else Cost(0, 0)
-
-    def worst(self, name: str) -> Cost:
-        """Worst path through ``name`` and everything it calls (exception entry/exit not included)."""
-        if name in self._memo:
-            return self._memo[name]
-        if name in self._active:
-            raise AnalysisError(f"recursion through {name}")
-        if name not in self.image.functions:
-            raise AnalysisError(f"{name} is not in the image")
-        self._active.add(name)
-        try:
-            c = self._function(self.image.functions[name])
-        finally:
-            self._active.discard(name)
-        self._memo[name] = c
-        return c
-
-    def _function(self, f: Function) -> Cost:
-        insns = f.insns
-        if not insns:
-            raise AnalysisError(f"{f.name} has no instructions")
-        index = {ins.addr: i for i, ins in enumerate(insns)}
-        m = self.model
-        end = insns[-1].addr + 4
-
-        def local(ins: Insn) -> int | None:
-            t = _TARGET.match(ins.ops)
-            if not t:
-                return None
-            a = int(t.group(1), 16)
-            return a if a in index else None
-
-        # leaders
-        leaders = {insns[0].addr}
-        for i, ins in enumerate(insns):
-            if ins.mnem == "b" or _is_cond_branch(ins.mnem):
-                tgt = local(ins)
-                if tgt is not None:
-                    leaders.add(tgt)
-                if i + 1 < len(insns):
-                    leaders.add(insns[i + 1].addr)
-            elif ins.mnem in ("bx",) or (ins.mnem == "pop" and "pc" in ins.ops):
-                if i + 1 < len(insns):
-                    leaders.add(insns[i + 1].addr)
-        order = sorted(leaders)
-        blocks: dict[int, list[Insn]] = {}
-        for j, a in enumerate(order):
-            nxt = order[j + 1] if j + 1 < len(order) else end + 1
-            blocks[a] = [ins for ins in insns[index[a] :] if ins.addr < nxt]
-
-        # block cost (without the terminal branch's taken penalty) and successor edges (target, extra cost)
-        node_cost: dict[int, Cost] = {}
-        falloff: set[int] = set()
-        succ: dict[int, list[tuple[int, Cost]]] = {}
-        for a, body in blocks.items():
-            acc = access_cycles(body, self.image, m)
-            c = Cost(0, 0)
-            edges: list[tuple[int, Cost]] = []
-            falls = True
-            for ins, extra in zip(body, acc):
-                c = c + Cost(base_cycles(ins) + m.fetch_wait + extra, 1)
-                mn = ins.mnem
-                if mn == "bl":
-                    c = c + Cost(m.refill_wait, 0) + self._callee(f, ins)
-                elif mn == "blx":
-                    c = c + Cost(m.refill_wait, 0) + self._indirect(f, ins)
-                elif mn == "bx" or (mn == "pop" and "pc" in ins.ops):
-                    if not (mn == "bx" and ins.ops.startswith("lr")) and mn != "pop":
-                        raise AnalysisError(f"{f.name}: indirect jump {mn} {ins.ops} at {ins.addr:#x}")
-                    c = c + Cost(m.refill_wait, 0)
-                    falls = False
-                elif mn == "b":
-                    tgt = local(ins)
-                    c = c + Cost(m.refill_wait, 0)
-                    if tgt is None:  # tail call
-                        c = c + self._callee(f, ins)
-                    else:
-                        edges.append((tgt, Cost(0, 0)))
-                    falls = False
-                elif _is_cond_branch(mn):
-                    tgt = local(ins)
-                    if tgt is None:
-                        raise AnalysisError(f"{f.name}: conditional branch out of the function at {ins.addr:#x}")
-                    edges.append((tgt, Cost(1 + m.refill_wait, 0)))
-            last = body[-1]
-            if falls:
-                nxt_i = index[last.addr] + 1
-                if nxt_i < len(insns):
-                    edges.append((insns[nxt_i].addr, Cost(0, 0)))
-                else:
-                    falloff.add(a)  # an error only if reachable (padding after the last return is not)
-            node_cost[a] = c
-            succ[a] = edges
-        return self._longest(f.name, order[0], node_cost, succ, falloff)
-
-    def _callee(self, f: Function, ins: Insn) -> Cost:
-        t = _TARGET.match(ins.ops)
-        if not t:
-            raise AnalysisError(f"{f.name}: call without a target at {ins.addr:#x}")
-        a = int(t.group(1), 16)
-        name = self.image.by_addr.get(a)
-        if name is None:
-            raise AnalysisError(f"{f.name}: call into the middle of {t.group(2)} at {ins.addr:#x}")
-        return self.worst(name)
-
-    def _indirect(self, f: Function, ins: Insn) -> Cost:
-        if f.name not in self.indirect:
-            raise AnalysisError(f"{f.name}: unresolved indirect call {ins.mnem} {ins.ops} at {ins.addr:#x}")
-        return self._max([self.worst(t) for t in self.indirect[f.name]])
-
-    def _longest(
-        self,
-        fname: str,
-        entry: int,
-        node: dict[int, Cost],
-        succ: dict[int, list[tuple[int, Cost]]],
-        falloff: set[int],
-    ) -> Cost:
-        # back edges by iterative DFS from the entry
-        back: set[tuple[int, int]] = set()
-        state: dict[int, int] = {}  # 1 on stack, 2 done
-        topo: list[int] = []
-        stack: list[tuple[int, int]] = [(entry, 0)]
-        state[entry] = 1
-        while stack:
-            n, i = stack.pop()
-            edges = succ[n]
-            if i < len(edges):
-                stack.append((n, i + 1))
-                t = edges[i][0]
-                if state.get(t) == 1:
-                    back.add((n, t))
-                elif t not in state:
-                    state[t] = 1
-                    stack.append((t, 0))
-            else:
-                state[n] = 2
-                topo.append(n)
-        topo.reverse()
-        reach = set(topo)
-        if reach & falloff:
-            raise AnalysisError(f"{fname}: falls off its end at {min(reach & falloff):#x}")
-        if back and fname not in self.loop_bounds:
-            heads = sorted({h for _, h in back})
-            raise AnalysisError(f"{fname}: loop(s) at {', '.join(hex(h) for h in heads)} without a stated bound")
-        bound = self.loop_bounds.get(fname, 0)
-        fwd = {n: [(t, c) for t, c in succ[n] if (n, t) not in back] for n in reach}
-        pos = {n: i for i, n in enumerate(topo)}
-
-        # natural loops, smallest first (inner loops are charged before their enclosing loop's body)
-        loops: list[tuple[int, set[int], list[tuple[int, int]]]] = []
-        preds: dict[int, list[int]] = {n: [] for n in reach}
-        for n in reach:
-            for t, _ in fwd[n]:
-                preds[t].append(n)
-        for h in sorted({h for _, h in back}):
-            latches = [(u, h) for u, v in back if v == h]
-            body = {h}
-            work = [u for u, _ in latches]
-            while work:
-                x = work.pop()
-                if x not in body:
-                    body.add(x)
-                    work.extend(preds[x])
-            loops.append((h, body, latches))
-        loops.sort(key=lambda t: len(t[1]))
-        cost = dict(node)
-        for h, body, latches in loops:
-            # worst pass: h -> ... -> latch -> (back edge) h, inside the body, forward edges only
-            best: dict[int, Cost] = {h: cost[h]}
-            for n in sorted(body, key=pos.__getitem__):
-                if n not in best:
-                    continue
-                for t, c in fwd[n]:
-                    if t in body:
-                        cand = best[n] + c + cost[t]
-                        if t not in best or self._key(cand) > self._key(best[t]):
-                            best[t] = cand
-            passes = []
-            for u, _ in latches:
-                ec = next(c for t, c in succ[u] if t == h)
-                passes.append(best[u] + ec)
-            cost[h] = cost[h] + self._max(passes).scale(bound)
-
-        dist: dict[int, Cost] = {entry: cost[entry]}
-        for n in topo:
-            if n not in dist:
-                continue
-            for t, c in fwd[n]:
-                cand = dist[n] + c + cost[t]
-                if t not in dist or self._key(cand) > self._key(dist[t]):
-                    dist[t] = cand
-        exits = [dist[n] for n in reach if not succ[n] and n in dist]
-        if not exits:
-            raise AnalysisError(f"{fname}: no path returns")
-        return self._max(exits)
-
 
 # --------------------------------------------------------------------------- the cell's budget
 
@@ -546,22 +120,6 @@ CELL_LOOP_BOUNDS: dict[str, int] = {
 CELL_INDIRECT: dict[str, tuple[str, ...]] = {"EIC_Handler": ()}
 
 ENCODER_CALLBACKS = ("hw_isr_encoder_alpha", "hw_isr_encoder_beta")
-
-# Highest encoder edge rate: no-load speed constant 49.8 rad/(V s) at the 5.86 V supply,
-# 400 counts (edges of both channels) per revolution, two encoders per cell.
-NO_LOAD_RAD_PER_V_S = 49.8
-SUPPLY_V = 5.86
-COUNTS_PER_REV = 400
-ENCODERS = 2
-TICK_HZ = 2000
-
-
-def max_edge_rate_hz() -> float:
-    """Encoder interrupts per second of one cell at no-load speed (both encoders)."""
-    import math
-
-    rev_s = NO_LOAD_RAD_PER_V_S * SUPPLY_V / (2 * math.pi)
-    return rev_s * COUNTS_PER_REV * ENCODERS
 
 
 @dataclass
@@ -760,12 +318,6 @@ def cell_budget(
         else:
             b.responses.append(resp("SERCOM2", "I2C secondary event (SERCOM2)", own, F_CPU_HZ * TXN_TIMEOUT_S, False))
     return b
-
-
-def disassemble(elf: Path) -> str:
-    from .armbuild import _run
-
-    return _run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", str(elf)])
 
 
 def format_budget(b: Budget, elf: str) -> str:

@@ -2,7 +2,7 @@
 
 The generator is compiled into its own small cffi module that does *not* contain
 the library: it reaches the library only through a table of function pointers,
-filled here with the addresses of the functions in ``host_emulator.firmware.load()``.
+filled here with the addresses of the functions in ``metacell_common.firmware.load()`` (host_emulator.firmware).
 So the host figures come from the very module every other host test uses.
 """
 
@@ -16,6 +16,9 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
+
+from metacell_common import firmware
+from metacell_common.firmware import check_pedantic
 
 from .armbuild import LIB_SRC, _digest, _publish
 
@@ -85,9 +88,9 @@ def module() -> ModuleType:
     name = f"_mcvec_{key}"
 
     def build(tmp: Path) -> None:
-        from host_emulator.firmware import check_pedantic  # -pedantic for our source, not cffi's wrapper
-
-        check_pedantic([CSRC / "mc_vectors.c"], [CSRC, LIB_SRC], ("-DMCV_NO_TYPECHECK",))
+        check_pedantic(  # -pedantic for our source, not cffi's wrapper
+            [CSRC / "mc_vectors.c"], [CSRC, LIB_SRC], ("-DMCV_NO_TYPECHECK",)
+        )
         ffi = cffi.FFI()
         ffi.cdef(_cdef())
         ffi.set_source(
@@ -128,8 +131,6 @@ class HostVectors:
 
 
 def host_vectors(seed: int) -> HostVectors:
-    from host_emulator import firmware
-
     fw_ffi, fw_lib = firmware.load()
     mod = module()
     ffi, lib = mod.ffi, mod.lib

@@ -16,16 +16,23 @@ otherwise (or not at all), 2 bad input, 3 the port could not be opened.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
+import tomllib
 from collections.abc import Callable, Iterable, Sequence
+from fractions import Fraction
+from pathlib import Path
 
 import can
 
+from metacell_common.cli import unexpected
+from metacell_common.reaction import REACTION_DEFAULTS, REACTION_REGISTERS
 from protocol import codec
 
 from . import proto
+from .slcanbus import open_bus
 
 PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_star": "ASTAR", "astar": "ASTAR"}
 CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
@@ -34,8 +41,6 @@ CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
 def number(text: str) -> float:
     """A number, or a fraction such as 9/125: the syntax of the emulator's --set and scene overrides (ranges, and
     inf / nan, are refused by `build` with a one-line error)."""
-    from fractions import Fraction
-
     try:
         return float(Fraction(text.strip())) if "/" in text else float(text)
     except (ValueError, ZeroDivisionError):
@@ -129,16 +134,11 @@ def design_registers(path: str) -> dict[int, dict[str, int]]:
     """{cell: {register: raw value}} of a design.json (`python -m host_emulator design`) or a scene .toml: each
     reaction parameter one value or one per cell, converted as the registers carry them and checked against the
     firmware's acceptance (range, k1 > max(k2, 0)); ApplyError naming the key and the cell otherwise."""
-    import json
-    from pathlib import Path
-
     f = Path(path)
     if f.is_dir():
         f = f / "design.json"
     try:
         if f.suffix == ".toml":
-            import tomllib
-
             doc = tomllib.loads(f.read_text())
             params, cells = doc.get("params", {}), doc.get("cells", proto.N_CELLS)
         else:
@@ -148,12 +148,9 @@ def design_registers(path: str) -> dict[int, dict[str, int]]:
         raise ApplyError(f"{path}: not a readable design.json or scene .toml ({type(e).__name__}: {e})") from None
     if not isinstance(cells, int) or not 1 <= cells <= proto.N_CELLS:
         raise ApplyError(f"{path}: cells = {cells!r}; the rig has {proto.N_CELLS}")
-    from host_emulator.params import Params
-
-    base = Params()
     out: dict[int, dict[str, int]] = {j: {} for j in range(1, cells + 1)}
-    for name, reg in (("k_ab", "K_AB"), ("sigma", "SIGMA"), ("k1", "K1"), ("k2", "K2"), ("alpha_star", "ASTAR")):
-        v = params.get(name, getattr(base, name))
+    for name, reg in REACTION_REGISTERS.items():
+        v = params.get(name, REACTION_DEFAULTS[name])
         vals = v if isinstance(v, list) else [v] * cells
         if len(vals) != cells:
             raise ApplyError(f"params.{name}: {len(vals)} values for {cells} cells")
@@ -374,8 +371,6 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv)
     except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
-        from host_emulator.cli import unexpected
-
         return unexpected(e, "command")
 
 
@@ -392,8 +387,6 @@ def _main(argv: list[str] | None = None) -> int:
     if not (math.isfinite(args.timeout) and 0 < args.timeout <= 3600):
         print(f"error: --timeout must be in (0, 3600] s, got {args.timeout}", file=sys.stderr)
         return 2
-    from .slcanbus import open_bus
-
     try:
         bus = open_bus(args.interface, args.channel)
     except Exception as e:  # python-can and pyserial raise several types

@@ -22,6 +22,8 @@ import can
 from can.exceptions import error_check
 from can.interfaces.slcan import slcanBus
 
+from metacell_common import portlock
+
 try:
     from serial import Timeout
 except ImportError:  # pragma: no cover - pyserial is a dependency of the slcan interface
@@ -65,8 +67,6 @@ def open_bus(
 
     A serial port held by another program raises portlock.PortBusy (one line) before anything is sent; the port
     stays locked until the bus shuts down."""
-    from . import portlock
-
     kw: dict[str, Any] = {}
     if interface == "slcan" and open_wait is not None:
         kw["sleep_after_open"] = open_wait

@@ -83,7 +83,7 @@ ENTRY = {
     "host_emulator/benchmarks/instructions.py": "host_emulator.benchmarks.instructions",
     "host_emulator/workbench/design/cli.py": "host_emulator",
     "host_emulator/benchmarks/design_table.py": "host_emulator.benchmarks.design_table",
-    "metacell_tools/rigtools/logger.py": "metacell_tools.rigtools.logger",
+    "metacell_tools/rigtools/logger/cli.py": "metacell_tools.rigtools.logger",
     "metacell_tools/experiment/cli.py": "metacell_tools.experiment",
     "metacell_tools/fwcheck/__main__.py": "metacell_tools.fwcheck",
 }
@@ -139,7 +139,7 @@ def test_the_walk_covers_every_output_option():
     must be added to WALK."""
     walked = {(m, o) for _, m, _, o, _, _ in WALK}
     found, unknown = set(), []
-    for top in ("host_emulator", "metacell_tools", "protocol"):
+    for top in ("host_emulator", "metacell_common", "metacell_tools", "protocol"):
         for f in sorted((ROOT / top).rglob("*.py")):
             rel = f.relative_to(ROOT).as_posix()
             opts = OUT_OPTIONS.findall(f.read_text())

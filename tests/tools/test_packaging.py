@@ -63,6 +63,9 @@ def test_wheel_carries_the_firmware_sources_scenes_and_scripts(wheel):
         assert not any(n.startswith(("tests/", "lib/", "build/", "out/")) for n in names)
         if (ROOT / "protocol" / "__init__.py").exists():  # protocol becomes a package: its database goes along
             assert "protocol/metacell.dbc" in names
+        for pkg in ("metacell_common", "metacell_common/target", "protocol"):  # the layers below the emulator
+            for p in sorted((ROOT / pkg).glob("*.py")):
+                assert p.relative_to(ROOT).as_posix() in names, p
 
 
 @pytest.mark.slow

@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import Any
 
 from ...analysis.summary import clean
-from ...outpaths import check_out_dir
+from metacell_common.outpaths import check_out_dir
 from ...params import REACTION_KEYS
-from ...provenance import provenance
+from metacell_common.provenance import provenance
 from ...scene import load_scene, scene_table
 from .constants import NOMINAL_PUSH, PUSH_DURATIONS_S, PUSH_TORQUES_NM, REQUIRE, SEARCH_PUSHES
 from .ensembles import Runner

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from metacell_common.cli import cells_text
+
 
 class DesignError(ValueError):
     """Bad design input (target, push, parameter names); the message names it."""
@@ -51,8 +53,6 @@ class Target:
 
 
 def _cells_text(cells: Sequence[int]) -> str:
-    from metacell_tools.experiment.runner import cells_text
-
     return cells_text(cells).replace(", ", ",").replace(" ", "")
 
 

@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ...limits import RunTooLarge, batch_budget, scene_cost
-from ...outpaths import check_out_dir
+from ...construct import scene_cost
+from ...limits import RunTooLarge, batch_budget
+from metacell_common.outpaths import check_out_dir
 from ...scene import _value, scene_table
 from ..api import override_list
 from .cluster import _run_on_dask
@@ -115,7 +116,7 @@ def sweep(
 
 def estimate_cost(specs: list[dict]) -> float:
     """The sweep's cell steps, from COST_SAMPLE points spread over the grid (first and last included), each built
-    as its run would be (limits.scene_cost: every preset and automatic step resolved). Raises RunTooLarge for a
+    as its run would be (construct.scene_cost: every preset and automatic step resolved). Raises RunTooLarge for a
     sampled point that is too long on its own or a sweep over the batch limit (the figure in the message)."""
     n = len(specs)
     k = min(n, COST_SAMPLE)

@@ -4,7 +4,7 @@ the sweep's observables (a failing point recorded, never dropped)."""
 from __future__ import annotations
 
 from ...analysis.summary import summarize
-from ...limits import scene_cost
+from ...construct import scene_cost
 from ..batch import run_batch
 from .grid import _load_spec
 from .schema import OBSERVABLES, _num, outcome_of

@@ -1,0 +1,177 @@
+"""Rig logger on python-can: log files, decoded alpha_j(t)/beta_j(t) arrays (NPZ, CSV), gap reports, reconnects.
+
+The command line of `python -m metacell_tools.rigtools.logger` (the console script metacell-logger): its arguments,
+the output checks before the port is opened, --repair, and the summary line (the package docstring has the rest).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from metacell_common.cli import unexpected
+from metacell_common.outpaths import check_out_dir, check_out_file, show
+
+from ..command import build, parser
+from .files import RunFailed, repair
+from .live import RigLogger
+
+DESCRIPTION = __doc__.split("\n\n")[0]
+
+
+def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
+    """Why the output prefix cannot be written, or None (creates its directory and probes every file it will
+    write: a read-only place or a name too long fails here, before the port is opened)."""
+    if prefix.name in ("", ".", ".."):
+        return f"--out {show(prefix)}: needs a file name prefix, e.g. out/run1"
+    problem = check_out_dir(prefix.parent, f"--out {show(prefix)}: directory")
+    if problem:
+        return problem
+    for f in list(dict.fromkeys(list(formats) + ["csv", "npz", "npz.tmp"])):
+        problem = check_out_file(prefix.with_suffix("." + f), "--out")
+        if problem:
+            return problem
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
+        return unexpected(e, "logger")
+
+
+def _main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m metacell_tools.rigtools.logger",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run1                 # until Ctrl-C\n"
+        "  python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run2 --duration 30 --formats asc\n"
+        '  python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/run3 --do "2:perturb 8 --torque 0.02 '
+        '--duration 0.1"\n'
+        "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
+        "3 run failed (port, no frames, write error).",
+    )
+    ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
+    ap.add_argument("-c", "--channel", default=None, help="e.g. /dev/ttyACM0@115200 or <pty>@115200 (required)")
+    ap.add_argument("-o", "--out", default=None, help="output prefix, e.g. out/run1 (required)")
+    ap.add_argument(
+        "--repair",
+        metavar="PREFIX",
+        default=None,
+        help="after a crash, kill or full disk: cut the logs after their last complete record (BLF: object) and "
+        "rebuild PREFIX.npz from PREFIX.csv; no port is opened",
+    )
+    ap.add_argument(
+        "--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)"
+    )
+    ap.add_argument("--bitrate", type=int, default=None, help="CAN bit rate sent as Sn (ignored by the primary)")
+    ap.add_argument(
+        "--duration", type=float, default=None, help="seconds to log from the first frame (default: until Ctrl-C)"
+    )
+    ap.add_argument("--give-up", type=float, default=None, help="stop retrying a lost connection after this many s")
+    ap.add_argument("--wait-open", type=float, default=0.0, help="keep trying to open the port this many s at start")
+    ap.add_argument("--first-frame", type=float, default=30.0, help="fail if no frame arrives in this many s")
+    ap.add_argument(
+        "--source",
+        default=None,
+        metavar="LABEL",
+        help="what sends the frames, written into the NPZ: rig, emulator:hil, rehearsal:hil or unknown (default: "
+        "from the channel: a pty is the emulator's serve, a USB serial device the rig, else unknown; with --repair: "
+        "the label of the rebuilt NPZ, default unknown)",
+    )
+    ap.add_argument(
+        "--do",
+        action="append",
+        default=[],
+        metavar="T:COMMAND",
+        help="run a command-tool command T s after the first frame through the same port, "
+        'e.g. --do "2:perturb 8 --torque 0.02 --duration 0.1"',
+    )
+    args = ap.parse_args(argv)
+
+    def bad(text):
+        print(f"logger: {text}", file=sys.stderr)
+        return 2
+
+    if args.source is not None and not (
+        args.source in ("rig", "unknown") or args.source.split(":")[0] in ("emulator", "rehearsal")
+    ):
+        return bad(f"--source {args.source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
+    if args.repair is not None:
+        try:
+            arr = repair(Path(args.repair), source=args.source)
+        except RunFailed as e:
+            return bad(str(e))
+        except OSError as e:
+            print(f"logger: --repair {args.repair}: write failed: {e.strerror or e}", file=sys.stderr)
+            return 3
+        print(
+            f"repaired {args.repair}: {int(np.sum(~np.isnan(arr['alpha_counts'])))} samples in "
+            f"{len(arr['cycle'])} cycles, {len(arr['gaps'])} gaps; wrote {args.repair}.npz"
+        )
+        return 0
+    if not args.channel or not args.out:
+        ap.error("the following arguments are required: -c/--channel, -o/--out (or --repair PREFIX)")
+
+    for name in ("duration", "give_up", "wait_open", "first_frame"):
+        v = getattr(args, name)
+        if v is not None and not (math.isfinite(v) and 0 <= v <= 1e7 and (v > 0 or name == "wait_open")):
+            return bad(f"--{name.replace('_', '-')} must be a finite number of seconds in (0, 1e7], got {v}")
+    if args.bitrate is not None and not 1 <= args.bitrate <= 1_000_000:
+        return bad(f"--bitrate must be in 1..1000000, got {args.bitrate}")
+    formats = [f.strip().lstrip(".") for f in args.formats.split(",") if f.strip()]
+    known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
+    if not formats or any(f not in known for f in formats):
+        return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
+    problem = check_out(Path(args.out), formats)
+    if problem:
+        return bad(problem)
+    log = RigLogger(
+        args.interface,
+        args.channel,
+        Path(args.out),
+        formats,
+        args.bitrate,
+        give_up_s=args.give_up,
+        first_frame_s=args.first_frame,
+        wait_open_s=args.wait_open,
+        source=args.source,
+    )
+    for item in args.do:
+        t, sep, text = item.partition(":")
+        try:
+            tt = float(t)
+            if not (sep and math.isfinite(tt) and tt >= 0):
+                raise ValueError(f"time {t!r}")
+            a = parser().parse_args(["-c", "-"] + text.split())
+            build(a)
+            log.commands.append((tt, text))
+        except (ValueError, SystemExit) as e:
+            return bad(f"--do {item!r}: expected T:COMMAND with a valid command ({e})")
+    log.commands.sort()
+    try:
+        n = log.run(args.duration)
+    except RunFailed as e:
+        print(f"logger: {e}", file=sys.stderr)
+        return 3
+    arr = log.arrays
+    per_cell = np.sum(~np.isnan(arr["alpha_counts"]), axis=0)
+    lost = int(arr["gaps"][:, 3].sum()) if len(arr["gaps"]) else 0
+    why = f"; stopped by {log.stop_reason}" if log.stop_reason else ""
+    print(
+        f"{n} frames; samples per cell min {per_cell.min() if len(per_cell) else 0} max "
+        f"{per_cell.max() if len(per_cell) else 0}; {len(arr['gaps'])} gaps ({lost} samples lost); "
+        f"{log.reconnects} reconnects; {log.corrupt} corrupt lines; "
+        + (f"{len(log.others)} other program(s) read the port too; " if log.others else "")
+        + f"wrote {args.out}.npz/.csv and "
+        f"{','.join(formats)}{why}"
+    )
+    return 0
