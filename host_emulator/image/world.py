@@ -211,6 +211,11 @@ class World:
         if rc != 0:
             raise ValueError(self.ffi.string(self.lib.sam_world_error(self._w)).decode())
 
+    def reset(self, b: int) -> None:
+        """A system reset of board b now, as NVIC_SystemReset does (reset cause SYST, RAM kept): it restarts where a
+        reset starts it, re-initialising its USB (the host sees it go and enumerate again)."""
+        self.fault("reset", self.t, board=b)
+
     def spin(
         self, cell: int, chain: str, counts_per_s: float, t0_s: float, t1_s: float, back_and_forth: int = 0
     ) -> None:
