@@ -104,8 +104,12 @@ def serial_number(k: int) -> str:
 def write_listing(path: Path, entries: list[dict]) -> None:
     """The listing, atomically (a reader sees the old file or the new one, never a part)."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(entries, indent=1) + "\n")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(entries, indent=1) + "\n")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():  # interrupted between the two
+            tmp.unlink()
 
 
 class Boards:
