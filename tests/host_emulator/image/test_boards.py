@@ -105,12 +105,28 @@ def test_listing_is_what_the_flash_tool_reads(rig3, tmp_path):
     assert r.stdout.count("UNASSIGNED") == 3
 
 
-def test_identify_through_the_flash_tool(rig3, tmp_path):
-    r = flash_cli("identify", "--ports-json", str(rig3.listing), "--inventory", str(tmp_path / "none.json"))
+def test_identify_and_plan_through_the_flash_tool(rig3, tmp_path):
+    listing, inv = str(rig3.listing), str(tmp_path / "inventory.json")
+    r = flash_cli("identify", "--ports-json", listing, "--inventory", str(tmp_path / "none.json"))
     assert r.returncode == 0, r
     fw = expected_fw_version()
     for j in (1, 2, 3):
         assert f"ttyACM-mc{j:02d} " in r.stdout and f": cell {j} addr=0x{0x0F + j:02x} fw={fw}" in r.stdout, r.stdout
+    # the boards recorded in an inventory as the tool's users do, then identified against it and planned
+    for e in entries(rig3.listing):
+        j = int(e["device"][-2:])
+        a = flash_cli(
+            "inventory", "--ports-json", listing, "--inventory", inv, "--assign", str(j), "--serial", e["serial_number"]
+        )
+        assert a.returncode == 0, a
+    r = flash_cli("identify", "--ports-json", listing, "--inventory", inv)
+    assert r.returncode == 0 and "MISMATCH" not in r.stdout, r
+    r = flash_cli("plan", "--ports-json", listing, "--inventory", inv)
+    if r.returncode == 0:  # this machine can build and upload: every board on its stable name
+        for j in (1, 2, 3):
+            assert f"on {rig3.dev / f'ttyACM-mc{j:02d}'}" in r.stdout, r.stdout
+    else:  # it cannot: one line says what is missing, before any board is touched
+        assert r.returncode == 2 and len(r.stderr.splitlines()) == 1, r
 
 
 def test_touch_re_enumerates_the_board_in_application_mode(rig3):
