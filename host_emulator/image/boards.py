@@ -180,8 +180,13 @@ class Boards:
         """The board enumerated: a new port behind its stable name, in the mode the last reset chose."""
         b.port = PtyPort(b.link)
         b.enumerations += 1
-        b.mode = b.comes_back_as
+        b.mode = self.mode_of(b)
         self.dirty = True
+
+    def mode_of(self, b: Board) -> str:
+        """What the board enumerated as: what its last reset chose (the touch's hook). A finer source, once the
+        bootloader runs: the idProduct of the device descriptor the board itself sent the tier's USB host."""
+        return b.comes_back_as
 
     def on_touch(self, b: Board) -> None:
         """The 1200-baud touch: the hook where a reset chooses what runs. With the bootloader, the board would come
