@@ -186,6 +186,7 @@ SUBCOMMANDS = {
     "design": (".workbench.design", "design_main"),
     "bench": (".benchmarks.cli", "main"),
     "image": (".image.cli", "image_main"),
+    "boards": (".image.boards", "boards_main"),
 }
 
 
@@ -318,6 +319,11 @@ def _main(argv=None) -> int:
         "image",
         help="the flashed images: build, registers each touches, cycle profile (see image --help)",
         epilog="example: python -m host_emulator image --help",
+    )
+    sub.add_parser(
+        "boards",
+        help="the flashed images as USB boards on ptys with a port listing, for the flash tool (see boards --help)",
+        epilog="example: python -m host_emulator boards --help",
     )
     args = ap.parse_args(argv)
     return {"scenes": cmd_scenes, "run": cmd_run}[args.cmd](args)

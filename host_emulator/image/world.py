@@ -18,6 +18,7 @@ from .build import ImageSet
 from .elfimage import FirmwareImage, load_image
 
 NOTES_KEPT = 100_000  # log lines World.notes keeps
+API_S = 50e-6  # an action from outside lands this long after the world's time (csrc/sam_usb.c: USB_API_S)
 
 
 class WorldError(RuntimeError):
@@ -209,6 +210,13 @@ class World:
         rc = self.lib.sam_world_fault(self._w, code, board, self.tu(t0_s), self.tu(t1), arg, arg2)
         if rc != 0:
             raise ValueError(self.ffi.string(self.lib.sam_world_error(self._w)).decode())
+
+    def reset(self, b: int) -> None:
+        """A system reset of board b now, as NVIC_SystemReset does (reset cause SYST, RAM kept): it restarts where a
+        reset starts it, re-initialising its USB (the host sees it go and enumerate again). Like a USB host action
+        from outside (csrc/sam_usb.c USB_API_S) it lands 50 us after the world's time: later than any board can be
+        (a board that skips idle passes resumes before an event: one in its past would break the schedule)."""
+        self.fault("reset", self.t + API_S, board=b)
 
     def spin(
         self, cell: int, chain: str, counts_per_s: float, t0_s: float, t1_s: float, back_and_forth: int = 0

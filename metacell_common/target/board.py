@@ -1,5 +1,6 @@
-"""The chip's and the cell board's figures: the SAMD21G18A's clock, flash and memory map, and the cell's encoders and
-motors at full supply (the highest encoder edge rate). fwcheck's CPU budget and the image tier's benchmarks use them."""
+"""The chip's and the cell board's figures: the SAMD21G18A's clock, flash and memory map, the cell's encoders and
+motors at full supply (the highest encoder edge rate) and the board's USB identities. fwcheck's CPU budget, the image
+tier and the flash tool use them."""
 
 from __future__ import annotations
 
@@ -19,6 +20,12 @@ SUPPLY_V = 5.86
 COUNTS_PER_REV = 400
 ENCODERS = 2
 TICK_HZ = 2000  # the cell's control tick (platformio.ini MC_CTRL_RATE_HZ)
+
+# Seeed's board definition for the XIAO SAMD21 (hwids): the application's USB id and the UF2 bootloader's. The USB
+# serial number is the chip's unique id, so it names the board whatever /dev/ttyACM* it lands on.
+XIAO_VID = 0x2886
+XIAO_PID_APP = 0x802F
+XIAO_PID_BOOT = 0x002F
 
 
 def max_edge_rate_hz() -> float:

@@ -8,12 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-# Seeed's board definition for the XIAO SAMD21 (hwids): the application's USB id and
-# the UF2 bootloader's. The USB serial number is the chip's unique id, so it names
-# the board whatever /dev/ttyACM* it lands on.
-XIAO_VID = 0x2886
-XIAO_PID_APP = 0x802F
-XIAO_PID_BOOT = 0x002F
+from metacell_common.target.board import XIAO_PID_APP, XIAO_PID_BOOT, XIAO_VID  # noqa: F401 (the XIAO's USB ids)
 
 
 class PortListError(ValueError):

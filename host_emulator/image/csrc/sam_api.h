@@ -25,7 +25,9 @@ enum {
     SAM_FAULT_SPIN = 6,        /* not a fault: the cell's encoder arg2 & 1 (0 alpha, 1 beta) turns at arg counts/s
                                   (< 0: backwards), back and forth by arg2 >> 1 counts when that is not 0: quadrature
                                   edges without the plant (for tests and benchmarks, with the plant at rest) */
-    SAM_FAULT_COUNT = 7
+    SAM_FAULT_RESET = 7,       /* not a fault: a system reset at t0 as NVIC_SystemReset does (cause SYST, RAM kept);
+                                  the boards command's 1200-baud touch */
+    SAM_FAULT_COUNT = 8
 };
 
 typedef struct {

@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 #include "sam_world.h"
+#include "sam_vendor_gen.h"
 
 static uint64_t tu_of(double s) { return (uint64_t)llround(s * (double)SAM_TU_HZ); }
 
@@ -38,6 +39,10 @@ static void fault_fire(sam_mcu_t *m, void *ctx)
             if (f->kind == SAM_FAULT_HARDFAULT) {
                 sam_note(m, "%s: injected HardFault at t = %.6f s", m->name, (double)now / (double)SAM_TU_HZ);
                 sam_irq_pend_sys(m, 3);
+                f->ended = 1;
+            } else if (f->kind == SAM_FAULT_RESET) {
+                sam_note(m, "%s: reset requested from outside at t = %.6f s", m->name, (double)now / (double)SAM_TU_HZ);
+                sam_mcu_system_reset(m, PM_RCAUSE_SYST);
                 f->ended = 1;
             } else if (f->kind == SAM_FAULT_TICK_DEAD) {
                 sam_note(m, "%s: injected loss of the TC3 clock at t = %.6f s", m->name,
@@ -171,9 +176,15 @@ int sam_world_fault(sam_world_t *w, int32_t kind, int32_t mcu, uint64_t t0, uint
         if (w->plant_start != SAM_NEVER)
             return sam_world_fail(w, "spin: the plant runs (it drives the encoders itself)");
     }
-    if (w->nfault >= SAM_MAX_FAULTS)
+    int slot = w->nfault;
+    for (int k = 0; slot >= SAM_MAX_FAULTS && k < w->nfault; k++)   /* full: an ended one's place is taken */
+        if (w->fault[k].ended)
+            slot = k;
+    if (slot >= SAM_MAX_FAULTS)
         return sam_world_fail(w, "more than %d faults", SAM_MAX_FAULTS);
-    sam_fault_t *f = &w->fault[w->nfault++];
+    if (slot == w->nfault)
+        w->nfault++;
+    sam_fault_t *f = &w->fault[slot];
     memset(f, 0, sizeof *f);
     f->kind = kind;
     f->mcu = mcu;

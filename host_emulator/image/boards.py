@@ -1,0 +1,351 @@
+"""`python -m host_emulator boards`: emulated boards as a laptop sees them: each image's USB port a pty, a port listing.
+
+Brings up N boards of the image tier (17 by default: cells 1..16 with their per-address images, then the primary;
+--count takes the first N of that list) and runs until interrupted. Each board's USB CDC port is a pty reachable
+under a stable name containing ttyACM (<dev-dir>/ttyACM-mc01 ... ttyACM-mc16, ttyACM-primary), and the ports are
+listed in PATH (--ports-json) as `python -m metacell_tools.flash ... --ports-json PATH` reads them (VID:PID, serial
+number, device, description, and the board's mode), rewritten atomically whenever a board enumerates or goes.
+
+A 1200-baud touch of a port (speed set to 1200, then the port closed) resets the board. Where the tier can run the
+XIAO's bootloader (MC_BOOTLOADER), the board comes back in bootloader mode with the bootloader's PID; until then the
+tier says so in one line and the application restarts directly, enumerating again with the application's PID. Either
+way the port is made again as the operating system makes it when a device re-enumerates: a new pty behind the same
+stable name, the listing updated. The boards' time runs as fast as it can but never ahead of real time.
+Exit codes: 0 interrupted (ptys and listing removed), 2 bad arguments or the tier cannot run, 3 the run failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import select
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from metacell_common.target.board import XIAO_PID_APP, XIAO_PID_BOOT, XIAO_VID
+
+from .ptyport import PtyPort
+
+N_BOARDS = 17  # cells 1..16, then the primary
+CHUNK_S = 0.002  # world time run between two looks at the ports
+WAIT_MAX_S = 0.02  # longest sleep while the world is ahead of real time (a new client is seen within it)
+LAG_MAX_S = 0.1  # a world behind real time by more does not sprint to catch up later
+APPLICATION, BOOTLOADER = "application", "bootloader"
+PIDS = {APPLICATION: XIAO_PID_APP, BOOTLOADER: XIAO_PID_BOOT}
+PRODUCTS = {APPLICATION: "Seeeduino XIAO", BOOTLOADER: "Seeeduino XIAO bootloader"}
+
+
+def say(msg: str) -> None:
+    print(f"boards: {msg}", file=sys.stderr, flush=True)
+
+
+def bootloader_problem(lib=None) -> str | None:
+    """Why a board cannot run the XIAO's bootloader here (one line), or None when it can: MC_BOOTLOADER names the
+    bootloader's .bin and the runtime (lib) runs it from the reset vector (the tier's `sam_world_bootloader`)."""
+    path = os.environ.get("MC_BOOTLOADER", "")
+    if not path:
+        return "MC_BOOTLOADER (the path of the XIAO bootloader's .bin) is not set"
+    if not Path(path).is_file():
+        return f"MC_BOOTLOADER={path}: no such file"
+    if lib is None or not hasattr(lib, "sam_world_bootloader"):
+        return "the image tier cannot run the bootloader yet (issue 28, item 1)"
+    return None
+
+
+@dataclass
+class Board:
+    """One emulated board as the laptop sees it: its world index, stable name, serial number, mode and port."""
+
+    k: int  # 0..16 in the order cells 1..16, primary
+    index: int  # the World's board index
+    name: str  # "cell 1" | "primary"
+    link: str  # the stable name
+    serial: str
+    mode: str = ""  # APPLICATION | BOOTLOADER when enumerated; "" while it is not (not listed)
+    port: PtyPort | None = None
+    resets: int = 0
+    comes_back_as: str = APPLICATION  # what the next enumeration is (the reset hook chose)
+    enumerations: int = 0
+    resetting: bool = False  # a reset was asked for and has not happened yet
+    held: bytearray = field(default_factory=bytearray)  # the client's bytes not yet given to the USB host
+    line_state_at: int = 0  # control transfers started when the client's open has reached the board
+
+    def entry(self) -> dict:
+        """The board's line of the listing: the fields pyserial's list_ports gives, plus its mode and pty."""
+        assert self.port is not None
+        pid = PIDS[self.mode]
+        location = f"1-{self.k + 1}:1.0"
+        return {
+            "device": self.link,
+            "vid": XIAO_VID,
+            "pid": pid,
+            "serial_number": self.serial,
+            "location": location,
+            "description": f"{PRODUCTS[self.mode]} (emulated {self.name})",
+            "manufacturer": "Seeed",
+            "product": PRODUCTS[self.mode],
+            "hwid": f"USB VID:PID={XIAO_VID:04X}:{pid:04X} SER={self.serial} LOCATION={location}",
+            "mode": self.mode,
+            "pty": self.port.path,
+            "enumeration": self.enumerations,  # 1 at power-up, one more each time it comes back
+        }
+
+
+def serial_number(k: int) -> str:
+    """A board's USB serial number (the chip's unique id on a XIAO: 32 hex digits), fixed for its place."""
+    return f"4D43454D{k + 1:024X}"  # "MCEM" then the place
+
+
+def write_listing(path: Path, entries: list[dict]) -> None:
+    """The listing, atomically (a reader sees the old file or the new one, never a part)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(entries, indent=1) + "\n")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():  # interrupted between the two
+            tmp.unlink()
+
+
+class Boards:
+    """The world's boards behind their ports: service() after each stretch of world time moves the bytes, follows
+    each board's USB state (enumerated or gone) and takes the touches."""
+
+    def __init__(self, world, boards: list[Board], listing: Path, bootloader: str | None) -> None:
+        self.world = world
+        self.boards = boards
+        self.listing = listing
+        self.bootloader_problem = bootloader  # None: a touch resets into the bootloader
+        self.dirty = True
+        self.touches = 0
+        for b in boards:
+            world.usb_attach(b.index)  # the cables are in from power-up
+            b.resets = int(world.info(b.index).resets)
+
+    def up(self) -> int:
+        return sum(1 for b in self.boards if b.mode)
+
+    def service(self) -> None:
+        w = self.world
+        ports = [b.port for b in self.boards if b.port is not None]
+        readable = set(select.select(ports, [], [], 0)[0]) if ports else set()
+        for b in self.boards:
+            usb = w.usb_info(b.index)
+            resets = int(w.info(b.index).resets)
+            if resets != b.resets:  # it reset (asked or not): the OS saw it leave
+                b.resets, b.resetting = resets, False
+                self._gone(b)
+            if b.mode and not usb.configured:
+                self._gone(b)
+            if not b.mode and usb.configured and not b.resetting:
+                self._enumerated(b)
+            out = w.usb_read(b.index)
+            if b.port is None:
+                continue
+            data, present = b.port.poll(b.port in readable)
+            if present != b.port.client:
+                b.port.client = present
+                b.held = bytearray()
+                b.line_state_at = int(usb.control_transfers) + 2 if present else 0
+                w.usb_dtr(b.index, present)  # the client's open and close: DTR
+            b.held += data
+            # as an OS's open() returns once the device took the line coding and DTR (two control transfers): the
+            # client's first bytes follow them
+            if b.held and usb.control_transfers >= b.line_state_at:
+                sent = w.usb_write(b.index, bytes(b.held))
+                if sent < len(b.held):
+                    say(f"{b.name}: the USB host's buffer is full ({sent} of {len(b.held)} bytes taken)")
+                b.held = bytearray()
+            b.port.send(out)
+            if not present and b.port.touched():
+                self.on_touch(b)
+        if self.dirty:
+            write_listing(self.listing, [b.entry() for b in self.boards if b.mode and b.port is not None])
+            self.dirty = False
+
+    def _gone(self, b: Board) -> None:
+        """The board left the bus (a reset): the OS drops its port."""
+        if b.port is not None:
+            b.port.close()
+            b.port = None
+        self.dirty = self.dirty or bool(b.mode)
+        b.mode = ""
+
+    def _enumerated(self, b: Board) -> None:
+        """The board enumerated: a new port behind its stable name, in the mode the last reset chose."""
+        b.port = PtyPort(b.link)
+        b.enumerations += 1
+        b.mode = self.mode_of(b)
+        self.dirty = True
+
+    def mode_of(self, b: Board) -> str:
+        """What the board enumerated as: what its last reset chose (the touch's hook). A finer source, once the
+        bootloader runs: the idProduct of the device descriptor the board itself sent the tier's USB host."""
+        return b.comes_back_as
+
+    def on_touch(self, b: Board) -> None:
+        """The 1200-baud touch: the hook where a reset chooses what runs. With the bootloader, the board would come
+        back in it (BOOTLOADER); without, the application restarts directly (one line says so)."""
+        self.touches += 1
+        if self.bootloader_problem is None:  # pragma: no cover (the tier cannot run the bootloader yet)
+            b.comes_back_as = BOOTLOADER
+        else:
+            b.comes_back_as = APPLICATION
+            say(f"{b.name}: 1200-baud touch: {self.bootloader_problem}; the application restarts directly")
+        self._gone(b)
+        b.resetting = True
+        self.world.reset(b.index)
+
+    def close(self) -> None:
+        for b in self.boards:
+            if b.port is not None:
+                b.port.close()
+                b.port = None
+        try:
+            self.listing.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m host_emulator boards",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  python -m host_emulator boards --ports-json /tmp/rig/ports.json            # 17 boards\n"
+        "  python -m metacell_tools.flash identify --ports-json /tmp/rig/ports.json   # in another shell\n"
+        "  python -m host_emulator boards --count 3 --ports-json /tmp/rig/ports.json --dev-dir /tmp/rig/dev",
+    )
+    ap.add_argument("scene", nargs="?", default="default", help="scene whose parameters the boards get (default)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override, as for run")
+    ap.add_argument(
+        "--count", type=int, default=N_BOARDS, help="boards: the first N of cells 1..16, primary (default 17)"
+    )
+    ap.add_argument("--blank", action="store_true", help="boards with only the bootloader (needs MC_BOOTLOADER)")
+    ap.add_argument("--ports-json", required=True, metavar="PATH", help="where the port listing is written")
+    ap.add_argument(
+        "--dev-dir",
+        default=None,
+        metavar="DIR",
+        help="directory of the ports' stable names (default: beside PATH, named after it: ports.json -> ports-dev)",
+    )
+    ap.add_argument("--speed", type=float, default=1.0, help="most simulated seconds per wall second (default 1)")
+    return ap
+
+
+def boards_main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    if not 1 <= args.count <= N_BOARDS:
+        say(f"--count must be 1..{N_BOARDS}, got {args.count}")
+        return 2
+    if not 1e-3 <= args.speed <= 1e3:
+        say(f"--speed must be in 0.001..1000, got {args.speed}")
+        return 2
+    if args.blank:
+        problem = bootloader_problem()
+        if problem is None:  # pragma: no cover (the tier cannot run the bootloader yet)
+            problem = "blank boards are not brought up yet"
+        say(f"--blank needs the XIAO's bootloader in the image tier: {problem}")
+        return 2
+    listing = Path(args.ports_json)
+    dev_dir = Path(args.dev_dir) if args.dev_dir else listing.with_name(f"{listing.stem}-dev")
+    try:
+        listing.parent.mkdir(parents=True, exist_ok=True)
+        made_dir = not dev_dir.exists()
+        dev_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        say(f"cannot make {listing.parent} or {dev_dir}: {e.strerror or e}")
+        return 2
+    try:
+        return _run(args, listing, dev_dir)
+    finally:
+        if made_dir:
+            try:
+                dev_dir.rmdir()
+            except OSError:
+                pass
+
+
+def _world(args):
+    """The world of the first --count boards with the scene's parameters (its plant at rest)."""
+    from ..models.options import ConfigError
+    from ..scene import load_scene
+    from . import ImageTierUnavailable
+    from .build import build_images
+    from .model import WINDOW_S
+    from .world import World, WorldConfig, WorldError
+
+    cells = min(args.count, 16)
+    try:
+        sc = load_scene(args.scene, args.set)
+        if sc.cells < cells:
+            return None, f"scene {sc.name!r} has {sc.cells} cells, fewer than the {cells} boards asked for"
+        p = sc.params  # the first `cells` cells of the scene
+        params = dataclasses.replace(p, cells=cells, **{k: getattr(p, k)[:cells] for k in p.per_cell_keys})
+        io = sc.options.image
+        cfg = WorldConfig(
+            window_s=WINDOW_S, threads=io.threads, cycle_model=io.cycle_model, ff=io.fast_forward, round_s=io.round_s
+        )
+        primary = args.count > 16
+        images = build_images(cells, primary=primary)
+        return World(params, images, options=sc.options, config=cfg, primary=primary), None
+    except (ConfigError, ValueError, KeyError, OSError) as e:
+        return None, str(e)
+    except (ImageTierUnavailable, WorldError) as e:
+        return None, f"the image tier cannot run: {e}"
+
+
+def _run(args, listing: Path, dev_dir: Path) -> int:
+    from .world import WorldError
+
+    t_start = time.monotonic()
+    world, problem = _world(args)
+    if world is None:
+        say(str(problem).splitlines()[0] if problem else "cannot start")
+        return 2
+    names = [(b.index, b.name, "primary" if b.role == "primary" else f"mc{b.cell:02d}") for b in world.boards]
+    boards = [Board(k, i, n, str(dev_dir / f"ttyACM-{tag}"), serial_number(k)) for k, (i, n, tag) in enumerate(names)]
+    rig = Boards(world, boards, listing, bootloader_problem(world.lib))
+    stop: list[int] = []
+    signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
+    signal.signal(signal.SIGHUP, lambda *a: stop.append(1))
+    status = 0
+    announced = False
+    t_wall0, t_world0 = time.monotonic(), world.t
+    try:
+        while not stop:
+            rig.service()
+            if not announced and rig.up() == len(boards):
+                announced = True
+                print(
+                    f"{len(boards)} boards up at t = {world.t:.3f} s ({time.monotonic() - t_start:.1f} s after start): "
+                    f"ports in {dev_dir}, listing {listing}",
+                    flush=True,
+                )
+            lead = (world.t - t_world0) / args.speed - (time.monotonic() - t_wall0)
+            if lead > 0:  # ahead of real time: wait for the clients (or for real time to catch up)
+                held = [b.port for b in boards if b.port is not None and b.port.client]
+                select.select(held, [], [], min(lead, WAIT_MAX_S))
+                continue
+            if lead < -LAG_MAX_S:  # behind: no sprint later
+                t_wall0 = time.monotonic() - (world.t - t_world0) / args.speed - LAG_MAX_S
+            world.run_to(world.t + CHUNK_S)
+    except KeyboardInterrupt:
+        pass
+    except WorldError as e:
+        say(f"stopped at t = {world.t:.3f} s: {e}")
+        status = 3
+    finally:
+        rig.close()
+    print(f"boards: {len(boards)} boards ran {world.t:.1f} s, {rig.touches} touches; ports and listing removed")
+    return status
+
+
+if __name__ == "__main__":
+    raise SystemExit(boards_main())
