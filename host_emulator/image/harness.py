@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from metacell_tools.fwcheck.cpubudget import Function
+from metacell_common.target.cycles import Function
 
 from ..models.options import ModelOptions
 from ..models.plant import build_plant
