@@ -173,4 +173,3 @@ def batch_budget(total: float, what: str, limit: float = MAX_BATCH_CELL_STEPS) -
             "one core): fewer points, seeds or repeats, or shorter runs"
         )
     return None
-

@@ -10,10 +10,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ...analysis.summary import clean
 from metacell_common.outpaths import check_out_dir
-from ...params import REACTION_KEYS
 from metacell_common.provenance import provenance
+
+from ...analysis.summary import clean
+from ...params import REACTION_KEYS
 from ...scene import load_scene, scene_table
 from .constants import NOMINAL_PUSH, PUSH_DURATIONS_S, PUSH_TORQUES_NM, REQUIRE, SEARCH_PUSHES
 from .ensembles import Runner

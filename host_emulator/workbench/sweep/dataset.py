@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from metacell_common.provenance import provenance
+
 from ..api import netcdf_attrs
 from .schema import BANDS, OBSERVABLES, STRINGS, _num, coord_names, outcome_of
 

@@ -12,9 +12,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from metacell_common.outpaths import check_out_dir
+
 from ...construct import scene_cost
 from ...limits import RunTooLarge, batch_budget
-from metacell_common.outpaths import check_out_dir
 from ...scene import _value, scene_table
 from ..api import override_list
 from .cluster import _run_on_dask
