@@ -24,6 +24,7 @@ import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -219,8 +220,10 @@ class Harness:
         program: Program | None = None,
         window_s: float = 100e-6,
         ff: bool = True,
+        built: tuple[Any, Any] | None = None,
     ) -> None:
-        self.ffi, self.lib = ffi, lib = runtime.load()
+        """`built`: the (ffi, lib) of a runtime from runtime.load (default: the one of image/csrc)."""
+        self.ffi, self.lib = ffi, lib = built or runtime.load()
         self.table = regsnapshot.load_or_snapshot()
         self._regs = {r.full: (p.base + r.offset, r.size) for p in self.table.peripherals for r in p.registers}
         self.roles = list(boards or [board])

@@ -4,7 +4,8 @@
 The register table and a host-compilable view of the vendor's device headers are generated into the build
 directory from the headers of the PlatformIO tree that builds the images (regtable.py); where the tree is absent
 (the register-level harness needs no images), from the table's committed snapshot and the vendor macros it keeps.
-The build is cached by a hash of every source, the generated files and the flags.
+The build is cached by a hash of every source, the generated files and the flags. A scratch copy of csrc/ (the
+test that follows docs/image-tier.md's recipe for a new model) builds with `load(csrc=..., build_dir=...)`.
 """
 
 from __future__ import annotations
@@ -48,17 +49,31 @@ _lock = threading.Lock()
 _cache: dict[str, tuple[Any, Any]] = {}
 
 
-def load(pio_tree: str | None = None) -> tuple[Any, Any]:
-    """(ffi, lib) of the runtime, built on first use (RuntimeBuildError, regtable.RegTableError)."""
+def load(
+    pio_tree: str | None = None,
+    *,
+    csrc: Path | None = None,
+    table: regtable.Table | None = None,
+    build_dir: Path | None = None,
+) -> tuple[Any, Any]:
+    """(ffi, lib) of the runtime, built on first use (RuntimeBuildError, regtable.RegTableError).
+
+    By default from IMAGE_CSRC against the register table of `pio_tree` (or its snapshot), built under build/image/.
+    `csrc` builds from another copy of the sources, `table` against another table, and `build_dir` places the
+    build elsewhere; a copy's build has its own key (the sources' directory is hashed), so it never replaces the
+    runtime of IMAGE_CSRC."""
     inc, libuc = unicorn_paths()
-    table = regsnapshot.load_or_snapshot(pio_tree)
+    csrc = IMAGE_CSRC if csrc is None else Path(csrc).resolve()
+    table = regsnapshot.load_or_snapshot(pio_tree) if table is None else table
     gen_c = regtable.emit_c(table)
     gen_h = regtable.emit_vendor_h(table)
     fw_srcs = firmware._sources()
     fw_hdrs = firmware._headers()
-    img_srcs = sorted(IMAGE_CSRC.glob("*.c"))
-    img_hdrs = sorted(IMAGE_CSRC.glob("*.h"))
+    img_srcs = sorted(csrc.glob("*.c"))
+    img_hdrs = sorted(csrc.glob("*.h"))
     h = hashlib.sha256()
+    if csrc != IMAGE_CSRC:
+        h.update(str(csrc).encode())
     for p in fw_srcs + fw_hdrs + img_srcs + img_hdrs:
         h.update(p.name.encode())
         h.update(p.read_bytes())
@@ -72,14 +87,16 @@ def load(pio_tree: str | None = None) -> tuple[Any, Any]:
     with _lock:
         if key not in _cache:
             atmel = None if table.vendor_macros is not None else Path(table.source)
-            mod = _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel, inc, libuc)
+            outdir = (build_dir or firmware.BUILD_DIR.parent / "image") / key
+            mod = _build(key, outdir, csrc, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel, inc, libuc)
             _cache[key] = (mod.ffi, mod.lib)
         return _cache[key]
 
 
-def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path | None, uc_inc: Path, libuc: Path):
+def _build(
+    key, outdir: Path, csrc: Path, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path | None, uc_inc, libuc
+):
     name = f"_mcimg_{key}"
-    outdir = firmware.BUILD_DIR.parent / "image" / key
     so = next(outdir.glob(f"{name}*.so"), None) if outdir.exists() else None
     if so is None:
         import cffi
@@ -89,12 +106,12 @@ def _build(key, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path | None
         (gen_dir / "sam_regtab_gen.c").write_text(gen_c)
         (gen_dir / "sam_vendor_gen.h").write_text(gen_h)
         srcs = [*fw_srcs, *img_srcs, gen_dir / "sam_regtab_gen.c"]
-        incs = [firmware.LIB_SRC, firmware.HOST_CSRC, IMAGE_CSRC, gen_dir]
+        incs = [firmware.LIB_SRC, firmware.HOST_CSRC, csrc, gen_dir]
         # the vendor's and Unicorn's headers are system headers: -pedantic judges only our sources
         sys_incs = [*([f"-isystem{atmel_inc}"] if atmel_inc else []), f"-isystem{uc_inc}"]
         firmware.check_pedantic([s for s in img_srcs], incs, tuple(sys_incs))
         ffi = cffi.FFI()
-        headers = [*fw_hdrs, *(IMAGE_CSRC / h for h in RUNTIME_HEADERS)]
+        headers = [*fw_hdrs, *(csrc / h for h in RUNTIME_HEADERS)]
         ffi.cdef(firmware.cdef_source(headers))
         ffi.set_source(
             name,
