@@ -46,6 +46,7 @@ def world(images):
     return w
 
 
+@pytest.mark.slow
 def test_linux_profile_reads_the_boards_descriptors(images):
     """Both applications (a cell's and the primary's) enumerate under the Linux profile as the XIAO's Seeed core
     describes itself: VID:PID 2886:802F, "Seeed", "Seeeduino XIAO", the chip's serial number (unique per board);
@@ -67,6 +68,7 @@ def test_linux_profile_reads_the_boards_descriptors(images):
     assert not [n for n in w.notes() if "USB host" in n]
 
 
+@pytest.mark.slow
 def test_script_profile_is_unchanged(world):
     """The default profile: the tier's six enumeration transfers, no strings, no line coding until the port opens."""
     d = world.usb_device(1)
@@ -74,6 +76,7 @@ def test_script_profile_is_unchanged(world):
     assert world.usb_info(1).control_transfers == 6
 
 
+@pytest.mark.slow
 def test_line_coding_and_control_lines_reach_the_firmware(world):
     """cdc_acm's requests from the laptop's line state: an open at 921600 (DTR and RTS up, then the coding), the
     close (lines down, the speed kept), baud 0 keeps the speed: the Arduino core's CDC sees each."""
@@ -98,6 +101,7 @@ def test_line_coding_and_control_lines_reach_the_firmware(world):
     assert line_info(world, 0) == (9600, 0)
 
 
+@pytest.mark.slow
 def test_re_enumeration_is_counted_and_starts_a_new_tty(world):
     """A reset: the device leaves (detaches + 1) and enumerates again (enumerations + 1) with its descriptors read
     again; the line state starts over from cdc_acm's probe (9600, lines low) whatever the laptop had set."""
@@ -117,6 +121,7 @@ def test_re_enumeration_is_counted_and_starts_a_new_tty(world):
     assert line_info(world, 0) == (9600, 0)
 
 
+@pytest.mark.slow
 def test_usb_attach_refuses_an_unknown_profile_or_a_second_attach(world):
     with pytest.raises(ValueError, match="profile"):
         world.usb_attach(0, "windows")
