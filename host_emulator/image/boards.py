@@ -4,13 +4,17 @@ Brings up N boards of the image tier (17 by default: cells 1..16 with their per-
 --count takes the first N of that list) and runs until interrupted. Each board's USB CDC port is a pty reachable
 under a stable name containing ttyACM (<dev-dir>/ttyACM-mc01 ... ttyACM-mc16, ttyACM-primary), and the ports are
 listed in PATH (--ports-json) as `python -m metacell_tools.flash ... --ports-json PATH` reads them (VID:PID, serial
-number, device, description, and the board's mode), rewritten atomically whenever a board enumerates or goes.
+number, manufacturer, product: what each board's own descriptors said when the tier's USB host enumerated it as Linux
+does; the device, description, and the board's mode), rewritten atomically whenever a board enumerates or goes.
 
-A 1200-baud touch of a port (speed set to 1200, then the port closed) resets the board. Where the tier can run the
-XIAO's bootloader (MC_BOOTLOADER), the board comes back in bootloader mode with the bootloader's PID; until then the
-tier says so in one line and the application restarts directly, enumerating again with the application's PID. Either
-way the port is made again as the operating system makes it when a device re-enumerates: a new pty behind the same
-stable name, the listing updated. The boards' time runs as fast as it can but never ahead of real time.
+The USB host behaves as Linux's cdc_acm on each port: a client's open raises DTR and RTS, its speed (tcsetattr) is
+sent as the line coding, its close drops DTR and RTS. A 1200-baud touch of a port (speed set to 1200, then the port
+closed) resets the board. Where the tier can run the XIAO's bootloader (MC_BOOTLOADER), the touch reaches the
+firmware as it would on a laptop (Seeed's core erases the application's first row and resets: the board comes back in
+bootloader mode with the bootloader's PID); until then the tier says so in one line, resets the board from outside
+and the application restarts directly, enumerating again with the application's PID. Either way the port is made
+again as the operating system makes it when a device re-enumerates: a new pty behind the same stable name, the
+listing updated. The boards' time runs as fast as it can but never ahead of real time.
 Exit codes: 0 interrupted (ptys and listing removed), 2 bad arguments or the tier cannot run, 3 the run failed.
 """
 
@@ -26,18 +30,22 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from metacell_common.target.board import XIAO_PID_APP, XIAO_PID_BOOT, XIAO_VID
+from metacell_common.target.board import XIAO_PID_APP, XIAO_PID_BOOT
 
 from .ptyport import PtyPort
+
+if TYPE_CHECKING:
+    from .world import UsbDevice
 
 N_BOARDS = 17  # cells 1..16, then the primary
 CHUNK_S = 0.002  # world time run between two looks at the ports
 WAIT_MAX_S = 0.02  # longest sleep while the world is ahead of real time (a new client is seen within it)
 LAG_MAX_S = 0.1  # a world behind real time by more does not sprint to catch up later
 APPLICATION, BOOTLOADER = "application", "bootloader"
-PIDS = {APPLICATION: XIAO_PID_APP, BOOTLOADER: XIAO_PID_BOOT}
-PRODUCTS = {APPLICATION: "Seeeduino XIAO", BOOTLOADER: "Seeeduino XIAO bootloader"}
+MODES = {XIAO_PID_APP: APPLICATION, XIAO_PID_BOOT: BOOTLOADER}  # idProduct -> mode
+TOUCH_BAUD = 1200
 
 
 def say(msg: str) -> None:
@@ -65,7 +73,7 @@ class Board:
     index: int  # the World's board index
     name: str  # "cell 1" | "primary"
     link: str  # the stable name
-    serial: str
+    serial: str  # the iSerialNumber string the board sent (its place's fallback until it enumerated)
     mode: str = ""  # APPLICATION | BOOTLOADER when enumerated; "" while it is not (not listed)
     port: PtyPort | None = None
     resets: int = 0
@@ -74,22 +82,27 @@ class Board:
     resetting: bool = False  # a reset was asked for and has not happened yet
     held: bytearray = field(default_factory=bytearray)  # the client's bytes not yet given to the USB host
     line_state_at: int = 0  # control transfers started when the client's open has reached the board
+    device: UsbDevice | None = None  # World.usb_device at its last enumeration: what the board said (VID, PID, strings)
+    enumerations_seen: int = 0  # the host's count of the board's enumerations when its port was made
+    line: tuple[int, bool] = (0, False)  # the line state last given to the USB host (baud sent, client present)
+    touched: bool = False  # the touch was taken (forwarded) and the board has not left yet
 
     def entry(self) -> dict:
         """The board's line of the listing: the fields pyserial's list_ports gives, plus its mode and pty."""
-        assert self.port is not None
-        pid = PIDS[self.mode]
+        assert self.port is not None and self.device is not None
+        d = self.device
+        vid, pid = d.vid, d.pid
         location = f"1-{self.k + 1}:1.0"
         return {
             "device": self.link,
-            "vid": XIAO_VID,
+            "vid": vid,
             "pid": pid,
             "serial_number": self.serial,
             "location": location,
-            "description": f"{PRODUCTS[self.mode]} (emulated {self.name})",
-            "manufacturer": "Seeed",
-            "product": PRODUCTS[self.mode],
-            "hwid": f"USB VID:PID={XIAO_VID:04X}:{pid:04X} SER={self.serial} LOCATION={location}",
+            "description": f"{d.product} (emulated {self.name})",
+            "manufacturer": d.manufacturer,
+            "product": d.product,
+            "hwid": f"USB VID:PID={vid:04X}:{pid:04X} SER={self.serial} LOCATION={location}",
             "mode": self.mode,
             "pty": self.port.path,
             "enumeration": self.enumerations,  # 1 at power-up, one more each time it comes back
@@ -97,7 +110,8 @@ class Board:
 
 
 def serial_number(k: int) -> str:
-    """A board's USB serial number (the chip's unique id on a XIAO: 32 hex digits), fixed for its place."""
+    """A stand-in serial number for a board's place, until its descriptors say the real one (on a XIAO the chip's
+    unique id as 32 hex digits, which the tier makes unique per board)."""
     return f"4D43454D{k + 1:024X}"  # "MCEM" then the place
 
 
@@ -121,10 +135,14 @@ class Boards:
         self.boards = boards
         self.listing = listing
         self.bootloader_problem = bootloader  # None: a touch resets into the bootloader
+        # the one switch: the touch reaches the firmware (which erases its first row and resets into the bootloader)
+        # as the line coding and DTR a laptop sends, or, while the tier cannot run the bootloader, it is kept from
+        # the firmware and the board is reset from outside
+        self.forward_touch = bootloader is None
         self.dirty = True
         self.touches = 0
         for b in boards:
-            world.usb_attach(b.index)  # the cables are in from power-up
+            world.usb_attach(b.index, "linux")  # the cables are in from power-up
             b.resets = int(world.info(b.index).resets)
 
     def up(self) -> int:
@@ -140,33 +158,49 @@ class Boards:
             if resets != b.resets:  # it reset (asked or not): the OS saw it leave
                 b.resets, b.resetting = resets, False
                 self._gone(b)
-            if b.mode and not usb.configured:
-                self._gone(b)
+            if b.mode and (not usb.configured or w.usb_device(b.index).enumerations != b.enumerations_seen):
+                self._gone(b)  # it left the bus, or came back between two looks: a new port either way
             if not b.mode and usb.configured and not b.resetting:
                 self._enumerated(b)
             out = w.usb_read(b.index)
-            if b.port is None:
+            if b.port is None or b.port not in ports:  # a port made just now is looked at from the next service on
                 continue
             data, present = b.port.poll(b.port in readable)
             if present != b.port.client:
                 b.port.client = present
                 b.held = bytearray()
-                b.line_state_at = int(usb.control_transfers) + 2 if present else 0
-                w.usb_dtr(b.index, present)  # the client's open and close: DTR
+                b.touched = b.touched and not present
+            self._line(b, present, int(usb.control_transfers))
             b.held += data
-            # as an OS's open() returns once the device took the line coding and DTR (two control transfers): the
-            # client's first bytes follow them
+            # as an OS's open() returns once the device took the line state (its control transfers): the client's
+            # first bytes follow them
             if b.held and usb.control_transfers >= b.line_state_at:
                 sent = w.usb_write(b.index, bytes(b.held))
                 if sent < len(b.held):
                     say(f"{b.name}: the USB host's buffer is full ({sent} of {len(b.held)} bytes taken)")
                 b.held = bytearray()
             b.port.send(out)
-            if not present and b.port.touched():
+            if not present and not b.touched and b.port.touched():
                 self.on_touch(b)
         if self.dirty:
             write_listing(self.listing, [b.entry() for b in self.boards if b.mode and b.port is not None])
             self.dirty = False
+
+    def _line(self, b: Board, present: bool, transfers: int) -> None:
+        """The client's line state to the board as cdc_acm sends it: its open and close as DTR and RTS, its speed as
+        the line coding. A touch that is not forwarded keeps 1200 baud from the firmware (its own reset would need
+        the bootloader and a flash controller that programs)."""
+        assert b.port is not None
+        baud = b.port.baud()  # a close keeps the speed the client left
+        if baud == TOUCH_BAUD and not self.forward_touch:
+            baud = 0  # the firmware keeps the line coding it has
+        sent = baud or b.line[0]
+        if (sent, present) == b.line:
+            return
+        requests = (present != b.line[1]) + (sent != b.line[0])
+        b.line = (sent, present)
+        b.line_state_at = transfers + requests if present else 0
+        self.world.usb_line(b.index, baud, present, present)
 
     def _gone(self, b: Board) -> None:
         """The board left the bus (a reset): the OS drops its port."""
@@ -180,23 +214,30 @@ class Boards:
         """The board enumerated: a new port behind its stable name, in the mode the last reset chose."""
         b.port = PtyPort(b.link)
         b.enumerations += 1
+        b.device = d = self.world.usb_device(b.index)
+        b.enumerations_seen = d.enumerations
+        b.serial = d.serial or b.serial
+        b.line = (9600, False)  # a new tty: cdc_acm's probe set 9600 baud, DTR and RTS low
+        b.touched = False
         b.mode = self.mode_of(b)
         self.dirty = True
 
     def mode_of(self, b: Board) -> str:
-        """What the board enumerated as: what its last reset chose (the touch's hook). A finer source, once the
-        bootloader runs: the idProduct of the device descriptor the board itself sent the tier's USB host."""
-        return b.comes_back_as
+        """What the board enumerated as: the idProduct of the device descriptor it sent the tier's USB host (the
+        application's or the bootloader's PID), else what its last reset chose (the touch's hook)."""
+        pid = getattr(b.device, "pid", None)
+        return MODES.get(pid, b.comes_back_as) if pid is not None else b.comes_back_as
 
     def on_touch(self, b: Board) -> None:
         """The 1200-baud touch: the hook where a reset chooses what runs. With the bootloader, the board would come
         back in it (BOOTLOADER); without, the application restarts directly (one line says so)."""
         self.touches += 1
-        if self.bootloader_problem is None:  # pragma: no cover (the tier cannot run the bootloader yet)
+        if self.forward_touch:
             b.comes_back_as = BOOTLOADER
-        else:
-            b.comes_back_as = APPLICATION
-            say(f"{b.name}: 1200-baud touch: {self.bootloader_problem}; the application restarts directly")
+            b.touched = True  # the line state reached the firmware, which resets by itself (its first row erased)
+            return
+        b.comes_back_as = APPLICATION
+        say(f"{b.name}: 1200-baud touch: {self.bootloader_problem}; the application restarts directly")
         self._gone(b)
         b.resetting = True
         self.world.reset(b.index)

@@ -2,10 +2,11 @@
 
 The pty comes from serve's open_pty (raw, master non-blocking, slave closed); a client's open and close of the slave
 are seen on the master as `serve` sees them (a read fails with EIO while nobody holds the slave), and the line speed
-the client set through `tcgetattr` on the master. A pty has no modem lines, so the 1200-baud touch (open at 1200
-baud, drop DTR, close) is taken as "the speed is 1200 and nobody holds the port". The stable name is a symlink to
-the slave (`<dir>/ttyACM-mc01 -> /dev/pts/K`), re-pointed atomically when the port is made again: bossac takes its
-USB path only for a port whose name contains ttyACM or ttyUSB.
+the client set through `tcgetattr` on the master (a new port starts at 9600 baud, as a new ttyACM does). A pty has
+no modem lines, so the 1200-baud touch (open at 1200 baud, drop DTR, close) is taken as "the speed is 1200 and
+nobody holds the port". The stable name is a symlink to the slave (`<dir>/ttyACM-mc01 -> /dev/pts/K`), re-pointed
+atomically when the port is made again: bossac takes its USB path only for a port whose name contains ttyACM or
+ttyUSB.
 """
 
 from __future__ import annotations
@@ -17,6 +18,14 @@ import termios
 from ..bus.serve import open_pty
 
 TOUCH_SPEED = termios.B1200
+NEW_PORT_SPEED = termios.B9600  # a new ttyACM's speed (cdc_acm's probe sends 9600 8N1)
+# termios speed constants -> baud
+BAUDS = {
+    getattr(termios, f"B{b}"): b
+    for b in (300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 921600)
+    + (1000000, 2000000, 3000000, 4000000)
+    if hasattr(termios, f"B{b}")
+}
 BACKLOG_MAX = 1 << 16  # bytes kept for a client that does not read before new output is dropped
 
 
@@ -35,6 +44,9 @@ class PtyPort:
     def __init__(self, link: str) -> None:
         self.link = link
         self.master, slave, self.path = open_pty()
+        attrs = termios.tcgetattr(slave)
+        attrs[4] = attrs[5] = NEW_PORT_SPEED
+        termios.tcsetattr(slave, termios.TCSANOW, attrs)
         os.close(slave)
         self.client = False  # a client holds the slave
         self.backlog = bytearray()
@@ -57,6 +69,13 @@ class PtyPort:
             if e.errno == errno.EIO:
                 return b"", False
             raise
+
+    def baud(self) -> int:
+        """The line speed the client set (baud; 0 when the master cannot tell)."""
+        try:
+            return BAUDS.get(termios.tcgetattr(self.master)[5], 0)
+        except termios.error:
+            return 0
 
     def touched(self) -> bool:
         """Nobody holds the port and the last client left it at 1200 baud: the touch."""

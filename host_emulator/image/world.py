@@ -21,6 +21,31 @@ NOTES_KEPT = 100_000  # log lines World.notes keeps
 API_S = 50e-6  # an action from outside lands this long after the world's time (csrc/sam_usb.c: USB_API_S)
 
 
+USB_PROFILES = ("script", "linux")  # csrc/sam_api.h SAM_USB_PROFILE_*
+
+
+@dataclass(frozen=True)
+class UsbDevice:
+    """A board's USB device as the laptop's host read it (World.usb_device; csrc/sam_api.h sam_usb_device_t)."""
+
+    vid: int
+    pid: int
+    bcd_usb: int
+    bcd_device: int
+    manufacturer: str  # the strings: "" unless the Linux profile read them
+    product: str
+    serial: str
+    comm_if: int  # the CDC comm interface (wIndex of class requests)
+    data_in: int  # the CDC data endpoints
+    data_out: int
+    enumerations: int  # times the device was configured
+    detaches: int  # times it left the bus after it had been seen
+    baud: int  # the line coding last sent (0: none since it enumerated)
+    dtr: bool  # the control line state last sent
+    rts: bool
+    described: bool  # its device descriptor was read in this enumeration
+
+
 class WorldError(RuntimeError):
     """The world stopped: a board did something the models do not cover, or the plant failed. The message names
     the board, the register or the cause, the program counter and the time."""
@@ -297,9 +322,33 @@ class World:
         return float(v[0]), float(a[0])
 
     # ---- USB host --------------------------------------------------------------
-    def usb_attach(self, b: int) -> None:
+    def usb_attach(self, b: int, profile: str = "script") -> None:
+        """Plug the laptop's USB host into board b's port. profile: "script" (the tier's enumeration, the default)
+        or "linux" (as Linux enumerates and cdc_acm probes: strings, BOS; see usb_device, usb_line)."""
+        if profile not in USB_PROFILES:
+            raise ValueError(f"USB profile {profile!r}: expected one of {', '.join(USB_PROFILES)}")
+        if self.lib.sam_usb_set_profile(self._w, b, USB_PROFILES.index(profile)) != 0:
+            raise ValueError(f"board {b}: no such board, or its USB host is already attached")
         if self.lib.sam_usb_attach(self._w, b) != 0:
             raise ValueError(f"board {b}: no such board")
+
+    def usb_line(self, b: int, baud: int, dtr: bool, rts: bool) -> None:
+        """The laptop's line state on board b's port, as cdc_acm sends it (a speed change: SET_LINE_CODING, baud 0
+        keeps the speed; a DTR/RTS change: SET_CONTROL_LINE_STATE)."""
+        if self.lib.sam_usb_set_line(self._w, b, baud, 1 if dtr else 0, 1 if rts else 0) != 0:
+            raise ValueError(f"board {b}: USB not attached")
+
+    def usb_device(self, b: int) -> UsbDevice:
+        """What board b's device said in its last enumeration, its counters and the line state it was last sent."""
+        d = self.ffi.new("sam_usb_device_t *")
+        self.lib.sam_usb_device(self._w, b, d)
+        s = self.ffi.string
+        return UsbDevice(
+            int(d.vid), int(d.pid), int(d.bcd_usb), int(d.bcd_device),
+            s(d.manufacturer).decode(), s(d.product).decode(), s(d.serial).decode(),
+            int(d.comm_if), int(d.data_in), int(d.data_out), int(d.enumerations), int(d.detaches),
+            int(d.baud), bool(d.dtr), bool(d.rts), bool(d.described),
+        )  # fmt: skip
 
     def usb_dtr(self, b: int, on: bool) -> None:
         if self.lib.sam_usb_set_dtr(self._w, b, 1 if on else 0) != 0:

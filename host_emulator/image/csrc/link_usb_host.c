@@ -9,8 +9,14 @@
  * The laptop's USB stack, one per port, when attached: once the device is enabled and not detached,
  * a debounce and bus reset (USB_CONNECT_S) end in EORST; SOF every 1 ms; enumeration as an operating system
  * does it (GET_DESCRIPTOR device, SET_ADDRESS, GET_DESCRIPTOR device and configuration, SET_CONFIGURATION),
- * the configuration descriptor parsed for the CDC data endpoints; opening the port sends SET_LINE_CODING
- * (115200 8N1) and SET_CONTROL_LINE_STATE (DTR, RTS), closing it clears DTR. Each packet the host moves takes
+ * the configuration descriptor parsed for the CDC data interface's endpoints (class 0x0A) and the comm
+ * interface (wIndex of class requests); opening the port sends SET_LINE_CODING (115200 8N1) and
+ * SET_CONTROL_LINE_STATE (DTR, RTS), closing it clears DTR. That is the script profile (the default). The Linux
+ * profile reads what Linux reads besides: the BOS after the device descriptor when bcdUSB >= 2.01, and after the
+ * configuration the strings 0, iProduct, iManufacturer and iSerialNumber (wLength 255), recorded with the ids in
+ * sam_usb_device_t; once configured it sends cdc_acm's probe (SET_LINE_CODING 9600 8N1), then the laptop's line
+ * state as cdc_acm does (sam_usb_set_line). A control IN data stage may come in several banks (full packets until
+ * a short or zero-length one, or wLength). Each packet the host moves takes
  * usb_packet_us after the device made it available (an IN bank set ready, an OUT bank armed). A control
  * transfer's stage that the device does not complete in USB_STAGE_TIMEOUT_S fails the transfer (noted). What
  * is not modelled: electrical signalling, NAK handshakes between packets (a bank not ready is simply waited
@@ -25,7 +31,25 @@
 enum { H_NONE = 0, H_RESET_END, H_SOF, H_CTRL, H_IN, H_OUT, H_START, H_TIMEOUT };
 enum { C_IDLE = 0, C_DATA_IN, C_DATA_OUT, C_STATUS_IN, C_STATUS_OUT };
 /* the host's script position */
-enum { S_DETACHED = 0, S_RESETTING, S_DEV64, S_ADDR, S_DEV18, S_CFG9, S_CFGALL, S_SETCFG, S_READY };
+enum { S_DETACHED = 0, S_RESETTING, S_DEV64, S_ADDR, S_DEV18, S_CFG9, S_CFGALL, S_SETCFG, S_READY,
+       S_BOS5, S_BOSALL, S_STR0, S_STR };   /* the Linux profile's own steps */
+
+
+static int linux_profile(const sam_usbhost_t *h) { return h->profile == SAM_USB_PROFILE_LINUX; }
+
+/* the device left the bus (a reset, DETACH): counted; under the Linux profile its next enumeration is a new tty */
+static void host_detached(sam_usbhost_t *h)
+{
+    h->dev.detaches++;
+    h->sent_baud = 0;
+    h->sent_ctl = 0;
+    h->dev.baud = 0;
+    h->dev.dtr = h->dev.rts = 0;
+    if (linux_profile(h)) {
+        h->want_baud = SAM_USB_LINUX_BAUD;
+        h->want_ctl = 0;
+    }
+}
 
 static uint64_t tu(double s) { return (uint64_t)(s * (double)SAM_TU_HZ); }
 
@@ -85,6 +109,7 @@ static void attach_check(sam_mcu_t *m)
         hclear(m, H_OUT);
         h->info.attached = 1;
         h->info.enumerated = h->info.configured = 0;
+        host_detached(h);
     }
 }
 
@@ -104,23 +129,15 @@ static void setup_packet(uint8_t s[8], uint8_t type, uint8_t req, uint16_t value
 static void parse_config(sam_mcu_t *m, const uint8_t *d, uint32_t n)
 {
     sam_usbhost_t *h = host(m);
-    int in = -1, out = -1;
-    for (uint32_t i = 0; i + 2 <= n && d[i] >= 2; i += d[i]) {
-        if (d[i + 1] == 5 && i + 7 <= n && (d[i + 3] & 3) == 2) {   /* a bulk endpoint */
-            int ep = d[i + 2] & 0x0F;
-            if (d[i + 2] & 0x80)
-                in = ep;
-            else
-                out = ep;
-        }
-    }
-    if (in < 0 || out < 0) {
+    int comm, in, out;
+    if (sam_usbd_parse_config(d, n, &comm, &in, &out)) {
         sam_note(m, "%s: USB host: no CDC bulk endpoints in the configuration descriptor", m->name);
         h->error = h->info.error = 1;
         return;
     }
-    h->cdc_in = in;
-    h->cdc_out = out;
+    h->cdc_in = h->dev.data_in = in;
+    h->cdc_out = h->dev.data_out = out;
+    h->dev.comm_if = comm;
 }
 
 static void ctl_start(sam_mcu_t *m, const uint8_t setup[8], const uint8_t *data, uint32_t n)
@@ -184,6 +201,13 @@ static void ctl_step(sam_mcu_t *m)
         EPSTATUS(m, 0) &= (uint8_t)~BK1RDY;
         EPINTFLAG(m, 0) |= TRCPT1;
         h->info.in_packets++;
+        /* a full packet (a bank of whole packets) with more asked for: the data stage goes on; a short packet, a
+         * zero-length one or all that was asked ends it */
+        int ep0 = h->ep0_size > 0 ? h->ep0_size : 64;
+        if (h->busy == C_DATA_IN && cnt && cnt % (uint32_t)ep0 == 0 && h->ctl_done < h->ctl_len) {
+            sam_usb_irq(m);
+            return;
+        }
         if (h->busy == C_DATA_IN) {
             /* status stage: an OUT ZLP, accepted by the hardware whatever the CPU does */
             h->busy = C_STATUS_OUT;
@@ -247,11 +271,45 @@ static void line_state(sam_mcu_t *m, int dtr)
     uint8_t s[8];
     if (dtr) {
         static const uint8_t coding[7] = {0x00, 0xC2, 0x01, 0x00, 0, 0, 8};   /* 115200 baud, 1 stop, none, 8 */
-        setup_packet(s, 0x21, 0x20, 0, 0, 7);
+        setup_packet(s, 0x21, 0x20, 0, (uint16_t)host(m)->dev.comm_if, 7);
         ctl_queue(m, s, coding, 7);
     }
-    setup_packet(s, 0x21, 0x22, dtr ? 3 : 0, 0, 0);
+    setup_packet(s, 0x21, 0x22, dtr ? 3 : 0, (uint16_t)host(m)->dev.comm_if, 0);
     ctl_queue(m, s, NULL, 0);
+}
+
+/* the laptop's line state, one request at a time as cdc_acm sends them: raising DTR/RTS (an open) before a new
+ * speed (its tcsetattr), a new speed before dropping them (a close) */
+static void line_sync(sam_mcu_t *m)
+{
+    sam_usbhost_t *h = host(m);
+    uint8_t s[8];
+    uint16_t comm = (uint16_t)h->dev.comm_if;
+    int ctl_diff = h->want_ctl != h->sent_ctl;
+    int baud_diff = h->want_baud && h->want_baud != h->sent_baud;
+    if (ctl_diff && (!baud_diff || (h->want_ctl & ~h->sent_ctl & 1))) {
+        setup_packet(s, 0x21, 0x22, (uint16_t)h->want_ctl, comm, 0);
+        h->sent_ctl = h->want_ctl;
+        h->dev.dtr = h->sent_ctl & 1;
+        h->dev.rts = (h->sent_ctl >> 1) & 1;
+        ctl_start(m, s, NULL, 0);
+    } else if (baud_diff) {
+        uint32_t b = h->want_baud;
+        uint8_t coding[7] = {(uint8_t)b, (uint8_t)(b >> 8), (uint8_t)(b >> 16), (uint8_t)(b >> 24), 0, 0, 8};
+        setup_packet(s, 0x21, 0x20, 0, comm, 7);
+        h->sent_baud = h->dev.baud = b;
+        ctl_start(m, s, coding, 7);
+    }
+}
+
+static uint16_t le16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }
+
+/* the Linux profile: the next string to read (iProduct, iManufacturer, iSerialNumber), or SET_CONFIGURATION */
+static int next_string(sam_usbhost_t *h)
+{
+    while (h->str_k < 3 && !h->istr[h->str_k])
+        h->str_k++;
+    return h->str_k < 3 ? S_STR : S_SETCFG;
 }
 
 static void next_script_step(sam_mcu_t *m)
@@ -262,7 +320,31 @@ static void next_script_step(sam_mcu_t *m)
     switch (h->step) {
     case S_DEV64: h->step = S_ADDR; break;
     case S_ADDR: h->step = S_DEV18; break;
-    case S_DEV18: h->step = S_CFG9; break;
+    case S_DEV18:
+        sam_usbd_parse_device(&h->dev, h->ctl_data, h->ctl_done, h->istr, &h->ep0_size);
+        h->step = linux_profile(h) && h->dev.bcd_usb >= 0x0201 ? S_BOS5 : S_CFG9;
+        break;
+    case S_BOS5: {
+        uint16_t total = h->ctl_done >= 4 ? le16(h->ctl_data + 2) : 5;
+        h->step = S_BOSALL;
+        setup_packet(s, 0x80, 6, 0x0F00, 0, total > sizeof h->ctl_data ? sizeof h->ctl_data : total);
+        memcpy(h->setup, s, 8);
+        hpush(m, t, H_START, 1);
+        return;
+    }
+    case S_BOSALL: h->step = S_CFG9; break;
+    case S_STR0:
+        h->langid = h->ctl_done >= 4 ? le16(h->ctl_data + 2) : 0x0409;
+        h->str_k = 0;
+        h->step = next_string(h);
+        break;
+    case S_STR: {
+        char *dst = h->str_k == 0 ? h->dev.product : h->str_k == 1 ? h->dev.manufacturer : h->dev.serial;
+        sam_usbd_string(dst, sizeof h->dev.serial, h->ctl_data, h->ctl_done);
+        h->str_k++;
+        h->step = next_string(h);
+        break;
+    }
     case S_CFG9: {
         uint16_t total = (uint16_t)(h->ctl_data[2] | h->ctl_data[3] << 8);
         h->ctl_len = total;
@@ -274,16 +356,23 @@ static void next_script_step(sam_mcu_t *m)
     }
     case S_CFGALL:
         parse_config(m, h->ctl_data, h->ctl_done);
-        h->step = S_SETCFG;
+        h->step = linux_profile(h) && (h->istr[0] || h->istr[1] || h->istr[2]) ? S_STR0 : S_SETCFG;
         break;
     case S_SETCFG:
         h->step = S_READY;
         h->configured = h->enumerated = 1;
         h->info.configured = h->info.enumerated = 1;
+        h->dev.enumerations++;
         sam_note(m, "%s: USB enumerated and configured at t = %.3f s", m->name,
                        (double)sam_now(m) / (double)SAM_TU_HZ);
-        if (h->dtr)
+        if (linux_profile(h)) {   /* cdc_acm's probe: 9600 8N1; then the laptop's line state (line_sync) */
+            static const uint8_t probe[7] = {0x80, 0x25, 0, 0, 0, 0, 8};
+            setup_packet(s, 0x21, 0x20, 0, (uint16_t)h->dev.comm_if, 7);
+            ctl_queue(m, s, probe, 7);
+            h->sent_baud = h->dev.baud = SAM_USB_LINUX_BAUD;
+        } else if (h->dtr) {
             line_state(m, 1);
+        }
         break;
     case S_READY:
         break;
@@ -306,9 +395,15 @@ static void start_next(sam_mcu_t *m, int keep_setup)
     case S_CFG9: setup_packet(s, 0x80, 6, 0x0200, 0, 9); break;
     case S_CFGALL: memcpy(s, h->setup, 8); break;
     case S_SETCFG: setup_packet(s, 0x00, 9, 1, 0, 0); break;
+    case S_BOS5: setup_packet(s, 0x80, 6, 0x0F00, 0, 5); break;
+    case S_BOSALL: memcpy(s, h->setup, 8); break;
+    case S_STR0: setup_packet(s, 0x80, 6, 0x0300, 0, 255); break;
+    case S_STR: setup_packet(s, 0x80, 6, (uint16_t)(0x0300 | h->istr[h->str_k]), h->langid, 255); break;
     case S_READY:
-        if (!h->ctl_queue_n)
+        if (!h->ctl_queue_n) {
+            line_sync(m);
             return;
+        }
         memcpy(s, h->ctl_queue[0], 8);
         ctl_start(m, s, h->ctl_queue[0] + 8, h->ctl_queue_len[0]);
         memmove(h->ctl_queue, h->ctl_queue + 1, sizeof h->ctl_queue[0] * (size_t)(h->ctl_queue_n - 1));
@@ -398,6 +493,10 @@ static void host_fire(sam_mcu_t *m, void *ctx)
                 break;
             sam_usb_bus_reset_end(m);
             h->step = S_DEV64;
+            memset(h->istr, 0, sizeof h->istr);   /* a new enumeration: what the device says is read again */
+            h->dev.described = 0;
+            h->dev.vid = h->dev.pid = h->dev.bcd_usb = h->dev.bcd_device = 0;
+            h->dev.manufacturer[0] = h->dev.product[0] = h->dev.serial[0] = 0;
             hpush(m, now + tu(SOF_S), H_SOF, 0);
             hpush(m, now + tu(1e-3), H_START, 0);
             sam_usb_irq(m);
@@ -443,6 +542,7 @@ void sam_usb_port_reset(sam_mcu_t *m)
         h->busy = C_IDLE;
         h->enumerated = h->configured = 0;
         h->info.enumerated = h->info.configured = 0;
+        host_detached(h);
     }
     h->hq_n = 0;
     sam_slot_set(m, h->slot, SAM_NEVER);
@@ -454,121 +554,18 @@ void sam_usb_port_attach_check(sam_mcu_t *m) { attach_check(m); }
 int sam_usb_port_attached(sam_mcu_t *m) { return host(m)->attached; }
 int sam_usb_port_on(sam_mcu_t *m) { return host(m)->step >= S_DEV64; }
 
-/* ---------------------------------------------------------------- the API (called between runs) */
+/* ---------------------------------------------------------------- to the API (link_usb_api.c) */
 
-void sam_usb_world_init(sam_world_t *w)
+void sam_usb_host_line_state(sam_mcu_t *m, int dtr) { line_state(m, dtr); }
+void sam_usb_host_queue(sam_mcu_t *m, const uint8_t setup[8], const uint8_t *data, uint32_t n)
 {
-    memset(w->usb, 0, sizeof w->usb);
-}
-
-static sam_mcu_t *board(sam_world_t *w, int mcu)
-{
-    return mcu >= 0 && mcu < SAM_MAX_MCU ? w->mcu[mcu] : NULL;
-}
-
-/* A host action from outside (between runs) reaches the port USB_API_S after the world's time: later than any
- * board can be (a board stops at the first block boundary at or after the world's time, within a block's
- * cycles), and the same however the world schedules the boards. */
-#define USB_API_S 50e-6
-static uint64_t api_time(sam_world_t *w, sam_mcu_t *m)
-{
-    uint64_t t = w->t + tu(USB_API_S);
-    if (m->t > t && !m->halted && !m->err)
-        sam_fail(m, "USB host action at %.6f s but the board is already at %.6f s", (double)t / (double)SAM_TU_HZ,
-                 (double)m->t / (double)SAM_TU_HZ);
-    return t;
-}
-
-int sam_usb_attach(sam_world_t *w, int mcu)
-{
-    sam_mcu_t *m = board(w, mcu);
-    if (!m)
-        return -1;
-    sam_usbhost_t *h = &w->usb[mcu];
-    if (h->attached)
-        return 0;
-    h->attached = 1;
-    h->info.attached = 1;
-    uint64_t saved = m->t_blk;
-    m->t_blk = api_time(w, m);
-    attach_check(m);
-    m->t_blk = saved;
-    return 0;
-}
-
-int sam_usb_set_dtr(sam_world_t *w, int mcu, int32_t dtr)
-{
-    sam_mcu_t *m = board(w, mcu);
-    if (!m || !w->usb[mcu].attached)
-        return -1;
-    sam_usbhost_t *h = &w->usb[mcu];
-    dtr = dtr ? 1 : 0;
-    if (h->dtr == dtr)
-        return 0;
-    h->dtr = dtr;
-    h->info.dtr = dtr;
-    if (h->configured) {
-        uint64_t saved = m->t_blk;
-        m->t_blk = api_time(w, m);
-        line_state(m, dtr);
-        m->t_blk = saved;
-    }
-    return 0;
-}
-
-int sam_usb_write(sam_world_t *w, int mcu, const uint8_t *data, uint32_t n)
-{
-    sam_mcu_t *m = board(w, mcu);
-    if (!m || !w->usb[mcu].attached)
-        return -1;
-    sam_usbhost_t *h = &w->usb[mcu];
-    uint32_t k = 0;
-    for (; k < n && h->out_n < SAM_USB_BUF; k++)
-        h->out[(h->out_head + h->out_n++) % SAM_USB_BUF] = data[k];
-    uint64_t saved = m->t_blk;
-    m->t_blk = api_time(w, m);
-    bulk_poke(m);
-    m->t_blk = saved;
-    return (int)k;
-}
-
-uint32_t sam_usb_read(sam_world_t *w, int mcu, uint8_t *buf, uint32_t cap)
-{
-    sam_mcu_t *m = board(w, mcu);
-    if (!m)
-        return 0;
-    sam_usbhost_t *h = &w->usb[mcu];
-    uint32_t n = h->in_n < cap ? h->in_n : cap;
-    for (uint32_t k = 0; k < n; k++)
-        buf[k] = h->in[(h->in_head + k) % SAM_USB_BUF];
-    h->in_head = (h->in_head + n) % SAM_USB_BUF;
-    h->in_n -= n;
-    if (n) {
-        uint64_t saved = m->t_blk;
-        m->t_blk = api_time(w, m);
-        bulk_poke(m);   /* room again: a waiting packet may move */
-        m->t_blk = saved;
-    }
-    return n;
-}
-
-int sam_usb_info(const sam_world_t *w, int mcu, sam_usb_info_t *out)
-{
-    if (mcu < 0 || mcu >= SAM_MAX_MCU)
-        return -1;
-    *out = w->usb[mcu].info;
-    out->dtr = w->usb[mcu].dtr;
-    return 0;
-}
-
-int sam_usb_control(sam_world_t *w, int mcu, const uint8_t setup[8], const uint8_t *data, uint32_t n)
-{
-    sam_mcu_t *m = board(w, mcu);
-    if (!m || !w->usb[mcu].attached)
-        return -1;
-    uint64_t saved = m->t_blk;
-    m->t_blk = api_time(w, m);
     ctl_queue(m, setup, data, n);
-    m->t_blk = saved;
-    return 0;
+}
+
+/* the laptop's line state changed: an idle, configured host sends it after the gap between two requests */
+void sam_usb_host_line_changed(sam_mcu_t *m)
+{
+    sam_usbhost_t *h = host(m);
+    if (h->step == S_READY && h->busy == C_IDLE)
+        hpush(m, sam_now(m) + tu(USB_GAP_S), H_START, 0);
 }

@@ -187,4 +187,32 @@ int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level);
 int sam_harness_pin_state(const sam_world_t *w, int mcu, int32_t pin, sam_pin_info_t *out);
 int sam_harness_nvic(const sam_world_t *w, int mcu, sam_nvic_info_t *out);
 
+/* ---- the USB host's enumeration profile, what the device said, and the laptop's line state (link_usb_host.c) ---- */
+enum {
+    SAM_USB_PROFILE_SCRIPT = 0, /* the tier's script (default): device, address, device, configuration, SET_CONFIGURATION */
+    SAM_USB_PROFILE_LINUX = 1   /* as Linux enumerates and cdc_acm probes: also BOS (bcdUSB >= 2.01), strings 0,
+                                   iProduct, iManufacturer, iSerialNumber; then line coding 9600 8N1 */
+};
+typedef struct {
+    int32_t profile;
+    int32_t described;         /* 1 once the device descriptor was read in this enumeration */
+    uint16_t vid, pid, bcd_usb, bcd_device;
+    char manufacturer[64], product[64], serial[64];   /* the strings as read (ASCII, others '?'); "" if not read */
+    int32_t comm_if, data_in, data_out;   /* CDC comm interface (wIndex of class requests), data endpoints */
+    uint32_t enumerations;     /* times the device was configured */
+    uint32_t detaches;         /* times it left the bus (a reset, DETACH) after it had been seen */
+    uint32_t baud;             /* the line coding last sent to the device (0: none in this enumeration) */
+    int32_t dtr, rts;          /* the control line state last sent */
+} sam_usb_device_t;
+/* Choose the port's profile before sam_usb_attach (-1 after it or for an unknown profile). */
+int sam_usb_set_profile(sam_world_t *w, int mcu, int32_t profile);
+/* The laptop's line state as cdc_acm sends it: SET_LINE_CODING (baud, 8N1) when the speed changes (baud 0: keep),
+ * SET_CONTROL_LINE_STATE when DTR or RTS change; while the device is not configured it is kept for the next
+ * enumeration (a re-enumeration starts again from 9600 baud, DTR and RTS low: a new tty). */
+int sam_usb_set_line(sam_world_t *w, int mcu, uint32_t baud, int32_t dtr, int32_t rts);
+int sam_usb_device(const sam_world_t *w, int mcu, sam_usb_device_t *out);
+/* The host's reading of a configuration descriptor (for tests): CDC comm interface, data IN and OUT endpoints;
+ * -1 when it has no bulk pair. */
+int sam_usb_parse_config(const uint8_t *d, uint32_t n, int32_t *comm_if, int32_t *in, int32_t *out);
+
 #endif /* SAM_API_H */

@@ -35,5 +35,15 @@ void sam_usb_port_ep0_ready(sam_mcu_t *m);                 /* a bank of EP0 chan
 void sam_usb_port_bulk_ready(sam_mcu_t *m);                /* a bank of another endpoint changed */
 int sam_usb_port_attached(sam_mcu_t *m);                   /* a host is plugged in */
 int sam_usb_port_on(sam_mcu_t *m);                         /* the host ended the bus reset (FSMSTATUS ON) */
+/* and to its API (link_usb_api.c), between runs */
+#define SAM_USB_LINUX_BAUD 9600u                           /* the line coding cdc_acm's probe sets (a new tty) */
+void sam_usb_host_line_state(sam_mcu_t *m, int dtr);       /* the script profile's open (dtr 1) and close */
+void sam_usb_host_queue(sam_mcu_t *m, const uint8_t setup[8], const uint8_t *data, uint32_t n);
+void sam_usb_host_line_changed(sam_mcu_t *m);              /* sam_usb_set_line changed what the laptop wants */
+
+/* ---- link_usb_desc.c: the device's descriptors, as the host reads them ---- */
+int sam_usbd_parse_device(sam_usb_device_t *dev, const uint8_t *d, uint32_t n, uint8_t istr[3], int *ep0);
+int sam_usbd_parse_config(const uint8_t *d, uint32_t n, int *comm_if, int *in, int *out);
+void sam_usbd_string(char *dst, uint32_t cap, const uint8_t *d, uint32_t n);
 
 #endif /* SAM_USB_H */

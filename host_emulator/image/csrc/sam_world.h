@@ -98,6 +98,13 @@ typedef struct {
     uint64_t in_dropped;
     uint64_t next_sof;
     sam_usb_info_t info;
+    /* the enumeration profile and the laptop's line state (SAM_USB_PROFILE_*, sam_usb_set_line) */
+    int profile, ep0_size, str_k;
+    uint8_t istr[3];            /* iProduct, iManufacturer, iSerialNumber */
+    uint16_t langid;
+    uint32_t want_baud, sent_baud;
+    int want_ctl, sent_ctl;     /* bit 0 DTR, bit 1 RTS */
+    sam_usb_device_t dev;
 } sam_usbhost_t;
 
 /* ---- faults ---- */

@@ -105,6 +105,22 @@ def test_listing_is_what_the_flash_tool_reads(rig3, tmp_path):
     assert r.stdout.count("UNASSIGNED") == 3
 
 
+def test_listing_takes_ids_and_strings_from_the_boards_descriptors(rig3):
+    """The listing's VID:PID, serial number, manufacturer and product are what each board's own descriptors said
+    to the Linux profile of the tier's USB host: Seeed's core, its serial string made of the chip's serial number
+    words, which the tier makes unique per board (csrc/sam_world.c)."""
+    for k, e in enumerate(entries(rig3.listing)):
+        words = (0x4D43584F, 0x49414F00 + k, 0x53414D44, 0x3231AA00 + k)
+        assert e["serial_number"] == "".join(f"{w:08X}" for w in words)
+        assert (e["vid"], e["pid"], e["manufacturer"], e["product"]) == (
+            XIAO_VID,
+            XIAO_PID_APP,
+            "Seeed",
+            "Seeeduino XIAO",
+        )
+        assert e["hwid"].startswith(f"USB VID:PID=2886:802F SER={e['serial_number']} ")
+
+
 def test_identify_and_plan_through_the_flash_tool(rig3, tmp_path):
     listing, inv = str(rig3.listing), str(tmp_path / "inventory.json")
     r = flash_cli("identify", "--ports-json", listing, "--inventory", str(tmp_path / "none.json"))
