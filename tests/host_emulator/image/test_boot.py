@@ -91,6 +91,8 @@ def test_cell_1_is_started_by_the_bootloader_and_answers_as_in_direct_boot(boot_
     booted.run_to(HANDOFF_S + 0.5e-3)
     assert not in_bootloader(booted), "the bootloader jumped to the application (power-on: no double-tap wait)"
     assert booted.info(0).vtor == 0x2000  # (the double-tap word is the application's stack from here on)
+    # what the bootloader leaves behind for the application (a direct boot starts it from the reset values)
+    assert booted.register(0, "NVMCTRL.CTRLB") == 0x80 and booted.register(0, "USB.DEVICE.QOSCTRL") == 0x0A
     want = _identity(direct, 0, 2.5)
     assert want == b"MC role=cell addr=0x10 cell=1 fw=1.0\r\n"
     assert _identity(booted, 0, 2.5) == want
