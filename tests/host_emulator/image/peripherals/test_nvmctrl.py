@@ -202,3 +202,29 @@ def test_code_rewritten_in_flash_runs_as_rewritten():
     command(h, CMD_WP)
     assert flash(h, patch, 4) == bytes.fromhex("0221fee7")
     assert h.call("patch", "patch_done") == 2
+
+
+def _store_then_more(a: Asm) -> dict[int, str]:
+    """`str r1, [r0]` followed by more of its block: `movs`, `movs`, `b` to a label of its own."""
+    a.label("store")
+    a.mem("str", 1, 0)
+    a.movs(2, 0)
+    a.movs(2, 0)
+    a.b("stored")
+    a.label("stored")
+    a.b()
+    return {}
+
+
+def test_a_store_into_the_page_buffer_costs_what_a_store_to_sram_costs():
+    """The store Unicorn stops at is finished by the model and execution resumes after it: the rest of its block,
+    charged when the block began, is refunded (it runs, and is charged, as a block of its own)."""
+    h = Harness(program=stub(_store_then_more))
+    h.write("NVMCTRL.CTRLB", MANW)
+    spent = []
+    for addr in (0x2000_1000, FREE, 0x2000_1004, FREE + 4):
+        c0 = h.info().cycles
+        h.call("store", "stored", r0=addr, r1=0x1234_5678)
+        spent.append(h.info().cycles - c0)
+    assert flash(h, FREE, 8) == bytes(8) and h.read("NVMCTRL.STATUS") & LOAD, "in the buffer, not yet written"
+    assert spent[0] == spent[1] == spent[2] == spent[3] > 0, spent
