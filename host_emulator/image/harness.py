@@ -90,6 +90,14 @@ class Asm:
     def bx_lr(self) -> None:
         self._h(0x4770, "bx", "lr")
 
+    def nop(self) -> None:
+        self._h(0xBF00, "nop")
+
+    def align(self, n: int) -> None:
+        """NOPs up to the next multiple of n bytes (code placed on a flash row or page)."""
+        while self.here % n:
+            self.nop()
+
     def movs(self, rd: int, imm: int) -> None:
         assert 0 <= imm < 256 and rd < 8
         self._h(0x2000 | rd << 8 | imm, "movs", f"r{rd}, #{imm}")
@@ -301,12 +309,20 @@ class Harness:
         if size not in (1, 2, 4):
             raise ValueError(f"size {size}: expected 1, 2 or 4")
         pc = self.program.routines[(write, size)]
-        r1 = self.ffi.new("uint32_t *", value & 0xFFFFFFFF)
+        return self._run(pc, pc + 2, addr, value, board)
+
+    def _run(self, pc: int, done_pc: int, r0: int, r1: int, board: int) -> int:
+        p1 = self.ffi.new("uint32_t *", r1 & 0xFFFFFFFF)
         t0 = self.ffi.new("uint64_t *")
-        if self.lib.sam_harness_call(self._w, board, pc, pc + 2, addr, r1, t0):
+        if self.lib.sam_harness_call(self._w, board, pc, done_pc, r0 & 0xFFFFFFFF, p1, t0):
             raise HarnessError(self.error(board) or "the board stopped")
         self.t_access = int(t0[0])
-        return int(r1[0])
+        return int(p1[0])
+
+    def call(self, label: str, done: str, *, r0: int = 0, r1: int = 0, board: int = 0) -> int:
+        """Run the program's code from `label` until the PC reaches `done` (labels of the stub's handlers code)
+        with R0, R1 given; R1 there."""
+        return self._run(self.program.labels[label], self.program.labels[done], r0, r1, board)
 
     def write(self, reg: str | int, value: int, size: int | None = None, *, board: int = 0) -> None:
         """Store `value` to a register (its own width, or `size` bytes) as the board's CPU would."""
@@ -405,6 +421,12 @@ class Harness:
         if self.lib.sam_world_read_mem(self._w, board, addr, buf, n):
             raise HarnessError(f"0x{addr:08x}+{n}: not SRAM or flash")
         return bytes(self.ffi.buffer(buf, n))
+
+    def set_user_row(self, data: bytes, *, board: int = 0) -> None:
+        """Program the NVM user row's first bytes (BOOTPROT, the region lock bits), as a programmer does before
+        power-up: NVMCTRL reloads LOCK and BOOTPROT from it."""
+        if self.lib.sam_world_set_user_row(self._w, board, data, len(data)):
+            raise HarnessError("set_user_row: no such board or too long")
 
     def error(self, board: int = 0) -> str | None:
         e = self.lib.sam_harness_error(self._w, board)

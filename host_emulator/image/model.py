@@ -135,7 +135,12 @@ class ImageSolver(Solver):
         self.limit, self.limit_chain = limit, chain
         io = opt.image
         cfg = config or WorldConfig(
-            window_s=WINDOW_S, threads=io.threads, cycle_model=io.cycle_model, ff=io.fast_forward, round_s=io.round_s
+            window_s=WINDOW_S,
+            threads=io.threads,
+            cycle_model=io.cycle_model,
+            ff=io.fast_forward,
+            round_s=io.round_s,
+            boot=io.boot,
         )
         if opt.substeps is not None:
             cfg.substeps = opt.substeps
@@ -249,6 +254,8 @@ class ImageSolver(Solver):
         bi = w.bus_info()
         rx = self.laptop.rx
         health = rx.health()
+        img = w.boards[0].image
+        assert img is not None  # a scene's boards hold images (blank boards are for flashing)
         return {
             "dt_out_s": self.dt_out,
             "window_s": w.config.window_s,
@@ -256,7 +263,7 @@ class ImageSolver(Solver):
             "stable_step_limit_s": self.limit,
             "limit_chain": self.limit_chain,
             "perturb_via": self.model.options.perturb_via,
-            "images": {"cell": str(w.boards[0].image.path.parent.parent), "digest": w.boards[0].image.sha256[:16]},
+            "images": {"cell": str(img.path.parent.parent), "digest": img.sha256[:16]},
             **self.preamble,
             "faults_injected": [f.as_dict() for f in self.model.faults],
             "boards": boards,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import struct
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -13,9 +14,9 @@ from ..models.options import ModelOptions, Perturbation
 from ..models.plant import build_plant
 from ..models.steppers import stepper_id
 from ..params import Params
-from . import board, cycles, runtime
+from . import board, bootloader, cycles, runtime
 from .build import ImageSet
-from .elfimage import FirmwareImage, load_image
+from .elfimage import APP_BASE, FirmwareImage, Segment, load_image
 
 NOTES_KEPT = 100_000  # log lines World.notes keeps
 API_S = 50e-6  # an action from outside lands this long after the world's time (csrc/sam_usb.c: USB_API_S)
@@ -63,6 +64,15 @@ class WorldConfig:
     trace: int = 0  # bit 0: every I2C bus step in the notes; bit 2: every register access of trace_boards
     trace_boards: int = 0  # bit b: board b
     threads: int = 1  # threads the boards run on (1..16); results do not depend on it
+    # "direct": the application starts at 0x2000 at once (the bootloader's hand-off simulated: every existing result);
+    # "bootloader": the XIAO's UF2 bootloader (MC_BOOTLOADER, image/bootloader.py) runs from the reset vector and
+    # starts the application itself (+6.9 ms after power-on, +0.9 s after any other reset). Without MC_BOOTLOADER
+    # the boards boot directly, with one line saying so (blank boards need it: an error).
+    boot: str = "direct"
+    blank: bool = False  # boot = "bootloader" only: the boards hold the bootloader alone, as new XIAOs arrive
+    # BOOTPROT of the boards' NVM user row: 7 (nothing protected) is assumed, the shipped XIAOs' fuse being unknown;
+    # 2 protects the bootloader's 8 KiB (csrc/sam.h SAM_NVM_BOOTPROT_ASSUMED, csrc/sam_nvmctrl.c)
+    bootprot: int = 7
 
 
 @dataclass
@@ -71,7 +81,7 @@ class Board:
     name: str
     role: str  # "cell" | "primary"
     cell: int | None  # 1-based
-    image: FirmwareImage
+    image: FirmwareImage | None  # None: a blank board (the bootloader alone)
     keep: list = field(default_factory=list, repr=False)
 
 
@@ -81,7 +91,7 @@ class World:
     def __init__(
         self,
         params: Params,
-        images: ImageSet,
+        images: ImageSet | None,
         *,
         options: ModelOptions | None = None,
         perturbations: Sequence[Perturbation] = (),
@@ -95,8 +105,12 @@ class World:
         self.config = cfg = config or WorldConfig()
         self.options = options or ModelOptions()
         n = params.cells
-        if len(images.cells) < n:
-            raise ValueError(f"{n} cells but images for {len(images.cells)}")
+        self.boot_bin = self._bootloader(cfg)
+        self.boot = "bootloader" if self.boot_bin is not None else "direct"
+        if cfg.blank:
+            images = None
+        elif images is None or len(images.cells) < n:
+            raise ValueError(f"{n} cells but images for {0 if images is None else len(images.cells)}")
         self.n = n
         self.plant = build_plant(ffi, lib, params, self.options, n, list(perturbations), ideal_reaction=False)
         self.x = np.zeros(2 * n) if x0 is None else np.array(x0, dtype=float).reshape(2 * n)
@@ -138,37 +152,66 @@ class World:
         self.boards: list[Board] = []
         self._notes: list[str] = []
         for j in range(1, n + 1):
-            self._load(load_image(images.cells[j - 1]), f"cell {j}", "cell", j)
+            self._load(None if images is None else load_image(images.cells[j - 1]), f"cell {j}", "cell", j)
         self.primary = None
         if primary:
-            self.primary = self._load(load_image(images.primary), "primary", "primary", None)
+            img = None if images is None else load_image(images.primary)
+            self.primary = self._load(img, "primary", "primary", None)
 
-    def _load(self, img: FirmwareImage, name: str, role: str, cell: int | None) -> Board:
+    @staticmethod
+    def _bootloader(cfg: WorldConfig) -> bytes | None:
+        """The bootloader's bytes when the boards boot through it (None: direct boot)."""
+        if cfg.boot not in bootloader.BOOT_MODES:
+            raise ValueError(f"boot = {cfg.boot!r}: expected one of {', '.join(bootloader.BOOT_MODES)}")
+        if cfg.boot == "direct":
+            if cfg.blank:
+                raise ValueError("blank boards need boot = 'bootloader'")
+            return None
+        if bootloader.path() is None and not cfg.blank:
+            print(bootloader.unavailable() + "; the applications start directly", file=sys.stderr)
+            return None
+        try:
+            return bootloader.load()
+        except bootloader.BootloaderError as e:
+            raise WorldError(str(e)) from None
+
+    def _load(self, img: FirmwareImage | None, name: str, role: str, cell: int | None) -> Board:
         ffi, lib = self.ffi, self.lib
         idx = len(self.boards)
         b = Board(idx, name, role, cell, img)
-        segs = ffi.new("sam_seg_t[]", len(img.segments))
-        for i, s in enumerate(img.segments):
+        boot = self.boot_bin
+        segments = list(img.segments) if img is not None else []
+        if boot is not None:
+            segments.insert(0, Segment(0, boot))
+            tables = bootloader.boot_tables(boot, img.disassembly if img is not None else None)
+        else:
+            assert img is not None
+            tables = img.tables
+        segs = ffi.new("sam_seg_t[]", len(segments))
+        for i, s in enumerate(segments):
             buf = ffi.new("uint8_t[]", s.data)
             b.keep.append(buf)
             segs[i].addr = s.addr
             segs[i].len = len(s.data)
             segs[i].data = buf
-        t = img.tables
+        t = tables
         core = ffi.from_buffer("uint32_t[]", t.core)
         wait = ffi.from_buffer("uint32_t[]", t.wait)
         lit = ffi.from_buffer("uint32_t[]", t.literal)
         refund = ffi.from_buffer("uint8_t[]", t.refund)
         im = ffi.new("sam_image_t *")
         im.segs = segs
-        im.nsegs = len(img.segments)
-        im.entry_sp = img.entry_sp
-        im.entry_pc = img.entry_pc
+        im.nsegs = len(segments)
+        if img is not None:
+            im.entry_sp, im.entry_pc = img.entry_sp, img.entry_pc
+            im.loop_pc = img.symbols.get("loop", (0, 0))[0]
+            im.heap_base, im.brk_var = img.heap_base, img.brk_var
+        else:  # blank: the bootloader's vector table (the entry is used by direct boot only)
+            assert boot is not None
+            im.entry_sp, im.entry_pc = struct.unpack_from("<II", boot)
+        im.boot = int(boot is not None)
         im.cost_core, im.cost_wait, im.cost_lit, im.refund = core, wait, lit, refund
-        im.code_end = t.code_end
-        im.loop_pc = img.symbols.get("loop", (0, 0))[0]
-        im.heap_base = img.heap_base
-        im.brk_var = img.brk_var
+        im.code_end = max(t.code_end, APP_BASE) if img is not None else t.code_end
         b.keep += [segs, core, wait, lit, refund, t, im]
         rc = lib.sam_world_load(
             self._w,
@@ -180,6 +223,9 @@ class World:
         )
         if rc != 0:
             raise WorldError(ffi.string(lib.sam_world_error(self._w)).decode())
+        if self.config.bootprot != bootloader.BOOTPROT_ASSUMED:
+            row = bytes([0xF8 | (self.config.bootprot & 7)])
+            lib.sam_world_set_user_row(self._w, idx, row, 1)
         self.boards.append(b)
         return b
 
@@ -271,6 +317,8 @@ class World:
     def symbol(self, b: int, name: str, fmt: str = "<I"):
         """A variable of a board's image, read from its SRAM (struct format)."""
         img = self.boards[b].image
+        if img is None:
+            raise KeyError(f"board {b} is blank: no symbol {name!r}")
         addr = img.symbol(name)
         val = struct.unpack(fmt, self.read_mem(b, addr, struct.calcsize(fmt)))
         return val[0] if len(val) == 1 else val

@@ -29,16 +29,20 @@ class NoiseOptions:
 
 @dataclass(frozen=True)
 class ImageOptions:
-    """The image model's switches ([model_options.image]). None of them changes a result but cycle_model."""
+    """The image model's switches ([model_options.image]). None of them changes a result but cycle_model and boot."""
 
     threads: int = 1  # threads the boards run on (cells that cannot affect anyone run at the same time)
     cycle_model: str = "cache"  # "cache": flash waits on NVM cache misses; "worst": a wait on every fetch
     fast_forward: bool = True  # skip loop() passes proven idle (results unchanged; a test compares)
     round_s: float = 0.0  # longest time the boards run apart before the world meets them (0: the plant window)
+    # "direct" (the application starts at once) or "bootloader" (the XIAO's UF2 bootloader, found through
+    # MC_BOOTLOADER, runs first and starts it: power-on +6.9 ms, other resets +0.9 s; image/bootloader.py)
+    boot: str = "direct"
 
 
 IMAGE_THREADS_MAX = 16
 CYCLE_MODELS = ("cache", "worst")
+BOOT_MODES = ("direct", "bootloader")  # image/bootloader.py BOOT_MODES
 
 
 @dataclass(frozen=True)
@@ -123,6 +127,10 @@ def parse_image(d: dict, prefix: str = "model_options.image") -> ImageOptions:
         elif k == "fast_forward":
             if not isinstance(v, bool):
                 raise ConfigError(f"{key} = {v!r}: expected true or false")
+            kw[k] = v
+        elif k == "boot":
+            if v not in BOOT_MODES:
+                raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(BOOT_MODES)}")
             kw[k] = v
         elif k == "round_s":
             kw[k] = _num(key, v, nonneg=True)

@@ -29,6 +29,11 @@
 #define SAM_NVM_BASE 0x00800000u   /* NVM user row, software calibration and serial number rows (read-only) */
 #define SAM_NVM_SIZE 0x10000u
 #define SAM_APP_BASE 0x2000u       /* the UF2 bootloader's application start (vector table) */
+#define SAM_NVM_USER_ROW 0x00804000u   /* the NVM user row: BOOTPROT (bits 2:0), the region lock bits (63:48) */
+/* BOOTPROT of the user row the boards start with: 7, no bootloader protection. The shipped XIAOs' fuse value is not
+ * known; 7 is assumed (a forced upload at offset 0 then overwrites the bootloader, as issue 28 expects).
+ * sam_world_set_user_row programs another. */
+#define SAM_NVM_BOOTPROT_ASSUMED 7u
 
 /*
  * Events. Every board has one slot per source of events, holding the time its next event is due (SAM_NEVER:
@@ -183,6 +188,8 @@ struct sam_mcu {
     /* board wiring (sam_world.c) */
     int role;              /* SAM_ROLE_CELL / SAM_ROLE_PRIMARY */
     int cell;              /* 0-based cell index, -1 for the primary */
+    int boot;              /* 1: resets start from the vector table at 0 (a bootloader there); 0: at the image */
+    uint32_t nvm_erases, nvm_writes;   /* rows erased and pages written by NVMCTRL */
 };
 
 /* indices of the peripherals and registers the models name, found once in the generated table */
@@ -213,6 +220,12 @@ static inline void sam_activity(sam_mcu_t *m) { m->act++; }
 void sam_fail(sam_mcu_t *m, const char *fmt, ...);
 uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
 void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
+void sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* NVMCTRL rewrote flash there */
+void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc);    /* resume at pc inside the block charged (a flash store) */
+
+/* ---- sam_nvmctrl.c: flash programming ---- */
+int sam_nvm_cpu_store(sam_mcu_t *m);       /* the CPU stopped at a store to flash: to the page buffer (1) or fault (0) */
+void sam_nvm_load_fuses(sam_mcu_t *m);     /* LOCK and BOOTPROT from the user row (at reset) */
 
 /* ---- sam_nvic.c: exceptions ---- */
 void sam_irq_level(sam_mcu_t *m, int irq, int on);

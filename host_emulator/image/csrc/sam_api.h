@@ -27,7 +27,8 @@ enum {
                                   edges without the plant (for tests and benchmarks, with the plant at rest) */
     SAM_FAULT_RESET = 7,       /* not a fault: a system reset at t0 as NVIC_SystemReset does (cause SYST, RAM kept);
                                   the boards command's 1200-baud touch */
-    SAM_FAULT_COUNT = 8
+    SAM_FAULT_RESET_BUTTON = 8, /* the reset pin pulled low at t0 (an external reset: PM.RCAUSE.EXT; RAM kept) */
+    SAM_FAULT_COUNT = 9
 };
 
 typedef struct {
@@ -87,6 +88,8 @@ typedef struct {
     uint64_t runs;             /* emulation starts: each costs the emulator a fixed overhead */
     uint32_t nvic_enabled, nvic_pending, nvic_active;
     uint8_t nvic_prio[32];
+    uint32_t nvm_erases, nvm_writes;   /* flash rows erased, pages written by NVMCTRL */
+    uint32_t vtor;             /* SCB.VTOR: the vector table in use */
 } sam_mcu_info_t;
 
 typedef struct {
@@ -118,6 +121,9 @@ typedef struct {
     uint32_t loop_pc;          /* loop(): where idle passes are fast-forwarded (0: never) */
     uint32_t heap_base;        /* end of static data in SRAM (the heap starts there); 0: unknown */
     uint32_t brk_var;          /* address of the heap's break pointer; 0: none (the heap is unknown if it exists) */
+    int32_t boot;              /* 0: direct boot (the bootloader's hand-off simulated: VTOR 0x2000, entry_sp/pc);
+                                  1: from the reset vector at 0, as the chip does (a segment at 0 holds the
+                                  bootloader; the cycle tables cover it) */
 } sam_image_t;
 
 /* Load a board (its role and cell index); it powers on now. */
@@ -132,6 +138,9 @@ int sam_world_fault(sam_world_t *w, int32_t kind, int32_t mcu, uint64_t t0, uint
 /* Read a board's state; RAM (addr in 0x20000000..+32K); register access counters (2 * sam_nregs: reads, writes). */
 int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *out);
 int sam_world_read_mem(const sam_world_t *w, int mcu, uint32_t addr, uint8_t *buf, uint32_t len);
+/* Program a board's NVM user row (len bytes from its start: BOOTPROT, the region lock bits), as a programmer does
+ * before power-up: NVMCTRL reloads LOCK and BOOTPROT from it now (the chip reads them at reset). */
+int sam_world_set_user_row(sam_world_t *w, int mcu, const uint8_t *row, uint32_t len);
 const uint32_t *sam_world_touch(const sam_world_t *w, int mcu);
 uint32_t sam_world_nregs(void);
 const char *sam_world_reg_name(uint32_t ri);

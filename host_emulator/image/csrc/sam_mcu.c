@@ -84,8 +84,9 @@ void sam_mcu_free(sam_mcu_t *m)
     free(m->notes);
 }
 
-/* Every peripheral to its reset state, the core to the application's entry (the bootloader's hand-off: VTOR at
- * the application's vector table, SP and PC from it). RAM is kept (a power-on reset clears it first). */
+/* Every peripheral to its reset state, the core to the application's entry (direct boot simulates the bootloader's
+ * hand-off: VTOR at the application's vector table, SP and PC from it) or, with a bootloader loaded (m->boot), to
+ * the reset vector at 0 as the chip does. RAM is kept (a power-on reset clears it first). */
 void sam_do_reset(sam_mcu_t *m, uint8_t cause)
 {
     m->t_blk = m->t;
@@ -97,7 +98,7 @@ void sam_do_reset(sam_mcu_t *m, uint8_t cause)
     m->irq_check = m->primask_wait = 0;
     memset(&m->nvic, 0, sizeof m->nvic);
     memset(&m->systick, 0, sizeof m->systick);
-    m->nvic.vtor = SAM_APP_BASE;
+    m->nvic.vtor = m->boot ? 0u : SAM_APP_BASE;
     for (int s = 0; s < SAM_SLOT_SOURCE0; s++)   /* the chip's events; the world's sources keep theirs */
         m->slot[s] = SAM_NEVER;
     sam_next_event(m);
@@ -129,8 +130,13 @@ void sam_do_reset(sam_mcu_t *m, uint8_t cause)
     sam_cpu_set(m, UC_ARM_REG_IPSR, 0);
     sam_cpu_rebuild_hflags(m);
     sam_cpu_set(m, UC_ARM_REG_LR, lr);
-    sam_cpu_set(m, UC_ARM_REG_SP, m->entry_sp);
-    sam_cpu_set(m, UC_ARM_REG_PC, m->entry_pc | 1u);
+    if (m->boot) {   /* from the vector table at 0, as the chip does: the bootloader starts the application */
+        sam_cpu_set(m, UC_ARM_REG_SP, sam_mem_read32(m, 0, NULL));
+        sam_cpu_set(m, UC_ARM_REG_PC, sam_mem_read32(m, 4, NULL) | 1u);
+    } else {
+        sam_cpu_set(m, UC_ARM_REG_SP, m->entry_sp);
+        sam_cpu_set(m, UC_ARM_REG_PC, m->entry_pc | 1u);
+    }
     m->prev_end = 0xFFFFFFFFu;
     memset(m->cache_tag, 0, sizeof m->cache_tag);
     m->ff.snap_valid = 0;

@@ -151,6 +151,13 @@ static int reg_access(sam_mcu_t *m, region_t *rg, uint32_t addr, unsigned size, 
     uint32_t off = addr - p->base, out = 0;
     for (unsigned b = 0; b < size;) {
         int ri = off + b < p->size && m->omap[pi][view] ? m->omap[pi][view][off + b] : -1;
+        if (ri < 0 && b > 0) {
+            /* a reserved byte inside a wider access that starts on a register: it reads as zero and a write to it
+             * is ignored (DS40001882: reserved bits read as zero, writing them has no effect); bossac reads the
+             * 16-bit NVMCTRL.STATUS as a word. An access that starts on no register stays an error. */
+            b++;
+            continue;
+        }
         if (ri < 0) {
             sam_fail(m, "%s of %s + 0x%x: no register at that offset%s", write ? "write" : "read", p->name, off + b,
                      p->nviews ? " in the active mode" : "");

@@ -5,7 +5,7 @@
 /* each defined in its own file, sam_<peripheral>.c (the system control space's in sam_scs.c) */
 extern const sam_model_t sam_model_pm, sam_model_sysctrl, sam_model_gclk, sam_model_nvmctrl, sam_model_wdt,
     sam_model_port, sam_model_eic, sam_model_tc, sam_model_tcc, sam_model_sercom, sam_model_usb, sam_model_adc,
-    sam_model_dac, sam_model_pac, sam_model_dsu;
+    sam_model_dac, sam_model_pac, sam_model_dsu, sam_model_hmatrixb, sam_model_dmac;
 
 /* Every instance of a type gets its model (TC3..TC7 are "Tc"); a type not listed has no model, and an access to
  * its registers is an error naming the peripheral. */
@@ -28,6 +28,8 @@ static const struct {
     {"Dac", &sam_model_dac},
     {"Pac", &sam_model_pac},
     {"Dsu", &sam_model_dsu},
+    {"Hmatrixb", &sam_model_hmatrixb},   /* SBMATRIX: QoS storage (sam_qos.c) */
+    {"Dmac", &sam_model_dmac},           /* QOSCTRL storage only */
     {"NVIC_Type", &sam_model_scs},
     {"SCB_Type", &sam_model_scs},
     {"SysTick_Type", &sam_model_scs},

@@ -160,6 +160,8 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
             sam_fail(m, "code executed from SRAM at 0x%08x: only flash has a cycle model", pc);
             break;
         }
+        if ((e == UC_ERR_WRITE_PROT || e == UC_ERR_EXCEPTION) && sam_nvm_cpu_store(m))
+            continue;   /* a store to flash: into NVMCTRL's page buffer */
         if (e != UC_ERR_OK)
             sam_cpu_enter_fault(m, e);
     }

@@ -182,6 +182,7 @@ static void nvm_rows(sam_mcu_t *m)
 {
     uint8_t *n = m->nvm;
     memset(n, 0xFF, SAM_NVM_SIZE);
+    n[SAM_NVM_USER_ROW - SAM_NVM_BASE] = (uint8_t)(0xF8u | SAM_NVM_BOOTPROT_ASSUMED);   /* erased, but BOOTPROT */
     uint64_t cal = 0;
     cal |= (uint64_t)0x1Du << 27;   /* ADC LINEARITY */
     cal |= (uint64_t)0x4u << 35;    /* ADC BIASCAL */
@@ -211,7 +212,7 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
     if (role == SAM_ROLE_PRIMARY && w->primary_mcu >= 0)
         return sam_world_fail(w, "board %d: a second primary", mcu);
     if (!img->cost_core || !img->cost_wait || !img->cost_lit || !img->refund || code_end > SAM_FLASH_SIZE ||
-        code_end < SAM_APP_BASE)
+        code_end < (img->boot ? 8u : SAM_APP_BASE))
         return sam_world_fail(w, "board %d: cycle tables missing or code end 0x%x outside flash", mcu, code_end);
     sam_mcu_t *m = calloc(1, sizeof *m);
     if (!m)
@@ -233,12 +234,16 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
     snprintf(m->name, sizeof m->name, "%s", name);
     m->role = role;
     m->cell = role == SAM_ROLE_CELL ? cell : -1;
+    if (img->boot)
+        memset(m->flash, 0xFF, SAM_FLASH_SIZE);   /* a real board's flash: erased but for what was programmed */
     for (int k = 0; k < nsegs; k++) {
-        if (segs[k].addr < SAM_APP_BASE || segs[k].addr + segs[k].len > SAM_FLASH_SIZE)
+        /* below the application only with boot from the reset vector: the bootloader */
+        if ((!img->boot && segs[k].addr < SAM_APP_BASE) || segs[k].addr + segs[k].len > SAM_FLASH_SIZE)
             return sam_world_fail(w, "board %d: image segment at 0x%x (+%u) outside the application flash", mcu, segs[k].addr,
                         segs[k].len);
         memcpy(m->flash + segs[k].addr, segs[k].data, segs[k].len);
     }
+    m->boot = img->boot != 0;
     m->entry_sp = img->entry_sp;
     m->entry_pc = img->entry_pc;
     m->cost_core = img->cost_core;
@@ -317,6 +322,9 @@ int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *o)
     o->nvic_pending = m->nvic.pending;
     o->nvic_active = m->nvic.active;
     memcpy(o->nvic_prio, m->nvic.prio, 32);
+    o->nvm_erases = m->nvm_erases;
+    o->nvm_writes = m->nvm_writes;
+    o->vtor = m->nvic.vtor;
     return 0;
 }
 
@@ -334,6 +342,16 @@ int sam_world_read_mem(const sam_world_t *w, int mcu, uint32_t addr, uint8_t *bu
         return 0;
     }
     return -1;
+}
+
+int sam_world_set_user_row(sam_world_t *w, int mcu, const uint8_t *row, uint32_t len)
+{
+    if (mcu < 0 || mcu >= SAM_MAX_MCU || !w->mcu[mcu] || len > 256u)
+        return -1;
+    sam_mcu_t *m = w->mcu[mcu];
+    memcpy(m->nvm + (SAM_NVM_USER_ROW - SAM_NVM_BASE), row, len);
+    sam_nvm_load_fuses(m);
+    return 0;
 }
 
 int sam_world_reg_value(const sam_world_t *w, int mcu, uint32_t ri, uint32_t *value)

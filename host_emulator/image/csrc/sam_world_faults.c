@@ -1,7 +1,7 @@
 /* Faults injected from a scene: per board (edge storms, spins, HardFault, dead tick) and world-level (SDA, power, USB). */
 #include <math.h>
 #include <string.h>
-#include "sam_world.h"
+#include "sam_core.h"
 #include "sam_vendor_gen.h"
 
 static uint64_t tu_of(double s) { return (uint64_t)llround(s * (double)SAM_TU_HZ); }
@@ -43,6 +43,10 @@ static void fault_fire(sam_mcu_t *m, void *ctx)
             } else if (f->kind == SAM_FAULT_RESET) {
                 sam_note(m, "%s: reset requested from outside at t = %.6f s", m->name, (double)now / (double)SAM_TU_HZ);
                 sam_mcu_system_reset(m, PM_RCAUSE_SYST);
+                f->ended = 1;
+            } else if (f->kind == SAM_FAULT_RESET_BUTTON) {
+                sam_note(m, "%s: reset button at t = %.6f s", m->name, (double)now / (double)SAM_TU_HZ);
+                sam_request_reset(m, PM_RCAUSE_EXT);
                 f->ended = 1;
             } else if (f->kind == SAM_FAULT_TICK_DEAD) {
                 sam_note(m, "%s: injected loss of the TC3 clock at t = %.6f s", m->name,

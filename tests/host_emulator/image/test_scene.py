@@ -102,3 +102,11 @@ def test_faults_are_image_only_and_checked():
         )
     with pytest.raises(ConfigError, match="threads"):
         load_scene("default", ["model=image", "model_options.image.threads=99"])
+
+
+def test_the_boot_option_is_direct_unless_a_scene_asks_for_the_bootloader():
+    assert load_scene("default", ["model=image"]).options.image.boot == "direct"
+    s = load_scene("default", ["model=image", "model_options.image.boot=bootloader"])
+    assert s.options.image.boot == "bootloader"
+    with pytest.raises(ConfigError, match=r"model_options.image.boot = 'uf2': expected one of direct, bootloader"):
+        load_scene("default", ["model=image", "model_options.image.boot=uf2"])
