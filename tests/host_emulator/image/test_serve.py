@@ -113,8 +113,9 @@ def test_serve_refuses_the_hil_bus_options_for_the_image_tier(images):
 
 
 def test_the_tier_says_in_one_line_when_it_cannot_run(tmp_path):
-    """No PlatformIO tree and no ~/.platformio: `run --set model=image` says so in one line (exit 2)."""
-    env = {"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "MC_PIO_TREE": ""}
+    """No PlatformIO tree, no ~/.platformio and no images built before: `run --set model=image` says so in one line
+    (exit 2). (With images in the build directory the tier runs them: its register table needs no tree.)"""
+    env = {"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "MC_PIO_TREE": "", "MC_BUILD_DIR": str(tmp_path / "build")}
     r = subprocess.run(
         [sys.executable, "-m", "host_emulator", "run", "default", "--set", "model=image", "--set", "t_end_s=0.1"],
         cwd=ROOT,
