@@ -62,12 +62,19 @@ def until(bus, pred, timeout=WAIT_S):
     return out
 
 
+RESEND_S = 15.0  # a starved reader loses frames (serve drops output past its backlog): send again, as a tool would
+
+
 def command(bus, j, reg, seq, **values):
-    bus.send(
-        can.Message(arbitration_id=proto.cmd_frame_id(j), data=proto.cmd_data(reg, seq, **values), is_extended_id=False)
+    msg = can.Message(
+        arbitration_id=proto.cmd_frame_id(j), data=proto.cmd_data(reg, seq, **values), is_extended_id=False
     )
     end = time.monotonic() + WAIT_S
+    resend = 0.0
     while time.monotonic() < end:
+        if time.monotonic() >= resend:
+            bus.send(msg)
+            resend = time.monotonic() + RESEND_S
         m = bus.recv(timeout=0.1)
         if m is not None and proto.frame_kind(m.arbitration_id) == ("CMD_RESULT", j) and m.data[1] == seq:
             return proto.RESULT_NAMES[m.data[2]]
