@@ -95,6 +95,9 @@ typedef struct {
     uint16_t wait, lit;
 } sam_blkcost_t;
 #define SAM_MEMO 4096
+/* Flash [addr, addr + len) was rewritten (NVMCTRL): the blocks costed from it are costed again from the new bytes,
+ * and code the ELF's tables described is costed by the decoder from then on (sam_cost.c). */
+void sam_cost_flash_written(sam_mcu_t *m, uint32_t addr, uint32_t len);
 
 /* fast-forward of an idle main loop (sam_ff.c) */
 typedef struct {
@@ -129,6 +132,7 @@ struct sam_mcu {
     uint32_t clk_epoch;                      /* changes with every clock configuration write (cached frequencies) */
     const uint8_t *refund;                  /* per halfword: cycles a conditional branch there costs less untaken */
     uint32_t app_end;                       /* first address past the image's code */
+    uint32_t tab_lo;                        /* the tables hold [tab_lo, app_end) (NULL cost_core: none) */
     uint32_t heap_base;                     /* SRAM offset of the end of static data (the heap's start) */
     uint32_t brk_var;                       /* address of the heap's break pointer (sbrk's), 0: none known */
     sam_blkcost_t memo[SAM_MEMO];

@@ -185,4 +185,15 @@ int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level);
 int sam_harness_pin_state(const sam_world_t *w, int mcu, int32_t pin, sam_pin_info_t *out);
 int sam_harness_nvic(const sam_world_t *w, int mcu, sam_nvic_info_t *out);
 
+/* ---- cycle costs of any flash content (sam_cost.c): the cycle model's decode table, the tests' view ---- */
+enum { SAM_COST_TIMED = 0, SAM_COST_NO_TIME = 1, SAM_COST_UNDEFINED = 2 };
+typedef struct {
+    uint8_t size, core, wait, lit, refund;   /* as the ELF tables hold them (cycles.insn_cost) */
+    int32_t status;            /* SAM_COST_TIMED; SAM_COST_NO_TIME: the model has no time for it (WFI, SVC, ...);
+                                  SAM_COST_UNDEFINED: not an ARMv6-M instruction */
+    const char *text;          /* the decode table's representative instruction */
+} sam_insn_cost_t;
+/* The cost of the instruction whose first halfword is hw1 (hw2: the next one): 0, 1 (no time), -1 (undefined). */
+int sam_cost_insn(uint16_t hw1, uint16_t hw2, sam_insn_cost_t *out);
+
 #endif /* SAM_API_H */
