@@ -1,0 +1,240 @@
+"""The cost decoder for code not loaded from an ELF (csrc/sam_cost.c, its table from costtable.py) equals the ELF
+tables of the cycle model (cycles.block_tables) on every instruction of the shipped images and of the bootloader's
+reachable code, and a board running code the model cannot time halts with a note naming the address."""
+
+from __future__ import annotations
+
+import bisect
+import os
+import re
+import struct
+import subprocess
+from pathlib import Path
+
+import pytest
+from elftools.elf.elffile import ELFFile
+
+from host_emulator.image import costtable, cycles, elfimage, harness, runtime
+
+from .conftest import images_or_skip
+
+
+@pytest.fixture(scope="module")
+def rt():
+    return runtime.load()
+
+
+def c_cost(rt, flash: bytes, addr: int):
+    ffi, lib = rt
+    o = ffi.new("sam_insn_cost_t *")
+    hw1, hw2 = struct.unpack_from("<HH", flash + b"\xff\xff", addr)
+    rc = lib.sam_cost_insn(hw1, hw2, o)
+    return rc, o
+
+
+def table_cost(t: cycles.BlockTables, addr: int) -> tuple[int, int, int, int]:
+    """(core, wait, literal, refund) of the instruction at `addr` from the prefix-sum tables."""
+    h = addr // 2
+    return (
+        int(t.core[h + 1] - t.core[h]),
+        int(t.wait[h + 1] - t.wait[h]),
+        int(t.literal[h + 1] - t.literal[h]),
+        int(t.refund[h]),
+    )
+
+
+def compare(rt, flash: bytes, insns: list[cycles.Insn], tables: cycles.BlockTables) -> list[str]:
+    """Every difference between the decoder and the tables on these instructions."""
+    model = cycles.CycleModel()
+    bad = []
+    for ins in insns:
+        rc, o = c_cost(rt, flash, ins.addr)
+        try:
+            want = cycles.insn_cost(ins, model)
+        except cycles.UnsupportedInsn:
+            if rc != 1:  # the tables charge it 1 cycle and list it; the decoder must refuse it
+                bad.append(f"{ins.addr:#x} {ins.mnem} {ins.ops}: the model has no time for it, the decoder rc {rc}")
+            continue
+        got = (o.core, o.wait, o.lit, o.refund)
+        if rc != 0 or got != table_cost(tables, ins.addr) or o.size != want.size:
+            bad.append(
+                f"{ins.addr:#x} {ins.mnem} {ins.ops}: tables {table_cost(tables, ins.addr)} size {want.size}, "
+                f"decoder rc {rc} {got} size {o.size}"
+            )
+    return bad
+
+
+def code_insns(path: Path, image: cycles.Image) -> list[cycles.Insn]:
+    """The disassembly's instructions, without objdump's dumps of data in executable sections (the ELF's $d
+    mapping symbols mark them)."""
+    with open(path, "rb") as f:
+        st = ELFFile(f).get_section_by_name(".symtab")
+        marks = sorted((int(s["st_value"]), s.name[:2]) for s in st.iter_symbols() if s.name[:2] in ("$t", "$d"))
+    out = []
+    for fn in image.functions.values():
+        for ins in fn.insns:
+            i = bisect.bisect_right(marks, (ins.addr, "~")) - 1
+            if i >= 0 and marks[i][1] == "$d":
+                continue
+            out.append(ins)
+    return out
+
+
+def test_decoder_equals_the_tables_on_every_instruction_of_the_shipped_images(rt):
+    images = images_or_skip(16)
+    total = 0
+    for elf in (*images.cells, images.primary):
+        img = elfimage.load_image(elf)
+        flash = bytearray(b"\xff" * cycles.FLASH_SIZE)
+        for sg in img.segments:
+            flash[sg.addr : sg.addr + len(sg.data)] = sg.data
+        insns = code_insns(elf, img.disassembly)
+        assert len(insns) > 5000, (elf, len(insns))
+        assert compare(rt, bytes(flash), insns, img.tables) == [], elf
+        total += len(insns)
+    assert total > 17 * 5000
+
+
+# ---------------------------------------------------------------- the bootloader (MC_BOOTLOADER: its .bin)
+
+
+def successors(flash: bytes, a: int, size: int) -> list[int]:
+    """Where execution goes after the instruction at `a` (direct flow only: an indirect branch or a return ends it;
+    BL and BLX return after the call)."""
+    hw1, hw2 = struct.unpack_from("<HH", flash + b"\xff\xff", a)
+    if hw1 & 0xF000 == 0xD000 and (hw1 >> 8) & 0xF < 0xE:  # B<cond>
+        off = (hw1 & 0xFF) - (0x100 if hw1 & 0x80 else 0)
+        return [a + 2, a + 4 + 2 * off]
+    if hw1 & 0xF800 == 0xE000:  # B
+        off = (hw1 & 0x7FF) - (0x800 if hw1 & 0x400 else 0)
+        return [a + 4 + 2 * off]
+    if hw1 & 0xF800 == 0xF000 and hw2 & 0xD000 == 0xD000:  # BL
+        s = (hw1 >> 10) & 1
+        j1, j2 = (hw2 >> 13) & 1, (hw2 >> 11) & 1
+        i1, i2 = 1 - (j1 ^ s), 1 - (j2 ^ s)
+        off = s << 24 | i1 << 23 | i2 << 22 | (hw1 & 0x3FF) << 12 | (hw2 & 0x7FF) << 1
+        off -= (1 << 25) if s else 0
+        return [a + 4, a + 4 + off]
+    if hw1 & 0xFF80 == 0x4700 or hw1 & 0xFF00 == 0xBD00 or hw1 & 0xFF87 in (0x4487, 0x4687):
+        return []  # BX, POP {..., pc}, ADD/MOV pc
+    if hw1 & 0xFE00 == 0xDE00 or hw1 & 0xFF00 == 0xBE00:
+        return []  # UDF, SVC, BKPT
+    return [a + size]
+
+
+def reachable(rt, flash: bytes) -> list[int]:
+    """Instruction starts reached from the vector table by direct flow (a recursive-descent walk)."""
+    vectors = struct.unpack_from("<48I", flash, 0)[1:]
+    todo = [v & ~1 for v in vectors if v & 1 and v < len(flash)]
+    seen: set[int] = set()
+    while todo:
+        a = todo.pop()
+        if a in seen or not 0 <= a < len(flash) - 1:
+            continue
+        rc, o = c_cost(rt, flash, a)
+        seen.add(a)
+        if rc == 0:
+            todo += successors(flash, a, o.size)
+    return sorted(seen)
+
+
+def objdump_at(binary: Path, addrs: list[int]) -> dict[int, cycles.Insn]:
+    """objdump's reading of the instruction at each address (a linear sweep, then one from each address the sweep
+    did not start an instruction at: the .bin has no mapping symbols, a literal pool can swallow code)."""
+
+    def dump(*extra: str) -> dict[int, cycles.Insn]:
+        cmd = ["arm-none-eabi-objdump", "-D", "-b", "binary", "-marm", "-Mforce-thumb", "--no-show-raw-insn"]
+        out = subprocess.run([*cmd, *extra, str(binary)], capture_output=True, text=True, check=True).stdout
+        return {i.addr: i for f in cycles.parse_disassembly(out).functions.values() for i in f.insns}
+
+    got = dump()
+    for a in addrs:
+        if a not in got:
+            got[a] = dump(f"--start-address={a:#x}", f"--stop-address={a + 4:#x}")[a]
+    return got
+
+
+def test_decoder_equals_the_tables_on_the_bootloaders_reachable_code(rt):
+    path = os.environ.get("MC_BOOTLOADER")
+    if not path:
+        pytest.skip("bootloader cost check skipped: MC_BOOTLOADER (the bootloader's .bin) is not set")
+    binary = Path(path)
+    flash = binary.read_bytes()
+    addrs = reachable(rt, flash)
+    assert len(addrs) > 1000
+    by_addr = objdump_at(binary, addrs)
+    insns = [by_addr[a] for a in addrs]
+    image = cycles.Image({"boot": cycles.Function("boot", 0, insns)}, {0: "boot"}, {})
+    tables = cycles.block_tables(image)
+    assert compare(rt, flash, insns, tables) == []
+    rcs = {a: c_cost(rt, flash, a)[0] for a in addrs}
+    assert [hex(a) for a, rc in rcs.items() if rc == -1] == []  # nothing reached is undefined
+
+
+# ---------------------------------------------------------------- the decoder on a running board
+
+
+def test_table_rows_follow_the_model():
+    """Each row's numbers are the model's cost of its representative (the generated table's one source)."""
+    model = cycles.CycleModel()
+    for row in costtable.ROWS:
+        rc = costtable.row_cost(row, model)
+        ins = cycles.Insn(0, row.mnem, row.ops, "")
+        if rc.unsupported:
+            with pytest.raises(cycles.UnsupportedInsn):
+                cycles.base_cycles(ins)
+        else:
+            assert rc.core == cycles.insn_cost(ins, model).core
+    assert re.search(r"SAM_COST_NROWS \d+", costtable.emit_c())
+
+
+def _program(extra=None):
+    def handlers(a: harness.Asm):
+        a.label("loop")
+        a.movs(2, 5)
+        a.label("again")
+        a.ldr_const(3, 0x20000000)
+        a.mem("ldr", 4, 3)
+        a.adds(2, 255)
+        a.b("after")
+        a.pool()
+        a.label("after")
+        a.dsb_isb()
+        a.b()
+        if extra:
+            extra(a)
+        return {}
+
+    return harness.stub(handlers)
+
+
+def test_a_board_without_tables_runs_on_the_decoders_costs_exactly():
+    prog = _program()
+    bare = harness.Program(**{**prog.__dict__, "tables": None})
+    runs = []
+    for p in (prog, bare):
+        h = harness.Harness(program=p)
+        h.write("PM.APBCMASK", h.read("PM.APBCMASK") | 1 << 11)
+        loop = p.labels["loop"]
+        r1, t0 = h.ffi.new("uint32_t *"), h.ffi.new("uint64_t *")
+        assert h.lib.sam_harness_call(h._w, 0, loop, p.labels["after"] + 8, 0, r1, t0) == 0, h.error()
+        h.advance(1e-4)
+        runs.append((h.now(), h.info().cycles, h.read("PM.APBCMASK")))
+    assert runs[0] == runs[1]
+
+
+def test_code_the_model_cannot_time_halts_the_board_with_a_note():
+    def wfi(a: harness.Asm):
+        a.label("wfi")
+        a.movs(0, 1)
+        a._h(0xBF30, "wfi")
+        a.b()
+
+    p = _program(wfi)
+    p = harness.Program(**{**p.__dict__, "tables": None})
+    h = harness.Harness(program=p)
+    r1, t0 = h.ffi.new("uint32_t *"), h.ffi.new("uint64_t *")
+    at = p.labels["wfi"]
+    h.lib.sam_harness_call(h._w, 0, at, at + 6, 0, r1, t0)
+    assert h.info().lockup == 1
+    assert any(f"no cycle model for `wfi` at 0x{at + 2:05x}" in n for n in h.notes()), h.notes()
