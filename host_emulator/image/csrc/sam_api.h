@@ -180,6 +180,8 @@ const char *sam_harness_error(const sam_world_t *w, int mcu);
  * done_pc), from the world's time on; the context is restored. *t_start: when the routine began (its access). */
 int sam_harness_call(sam_world_t *w, int mcu, uint32_t pc, uint32_t done_pc, uint32_t r0, uint32_t *r1,
                      uint64_t *t_start);
+/* Rewrite flash bytes as NVMCTRL would leave them (translated code and its memoised costs forgotten). */
+int sam_harness_flash(sam_world_t *w, int mcu, uint32_t addr, const uint8_t *data, uint32_t n);
 /* Drive a pin from outside the board (0, 1; -1 released) from the board's time on. */
 int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level);
 int sam_harness_pin_state(const sam_world_t *w, int mcu, int32_t pin, sam_pin_info_t *out);

@@ -238,3 +238,29 @@ def test_code_the_model_cannot_time_halts_the_board_with_a_note():
     h.lib.sam_harness_call(h._w, 0, at, at + 6, 0, r1, t0)
     assert h.info().lockup == 1
     assert any(f"no cycle model for `wfi` at 0x{at + 2:05x}" in n for n in h.notes()), h.notes()
+
+
+@pytest.mark.parametrize("tables", [True, False])
+def test_rewritten_flash_is_costed_from_its_new_bytes(tables):
+    """A routine run, then rewritten (two MOVS become PUSH {r0-r7}, POP {r0-r7}): the second run costs the new code,
+    the same with or without the ELF's tables (they are dropped for rewritten code)."""
+    p = _program()
+    if not tables:
+        p = harness.Program(**{**p.__dict__, "tables": None})
+    h = harness.Harness(program=p)
+    r1, t0 = h.ffi.new("uint32_t *"), h.ffi.new("uint64_t *")
+    loop, end = p.labels["loop"], p.labels["after"] + 8
+
+    def run() -> int:
+        c0 = h.info().cycles
+        assert h.lib.sam_harness_call(h._w, 0, loop, end, 0, r1, t0) == 0, h.error()
+        return h.info().cycles - c0
+
+    run()  # the NVM cache warm from here on
+    before = run()
+    assert run() == before
+    code = struct.pack("<HH", 0xB4FF, 0xBCFF)  # push {r0-r7}; pop {r0-r7}: 9 + 9 core cycles
+    at = p.labels["loop"]  # MOVS r2, #5 (1) and the literal LDR r3 (2, a flash read) become the push and the pop
+    assert h.lib.sam_harness_flash(h._w, 0, at, code, len(code)) == 0
+    rws = (h.read("NVMCTRL.CTRLB") >> 1) & 0xF  # the wait states of the literal load that is gone
+    assert run() == before + 15 - rws
