@@ -130,21 +130,23 @@ class World:
             segs[i].len = len(s.data)
             segs[i].data = buf
         t = img.tables
-        core = ffi.from_buffer("uint32_t[]", t.core)
-        wait = ffi.from_buffer("uint32_t[]", t.wait)
-        lit = ffi.from_buffer("uint32_t[]", t.literal)
-        refund = ffi.from_buffer("uint8_t[]", t.refund)
         im = ffi.new("sam_image_t *")
         im.segs = segs
         im.nsegs = len(img.segments)
         im.entry_sp = img.entry_sp
         im.entry_pc = img.entry_pc
-        im.cost_core, im.cost_wait, im.cost_lit, im.refund = core, wait, lit, refund
-        im.code_end = t.code_end
+        if t is not None:  # the ELF's tables (else the decoder costs every block from the flash bytes)
+            core = ffi.from_buffer("uint32_t[]", t.core)
+            wait = ffi.from_buffer("uint32_t[]", t.wait)
+            lit = ffi.from_buffer("uint32_t[]", t.literal)
+            refund = ffi.from_buffer("uint8_t[]", t.refund)
+            im.cost_core, im.cost_wait, im.cost_lit, im.refund = core, wait, lit, refund
+            im.code_end = t.code_end
+            b.keep += [core, wait, lit, refund]
         im.loop_pc = img.symbols.get("loop", (0, 0))[0]
         im.heap_base = img.heap_base
         im.brk_var = img.brk_var
-        b.keep += [segs, core, wait, lit, refund, t, im]
+        b.keep += [segs, t, im]
         rc = lib.sam_world_load(
             self._w,
             idx,
