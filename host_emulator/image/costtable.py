@@ -7,11 +7,13 @@ names the encodings (``mask``/``value`` over ``first halfword << 16 | second hal
 representative instruction, and the row's numbers are the model's cost of that instruction. A register-list row
 adds one core cycle per bit of the first halfword's low byte (the registers r0-r7; LR/PC are in the
 representative's list). An instruction the model has no time for (WFI, SVC, BKPT, ...) is a row marked
-unsupported; an encoding no row matches is not an ARMv6-M instruction. Either halts the board with a note naming
-the address (never a zero cost). Rows are tried in order: the first match counts.
+unsupported; an encoding no row matches, or whose row names no instruction, is not an ARMv6-M instruction. Either
+halts the board with a note naming the address (never a zero cost). Rows are tried in order: the first match counts.
 
-``emit_c()`` is the generated header (the runtime build writes it beside the register table's, runtime.py); the
-tests prove the decoder equal to the ELF tables on every instruction of the shipped images and of the bootloader.
+``emit_c()`` is the generated header (the runtime build writes it beside the register table's, runtime.py). The
+tests (tests/host_emulator/image/test_cost.py) prove the decoder equal to the ELF tables on every instruction of the
+shipped images and of the bootloader, and to the model's cost of objdump's reading of every 16-bit encoding and of
+the 32-bit ones ARMv6-M has.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from . import cycles
 class Row:
     mask: int  # over hw1 << 16 | hw2 (a 16-bit instruction's rows mask only the upper half)
     value: int
-    mnem: str  # the representative instruction, as objdump prints it
+    mnem: str  # the representative instruction, as objdump prints it ("": not an ARMv6-M instruction)
     ops: str
     reglist: bool = False  # add popcount(hw1 & 0xFF) core cycles
 
@@ -63,8 +65,10 @@ NARROW_ROWS = (
     _h(0xFF00, 0x4500, "cmp", "r0, r8"),
     _h(0xFF87, 0x4687, "mov", "pc, r0"),
     _h(0xFF00, 0x4600, "mov", "r0, r8"),
+    _h(0xFF87, 0x4704, ""),  # ARMv8-M's BXNS, BLXNS: not ARMv6-M
+    _h(0xFF87, 0x4784, ""),
     _h(0xFF80, 0x4700, "bx", "r0"),
-    _h(0xFF80, 0x4780, "blx", "r0"),
+    _h(0xFF87, 0x4780, "blx", "r0"),
     # loads and stores
     _h(0xF800, 0x4800, "ldr", "r0, [pc, #0]"),
     _h(0xFE00, 0x5000, "str", "r0, [r0, r0]"),
@@ -92,7 +96,7 @@ NARROW_ROWS = (
     _h(0xFF00, 0xB200, "sxth", "r0, r0"),
     _h(0xFF00, 0xB400, "push", "{}", reglist=True),
     _h(0xFF00, 0xB500, "push", "{lr}", reglist=True),
-    _h(0xFFE0, 0xB660, "cpsie", "i"),
+    _h(0xFFE8, 0xB660, "cpsie", "i"),
     _h(0xFFC0, 0xBA00, "rev", "r0, r0"),
     _h(0xFFC0, 0xBA40, "rev16", "r0, r0"),
     _h(0xFFC0, 0xBAC0, "revsh", "r0, r0"),
@@ -130,6 +134,8 @@ class RowCost:
 def row_cost(row: Row, model: cycles.CycleModel | None = None) -> RowCost:
     """The model's cost of a row's representative instruction."""
     model = model or cycles.CycleModel()
+    if not row.mnem:
+        return RowCost(0, 0, 0, 0, True)
     ins = cycles.Insn(0, row.mnem, row.ops, "")
     try:
         k = cycles.insn_cost(ins, model)
@@ -147,6 +153,8 @@ def decode(hw1: int, hw2: int, model: cycles.CycleModel | None = None) -> tuple[
     key = hw1 << 16 | (hw2 if wide else 0)
     for row in WIDE_ROWS if wide else NARROW_ROWS:
         if key & row.mask == row.value:
+            if not row.mnem:
+                return None
             rc = row_cost(row, model)
             return row, rc, rc.core + (bin(hw1 & 0xFF).count("1") if row.reglist else 0)
     return None
@@ -165,12 +173,14 @@ def emit_c(model: cycles.CycleModel | None = None) -> str:
             f
             for f, on in (
                 ("SAM_COST_REGLIST", row.reglist),
-                ("SAM_COST_UNSUPPORTED", rc.unsupported),
+                ("SAM_COST_UNSUPPORTED", rc.unsupported and bool(row.mnem)),
                 ("SAM_COST_WIDE", row in WIDE_ROWS),
+                ("SAM_COST_UNDEFINED_ROW", not row.mnem),
             )
             if on
         )
-        text = f"{row.mnem} {row.ops}".strip().replace("\\", "\\\\").replace('"', '\\"')
+        text = f"{row.mnem} {row.ops}".strip() if row.mnem else "an encoding ARMv6-M does not define"
+        text = text.replace("\\", "\\\\").replace('"', '\\"')
         out.append(
             f"    {{0x{row.mask:08x}u, 0x{row.value:08x}u, {rc.core}, {rc.wait}, {rc.literal}, "
             f'{rc.refund}, {flags or "0"}, "{text}"}},'

@@ -14,6 +14,7 @@ typedef struct {
 #define SAM_COST_REGLIST 1u
 #define SAM_COST_UNSUPPORTED 2u
 #define SAM_COST_WIDE 4u          /* a 32-bit instruction's row */
+#define SAM_COST_UNDEFINED_ROW 8u /* these encodings are not ARMv6-M instructions */
 #include "sam_cost_gen.h"   /* generated into the build directory (runtime.py) */
 
 static unsigned popcount8(unsigned v)
@@ -34,6 +35,8 @@ int sam_cost_insn(uint16_t hw1, uint16_t hw2, sam_insn_cost_t *out)
         const sam_cost_row_t *r = &sam_cost_rows[k];
         if ((key & r->mask) != r->value || wide != !!(r->flags & SAM_COST_WIDE))
             continue;
+        if (r->flags & SAM_COST_UNDEFINED_ROW)
+            break;
         out->core = (uint8_t)(r->core + (r->flags & SAM_COST_REGLIST ? popcount8(hw1 & 0xFFu) : 0u));
         out->wait = r->wait;
         out->lit = r->lit;
