@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -94,8 +95,7 @@ class BlockTables:
 FLASH_SIZE = 0x40000  # SAMD21G18A: 256 KiB of flash (SAM_FLASH_SIZE in csrc/sam.h)
 
 
-@dataclass(frozen=True)
-class InsnCost:
+class InsnCost(NamedTuple):
     """What one instruction adds to the tables: its size, core cycles (a conditional branch charged taken), the
     worst-case model's waited flash accesses, its PC-relative loads and its untaken-branch refund (as in
     BlockTables.refund)."""
@@ -143,8 +143,10 @@ def block_tables(image: Image, flash_size: int = FLASH_SIZE, model: CycleModel |
                 unsupported.append(f"{ins.mnem} at {ins.addr:#x} in {f.name}")
                 k = insn_cost(ins, model, core=1)
             code_end = max(code_end, ins.addr + k.size)
-            literal[h + 1] = k.literal
-            refund[h] = k.refund
+            if k.literal:
+                literal[h + 1] = k.literal
+            if k.refund:
+                refund[h] = k.refund
             core[h + 1] = k.core
             wait[h + 1] = k.wait
     return BlockTables(

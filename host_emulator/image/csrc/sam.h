@@ -132,7 +132,6 @@ struct sam_mcu {
     uint32_t clk_epoch;                      /* changes with every clock configuration write (cached frequencies) */
     const uint8_t *refund;                  /* per halfword: cycles a conditional branch there costs less untaken */
     uint32_t app_end;                       /* first address past the image's code */
-    uint32_t tab_lo;                        /* the tables hold [tab_lo, app_end) (NULL cost_core: none) */
     uint32_t heap_base;                     /* SRAM offset of the end of static data (the heap's start) */
     uint32_t brk_var;                       /* address of the heap's break pointer (sbrk's), 0: none known */
     sam_blkcost_t memo[SAM_MEMO];
@@ -187,6 +186,8 @@ struct sam_mcu {
     /* board wiring (sam_world.c) */
     int role;              /* SAM_ROLE_CELL / SAM_ROLE_PRIMARY */
     int cell;              /* 0-based cell index, -1 for the primary */
+    /* cycle costs (sam_cost.c): the ELF's tables hold [tab_lo, app_end) (NULL cost_core: none) */
+    uint32_t tab_lo;
 };
 
 /* indices of the peripherals and registers the models name, found once in the generated table */
