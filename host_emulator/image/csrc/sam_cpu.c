@@ -202,23 +202,12 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
         uc_emu_stop(uc);
         return;
     }
-    if (addr + size > m->app_end || size == 0) {
-        if (size == 0)
-            return;
-        sam_fail(m, "execution at 0x%05x outside the image's code (ends 0x%05x)", addr, m->app_end);
+    if (size == 0)
         return;
-    }
-    /* the block's cost (sam_cycles: prefix sums over its halfwords), memoised per block start */
+    /* the block's cost (sam_cost.c: the ELF's tables or the flash decoded), memoised per block start */
     sam_blkcost_t *bc = &m->memo[(addr >> 1) & (SAM_MEMO - 1)];
-    if (bc->addr != addr || bc->size != size) {
-        uint32_t h0 = addr >> 1, h1 = (addr + size) >> 1;
-        bc->addr = addr;
-        bc->size = (uint16_t)size;
-        bc->core = m->cost_core[h1] - m->cost_core[h0];
-        bc->wait = (uint16_t)(m->cost_wait[h1] - m->cost_wait[h0]);
-        bc->lit = (uint16_t)(m->cost_lit[h1] - m->cost_lit[h0]);
-        bc->refund = m->refund[h1 - 1];
-    }
+    if ((bc->addr != addr || bc->size != size) && sam_cost_block(m, addr, size, bc))
+        return;   /* no cycle model for an instruction of it: the board halted */
     uint64_t cyc = bc->core;
     if (m->cycle_model == SAM_CYCLES_WORST) {
         cyc += (uint64_t)m->rws * bc->wait;

@@ -107,6 +107,18 @@ int sam_harness_call(sam_world_t *w, int mcu, uint32_t pc, uint32_t done_pc, uin
     return m->err ? -1 : rc;
 }
 
+int sam_harness_flash(sam_world_t *w, int mcu, uint32_t addr, const uint8_t *data, uint32_t n)
+{
+    sam_mcu_t *m = board(w, mcu);
+    if (!m || addr > SAM_FLASH_SIZE || n > SAM_FLASH_SIZE - addr)
+        return -1;
+    memcpy(m->flash + addr, data, n);
+    if (uc_ctl_remove_cache(m->uc, addr, addr + n) != UC_ERR_OK)
+        return -1;
+    sam_cost_flash_written(m, addr, n);
+    return 0;
+}
+
 int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level)
 {
     sam_mcu_t *m = board(w, mcu);
