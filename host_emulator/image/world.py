@@ -16,7 +16,7 @@ from ..models.steppers import stepper_id
 from ..params import Params
 from . import board, bootloader, cycles, runtime
 from .build import ImageSet
-from .elfimage import APP_BASE, FirmwareImage, Segment, load_image
+from .elfimage import FirmwareImage, Segment, load_image
 
 NOTES_KEPT = 100_000  # log lines World.notes keeps
 API_S = 50e-6  # an action from outside lands this long after the world's time (csrc/sam_usb.c: USB_API_S)

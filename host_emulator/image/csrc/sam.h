@@ -225,7 +225,7 @@ static inline void sam_activity(sam_mcu_t *m) { m->act++; }
 void sam_fail(sam_mcu_t *m, const char *fmt, ...);
 uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
 void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
-void sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* NVMCTRL rewrote flash there */
+int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* flash rewritten there (NVMCTRL, harness) */
 void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc);    /* resume at pc inside the block charged (a flash store) */
 
 /* ---- sam_nvmctrl.c: flash programming ---- */

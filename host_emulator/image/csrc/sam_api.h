@@ -113,17 +113,18 @@ typedef struct {
     const sam_seg_t *segs;     /* load segments (flash) */
     int32_t nsegs;
     uint32_t entry_sp, entry_pc;   /* from the vector table at the application's start */
-    /* cycle tables (cycles.py): prefix sums over the halfwords of flash, and per halfword what a conditional
-     * branch there costs less when not taken */
+    /* the ELF's cycle tables (cycles.py), all four or none: prefix sums over the halfwords of flash, and per
+     * halfword what a conditional branch there costs less when not taken; they hold [0x2000, code_end), and the
+     * board's decoder (sam_cost.c) costs every other block, and all of them once that code is rewritten */
     const uint32_t *cost_core, *cost_wait, *cost_lit;
     const uint8_t *refund;
-    uint32_t code_end;         /* first address past the code */
+    uint32_t code_end;         /* first address past the code the tables hold (unused without them) */
     uint32_t loop_pc;          /* loop(): where idle passes are fast-forwarded (0: never) */
     uint32_t heap_base;        /* end of static data in SRAM (the heap starts there); 0: unknown */
     uint32_t brk_var;          /* address of the heap's break pointer; 0: none (the heap is unknown if it exists) */
     int32_t boot;              /* 0: direct boot (the bootloader's hand-off simulated: VTOR 0x2000, entry_sp/pc);
                                   1: from the reset vector at 0, as the chip does (a segment at 0 holds the
-                                  bootloader; the cycle tables cover it) */
+                                  bootloader; the decoder costs it) */
 } sam_image_t;
 
 /* Load a board (its role and cell index); it powers on now. */

@@ -63,21 +63,22 @@ static void halt_untimed(sam_mcu_t *m, uint32_t a, const sam_insn_cost_t *ic)
     uc_emu_stop(m->uc);
 }
 
-int sam_cost_block(sam_mcu_t *m, uint32_t addr, uint32_t size, sam_blkcost_t *bc)
+/* The cost of the instructions in [addr, end) into *bc: the ELF's tables where they hold them, else decoded from the
+ * flash bytes as they are now; -1 (and *bad, at) when an instruction there has no time in the model. */
+static int cost_span(const sam_mcu_t *m, uint32_t addr, uint32_t end, sam_blkcost_t *bc, sam_insn_cost_t *bad,
+                     uint32_t *at)
 {
-    uint32_t end = addr + size;
+    bc->addr = addr;
+    bc->size = (uint16_t)(end - addr);
     if (m->cost_core && addr >= m->tab_lo && end <= m->app_end) {
-        /* the ELF's tables: prefix sums over the block's halfwords */
+        /* the ELF's tables: prefix sums over the halfwords */
         uint32_t h0 = addr >> 1, h1 = end >> 1;
-        bc->addr = addr;
-        bc->size = (uint16_t)size;
         bc->core = m->cost_core[h1] - m->cost_core[h0];
         bc->wait = (uint16_t)(m->cost_wait[h1] - m->cost_wait[h0]);
         bc->lit = (uint16_t)(m->cost_lit[h1] - m->cost_lit[h0]);
         bc->refund = m->refund[h1 - 1];
         return 0;
     }
-    /* the decoder: the flash bytes as they are now */
     uint32_t core = 0, wait = 0, lit = 0;
     uint8_t refund = 0;
     sam_insn_cost_t ic;
@@ -88,7 +89,8 @@ int sam_cost_block(sam_mcu_t *m, uint32_t addr, uint32_t size, sam_blkcost_t *bc
         if (sam_cost_insn(hw1, hw2, &ic) || a + ic.size > end) {
             if (a + ic.size > end)
                 ic.text = "an instruction across the block's end";
-            halt_untimed(m, a, &ic);
+            *bad = ic;
+            *at = a;
             return -1;
         }
         core += ic.core;
@@ -96,13 +98,33 @@ int sam_cost_block(sam_mcu_t *m, uint32_t addr, uint32_t size, sam_blkcost_t *bc
         lit += ic.lit;
         refund = ic.refund;
     }
-    bc->addr = addr;
-    bc->size = (uint16_t)size;
     bc->core = core;
     bc->wait = (uint16_t)wait;
     bc->lit = (uint16_t)lit;
     bc->refund = refund;
     return 0;
+}
+
+int sam_cost_block(sam_mcu_t *m, uint32_t addr, uint32_t size, sam_blkcost_t *bc)
+{
+    sam_insn_cost_t bad;
+    uint32_t at;
+    if (cost_span(m, addr, addr + size, bc, &bad, &at) == 0)
+        return 0;
+    bc->addr = 0;
+    bc->size = 0;
+    halt_untimed(m, at, &bad);
+    return -1;
+}
+
+uint64_t sam_cost_tail(const sam_mcu_t *m, uint32_t pc, uint32_t end)
+{
+    sam_blkcost_t bc;
+    sam_insn_cost_t bad;
+    uint32_t at;
+    if (pc >= end || end > SAM_FLASH_SIZE || cost_span(m, pc, end, &bc, &bad, &at))
+        return 0;
+    return bc.core + (uint64_t)m->rws * (m->cycle_model == SAM_CYCLES_WORST ? bc.wait : bc.lit);
 }
 
 void sam_cost_flash_written(sam_mcu_t *m, uint32_t addr, uint32_t len)

@@ -113,10 +113,7 @@ int sam_harness_flash(sam_world_t *w, int mcu, uint32_t addr, const uint8_t *dat
     if (!m || addr > SAM_FLASH_SIZE || n > SAM_FLASH_SIZE - addr)
         return -1;
     memcpy(m->flash + addr, data, n);
-    if (uc_ctl_remove_cache(m->uc, addr, addr + n) != UC_ERR_OK)
-        return -1;
-    sam_cost_flash_written(m, addr, n);
-    return 0;
+    return sam_cpu_flash_changed(m, addr, n);
 }
 
 int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level)
