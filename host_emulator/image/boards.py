@@ -24,6 +24,7 @@ import argparse
 import dataclasses
 import json
 import os
+import re
 import select
 import signal
 import sys
@@ -46,6 +47,8 @@ LAG_MAX_S = 0.1  # a world behind real time by more does not sprint to catch up 
 APPLICATION, BOOTLOADER = "application", "bootloader"
 MODES = {XIAO_PID_APP: APPLICATION, XIAO_PID_BOOT: BOOTLOADER}  # idProduct -> mode
 TOUCH_BAUD = 1200
+FLASH_SIZE = 0x40000  # the SAMD21G18's 256 KiB
+CONTROL_EVERY_S = 0.1  # wall time between two looks at the control directory
 
 
 def say(msg: str) -> None:
@@ -54,15 +57,45 @@ def say(msg: str) -> None:
 
 def bootloader_problem(lib=None) -> str | None:
     """Why a board cannot run the XIAO's bootloader here (one line), or None when it can: MC_BOOTLOADER names the
-    bootloader's .bin and the runtime (lib) runs it from the reset vector (the tier's `sam_world_bootloader`)."""
-    path = os.environ.get("MC_BOOTLOADER", "")
-    if not path:
+    pinned bootloader's .bin (the tier runs it from the reset vector, image/bootloader.py). `lib` is unused (kept for
+    callers that pass the runtime)."""
+    from . import bootloader
+
+    if bootloader.path() is None:
         return "MC_BOOTLOADER (the path of the XIAO bootloader's .bin) is not set"
-    if not Path(path).is_file():
-        return f"MC_BOOTLOADER={path}: no such file"
-    if lib is None or not hasattr(lib, "sam_world_bootloader"):
-        return "the image tier cannot run the bootloader yet (issue 28, item 1)"
+    try:
+        bootloader.load()
+    except bootloader.BootloaderError as e:
+        return str(e)
     return None
+
+
+SAMBA_WRITE = re.compile(rb"[Ss]([0-9A-Fa-f]{1,8}),([0-9A-Fa-f]{1,8})#$")
+
+
+class SambaFramer:
+    """Where the client's write() calls ended, for a port in bootloader mode. On Linux each write() to a CDC ACM port
+    is its own USB transfer (cdc_acm submits one URB per write), and the bootloader's SAM-BA monitor relies on it:
+    bossac writes a command ("S20004034,00001000#") and then its data in two calls, and the monitor drops whatever
+    follows a command in the same packet. A pty merges the writes, so they are split again where bossac's calls
+    ended: after each command's '#', and after the `size` bytes of data an S command announces."""
+
+    def __init__(self) -> None:
+        self.data_left = 0
+
+    def transfer(self, held: bytes | bytearray) -> int:
+        """How many of the held bytes make the next transfer (each is given to the device once the last one went)."""
+        if self.data_left:
+            n = min(len(held), self.data_left)
+            self.data_left -= n
+            return n
+        end = bytes(held).find(b"#")
+        if end < 0:
+            return len(held)
+        m = SAMBA_WRITE.search(bytes(held[: end + 1]))
+        if m is not None:
+            self.data_left = int(m.group(2), 16)
+        return end + 1
 
 
 @dataclass
@@ -86,6 +119,15 @@ class Board:
     enumerations_seen: int = 0  # the host's count of the board's enumerations when its port was made
     line: tuple[int, bool] = (0, False)  # the line state last given to the USB host (baud sent, client present)
     touched: bool = False  # the touch was taken (forwarded) and the board has not left yet
+    written: int = 0  # the device has taken every byte given to the USB host when its OUT count reaches this
+    samba: SambaFramer = field(default_factory=lambda: SambaFramer())  # the client's write boundaries (bootloader)
+    unplugged: bool = False  # its cable was pulled (--control): never listed again
+    deaf: bool = False  # ignores the 1200-baud touch (--control): its bootloader's port never appears
+
+    @property
+    def tag(self) -> str:
+        """The stable name's tail: mc01 .. mc16, primary."""
+        return self.link.rsplit("ttyACM-", 1)[-1]
 
     def entry(self) -> dict:
         """The board's line of the listing: the fields pyserial's list_ports gives, plus its mode and pty."""
@@ -160,6 +202,9 @@ class Boards:
                 self._gone(b)
             if b.mode and (not usb.configured or w.usb_device(b.index).enumerations != b.enumerations_seen):
                 self._gone(b)  # it left the bus, or came back between two looks: a new port either way
+            if b.unplugged:
+                w.usb_read(b.index)  # what it sends goes nowhere
+                continue
             if not b.mode and usb.configured and not b.resetting:
                 self._enumerated(b)
             out = w.usb_read(b.index)
@@ -169,18 +214,21 @@ class Boards:
             if present != b.port.client:
                 b.port.client = present
                 b.held = bytearray()
+                b.samba = SambaFramer()
                 b.touched = b.touched and not present
             self._line(b, present, int(usb.control_transfers))
             b.held += data
             # as an OS's open() returns once the device took the line state (its control transfers): the client's
             # first bytes follow them
-            if b.held and usb.control_transfers >= b.line_state_at:
-                sent = w.usb_write(b.index, bytes(b.held))
-                if sent < len(b.held):
-                    say(f"{b.name}: the USB host's buffer is full ({sent} of {len(b.held)} bytes taken)")
-                b.held = bytearray()
+            if b.held and usb.control_transfers >= b.line_state_at and int(usb.out_bytes) >= b.written:
+                n = b.samba.transfer(b.held) if b.mode == BOOTLOADER else len(b.held)
+                sent = w.usb_write(b.index, bytes(b.held[:n]))
+                if sent < n:
+                    say(f"{b.name}: the USB host's buffer is full ({sent} of {n} bytes taken)")
+                b.written = int(usb.out_bytes) + sent
+                del b.held[:n]
             b.port.send(out)
-            if not present and not b.touched and b.port.touched():
+            if not present and not b.touched and b.port.touched() and not b.deaf:
                 self.on_touch(b)
         if self.dirty:
             write_listing(self.listing, [b.entry() for b in self.boards if b.mode and b.port is not None])
@@ -219,6 +267,7 @@ class Boards:
         b.serial = d.serial or b.serial
         b.line = (9600, False)  # a new tty: cdc_acm's probe set 9600 baud, DTR and RTS low
         b.touched = False
+        b.written, b.samba, b.held = 0, SambaFramer(), bytearray()
         b.mode = self.mode_of(b)
         self.dirty = True
 
@@ -241,6 +290,44 @@ class Boards:
         self._gone(b)
         b.resetting = True
         self.world.reset(b.index)
+
+    def read_flash(self, b: Board, start: int = 0, n: int = FLASH_SIZE) -> bytes:
+        """The board's flash (what bossac reads back, without the bootloader's help)."""
+        return self.world.read_mem(b.index, start, n)
+
+    def unplug(self, b: Board) -> None:
+        """Pull the board's cable: its port goes as the OS drops it (a client's next read or write fails) and it is
+        not listed again (the board itself is left to run, unseen)."""
+        b.unplugged = True
+        self._gone(b)
+
+    def control(self, where: Path) -> None:
+        """Requests dropped as empty files in the control directory (each removed once done): unplug-TAG pulls a
+        board's cable, deaf-TAG makes it ignore the 1200-baud touch, dump writes every board's flash to
+        flash-TAG.bin (then done-dump); TAG is mc01..mc16 or primary."""
+        try:
+            names = sorted(p.name for p in where.iterdir())
+        except OSError:
+            return
+        by_tag = {b.tag: b for b in self.boards}
+        for name in names:
+            what, _, tag = name.partition("-")
+            if what in ("unplug", "deaf") and tag in by_tag:
+                b = by_tag[tag]
+                say(f"{b.name}: {'unplugged' if what == 'unplug' else 'ignores the 1200-baud touch from now on'}")
+                if what == "unplug":
+                    self.unplug(b)
+                else:
+                    b.deaf = True
+            elif name == "dump":
+                for b in self.boards:
+                    tmp = where / f".flash-{b.tag}.tmp"
+                    tmp.write_bytes(self.read_flash(b))
+                    os.replace(tmp, where / f"flash-{b.tag}.bin")
+                (where / "done-dump").touch()
+            else:
+                continue
+            (where / name).unlink(missing_ok=True)
 
     def close(self) -> None:
         for b in self.boards:
@@ -276,6 +363,20 @@ def parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="directory of the ports' stable names (default: beside PATH, named after it: ports.json -> ports-dev)",
     )
+    ap.add_argument(
+        "--usb-packet-us",
+        type=float,
+        default=50.0,
+        metavar="US",
+        help="the emulated USB host's time to move one packet, in microseconds (default %(default)g)",
+    )
+    ap.add_argument(
+        "--control",
+        default=None,
+        metavar="DIR",
+        help="directory watched for requests (empty files): unplug-TAG, deaf-TAG (the board ignores the 1200-baud "
+        "touch), dump (every board's flash to flash-TAG.bin, then done-dump); TAG is mc01..mc16 or primary",
+    )
     ap.add_argument("--speed", type=float, default=1.0, help="most simulated seconds per wall second (default 1)")
     return ap
 
@@ -290,10 +391,9 @@ def boards_main(argv: list[str] | None = None) -> int:
         return 2
     if args.blank:
         problem = bootloader_problem()
-        if problem is None:  # pragma: no cover (the tier cannot run the bootloader yet)
-            problem = "blank boards are not brought up yet"
-        say(f"--blank needs the XIAO's bootloader in the image tier: {problem}")
-        return 2
+        if problem is not None:
+            say(f"--blank needs the XIAO's bootloader in the image tier: {problem}")
+            return 2
     listing = Path(args.ports_json)
     dev_dir = Path(args.dev_dir) if args.dev_dir else listing.with_name(f"{listing.stem}-dev")
     try:
@@ -330,11 +430,19 @@ def _world(args):
         p = sc.params  # the first `cells` cells of the scene
         params = dataclasses.replace(p, cells=cells, **{k: getattr(p, k)[:cells] for k in p.per_cell_keys})
         io = sc.options.image
+        boot = "bootloader" if bootloader_problem() is None else io.boot
         cfg = WorldConfig(
-            window_s=WINDOW_S, threads=io.threads, cycle_model=io.cycle_model, ff=io.fast_forward, round_s=io.round_s
+            window_s=WINDOW_S,
+            threads=io.threads,
+            cycle_model=io.cycle_model,
+            ff=io.fast_forward,
+            round_s=io.round_s,
+            boot=boot,
+            blank=args.blank,
+            usb_packet_us=args.usb_packet_us,
         )
         primary = args.count > 16
-        images = build_images(cells, primary=primary)
+        images = None if args.blank else build_images(cells, primary=primary)
         return World(params, images, options=sc.options, config=cfg, primary=primary), None
     except (ConfigError, ValueError, KeyError, OSError) as e:
         return None, str(e)
@@ -359,9 +467,14 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
     status = 0
     announced = False
     t_wall0, t_world0 = time.monotonic(), world.t
+    control = Path(args.control) if args.control else None
+    looked = 0.0
     try:
         while not stop:
             rig.service()
+            if control is not None and time.monotonic() - looked > CONTROL_EVERY_S:
+                looked = time.monotonic()
+                rig.control(control)
             if not announced and rig.up() == len(boards):
                 announced = True
                 print(

@@ -167,13 +167,14 @@ class Flasher:
         log.write_text("")
         env = dict(os.environ)
         env.update(dict(step.env_vars))
-        res = self._call(step.argv, env, log, "pio", step.shell())
-        failed = BUILD_FAILED if step.upload is not None else UPLOAD_FAILED
-        if isinstance(res, str):
-            return Outcome(step, failed, res)
-        rc, output = res
-        if rc != 0:
-            return Outcome(step, failed, f"{uploader_error(output)} (pio exited with {rc})", log=log)
+        if step.argv:  # (none: a prebuilt image)
+            res = self._call(step.argv, env, log, "pio", step.shell())
+            failed = BUILD_FAILED if step.upload is not None else UPLOAD_FAILED
+            if isinstance(res, str):
+                return Outcome(step, failed, res)
+            rc, output = res
+            if rc != 0:
+                return Outcome(step, failed, f"{uploader_error(output)} (pio exited with {rc})", log=log)
         if step.upload is not None:
             bad = self._bossac(step, env, log)
             if bad is not None:
