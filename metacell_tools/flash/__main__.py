@@ -153,6 +153,14 @@ def _parser() -> argparse.ArgumentParser:
                 help="seconds to wait for a board's USB port to come back after the upload (default %(default)g)",
             )
             p.add_argument(
+                "--jobs",
+                type=int,
+                default=None,
+                metavar="N",
+                help="flash N boards at once (bossac: each board its own port and bossac; default 1, with --emulated "
+                "every board)",
+            )
+            p.add_argument(
                 "--emulated",
                 action="store_true",
                 help="the rig day as a dry run: bring up 17 blank emulated boards (python -m host_emulator boards "
@@ -225,6 +233,8 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
     bad_offset = check_offset(args.offset, args.overwrite_bootloader)
     if bad_offset:
         raise PreflightError(bad_offset)
+    if (getattr(args, "jobs", None) or 1) < 1:
+        raise PreflightError(f"--jobs must be at least 1, got {args.jobs}")
     if getattr(args, "emulated", False):
         return _flash_emulated(args, out)
     boards = inv.load(args.inventory)
@@ -257,7 +267,7 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         bootloader_timeout=args.bootloader_timeout,
         out=out,
     )
-    outcomes = flasher.flash(plan, stop_on_error=not args.keep_going)
+    outcomes = flasher.flash(plan, stop_on_error=not args.keep_going, jobs=args.jobs or 1)
     out(summary(outcomes))
     for b in plan.missing:
         out(f"NOT FLASHED (not connected): {b.name} serial {b.serial}")
@@ -290,6 +300,7 @@ def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
             emu.bootloader_timeout = max(args.bootloader_timeout, emulated.BOOTLOADER_TIMEOUT_S)
             emu.reappear_timeout = max(args.reappear_timeout, emulated.REAPPEAR_TIMEOUT_S)
             emu.emulated_query_timeout = emulated.IDENTITY_TIMEOUT_S
+            emu.jobs = args.jobs or args.emulated_count
             return cmd_plan_or_flash(emu, port_lister(listing), out)
     except emulated.EmulationError as exc:
         out(f"error: {exc}", err=True)

@@ -96,6 +96,9 @@ def emulated_boards(
             write_inventory(listing, inventory)
             yield listing, inventory
         finally:
+            rc = child.poll()
+            if rc is not None:
+                out(f"error: the emulated boards stopped early (exit {rc}): {_last_line(log)}")
             _stop(child)
 
 

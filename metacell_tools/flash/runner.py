@@ -8,6 +8,7 @@ import shlex
 import subprocess
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -212,22 +213,55 @@ class Flasher:
             return Outcome(step, MISMATCH, diff, q.identity, log)
         return Outcome(step, OK, f"{q.identity.describe()} on {port.device}", q.identity, log)
 
-    def flash(self, plan: Plan, stop_on_error: bool = False) -> list[Outcome]:
+    def flash(self, plan: Plan, stop_on_error: bool = False, jobs: int = 1) -> list[Outcome]:
+        """Every step in the plan's order; jobs > 1 flashes that many boards at once (each its own port and
+        bossac; stop_on_error then starts no new board after a failure, the ones under way finish)."""
+        if jobs > 1:
+            return self._flash_parallel(plan, stop_on_error, jobs)
         outcomes: list[Outcome] = []
         n = len(plan.steps)
         for i, step in enumerate(plan.steps, 1):
             self.out(f"[{i}/{n}] {step.board.name}: serial {step.board.serial} on {step.port.device}")
             o = self.flash_one(step)
             outcomes.append(o)
-            self.out(
-                f"      {'OK' if o.ok else 'FAILED'}: {o.status}: {o.detail}"
-                + (f" (log {o.log})" if o.log and not o.ok else "")
-            )
+            self._said(o)
             if not o.ok and stop_on_error:
                 for rest in plan.steps[i:]:
                     outcomes.append(Outcome(rest, NOT_RUN, "stopped after an earlier failure"))
                 break
         return outcomes
+
+    def _said(self, o: Outcome, who: str = "") -> None:
+        self.out(
+            f"      {who}{'OK' if o.ok else 'FAILED'}: {o.status}: {o.detail}"
+            + (f" (log {o.log})" if o.log and not o.ok else "")
+        )
+
+    def _flash_parallel(self, plan: Plan, stop_on_error: bool, jobs: int) -> list[Outcome]:
+        from concurrent.futures import FIRST_COMPLETED, Future, wait
+
+        n = len(plan.steps)
+        done: dict[int, Outcome] = {}
+        failed = False
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            running: dict[Future, int] = {}
+            queue = list(enumerate(plan.steps))
+            while queue or running:
+                while queue and len(running) < jobs and not (failed and stop_on_error):
+                    i, step = queue.pop(0)
+                    self.out(f"[{i + 1}/{n}] {step.board.name}: serial {step.board.serial} on {step.port.device}")
+                    running[pool.submit(self.flash_one, step)] = i
+                if not running:
+                    break
+                finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i = running.pop(f)
+                    o = f.result()
+                    done[i] = o
+                    failed = failed or not o.ok
+                    self._said(o, f"{plan.steps[i].board.name}: ")
+        stopped = "stopped after an earlier failure"
+        return [done.get(i) or Outcome(step, NOT_RUN, stopped) for i, step in enumerate(plan.steps)]
 
 
 def summary(outcomes: list[Outcome]) -> str:
