@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from metacell_common.target.cycles import (
     LOADS,
     STORES,
     CycleModel,
+    Function,
     Image,
     Insn,
     UnsupportedInsn,
@@ -45,6 +47,7 @@ __all__ = [
     "LOADS",
     "STORES",
     "CycleModel",
+    "Function",
     "Image",
     "Insn",
     "UnsupportedInsn",
@@ -52,7 +55,9 @@ __all__ = [
     "disassemble",
     "parse_disassembly",
     "BlockTables",
+    "InsnCost",
     "block_tables",
+    "insn_cost",
     "CYCLE_MODELS",
     "FLASH_SIZE",
 ]
@@ -90,6 +95,34 @@ class BlockTables:
     unsupported: list[str]  # instructions the model has no time for (they fault in the image tier)
 
 
+class InsnCost(NamedTuple):
+    """What one instruction adds to the tables: its size, core cycles (a conditional branch charged taken), the
+    worst-case model's waited flash accesses, its PC-relative loads and its untaken-branch refund (as in
+    BlockTables.refund)."""
+
+    size: int
+    core: int
+    wait: int
+    literal: int
+    refund: int
+
+
+def insn_cost(ins: Insn, model: CycleModel, core: int | None = None) -> InsnCost:
+    """The cost of an instruction (UnsupportedInsn when the model has no time for it, unless `core` is given)."""
+    c = base_cycles(ins) if core is None else core
+    refund = 0
+    w = model.fetch_wait
+    lit = model.literal_wait if "[pc" in ins.ops and ins.mnem in LOADS else 0
+    w += lit
+    if changes_flow(ins):
+        w += model.refill_wait
+    if BCOND.match(ins.mnem):
+        c += 1  # charged taken ...
+        w += model.refill_wait
+        refund = 1 | (model.refill_wait << 4)  # ... refunded when it falls through
+    return InsnCost(4 if ins.mnem in WIDE else 2, c, w, lit, refund)
+
+
 def block_tables(image: Image, flash_size: int = FLASH_SIZE, model: CycleModel | None = None) -> BlockTables:
     model = model or CycleModel()
     nh = flash_size // 2
@@ -104,25 +137,18 @@ def block_tables(image: Image, flash_size: int = FLASH_SIZE, model: CycleModel |
             h = ins.addr // 2
             if h >= nh:
                 continue
-            size = 4 if ins.mnem in WIDE else 2
-            code_end = max(code_end, ins.addr + size)
             try:
-                c = base_cycles(ins)
+                k = insn_cost(ins, model)
             except UnsupportedInsn:
                 unsupported.append(f"{ins.mnem} at {ins.addr:#x} in {f.name}")
-                c = 1
-            w = model.fetch_wait
-            if "[pc" in ins.ops and (ins.mnem in LOADS):
-                w += model.literal_wait
-                literal[h + 1] = model.literal_wait
-            if changes_flow(ins):
-                w += model.refill_wait
-            if BCOND.match(ins.mnem):
-                c += 1  # charged taken ...
-                w += model.refill_wait
-                refund[h] = 1 | (model.refill_wait << 4)  # ... refunded when it falls through
-            core[h + 1] = c
-            wait[h + 1] = w
+                k = insn_cost(ins, model, core=1)
+            code_end = max(code_end, ins.addr + k.size)
+            if k.literal:
+                literal[h + 1] = k.literal
+            if k.refund:
+                refund[h] = k.refund
+            core[h + 1] = k.core
+            wait[h + 1] = k.wait
     return BlockTables(
         np.cumsum(core, dtype=np.uint32),
         np.cumsum(wait, dtype=np.uint32),

@@ -33,7 +33,7 @@ class FirmwareImage:
     entry_sp: int
     entry_pc: int
     symbols: dict[str, tuple[int, int]]  # name -> (address, size): functions (Thumb bit cleared) and objects
-    tables: cycles.BlockTables
+    tables: cycles.BlockTables | None  # None: the board's decoder costs all its code (csrc/sam_cost.c)
     sha256: str
     heap_base: int  # end of static data in SRAM (the heap starts there); 0: unknown
     brk_var: int  # address of the heap's break pointer (sbrk's); 0: none, or unknown when heap_base is 0

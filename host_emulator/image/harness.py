@@ -171,7 +171,7 @@ class Program:
     idle: int
     routines: dict[tuple[int, int], int]
     labels: dict[str, int]
-    tables: cycles.BlockTables
+    tables: cycles.BlockTables | None  # None: no ELF tables, the board's decoder costs the code (csrc/sam_cost.c)
     vectors: list[int] = field(default_factory=list)
 
     @property
@@ -279,13 +279,16 @@ class Harness:
         seg = ffi.new("sam_seg_t *")
         seg.addr, seg.len, seg.data = APP_BASE, len(p.image), data
         t = p.tables
-        arrays = [ffi.from_buffer(ty, a) for ty, a in (("uint32_t[]", t.core), ("uint32_t[]", t.wait))]
-        arrays += [ffi.from_buffer("uint32_t[]", t.literal), ffi.from_buffer("uint8_t[]", t.refund)]
+        arrays = []
+        if t is not None:
+            arrays = [ffi.from_buffer(ty, a) for ty, a in (("uint32_t[]", t.core), ("uint32_t[]", t.wait))]
+            arrays += [ffi.from_buffer("uint32_t[]", t.literal), ffi.from_buffer("uint8_t[]", t.refund)]
         im = ffi.new("sam_image_t *")
         im.segs, im.nsegs = seg, 1
         im.entry_sp, im.entry_pc = SRAM_TOP, p.entry | 1
-        im.cost_core, im.cost_wait, im.cost_lit, im.refund = arrays
-        im.code_end = APP_BASE + len(p.image)
+        if arrays:
+            im.cost_core, im.cost_wait, im.cost_lit, im.refund = arrays
+        im.code_end = APP_BASE + len(p.image) if arrays else 0
         im.loop_pc, im.heap_base, im.brk_var = p.idle, 0, 0
         self._keep += [data, seg, im, t, *arrays]
         name = f"{role} {idx}".encode()

@@ -4,6 +4,7 @@
 The register table and a host-compilable view of the vendor's device headers are generated into the build
 directory from the headers of the PlatformIO tree that builds the images (regtable.py); where the tree is absent
 (the register-level harness needs no images), from the table's committed snapshot and the vendor macros it keeps.
+The cycle model's decode table (costtable.py, for code not loaded from an ELF) is generated there too.
 The build is cached by a hash of every source, the generated files and the flags. A scratch copy of csrc/ (the
 test that follows docs/image-tier.md's recipe for a new model) builds with `load(csrc=..., build_dir=...)`.
 """
@@ -20,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import firmware
-from . import ImageTierUnavailable, regsnapshot, regtable
+from . import ImageTierUnavailable, costtable, regsnapshot, regtable
 
 IMAGE_CSRC = Path(__file__).resolve().parent / "csrc"
 RUNTIME_HEADERS = ("sam_regtab.h", "sam_api.h")  # the cffi-visible part of the runtime
@@ -67,6 +68,7 @@ def load(
     table = regsnapshot.load_or_snapshot(pio_tree) if table is None else table
     gen_c = regtable.emit_c(table)
     gen_h = regtable.emit_vendor_h(table)
+    gen_cost = costtable.emit_c()
     fw_srcs = firmware._sources()
     fw_hdrs = firmware._headers()
     img_srcs = sorted(csrc.glob("*.c"))
@@ -79,6 +81,7 @@ def load(
         h.update(p.read_bytes())
     h.update(gen_c.encode())
     h.update(gen_h.encode())
+    h.update(gen_cost.encode())
     h.update(libuc.read_bytes()[:4096])
     h.update(str(libuc.stat().st_size).encode())
     h.update(" ".join(firmware.CFLAGS + firmware.LDFLAGS).encode())
@@ -88,13 +91,24 @@ def load(
         if key not in _cache:
             atmel = None if table.vendor_macros is not None else Path(table.source)
             outdir = (build_dir or firmware.BUILD_DIR.parent / "image") / key
-            mod = _build(key, outdir, csrc, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel, inc, libuc)
+            mod = _build(key, outdir, csrc, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, gen_cost, atmel, inc, libuc)
             _cache[key] = (mod.ffi, mod.lib)
         return _cache[key]
 
 
 def _build(
-    key, outdir: Path, csrc: Path, fw_srcs, fw_hdrs, img_srcs, gen_c, gen_h, atmel_inc: Path | None, uc_inc, libuc
+    key,
+    outdir: Path,
+    csrc: Path,
+    fw_srcs,
+    fw_hdrs,
+    img_srcs,
+    gen_c,
+    gen_h,
+    gen_cost,
+    atmel_inc: Path | None,
+    uc_inc: Path,
+    libuc: Path,
 ):
     name = f"_mcimg_{key}"
     so = next(outdir.glob(f"{name}*.so"), None) if outdir.exists() else None
@@ -105,6 +119,7 @@ def _build(
         gen_dir.mkdir(parents=True, exist_ok=True)
         (gen_dir / "sam_regtab_gen.c").write_text(gen_c)
         (gen_dir / "sam_vendor_gen.h").write_text(gen_h)
+        (gen_dir / "sam_cost_gen.h").write_text(gen_cost)
         srcs = [*fw_srcs, *img_srcs, gen_dir / "sam_regtab_gen.c"]
         incs = [firmware.LIB_SRC, firmware.HOST_CSRC, csrc, gen_dir]
         # the vendor's and Unicorn's headers are system headers: -pedantic judges only our sources

@@ -16,7 +16,7 @@ from ..models.steppers import stepper_id
 from ..params import Params
 from . import board, bootloader, cycles, runtime
 from .build import ImageSet
-from .elfimage import APP_BASE, FirmwareImage, Segment, load_image
+from .elfimage import FirmwareImage, Segment, load_image
 
 NOTES_KEPT = 100_000  # log lines World.notes keeps
 API_S = 50e-6  # an action from outside lands this long after the world's time (csrc/sam_usb.c: USB_API_S)
@@ -183,10 +183,8 @@ class World:
         segments = list(img.segments) if img is not None else []
         if boot is not None:
             segments.insert(0, Segment(0, boot))
-            tables = bootloader.boot_tables(boot, img.disassembly if img is not None else None)
         else:
             assert img is not None
-            tables = img.tables
         segs = ffi.new("sam_seg_t[]", len(segments))
         for i, s in enumerate(segments):
             buf = ffi.new("uint8_t[]", s.data)
@@ -194,11 +192,6 @@ class World:
             segs[i].addr = s.addr
             segs[i].len = len(s.data)
             segs[i].data = buf
-        t = tables
-        core = ffi.from_buffer("uint32_t[]", t.core)
-        wait = ffi.from_buffer("uint32_t[]", t.wait)
-        lit = ffi.from_buffer("uint32_t[]", t.literal)
-        refund = ffi.from_buffer("uint8_t[]", t.refund)
         im = ffi.new("sam_image_t *")
         im.segs = segs
         im.nsegs = len(segments)
@@ -210,9 +203,16 @@ class World:
             assert boot is not None
             im.entry_sp, im.entry_pc = struct.unpack_from("<II", boot)
         im.boot = int(boot is not None)
-        im.cost_core, im.cost_wait, im.cost_lit, im.refund = core, wait, lit, refund
-        im.code_end = max(t.code_end, APP_BASE) if img is not None else t.code_end
-        b.keep += [segs, core, wait, lit, refund, t, im]
+        t = img.tables if img is not None else None
+        if t is not None:  # the ELF's tables (else, and outside them, the decoder costs each block from the flash)
+            core = ffi.from_buffer("uint32_t[]", t.core)
+            wait = ffi.from_buffer("uint32_t[]", t.wait)
+            lit = ffi.from_buffer("uint32_t[]", t.literal)
+            refund = ffi.from_buffer("uint8_t[]", t.refund)
+            im.cost_core, im.cost_wait, im.cost_lit, im.refund = core, wait, lit, refund
+            im.code_end = t.code_end
+            b.keep += [core, wait, lit, refund]
+        b.keep += [segs, t, im]
         rc = lib.sam_world_load(
             self._w,
             idx,

@@ -100,6 +100,9 @@ typedef struct {
     uint16_t wait, lit;
 } sam_blkcost_t;
 #define SAM_MEMO 4096
+/* Flash [addr, addr + len) was rewritten (NVMCTRL): the blocks costed from it are costed again from the new bytes,
+ * and code the ELF's tables described is costed by the decoder from then on (sam_cost.c). */
+void sam_cost_flash_written(sam_mcu_t *m, uint32_t addr, uint32_t len);
 
 /* fast-forward of an idle main loop (sam_ff.c) */
 typedef struct {
@@ -190,6 +193,8 @@ struct sam_mcu {
     int cell;              /* 0-based cell index, -1 for the primary */
     int boot;              /* 1: resets start from the vector table at 0 (a bootloader there); 0: at the image */
     uint32_t nvm_erases, nvm_writes;   /* rows erased and pages written by NVMCTRL */
+    /* cycle costs (sam_cost.c): the ELF's tables hold [tab_lo, app_end) (NULL cost_core: none) */
+    uint32_t tab_lo;
 };
 
 /* indices of the peripherals and registers the models name, found once in the generated table */
@@ -220,7 +225,7 @@ static inline void sam_activity(sam_mcu_t *m) { m->act++; }
 void sam_fail(sam_mcu_t *m, const char *fmt, ...);
 uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
 void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
-void sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* NVMCTRL rewrote flash there */
+int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* flash rewritten there (NVMCTRL, harness) */
 void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc);    /* resume at pc inside the block charged (a flash store) */
 
 /* ---- sam_nvmctrl.c: flash programming ---- */

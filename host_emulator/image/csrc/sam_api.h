@@ -113,17 +113,18 @@ typedef struct {
     const sam_seg_t *segs;     /* load segments (flash) */
     int32_t nsegs;
     uint32_t entry_sp, entry_pc;   /* from the vector table at the application's start */
-    /* cycle tables (cycles.py): prefix sums over the halfwords of flash, and per halfword what a conditional
-     * branch there costs less when not taken */
+    /* the ELF's cycle tables (cycles.py), all four or none: prefix sums over the halfwords of flash, and per
+     * halfword what a conditional branch there costs less when not taken; they hold [0x2000, code_end), and the
+     * board's decoder (sam_cost.c) costs every other block, and all of them once that code is rewritten */
     const uint32_t *cost_core, *cost_wait, *cost_lit;
     const uint8_t *refund;
-    uint32_t code_end;         /* first address past the code */
+    uint32_t code_end;         /* first address past the code the tables hold (unused without them) */
     uint32_t loop_pc;          /* loop(): where idle passes are fast-forwarded (0: never) */
     uint32_t heap_base;        /* end of static data in SRAM (the heap starts there); 0: unknown */
     uint32_t brk_var;          /* address of the heap's break pointer; 0: none (the heap is unknown if it exists) */
     int32_t boot;              /* 0: direct boot (the bootloader's hand-off simulated: VTOR 0x2000, entry_sp/pc);
                                   1: from the reset vector at 0, as the chip does (a segment at 0 holds the
-                                  bootloader; the cycle tables cover it) */
+                                  bootloader; the decoder costs it) */
 } sam_image_t;
 
 /* Load a board (its role and cell index); it powers on now. */
@@ -191,6 +192,8 @@ const char *sam_harness_error(const sam_world_t *w, int mcu);
  * done_pc), from the world's time on; the context is restored. *t_start: when the routine began (its access). */
 int sam_harness_call(sam_world_t *w, int mcu, uint32_t pc, uint32_t done_pc, uint32_t r0, uint32_t *r1,
                      uint64_t *t_start);
+/* Rewrite flash bytes as NVMCTRL would leave them (translated code and its memoised costs forgotten). */
+int sam_harness_flash(sam_world_t *w, int mcu, uint32_t addr, const uint8_t *data, uint32_t n);
 /* Drive a pin from outside the board (0, 1; -1 released) from the board's time on. */
 int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level);
 int sam_harness_pin_state(const sam_world_t *w, int mcu, int32_t pin, sam_pin_info_t *out);
@@ -223,5 +226,16 @@ int sam_usb_device(const sam_world_t *w, int mcu, sam_usb_device_t *out);
 /* The host's reading of a configuration descriptor (for tests): CDC comm interface, data IN and OUT endpoints;
  * -1 when it has no bulk pair. */
 int sam_usb_parse_config(const uint8_t *d, uint32_t n, int32_t *comm_if, int32_t *in, int32_t *out);
+
+/* ---- cycle costs of any flash content (sam_cost.c): the cycle model's decode table, the tests' view ---- */
+enum { SAM_COST_TIMED = 0, SAM_COST_NO_TIME = 1, SAM_COST_UNDEFINED = 2 };
+typedef struct {
+    uint8_t size, core, wait, lit, refund;   /* as the ELF tables hold them (cycles.insn_cost) */
+    int32_t status;            /* SAM_COST_TIMED; SAM_COST_NO_TIME: the model has no time for it (WFI, SVC, ...);
+                                  SAM_COST_UNDEFINED: not an ARMv6-M instruction */
+    const char *text;          /* the decode table's representative instruction */
+} sam_insn_cost_t;
+/* The cost of the instruction whose first halfword is hw1 (hw2: the next one): 0, 1 (no time), -1 (undefined). */
+int sam_cost_insn(uint16_t hw1, uint16_t hw2, sam_insn_cost_t *out);
 
 #endif /* SAM_API_H */

@@ -29,6 +29,15 @@ int sam_cpu_hooks(sam_mcu_t *m);                   /* the block, exception, memo
 int sam_cpu_ram_write32(sam_mcu_t *m, uint32_t addr, uint32_t v);
 void sam_cpu_enter_fault(sam_mcu_t *m, uc_err e);  /* the memory system faulted: HardFault (or lockup) */
 
+/* ---- sam_cost.c ---- */
+/* A block's cost into *bc: the ELF's tables where they hold it, else decoded from flash; -1: the board halted (an
+ * instruction the cycle model cannot time, a note names it). */
+int sam_cost_block(sam_mcu_t *m, uint32_t addr, uint32_t size, sam_blkcost_t *bc);
+/* What [pc, end) of a block charged whole cost (its core cycles and the waits the flash model charged for it
+ * beyond the cache's lines: all in the worst case, the PC-relative loads with the cache), from the same source as
+ * the block; 0 when it cannot be costed. */
+uint64_t sam_cost_tail(const sam_mcu_t *m, uint32_t pc, uint32_t end);
+
 /* ---- sam_nvic.c ---- */
 int sam_nvic_best_pending(const sam_mcu_t *m, int *prio);
 int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret);   /* stack a frame and enter exception e; 1 on success */

@@ -202,23 +202,12 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
         uc_emu_stop(uc);
         return;
     }
-    if (addr + size > m->app_end || size == 0) {
-        if (size == 0)
-            return;
-        sam_fail(m, "execution at 0x%05x outside the image's code (ends 0x%05x)", addr, m->app_end);
+    if (size == 0)
         return;
-    }
-    /* the block's cost (sam_cycles: prefix sums over its halfwords), memoised per block start */
+    /* the block's cost (sam_cost.c: the ELF's tables or the flash decoded), memoised per block start */
     sam_blkcost_t *bc = &m->memo[(addr >> 1) & (SAM_MEMO - 1)];
-    if (bc->addr != addr || bc->size != size) {
-        uint32_t h0 = addr >> 1, h1 = (addr + size) >> 1;
-        bc->addr = addr;
-        bc->size = (uint16_t)size;
-        bc->core = m->cost_core[h1] - m->cost_core[h0];
-        bc->wait = (uint16_t)(m->cost_wait[h1] - m->cost_wait[h0]);
-        bc->lit = (uint16_t)(m->cost_lit[h1] - m->cost_lit[h0]);
-        bc->refund = m->refund[h1 - 1];
-    }
+    if ((bc->addr != addr || bc->size != size) && sam_cost_block(m, addr, size, bc))
+        return;   /* no cycle model for an instruction of it: the board halted */
     uint64_t cyc = bc->core;
     if (m->cycle_model == SAM_CYCLES_WORST) {
         cyc += (uint64_t)m->rws * bc->wait;
@@ -246,26 +235,27 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
 /* ---------------------------------------------------------------- flash rewritten by NVMCTRL (sam_nvmctrl.c) */
 
 /* Code translated from the old contents is dropped (Unicorn does not see writes to the flash it maps from our
- * buffer), and so are the memoised block costs, the NVM cache's lines and the fast-forward's snapshot. */
-void sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len)
+ * buffer), and so are the block costs memoised from it (and the ELF's tables, if it rewrote their code:
+ * sam_cost_flash_written), the NVM cache's lines and the fast-forward's snapshot. The one path for every writer of
+ * flash (NVMCTRL, the harness). */
+int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len)
 {
-    uc_ctl_remove_cache(m->uc, addr, addr + len);
-    memset(m->memo, 0, sizeof m->memo);
+    uc_err ue = uc_ctl_remove_cache(m->uc, addr, addr + len);
+    sam_cost_flash_written(m, addr, len);
     memset(m->cache_tag, 0, sizeof m->cache_tag);
     m->ff.snap_valid = 0;
     sam_activity(m);
+    return ue == UC_ERR_OK ? 0 : -1;
 }
 
 /* Execution resumes at pc inside the block the hook charged whole (a store to flash stopped it there): the rest of
- * the block, which runs again as a block of its own and is charged again, is refunded. */
+ * the block, which runs again as a block of its own and is charged again, is refunded (costed as the block was:
+ * the ELF's tables or the decoder). */
 void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc)
 {
     uint32_t end = m->prev_end;
-    if (end != 0xFFFFFFFFu && pc < end && end <= m->app_end) {
-        uint32_t h0 = pc >> 1, h1 = end >> 1;
-        uint64_t back = m->cost_core[h1] - m->cost_core[h0];
-        back += (uint64_t)m->rws * (m->cycle_model == SAM_CYCLES_WORST ? m->cost_wait[h1] - m->cost_wait[h0]
-                                                                        : m->cost_lit[h1] - m->cost_lit[h0]);
+    if (end != 0xFFFFFFFFu && pc < end) {
+        uint64_t back = sam_cost_tail(m, pc, end);
         m->t -= back * m->cyc_tu;
         m->cycles -= back;
     }

@@ -107,6 +107,15 @@ int sam_harness_call(sam_world_t *w, int mcu, uint32_t pc, uint32_t done_pc, uin
     return m->err ? -1 : rc;
 }
 
+int sam_harness_flash(sam_world_t *w, int mcu, uint32_t addr, const uint8_t *data, uint32_t n)
+{
+    sam_mcu_t *m = board(w, mcu);
+    if (!m || addr > SAM_FLASH_SIZE || n > SAM_FLASH_SIZE - addr)
+        return -1;
+    memcpy(m->flash + addr, data, n);
+    return sam_cpu_flash_changed(m, addr, n);
+}
+
 int sam_harness_pin(sam_world_t *w, int mcu, int32_t pin, int32_t level)
 {
     sam_mcu_t *m = board(w, mcu);

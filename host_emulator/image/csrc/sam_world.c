@@ -211,9 +211,11 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
         return sam_world_fail(w, "board %d: cell %d out of range or taken", mcu, cell + 1);
     if (role == SAM_ROLE_PRIMARY && w->primary_mcu >= 0)
         return sam_world_fail(w, "board %d: a second primary", mcu);
-    if (!img->cost_core || !img->cost_wait || !img->cost_lit || !img->refund || code_end > SAM_FLASH_SIZE ||
-        code_end < (img->boot ? 8u : SAM_APP_BASE))
-        return sam_world_fail(w, "board %d: cycle tables missing or code end 0x%x outside flash", mcu, code_end);
+    /* the ELF's cycle tables, all or none (none: the decoder costs every block, sam_cost.c) */
+    int tables = img->cost_core != NULL;
+    if (tables != (img->cost_wait != NULL) || tables != (img->cost_lit != NULL) || tables != (img->refund != NULL) ||
+        (tables && (code_end > SAM_FLASH_SIZE || code_end < SAM_APP_BASE)))
+        return sam_world_fail(w, "board %d: cycle tables incomplete or code end 0x%x outside flash", mcu, code_end);
     sam_mcu_t *m = calloc(1, sizeof *m);
     if (!m)
         return sam_world_fail(w, "board %d: out of memory", mcu);
@@ -251,7 +253,8 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
     m->cost_lit = img->cost_lit;
     m->cycle_model = w->cfg.cycle_model;
     m->refund = img->refund;
-    m->app_end = code_end;
+    m->app_end = tables ? code_end : 0;
+    m->tab_lo = SAM_APP_BASE;
     /* static data end and heap break: unknown ones make the fast-forward compare the whole SRAM */
     m->heap_base = img->heap_base > SAM_RAM_BASE && img->heap_base <= SAM_RAM_BASE + SAM_RAM_SIZE
                        ? img->heap_base - SAM_RAM_BASE

@@ -156,8 +156,13 @@ def test_another_file_is_refused_naming_its_hash(monkeypatch, tmp_path):
         World(Params(cells=1), None, primary=False, config=WorldConfig(boot="bootloader", blank=True))
 
 
-def test_the_sweep_finds_the_instruction_a_literal_pool_hides(boot_bin):
-    """A plain linear sweep decodes 0xda-0xdd (literal data) as one 32-bit instruction and misses the executed one
-    at 0xdc; the sweep restarts past encodings ARMv6-M does not have."""
-    starts = {i.addr for i in bootloader.sweep(boot_bin)}
-    assert 0xDC in starts and 0xDA not in starts
+def test_the_decoder_costs_the_instruction_a_literal_pool_hides(boot_bin):
+    """The block the bootloader executes at 0xdc follows literal data that a linear sweep reads as one 32-bit
+    instruction at 0xda (not an ARMv6-M one); the decoder (csrc/sam_cost.c) starts where execution does and times
+    it, so no sweep of the .bin is needed."""
+    from host_emulator.image import runtime
+
+    ffi, lib = runtime.load()
+    o = ffi.new("sam_insn_cost_t *")
+    assert lib.sam_cost_insn(*struct.unpack_from("<HH", boot_bin, 0xDA), o) == -1
+    assert lib.sam_cost_insn(*struct.unpack_from("<HH", boot_bin, 0xDC), o) == 0 and o.core >= 1

@@ -3,6 +3,7 @@ drive outputs against the control library's own commands for the same encoder in
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 
 import numpy as np
@@ -62,6 +63,18 @@ def test_fast_forward_schedule_and_threads_change_nothing(images, reference, con
     assert np.any(ref_x != 0)  # the push moved it
     if config.ff:
         assert cycles == ref_cycles
+
+
+def test_every_block_costed_from_the_flash_bytes_changes_nothing(images, reference, monkeypatch):
+    """The boards loaded without their ELF's cycle tables: the decoder (csrc/sam_cost.c) costs every block from the
+    flash bytes, with the same times to the cycle."""
+    from host_emulator.image import world
+
+    load = world.load_image
+    monkeypatch.setattr(world, "load_image", lambda path: dataclasses.replace(load(path), tables=None))
+    traces, x, cycles = _run_traced(images, WorldConfig())
+    assert (traces, cycles) == (reference[0], reference[2])
+    assert np.array_equal(x, reference[1])
 
 
 # ---- the drive outputs against the library ------------------------------------------------------------------

@@ -9,7 +9,7 @@ import struct
 
 import pytest
 
-from host_emulator.image.harness import Asm, Harness, HarnessError, stub
+from host_emulator.image.harness import Asm, Harness, HarnessError, Program, stub
 
 NVM = 0x4100_4000
 STATUS, INTFLAG = NVM + 0x18, NVM + 0x14
@@ -204,6 +204,28 @@ def test_code_rewritten_in_flash_runs_as_rewritten():
     assert h.call("patch", "patch_done") == 2
 
 
+def test_code_rewritten_through_nvmctrl_is_costed_from_its_new_bytes():
+    """NVMCTRL's erase and write of the ELF's code (the tables' range) go through the one path that drops the
+    block costs memoised from it and the tables themselves: the rewritten instruction is costed by the decoder from
+    its new bytes (MOVS, 1 core cycle, becomes PUSH {r0-r7}, 9), not from the tables of what was loaded."""
+    h = Harness(program=stub(_patchable))
+    assert h.program.tables is not None
+    patch = h.program.labels["patch"]
+
+    def spent() -> int:
+        h.call("patch", "patch_done")  # the NVM cache warm for the second run
+        c0 = h.info().cycles
+        h.call("patch", "patch_done")
+        return h.info().cycles - c0
+
+    before = spent()
+    erase(h, patch)
+    h.write("NVMCTRL.CTRLB", MANW)
+    h.write(patch, 0xE7FE_B4FF, 4)  # push {r0-r7}; b .
+    command(h, CMD_WP)
+    assert spent() == before + 8
+
+
 def _store_then_more(a: Asm) -> dict[int, str]:
     """`str r1, [r0]` followed by more of its block: `movs`, `movs`, `b` to a label of its own."""
     a.label("store")
@@ -216,10 +238,15 @@ def _store_then_more(a: Asm) -> dict[int, str]:
     return {}
 
 
-def test_a_store_into_the_page_buffer_costs_what_a_store_to_sram_costs():
+@pytest.mark.parametrize("tables", [True, False])
+def test_a_store_into_the_page_buffer_costs_what_a_store_to_sram_costs(tables):
     """The store Unicorn stops at is finished by the model and execution resumes after it: the rest of its block,
-    charged when the block began, is refunded (it runs, and is charged, as a block of its own)."""
-    h = Harness(program=stub(_store_then_more))
+    charged when the block began, is refunded (it runs, and is charged, as a block of its own); the same when the
+    block is costed by the decoder (no ELF tables: the bootloader's code, bossac's)."""
+    p = stub(_store_then_more)
+    if not tables:
+        p = Program(**{**p.__dict__, "tables": None})
+    h = Harness(program=p)
     h.write("NVMCTRL.CTRLB", MANW)
     spent = []
     for addr in (0x2000_1000, FREE, 0x2000_1004, FREE + 4):
