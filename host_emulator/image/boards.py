@@ -119,6 +119,7 @@ class Board:
     enumerations_seen: int = 0  # the host's count of the board's enumerations when its port was made
     line: tuple[int, bool] = (0, False)  # the line state last given to the USB host (baud sent, client present)
     touched: bool = False  # the touch was taken (forwarded) and the board has not left yet
+    out_at_enum: int = 0  # the device's OUT byte count when its port was made
     written: int = 0  # the device has taken every byte given to the USB host when its OUT count reaches this
     samba: SambaFramer = field(default_factory=lambda: SambaFramer())  # the client's write boundaries (bootloader)
     unplugged: bool = False  # its cable was pulled (--control): never listed again
@@ -240,7 +241,7 @@ class Boards:
         the bootloader and a flash controller that programs)."""
         assert b.port is not None
         baud = b.port.baud()  # a close keeps the speed the client left
-        if baud == TOUCH_BAUD and not self.forward_touch:
+        if baud == TOUCH_BAUD and (not self.forward_touch or b.deaf):
             baud = 0  # the firmware keeps the line coding it has
         sent = baud or b.line[0]
         if (sent, present) == b.line:
@@ -268,6 +269,7 @@ class Boards:
         b.line = (9600, False)  # a new tty: cdc_acm's probe set 9600 baud, DTR and RTS low
         b.touched = False
         b.written, b.samba, b.held = 0, SambaFramer(), bytearray()
+        b.out_at_enum = int(self.world.usb_info(b.index).out_bytes)
         b.mode = self.mode_of(b)
         self.dirty = True
 
@@ -303,7 +305,8 @@ class Boards:
 
     def control(self, where: Path) -> None:
         """Requests dropped as empty files in the control directory (each removed once done): unplug-TAG pulls a
-        board's cable, deaf-TAG makes it ignore the 1200-baud touch, dump writes every board's flash to
+        board's cable (unplug-TAG-at-N: once its port has taken N bytes from the client, e.g. mid-upload), deaf-TAG
+        makes it ignore the 1200-baud touch, dump writes every board's flash to
         flash-TAG.bin (then done-dump); TAG is mc01..mc16 or primary."""
         try:
             names = sorted(p.name for p in where.iterdir())
@@ -311,13 +314,18 @@ class Boards:
             return
         by_tag = {b.tag: b for b in self.boards}
         for name in names:
-            what, _, tag = name.partition("-")
+            what, _, rest = name.partition("-")
+            tag, _, at = rest.partition("-at-")
             if what in ("unplug", "deaf") and tag in by_tag:
                 b = by_tag[tag]
-                say(f"{b.name}: {'unplugged' if what == 'unplug' else 'ignores the 1200-baud touch from now on'}")
                 if what == "unplug":
+                    taken = int(self.world.usb_info(b.index).out_bytes) if b.mode else 0
+                    if at.isdigit() and (not b.mode or taken - b.out_at_enum < int(at)):
+                        continue  # not yet: its port has not taken that many bytes
+                    say(f"{b.name}: unplugged" + (f" after {taken - b.out_at_enum} bytes to its port" if at else ""))
                     self.unplug(b)
                 else:
+                    say(f"{b.name}: ignores the 1200-baud touch from now on")
                     b.deaf = True
             elif name == "dump":
                 for b in self.boards:
@@ -374,7 +382,7 @@ def parser() -> argparse.ArgumentParser:
         "--control",
         default=None,
         metavar="DIR",
-        help="directory watched for requests (empty files): unplug-TAG, deaf-TAG (the board ignores the 1200-baud "
+        help="directory watched for requests (empty files): unplug-TAG[-at-N] (the board ignores the 1200-baud "
         "touch), dump (every board's flash to flash-TAG.bin, then done-dump); TAG is mc01..mc16 or primary",
     )
     ap.add_argument("--speed", type=float, default=1.0, help="most simulated seconds per wall second (default 1)")

@@ -22,6 +22,7 @@ Lister = Callable[[], list[Port]]  # lists the connected serial ports
 Out = Callable[..., None]  # prints one line for the user (err=True: an error)
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+REAPPEAR_S, BOOTLOADER_S = 20.0, 10.0  # the timeouts' defaults (--emulated: emulated.py's)
 
 
 def default_pio() -> str:
@@ -148,9 +149,10 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument(
                 "--reappear-timeout",
                 type=float,
-                default=20.0,
+                default=None,
                 metavar="S",
-                help="seconds to wait for a board's USB port to come back after the upload (default %(default)g)",
+                help=f"seconds to wait for a board's USB port to come back after the upload (default {REAPPEAR_S:g}; "
+                f"--emulated: {emulated.REAPPEAR_TIMEOUT_S:g})",
             )
             p.add_argument(
                 "--jobs",
@@ -178,10 +180,10 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument(
                 "--bootloader-timeout",
                 type=float,
-                default=10.0,
+                default=None,
                 metavar="S",
-                help="seconds to wait for a board's bootloader port after the 1200-baud touch (bossac; "
-                "default %(default)g)",
+                help=f"seconds to wait for a board's bootloader port after the 1200-baud touch (bossac; default "
+                f"{BOOTLOADER_S:g}; --emulated: {emulated.BOOTLOADER_TIMEOUT_S:g})",
             )
 
     sub.add_parser(
@@ -263,8 +265,8 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         query=query,
         log_dir=args.log_dir,
         upload_timeout=args.upload_timeout,
-        reappear_timeout=args.reappear_timeout,
-        bootloader_timeout=args.bootloader_timeout,
+        reappear_timeout=REAPPEAR_S if args.reappear_timeout is None else args.reappear_timeout,
+        bootloader_timeout=BOOTLOADER_S if args.bootloader_timeout is None else args.bootloader_timeout,
         out=out,
     )
     outcomes = flasher.flash(plan, stop_on_error=not args.keep_going, jobs=args.jobs or 1)
@@ -297,8 +299,10 @@ def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
         ) as (listing, inventory):
             emu = argparse.Namespace(**vars(args))
             emu.emulated, emu.uploader, emu.ports_json, emu.inventory = False, "bossac", str(listing), str(inventory)
-            emu.bootloader_timeout = max(args.bootloader_timeout, emulated.BOOTLOADER_TIMEOUT_S)
-            emu.reappear_timeout = max(args.reappear_timeout, emulated.REAPPEAR_TIMEOUT_S)
+            if args.bootloader_timeout is None:
+                emu.bootloader_timeout = emulated.BOOTLOADER_TIMEOUT_S
+            if args.reappear_timeout is None:
+                emu.reappear_timeout = emulated.REAPPEAR_TIMEOUT_S
             emu.emulated_query_timeout = emulated.IDENTITY_TIMEOUT_S
             emu.jobs = args.jobs or args.emulated_count
             return cmd_plan_or_flash(emu, port_lister(listing), out)

@@ -28,7 +28,7 @@ N_BOARDS = 17
 LISTING_TIMEOUT_S = 600.0  # the child's start (images, the bootloader's cycle tables) and 17 enumerations
 STOP_TIMEOUT_S = 20.0
 # timeouts on wall time for boards that run at 0.1-0.3x real time with 17 of them on a loaded machine
-BOOTLOADER_TIMEOUT_S = 120.0
+BOOTLOADER_TIMEOUT_S = 120.0  # (defaults: given on the command line, they win)
 REAPPEAR_TIMEOUT_S = 180.0
 IDENTITY_TIMEOUT_S = 60.0
 
@@ -99,6 +99,8 @@ def emulated_boards(
             rc = child.poll()
             if rc is not None:
                 out(f"error: the emulated boards stopped early (exit {rc}): {_last_line(log)}")
+            elif control is not None:
+                _dump(control, child)
             _stop(child)
 
 
@@ -125,6 +127,15 @@ def _wait_listed(child: subprocess.Popen, listing: Path, log: Path, count: int, 
                 f"{_last_line(log)}"
             )
         time.sleep(0.5)
+
+
+def _dump(control: Path, child: subprocess.Popen, timeout: float = 60.0) -> None:
+    """Every board's flash into the control directory (flash-TAG.bin) before the boards stop: what a test reads."""
+    (control / "done-dump").unlink(missing_ok=True)
+    (control / "dump").touch()
+    end = time.monotonic() + timeout
+    while not (control / "done-dump").exists() and child.poll() is None and time.monotonic() < end:
+        time.sleep(0.1)
 
 
 def _stop(child: subprocess.Popen) -> None:

@@ -27,6 +27,8 @@ GONE = "did not come back"
 NO_IDENTITY = "no identity"
 MISMATCH = "identity mismatch"
 NOT_RUN = "not run"
+UNPLUGGED_S = 5.0  # a board absent from the listing this long while bossac talks to it was unplugged
+WATCH_EVERY_S = 0.25
 
 
 @dataclass
@@ -47,6 +49,16 @@ def check_identity(step: Step, ident: Identity, fw: str) -> str:
     want = Identity(step.board.role, fw, step.board.cell, step.board.addr)
     got = Identity(ident.role, ident.fw, ident.cell, ident.addr)
     return "" if want == got else f"expected {want.describe()}, board says {got.describe()}"
+
+
+def overwrote(offset: int) -> str:
+    """What an upload below the application's offset did to the board ("" at or above it)."""
+    if offset >= APP_OFFSET:
+        return ""
+    return (
+        f"; the upload at 0x{offset:x} overwrote the bootloader, so the board can neither start nor take an upload "
+        "over USB any more: restore the bootloader with an SWD probe (docs/hardware.md#when-a-board-fails-to-flash)"
+    )
 
 
 def wait_for_app_port(
@@ -90,13 +102,21 @@ class Flasher:
         return self.log_dir / f"{name}.log"
 
     def _call(
-        self, argv: tuple[str, ...], env: dict[str, str], log: Path, what: str, shown: str = ""
+        self,
+        argv: tuple[str, ...],
+        env: dict[str, str],
+        log: Path,
+        what: str,
+        shown: str = "",
+        serial: str = "",
     ) -> tuple[int, str] | str:
         """(exit status, output) of one command (`what` in messages), appended to the log; or why it could not run.
         The output is stdout, then stderr: both uploaders write their error to stderr, which a merged pipe can put
         before the progress lines still buffered on stdout (bossac's "No device found on PORT" is stderr only)."""
         with log.open("a") as f:
             f.write(f"$ {shown or shlex.join(argv)}\n")
+        if serial and self.run is subprocess.run:
+            return self._watched(argv, env, log, what, serial)
         try:
             res = self.run(
                 list(argv),
@@ -114,6 +134,47 @@ class Flasher:
         with log.open("a") as f:
             f.write(output if output.endswith("\n") or not output else output + "\n")
         return res.returncode, output
+
+    def _watched(self, argv: tuple[str, ...], env: dict[str, str], log: Path, what: str, serial: str):
+        """_call of an uploader that talks to the board with this serial number, stopped when the board leaves the
+        USB bus for UNPLUGGED_S while it runs (unplugged: bossac would wait on the dead port for ever)."""
+        try:
+            p = subprocess.Popen(list(argv), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        except FileNotFoundError as exc:
+            return f"cannot run {argv[0]}: {exc}"
+        end = time.monotonic() + self.upload_timeout
+        absent_since = None
+        with p:
+            while True:
+                try:
+                    stdout, stderr = p.communicate(timeout=WATCH_EVERY_S)
+                    break
+                except subprocess.TimeoutExpired:
+                    pass
+                try:
+                    here = any(q.serial_number == serial for q in self.list_ports())
+                except (OSError, ValueError):
+                    here = False
+                now = time.monotonic()
+                absent_since = None if here else (absent_since or now)
+                stop = ""
+                if absent_since is not None and now - absent_since >= UNPLUGGED_S:
+                    stop = (
+                        f"the board (serial {serial}) left the USB bus during {what} and did not come back within "
+                        f"{UNPLUGGED_S:g} s: unplugged? {what} stopped"
+                    )
+                elif now > end:
+                    stop = f"{what} did not finish in {self.upload_timeout:.0f} s"
+                if stop:
+                    p.kill()
+                    p.communicate()
+                    with log.open("a") as f:
+                        f.write(stop + "\n")
+                    return stop
+        output = (stdout or "") + (stderr or "")
+        with log.open("a") as f:
+            f.write(output if output.endswith("\n") or not output else output + "\n")
+        return p.returncode, output
 
     def _bossac(self, step: Step, env: dict[str, str], log: Path) -> Outcome | None:
         """Touch, bootloader port, bossac: None when the upload went through, else the failed Outcome."""
@@ -149,7 +210,7 @@ class Flasher:
                     "--bootloader-timeout",
                     log=log,
                 )
-        res = self._call(up.argv(boot.device), env, log, "bossac")
+        res = self._call(up.argv(boot.device), env, log, "bossac", serial=b.serial)
         if isinstance(res, str):
             return Outcome(step, UPLOAD_FAILED, res, log=log)
         rc, output = res
@@ -157,7 +218,8 @@ class Flasher:
             return Outcome(
                 step,
                 UPLOAD_FAILED,
-                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)",
+                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)"
+                + overwrote(up.offset),
                 log=log,
             )
         return None
@@ -184,13 +246,7 @@ class Flasher:
             step.board.serial, self.list_ports, self.reappear_timeout, sleep=self.sleep, clock=self.clock
         )
         if port is None:
-            why = ""
-            if step.upload is not None and step.upload.offset < APP_OFFSET:
-                why = (
-                    f"; the upload at 0x{step.upload.offset:x} overwrote the bootloader, so the board can neither "
-                    "start nor take an upload over USB any more: restore the bootloader with an SWD probe "
-                    "(docs/hardware.md#when-a-board-fails-to-flash)"
-                )
+            why = overwrote(step.upload.offset) if step.upload is not None else ""
             return Outcome(
                 step,
                 GONE,

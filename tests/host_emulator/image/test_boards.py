@@ -189,7 +189,7 @@ def test_blank_needs_the_bootloader(tmp_path, bootloader):
     )
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.splitlines()) == 1, r
     assert "--blank needs the XIAO's bootloader" in r.stderr
-    assert ("not set" in r.stderr) if bootloader is None else ("cannot run the bootloader yet" in r.stderr)
+    assert ("not set" in r.stderr) if bootloader is None else ("is not the XIAO bootloader's" in r.stderr)
     assert not (tmp_path / "p.json").exists()
 
 
