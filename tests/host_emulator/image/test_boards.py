@@ -79,7 +79,10 @@ class Rig:
 
 @pytest.fixture(scope="module")
 def rig3(images, tmp_path_factory):
-    r = Rig(tmp_path_factory.mktemp("boards3"), "--count", "3")
+    """Three boards without the bootloader (MC_BOOTLOADER unset: the touch resets from outside; with the bootloader
+    the touch reaches the firmware: test_rigday)."""
+    env = {k: v for k, v in os.environ.items() if k != "MC_BOOTLOADER"}
+    r = Rig(tmp_path_factory.mktemp("boards3"), "--count", "3", env=env)
     r.wait_up(3)
     yield r
     r.stop()
