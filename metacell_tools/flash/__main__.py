@@ -82,7 +82,7 @@ def _parser() -> argparse.ArgumentParser:
         (
             "flash",
             "build, upload and verify every board (stops at the first failure)",
-            ("flash", "flash --only 7", "flash --keep-going --uploader bossac"),
+            ("flash", "flash --only 7", "flash --keep-going --uploader bossac", "flash --emulated   # the dry run"),
         ),
     ):
         p = sub.add_parser(
@@ -168,8 +168,20 @@ def _parser() -> argparse.ArgumentParser:
                 help="the rig day as a dry run: bring up 17 blank emulated boards (python -m host_emulator boards "
                 "--blank; needs MC_BOOTLOADER), flash and verify them with bossac, stop them (generous timeouts)",
             )
-            p.add_argument("--emulated-count", type=int, default=17, metavar="N", help=argparse.SUPPRESS)
-            p.add_argument("--emulated-control", default=None, metavar="DIR", help=argparse.SUPPRESS)
+            p.add_argument(
+                "--emulated-count",
+                type=int,
+                default=17,
+                metavar="N",
+                help="--emulated: the first N boards of cells 1..16, primary (default %(default)s)",
+            )
+            p.add_argument(
+                "--emulated-control",
+                default=None,
+                metavar="DIR",
+                help="--emulated: the boards' control directory (boards --control: unplug-TAG[-at-N], deaf-TAG); "
+                "every board's flash is read back into it (flash-TAG.bin) before they stop",
+            )
             p.add_argument(
                 "--prebuilt",
                 default=None,
@@ -256,13 +268,13 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
     out(tools.describe() if not prebuilt else f"prebuilt images from {prebuilt}; upload: {tools.describe_upload()}")
     if args.cmd == "plan":
         return EXIT_OK
-    query: Callable[[str], QueryResult] = query_identity
+    slow: dict = {}  # emulated boards: ID? may wait longer
     if getattr(args, "emulated_query_timeout", None):
-        query = functools.partial(query_identity, timeout=args.emulated_query_timeout)
+        slow["query"] = functools.partial(query_identity, timeout=args.emulated_query_timeout)
     flasher = Flasher(
         lister,
+        **slow,
         expected_fw=expected_fw_version(),
-        query=query,
         log_dir=args.log_dir,
         upload_timeout=args.upload_timeout,
         reappear_timeout=REAPPEAR_S if args.reappear_timeout is None else args.reappear_timeout,
