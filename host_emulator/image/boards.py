@@ -9,12 +9,14 @@ does; the device, description, and the board's mode), rewritten atomically whene
 
 The USB host behaves as Linux's cdc_acm on each port: a client's open raises DTR and RTS, its speed (tcsetattr) is
 sent as the line coding, its close drops DTR and RTS. A 1200-baud touch of a port (speed set to 1200, then the port
-closed) resets the board. Where the tier can run the XIAO's bootloader (MC_BOOTLOADER), the touch reaches the
-firmware as it would on a laptop (Seeed's core erases the application's first row and resets: the board comes back in
-bootloader mode with the bootloader's PID); until then the tier says so in one line, resets the board from outside
-and the application restarts directly, enumerating again with the application's PID. Either way the port is made
-again as the operating system makes it when a device re-enumerates: a new pty behind the same stable name, the
-listing updated. The boards' time runs as fast as it can but never ahead of real time.
+closed) resets the board. With MC_BOOTLOADER (the XIAO bootloader's .bin) the boards boot through it and the touch
+reaches the firmware as it would on a laptop (Seeed's core erases the application's first row and resets: the board
+comes back in bootloader mode with the bootloader's PID, where bossac writes the flash through SAM-BA; --blank brings
+up boards holding the bootloader alone, as new XIAOs arrive); without it the tier says so in one line, resets the
+board from outside and the application restarts directly, enumerating again with the application's PID. Either way
+the port is made again as the operating system makes it when a device re-enumerates: a new pty behind the same
+stable name, the listing updated. --control DIR takes requests as files (unplug a board, make it ignore the touch,
+read every board's flash back). The boards' time runs as fast as it can but never ahead of real time.
 Exit codes: 0 interrupted (ptys and listing removed), 2 bad arguments or the tier cannot run, 3 the run failed.
 """
 

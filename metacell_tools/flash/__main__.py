@@ -176,6 +176,14 @@ def _parser() -> argparse.ArgumentParser:
                 help="--emulated: the first N boards of cells 1..16, primary (default %(default)s)",
             )
             p.add_argument(
+                "--emulated-arg",
+                action="append",
+                default=[],
+                metavar="ARG",
+                help="--emulated: an argument for the boards (python -m host_emulator boards), e.g. "
+                "--emulated-arg=--set=model_options.image.threads=2 or --emulated-arg=--usb-packet-us=50",
+            )
+            p.add_argument(
                 "--emulated-control",
                 default=None,
                 metavar="DIR",
@@ -307,6 +315,7 @@ def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
             ROOT,
             args.emulated_count,
             control=Path(args.emulated_control) if args.emulated_control else None,
+            extra=tuple(args.emulated_arg),
             out=out,
         ) as (listing, inventory):
             emu = argparse.Namespace(**vars(args))
