@@ -44,6 +44,9 @@ if TYPE_CHECKING:
 
 N_BOARDS = 17  # cells 1..16, then the primary
 CHUNK_S = 0.002  # world time run between two looks at the ports
+# while a client talks to a bootloader: bossac gives many answers 100 ms of wall time (its quick timeout), and
+# each SAM-BA command takes a few looks at the ports to go and come back
+CHUNK_BUSY_S = 0.25e-3
 WAIT_MAX_S = 0.02  # longest sleep while the world is ahead of real time (a new client is seen within it)
 LAG_MAX_S = 0.1  # a world behind real time by more does not sprint to catch up later
 APPLICATION, BOOTLOADER = "application", "bootloader"
@@ -72,6 +75,7 @@ def bootloader_problem(lib=None) -> str | None:
     return None
 
 
+PACKET = 64  # the XIAO's bulk endpoints' wMaxPacketSize
 SAMBA_WRITE = re.compile(rb"[Ss]([0-9A-Fa-f]{1,8}),([0-9A-Fa-f]{1,8})#$")
 
 
@@ -84,16 +88,26 @@ class SambaFramer:
 
     def __init__(self) -> None:
         self.data_left = 0
+        self.mid_data = False  # part of an S command's data went: the rest continues the same write()
+
+    def continues(self) -> bool:
+        """The next bytes continue the transfer under way (no need to wait until the device took it)."""
+        return self.mid_data and self.data_left > 0
 
     def transfer(self, held: bytes | bytearray) -> int:
-        """How many of the held bytes make the next transfer (each is given to the device once the last one went)."""
+        """How many of the held bytes make the next transfer (each is given to the device once the last one went;
+        0: wait for more). Data goes in whole packets until its last one, as cdc_acm sends a write (its buffers are
+        20 packets long): a short packet inside an S command's data would end the monitor's read of it early."""
         if self.data_left:
             n = min(len(held), self.data_left)
+            if n < self.data_left:
+                n -= n % PACKET
             self.data_left -= n
+            self.mid_data = self.data_left > 0
             return n
         end = bytes(held).find(b"#")
         if end < 0:
-            return len(held)
+            return len(held) if len(held) >= PACKET else 0  # a command not finished yet (or not SAM-BA at all)
         m = SAMBA_WRITE.search(bytes(held[: end + 1]))
         if m is not None:
             self.data_left = int(m.group(2), 16)
@@ -223,12 +237,13 @@ class Boards:
             b.held += data
             # as an OS's open() returns once the device took the line state (its control transfers): the client's
             # first bytes follow them
-            if b.held and usb.control_transfers >= b.line_state_at and int(usb.out_bytes) >= b.written:
+            taken = int(usb.out_bytes) >= b.written or (b.mode == BOOTLOADER and b.samba.continues())
+            if b.held and usb.control_transfers >= b.line_state_at and taken:
                 n = b.samba.transfer(b.held) if b.mode == BOOTLOADER else len(b.held)
-                sent = w.usb_write(b.index, bytes(b.held[:n]))
+                sent = w.usb_write(b.index, bytes(b.held[:n])) if n else 0
                 if sent < n:
                     say(f"{b.name}: the USB host's buffer is full ({sent} of {n} bytes taken)")
-                b.written = int(usb.out_bytes) + sent
+                b.written = max(b.written, int(usb.out_bytes)) + sent
                 del b.held[:n]
             b.port.send(out)
             if not present and not b.touched and b.port.touched() and not b.deaf:
@@ -499,7 +514,8 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
                 continue
             if lead < -LAG_MAX_S:  # behind: no sprint later
                 t_wall0 = time.monotonic() - (world.t - t_world0) / args.speed - LAG_MAX_S
-            world.run_to(world.t + CHUNK_S)
+            busy = any(b.mode == BOOTLOADER and b.port is not None and b.port.client for b in boards)
+            world.run_to(world.t + (CHUNK_BUSY_S if busy else CHUNK_S))
     except KeyboardInterrupt:
         pass
     except WorldError as e:

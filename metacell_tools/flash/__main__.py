@@ -276,9 +276,10 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
     out(tools.describe() if not prebuilt else f"prebuilt images from {prebuilt}; upload: {tools.describe_upload()}")
     if args.cmd == "plan":
         return EXIT_OK
-    slow: dict = {}  # emulated boards: ID? may wait longer
+    slow: dict = {}  # emulated boards: ID? may wait longer, the uploads start together (runner.Gate)
     if getattr(args, "emulated_query_timeout", None):
         slow["query"] = functools.partial(query_identity, timeout=args.emulated_query_timeout)
+        slow["together_s"] = emulated.TOGETHER_S
     flasher = Flasher(
         lister,
         **slow,

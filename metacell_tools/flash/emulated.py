@@ -31,6 +31,7 @@ STOP_TIMEOUT_S = 20.0
 BOOTLOADER_TIMEOUT_S = 120.0  # (defaults: given on the command line, they win)
 REAPPEAR_TIMEOUT_S = 180.0
 IDENTITY_TIMEOUT_S = 60.0
+TOGETHER_S = 120.0  # the parallel uploads wait this long at most for each other (runner.Gate)
 
 
 class EmulationError(RuntimeError):

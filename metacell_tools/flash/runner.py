@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import shlex
 import subprocess
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -73,6 +74,27 @@ def wait_for_app_port(
     return wait_for_port(serial, list_ports, timeout, bootloader=False, poll=poll, sleep=sleep, clock=clock)
 
 
+class Gate:
+    """Where parallel uploads wait for each other: arrive() once per board, by its key (the n-th lets them all go;
+    wait=False only counts). For emulated boards: bossac waits 1 s of wall time for its erase's answer, and the
+    emulation keeps that pace only while every board is erasing (a board stalled in an erase costs nothing);
+    started together, the 17 erases run side by side."""
+
+    def __init__(self, n: int, timeout: float) -> None:
+        self.left, self.timeout = n, timeout
+        self.cond = threading.Condition()
+        self.arrived: set[int] = set()
+
+    def arrive(self, key: int, wait: bool = True) -> None:
+        with self.cond:
+            if key not in self.arrived:
+                self.arrived.add(key)
+                self.left -= 1
+                self.cond.notify_all()
+            if wait:
+                self.cond.wait_for(lambda: self.left <= 0, timeout=self.timeout)
+
+
 class Flasher:
     """Runs the plan step by step. Dependencies are injectable for tests (no hardware)."""
 
@@ -91,11 +113,15 @@ class Flasher:
         sleep: Callable[[float], None] = time.sleep,
         clock: Callable[[], float] = time.monotonic,
         out: Callable[[str], None] = print,
+        together_s: float = 0.0,
     ) -> None:
         self.list_ports, self.expected_fw, self.run, self.query = list_ports, expected_fw, run, query
         self.touch, self.log_dir, self.upload_timeout = touch, Path(log_dir), upload_timeout
         self.reappear_timeout, self.bootloader_timeout = reappear_timeout, bootloader_timeout
         self.sleep, self.clock, self.out = sleep, clock, out
+        # > 0: parallel bossacs start together (each waits at most this long for the others to be ready)
+        self.together_s = together_s
+        self._gate: Gate | None = None
 
     def _log_path(self, step: Step) -> Path:
         name = "primary" if step.board.role == "primary" else f"cell{step.board.cell:02d}"
@@ -210,6 +236,8 @@ class Flasher:
                     "--bootloader-timeout",
                     log=log,
                 )
+        if self._gate is not None:
+            self._gate.arrive(id(step))
         res = self._call(up.argv(boot.device), env, log, "bossac", serial=b.serial)
         if isinstance(res, str):
             return Outcome(step, UPLOAD_FAILED, res, log=log)
@@ -223,6 +251,13 @@ class Flasher:
                 log=log,
             )
         return None
+
+    def _flash_gated(self, step: Step) -> Outcome:
+        try:
+            return self.flash_one(step)
+        finally:
+            if self._gate is not None:
+                self._gate.arrive(id(step), wait=False)  # (once: a board that failed before bossac lets the others go)
 
     def flash_one(self, step: Step) -> Outcome:
         log = self._log_path(step)
@@ -299,6 +334,7 @@ class Flasher:
         n = len(plan.steps)
         done: dict[int, Outcome] = {}
         failed = False
+        self._gate = Gate(n, self.together_s) if self.together_s and jobs >= n else None
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             running: dict[Future, int] = {}
             queue = list(enumerate(plan.steps))
@@ -306,7 +342,7 @@ class Flasher:
                 while queue and len(running) < jobs and not (failed and stop_on_error):
                     i, step = queue.pop(0)
                     self.out(f"[{i + 1}/{n}] {step.board.name}: serial {step.board.serial} on {step.port.device}")
-                    running[pool.submit(self.flash_one, step)] = i
+                    running[pool.submit(self._flash_gated, step)] = i
                 if not running:
                     break
                 finished, _ = wait(running, return_when=FIRST_COMPLETED)

@@ -132,6 +132,13 @@ def test_samba_writes_are_split_where_bossacs_calls_ended():
         parts.append(bytes(held[:n]))
         del held[:n]
     assert parts == [b"N#", b"V#", b"S20004034,00000005#", b"hello", b"#", b"w20004000,4#"]
+    # data comes in whole packets until its last one (a short packet would end the monitor's read), and what
+    # follows a first piece continues the same write
+    assert f.transfer(b"S0,00000100#") == 12 and not f.continues()
+    assert f.transfer(b"x" * 100) == 64 and f.continues()
+    assert f.transfer(b"x" * 36) == 0 and f.continues()
+    assert f.transfer(b"x" * 192 + b"N#") == 192 and not f.continues()
+    assert f.transfer(b"V") == 0 and f.transfer(b"N#") == 2
 
 
 def test_bootloader_bytes_go_one_transfer_at_a_time(tmp_path):
