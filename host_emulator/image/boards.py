@@ -9,12 +9,14 @@ does; the device, description, and the board's mode), rewritten atomically whene
 
 The USB host behaves as Linux's cdc_acm on each port: a client's open raises DTR and RTS, its speed (tcsetattr) is
 sent as the line coding, its close drops DTR and RTS. A 1200-baud touch of a port (speed set to 1200, then the port
-closed) resets the board. Where the tier can run the XIAO's bootloader (MC_BOOTLOADER), the touch reaches the
-firmware as it would on a laptop (Seeed's core erases the application's first row and resets: the board comes back in
-bootloader mode with the bootloader's PID); until then the tier says so in one line, resets the board from outside
-and the application restarts directly, enumerating again with the application's PID. Either way the port is made
-again as the operating system makes it when a device re-enumerates: a new pty behind the same stable name, the
-listing updated. The boards' time runs as fast as it can but never ahead of real time.
+closed) resets the board. With MC_BOOTLOADER (the XIAO bootloader's .bin) the boards boot through it and the touch
+reaches the firmware as it would on a laptop (Seeed's core erases the application's first row and resets: the board
+comes back in bootloader mode with the bootloader's PID, where bossac writes the flash through SAM-BA; --blank brings
+up boards holding the bootloader alone, as new XIAOs arrive); without it the tier says so in one line, resets the
+board from outside and the application restarts directly, enumerating again with the application's PID. Either way
+the port is made again as the operating system makes it when a device re-enumerates: a new pty behind the same
+stable name, the listing updated. --control DIR takes requests as files (unplug a board, make it ignore the touch,
+read every board's flash back). The boards' time runs as fast as it can but never ahead of real time.
 Exit codes: 0 interrupted (ptys and listing removed), 2 bad arguments or the tier cannot run, 3 the run failed.
 """
 
@@ -24,6 +26,7 @@ import argparse
 import dataclasses
 import json
 import os
+import re
 import select
 import signal
 import sys
@@ -41,11 +44,16 @@ if TYPE_CHECKING:
 
 N_BOARDS = 17  # cells 1..16, then the primary
 CHUNK_S = 0.002  # world time run between two looks at the ports
+# while a client talks to a bootloader: bossac gives many answers 100 ms of wall time (its quick timeout), and
+# each SAM-BA command takes a few looks at the ports to go and come back
+CHUNK_BUSY_S = 0.25e-3
 WAIT_MAX_S = 0.02  # longest sleep while the world is ahead of real time (a new client is seen within it)
 LAG_MAX_S = 0.1  # a world behind real time by more does not sprint to catch up later
 APPLICATION, BOOTLOADER = "application", "bootloader"
 MODES = {XIAO_PID_APP: APPLICATION, XIAO_PID_BOOT: BOOTLOADER}  # idProduct -> mode
 TOUCH_BAUD = 1200
+FLASH_SIZE = 0x40000  # the SAMD21G18's 256 KiB
+CONTROL_EVERY_S = 0.1  # wall time between two looks at the control directory
 
 
 def say(msg: str) -> None:
@@ -54,15 +62,56 @@ def say(msg: str) -> None:
 
 def bootloader_problem(lib=None) -> str | None:
     """Why a board cannot run the XIAO's bootloader here (one line), or None when it can: MC_BOOTLOADER names the
-    bootloader's .bin and the runtime (lib) runs it from the reset vector (the tier's `sam_world_bootloader`)."""
-    path = os.environ.get("MC_BOOTLOADER", "")
-    if not path:
+    pinned bootloader's .bin (the tier runs it from the reset vector, image/bootloader.py). `lib` is unused (kept for
+    callers that pass the runtime)."""
+    from . import bootloader
+
+    if bootloader.path() is None:
         return "MC_BOOTLOADER (the path of the XIAO bootloader's .bin) is not set"
-    if not Path(path).is_file():
-        return f"MC_BOOTLOADER={path}: no such file"
-    if lib is None or not hasattr(lib, "sam_world_bootloader"):
-        return "the image tier cannot run the bootloader yet (issue 28, item 1)"
+    try:
+        bootloader.load()
+    except bootloader.BootloaderError as e:
+        return str(e)
     return None
+
+
+PACKET = 64  # the XIAO's bulk endpoints' wMaxPacketSize
+SAMBA_WRITE = re.compile(rb"[Ss]([0-9A-Fa-f]{1,8}),([0-9A-Fa-f]{1,8})#$")
+
+
+class SambaFramer:
+    """Where the client's write() calls ended, for a port in bootloader mode. On Linux each write() to a CDC ACM port
+    is its own USB transfer (cdc_acm submits one URB per write), and the bootloader's SAM-BA monitor relies on it:
+    bossac writes a command ("S20004034,00001000#") and then its data in two calls, and the monitor drops whatever
+    follows a command in the same packet. A pty merges the writes, so they are split again where bossac's calls
+    ended: after each command's '#', and after the `size` bytes of data an S command announces."""
+
+    def __init__(self) -> None:
+        self.data_left = 0
+        self.mid_data = False  # part of an S command's data went: the rest continues the same write()
+
+    def continues(self) -> bool:
+        """The next bytes continue the transfer under way (no need to wait until the device took it)."""
+        return self.mid_data and self.data_left > 0
+
+    def transfer(self, held: bytes | bytearray) -> int:
+        """How many of the held bytes make the next transfer (each is given to the device once the last one went;
+        0: wait for more). Data goes in whole packets until its last one, as cdc_acm sends a write (its buffers are
+        20 packets long): a short packet inside an S command's data would end the monitor's read of it early."""
+        if self.data_left:
+            n = min(len(held), self.data_left)
+            if n < self.data_left:
+                n -= n % PACKET
+            self.data_left -= n
+            self.mid_data = self.data_left > 0
+            return n
+        end = bytes(held).find(b"#")
+        if end < 0:
+            return len(held) if len(held) >= PACKET else 0  # a command not finished yet (or not SAM-BA at all)
+        m = SAMBA_WRITE.search(bytes(held[: end + 1]))
+        if m is not None:
+            self.data_left = int(m.group(2), 16)
+        return end + 1
 
 
 @dataclass
@@ -86,6 +135,16 @@ class Board:
     enumerations_seen: int = 0  # the host's count of the board's enumerations when its port was made
     line: tuple[int, bool] = (0, False)  # the line state last given to the USB host (baud sent, client present)
     touched: bool = False  # the touch was taken (forwarded) and the board has not left yet
+    out_at_enum: int = 0  # the device's OUT byte count when its port was made
+    written: int = 0  # the device has taken every byte given to the USB host when its OUT count reaches this
+    samba: SambaFramer = field(default_factory=lambda: SambaFramer())  # the client's write boundaries (bootloader)
+    unplugged: bool = False  # its cable was pulled (--control): never listed again
+    deaf: bool = False  # ignores the 1200-baud touch (--control): its bootloader's port never appears
+
+    @property
+    def tag(self) -> str:
+        """The stable name's tail: mc01 .. mc16, primary."""
+        return self.link.rsplit("ttyACM-", 1)[-1]
 
     def entry(self) -> dict:
         """The board's line of the listing: the fields pyserial's list_ports gives, plus its mode and pty."""
@@ -160,6 +219,9 @@ class Boards:
                 self._gone(b)
             if b.mode and (not usb.configured or w.usb_device(b.index).enumerations != b.enumerations_seen):
                 self._gone(b)  # it left the bus, or came back between two looks: a new port either way
+            if b.unplugged:
+                w.usb_read(b.index)  # what it sends goes nowhere
+                continue
             if not b.mode and usb.configured and not b.resetting:
                 self._enumerated(b)
             out = w.usb_read(b.index)
@@ -169,18 +231,22 @@ class Boards:
             if present != b.port.client:
                 b.port.client = present
                 b.held = bytearray()
+                b.samba = SambaFramer()
                 b.touched = b.touched and not present
             self._line(b, present, int(usb.control_transfers))
             b.held += data
             # as an OS's open() returns once the device took the line state (its control transfers): the client's
             # first bytes follow them
-            if b.held and usb.control_transfers >= b.line_state_at:
-                sent = w.usb_write(b.index, bytes(b.held))
-                if sent < len(b.held):
-                    say(f"{b.name}: the USB host's buffer is full ({sent} of {len(b.held)} bytes taken)")
-                b.held = bytearray()
+            taken = int(usb.out_bytes) >= b.written or (b.mode == BOOTLOADER and b.samba.continues())
+            if b.held and usb.control_transfers >= b.line_state_at and taken:
+                n = b.samba.transfer(b.held) if b.mode == BOOTLOADER else len(b.held)
+                sent = w.usb_write(b.index, bytes(b.held[:n])) if n else 0
+                if sent < n:
+                    say(f"{b.name}: the USB host's buffer is full ({sent} of {n} bytes taken)")
+                b.written = max(b.written, int(usb.out_bytes)) + sent
+                del b.held[:n]
             b.port.send(out)
-            if not present and not b.touched and b.port.touched():
+            if not present and not b.touched and b.port.touched() and not b.deaf:
                 self.on_touch(b)
         if self.dirty:
             write_listing(self.listing, [b.entry() for b in self.boards if b.mode and b.port is not None])
@@ -192,7 +258,7 @@ class Boards:
         the bootloader and a flash controller that programs)."""
         assert b.port is not None
         baud = b.port.baud()  # a close keeps the speed the client left
-        if baud == TOUCH_BAUD and not self.forward_touch:
+        if baud == TOUCH_BAUD and (not self.forward_touch or b.deaf):
             baud = 0  # the firmware keeps the line coding it has
         sent = baud or b.line[0]
         if (sent, present) == b.line:
@@ -219,6 +285,8 @@ class Boards:
         b.serial = d.serial or b.serial
         b.line = (9600, False)  # a new tty: cdc_acm's probe set 9600 baud, DTR and RTS low
         b.touched = False
+        b.written, b.samba, b.held = 0, SambaFramer(), bytearray()
+        b.out_at_enum = int(self.world.usb_info(b.index).out_bytes)
         b.mode = self.mode_of(b)
         self.dirty = True
 
@@ -241,6 +309,50 @@ class Boards:
         self._gone(b)
         b.resetting = True
         self.world.reset(b.index)
+
+    def read_flash(self, b: Board, start: int = 0, n: int = FLASH_SIZE) -> bytes:
+        """The board's flash (what bossac reads back, without the bootloader's help)."""
+        return self.world.read_mem(b.index, start, n)
+
+    def unplug(self, b: Board) -> None:
+        """Pull the board's cable: its port goes as the OS drops it (a client's next read or write fails) and it is
+        not listed again (the board itself is left to run, unseen)."""
+        b.unplugged = True
+        self._gone(b)
+
+    def control(self, where: Path) -> None:
+        """Requests dropped as empty files in the control directory (each removed once done): unplug-TAG pulls a
+        board's cable (unplug-TAG-at-N: once its port has taken N bytes from the client, e.g. mid-upload), deaf-TAG
+        makes it ignore the 1200-baud touch, dump writes every board's flash to
+        flash-TAG.bin (then done-dump); TAG is mc01..mc16 or primary."""
+        try:
+            names = sorted(p.name for p in where.iterdir())
+        except OSError:
+            return
+        by_tag = {b.tag: b for b in self.boards}
+        for name in names:
+            what, _, rest = name.partition("-")
+            tag, _, at = rest.partition("-at-")
+            if what in ("unplug", "deaf") and tag in by_tag:
+                b = by_tag[tag]
+                if what == "unplug":
+                    taken = int(self.world.usb_info(b.index).out_bytes) if b.mode else 0
+                    if at.isdigit() and (not b.mode or taken - b.out_at_enum < int(at)):
+                        continue  # not yet: its port has not taken that many bytes
+                    say(f"{b.name}: unplugged" + (f" after {taken - b.out_at_enum} bytes to its port" if at else ""))
+                    self.unplug(b)
+                else:
+                    say(f"{b.name}: ignores the 1200-baud touch from now on")
+                    b.deaf = True
+            elif name == "dump":
+                for b in self.boards:
+                    tmp = where / f".flash-{b.tag}.tmp"
+                    tmp.write_bytes(self.read_flash(b))
+                    os.replace(tmp, where / f"flash-{b.tag}.bin")
+                (where / "done-dump").touch()
+            else:
+                continue
+            (where / name).unlink(missing_ok=True)
 
     def close(self) -> None:
         for b in self.boards:
@@ -276,6 +388,20 @@ def parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="directory of the ports' stable names (default: beside PATH, named after it: ports.json -> ports-dev)",
     )
+    ap.add_argument(
+        "--usb-packet-us",
+        type=float,
+        default=50.0,
+        metavar="US",
+        help="the emulated USB host's time to move one packet, in microseconds (default %(default)g)",
+    )
+    ap.add_argument(
+        "--control",
+        default=None,
+        metavar="DIR",
+        help="directory watched for requests (empty files): unplug-TAG[-at-N] (the board ignores the 1200-baud "
+        "touch), dump (every board's flash to flash-TAG.bin, then done-dump); TAG is mc01..mc16 or primary",
+    )
     ap.add_argument("--speed", type=float, default=1.0, help="most simulated seconds per wall second (default 1)")
     return ap
 
@@ -290,10 +416,9 @@ def boards_main(argv: list[str] | None = None) -> int:
         return 2
     if args.blank:
         problem = bootloader_problem()
-        if problem is None:  # pragma: no cover (the tier cannot run the bootloader yet)
-            problem = "blank boards are not brought up yet"
-        say(f"--blank needs the XIAO's bootloader in the image tier: {problem}")
-        return 2
+        if problem is not None:
+            say(f"--blank needs the XIAO's bootloader in the image tier: {problem}")
+            return 2
     listing = Path(args.ports_json)
     dev_dir = Path(args.dev_dir) if args.dev_dir else listing.with_name(f"{listing.stem}-dev")
     try:
@@ -330,11 +455,19 @@ def _world(args):
         p = sc.params  # the first `cells` cells of the scene
         params = dataclasses.replace(p, cells=cells, **{k: getattr(p, k)[:cells] for k in p.per_cell_keys})
         io = sc.options.image
+        boot = "bootloader" if bootloader_problem() is None else io.boot
         cfg = WorldConfig(
-            window_s=WINDOW_S, threads=io.threads, cycle_model=io.cycle_model, ff=io.fast_forward, round_s=io.round_s
+            window_s=WINDOW_S,
+            threads=io.threads,
+            cycle_model=io.cycle_model,
+            ff=io.fast_forward,
+            round_s=io.round_s,
+            boot=boot,
+            blank=args.blank,
+            usb_packet_us=args.usb_packet_us,
         )
         primary = args.count > 16
-        images = build_images(cells, primary=primary)
+        images = None if args.blank else build_images(cells, primary=primary)
         return World(params, images, options=sc.options, config=cfg, primary=primary), None
     except (ConfigError, ValueError, KeyError, OSError) as e:
         return None, str(e)
@@ -359,9 +492,14 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
     status = 0
     announced = False
     t_wall0, t_world0 = time.monotonic(), world.t
+    control = Path(args.control) if args.control else None
+    looked = 0.0
     try:
         while not stop:
             rig.service()
+            if control is not None and time.monotonic() - looked > CONTROL_EVERY_S:
+                looked = time.monotonic()
+                rig.control(control)
             if not announced and rig.up() == len(boards):
                 announced = True
                 print(
@@ -376,7 +514,8 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
                 continue
             if lead < -LAG_MAX_S:  # behind: no sprint later
                 t_wall0 = time.monotonic() - (world.t - t_world0) / args.speed - LAG_MAX_S
-            world.run_to(world.t + CHUNK_S)
+            busy = any(b.mode == BOOTLOADER and b.port is not None and b.port.client for b in boards)
+            world.run_to(world.t + (CHUNK_BUSY_S if busy else CHUNK_S))
     except KeyboardInterrupt:
         pass
     except WorldError as e:

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import shutil
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from . import emulated
 from . import inventory as inv
 from .boards import Port, PortListError, port_lister, xiao_ports
 from .identity import IdentityError, QueryResult, expected_fw_version, query_identity
-from .plan import ROOT, PlanError, describe, make_plan, parse_only, with_toolchain
+from .plan import ROOT, PlanError, describe, make_plan, parse_only, with_prebuilt, with_toolchain
 from .runner import Flasher, summary
 from .toolchain import APP_OFFSET, UPLOADERS, PreflightError, check_offset, find_toolchain
 
@@ -20,6 +22,7 @@ Lister = Callable[[], list[Port]]  # lists the connected serial ports
 Out = Callable[..., None]  # prints one line for the user (err=True: an error)
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+REAPPEAR_S, BOOTLOADER_S = 20.0, 10.0  # the timeouts' defaults (--emulated: emulated.py's)
 
 
 def default_pio() -> str:
@@ -79,7 +82,7 @@ def _parser() -> argparse.ArgumentParser:
         (
             "flash",
             "build, upload and verify every board (stops at the first failure)",
-            ("flash", "flash --only 7", "flash --keep-going --uploader bossac"),
+            ("flash", "flash --only 7", "flash --keep-going --uploader bossac", "flash --emulated   # the dry run"),
         ),
     ):
         p = sub.add_parser(
@@ -146,17 +149,61 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument(
                 "--reappear-timeout",
                 type=float,
-                default=20.0,
+                default=None,
                 metavar="S",
-                help="seconds to wait for a board's USB port to come back after the upload (default %(default)g)",
+                help=f"seconds to wait for a board's USB port to come back after the upload (default {REAPPEAR_S:g}; "
+                f"--emulated: {emulated.REAPPEAR_TIMEOUT_S:g})",
+            )
+            p.add_argument(
+                "--jobs",
+                type=int,
+                default=None,
+                metavar="N",
+                help="flash N boards at once (bossac: each board its own port and bossac; default 1, with --emulated "
+                "every board)",
+            )
+            p.add_argument(
+                "--emulated",
+                action="store_true",
+                help="the rig day as a dry run: bring up 17 blank emulated boards (python -m host_emulator boards "
+                "--blank; needs MC_BOOTLOADER), flash and verify them with bossac, stop them (generous timeouts)",
+            )
+            p.add_argument(
+                "--emulated-count",
+                type=int,
+                default=17,
+                metavar="N",
+                help="--emulated: the first N boards of cells 1..16, primary (default %(default)s)",
+            )
+            p.add_argument(
+                "--emulated-arg",
+                action="append",
+                default=[],
+                metavar="ARG",
+                help="--emulated: an argument for the boards (python -m host_emulator boards), e.g. "
+                "--emulated-arg=--set=model_options.image.threads=2 or --emulated-arg=--usb-packet-us=50",
+            )
+            p.add_argument(
+                "--emulated-control",
+                default=None,
+                metavar="DIR",
+                help="--emulated: the boards' control directory (boards --control: unplug-TAG[-at-N], deaf-TAG); "
+                "every board's flash is read back into it (flash-TAG.bin) before they stop",
+            )
+            p.add_argument(
+                "--prebuilt",
+                default=None,
+                metavar="DIR",
+                help="upload DIR/cellNN/firmware.elf and DIR/primary/firmware.elf (bossac) instead of building "
+                "(the emulator's image cache holds these builds)",
             )
             p.add_argument(
                 "--bootloader-timeout",
                 type=float,
-                default=10.0,
+                default=None,
                 metavar="S",
-                help="seconds to wait for a board's bootloader port after the 1200-baud touch (bossac; "
-                "default %(default)g)",
+                help=f"seconds to wait for a board's bootloader port after the 1200-baud touch (bossac; default "
+                f"{BOOTLOADER_S:g}; --emulated: {emulated.BOOTLOADER_TIMEOUT_S:g})",
             )
 
     sub.add_parser(
@@ -204,37 +251,86 @@ def cmd_inventory(args: argparse.Namespace, lister: Lister, out: Out) -> int:
 
 def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int:
     """The plan (boards, ports), then whether this machine can build and upload (PreflightError), all before any board
-    is touched; then flash: stop at the first failure unless --keep-going."""
+    is touched; then flash: stop at the first failure unless --keep-going. --emulated: on blank emulated boards."""
     bad_offset = check_offset(args.offset, args.overwrite_bootloader)
     if bad_offset:
         raise PreflightError(bad_offset)
+    if (getattr(args, "jobs", None) or 1) < 1:
+        raise PreflightError(f"--jobs must be at least 1, got {args.jobs}")
+    if getattr(args, "emulated", False):
+        return _flash_emulated(args, out)
     boards = inv.load(args.inventory)
     pio = args.pio or default_pio()
     project = Path(args.project)
     plan = make_plan(
         boards, lister(), pio=pio, project=project, only=parse_only(args.only), skip_missing=args.skip_missing
     )
-    tools = find_toolchain(pio, project, uploader=args.uploader, bossac=args.bossac, offset=args.offset)
-    plan = with_toolchain(plan, tools, project)
+    prebuilt = getattr(args, "prebuilt", None)
+    if prebuilt:
+        tools = find_toolchain(pio, project, uploader="bossac", bossac=args.bossac, offset=args.offset, build=False)
+        plan = with_prebuilt(plan, tools, Path(prebuilt))
+    else:
+        tools = find_toolchain(pio, project, uploader=args.uploader, bossac=args.bossac, offset=args.offset)
+        plan = with_toolchain(plan, tools, project)
     out(describe(plan))
-    out(tools.describe())
+    out(tools.describe() if not prebuilt else f"prebuilt images from {prebuilt}; upload: {tools.describe_upload()}")
     if args.cmd == "plan":
         return EXIT_OK
+    slow: dict = {}  # emulated boards: ID? may wait longer, the uploads start together (runner.Gate)
+    if getattr(args, "emulated_query_timeout", None):
+        slow["query"] = functools.partial(query_identity, timeout=args.emulated_query_timeout)
+        slow["together_s"] = emulated.TOGETHER_S
     flasher = Flasher(
         lister,
+        **slow,
         expected_fw=expected_fw_version(),
         log_dir=args.log_dir,
         upload_timeout=args.upload_timeout,
-        reappear_timeout=args.reappear_timeout,
-        bootloader_timeout=args.bootloader_timeout,
+        reappear_timeout=REAPPEAR_S if args.reappear_timeout is None else args.reappear_timeout,
+        bootloader_timeout=BOOTLOADER_S if args.bootloader_timeout is None else args.bootloader_timeout,
         out=out,
     )
-    outcomes = flasher.flash(plan, stop_on_error=not args.keep_going)
+    outcomes = flasher.flash(plan, stop_on_error=not args.keep_going, jobs=args.jobs or 1)
     out(summary(outcomes))
     for b in plan.missing:
         out(f"NOT FLASHED (not connected): {b.name} serial {b.serial}")
     out("check the whole bus with: python -m metacell_tools.flash identify")
     return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
+
+
+def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
+    """flash --emulated: the same preflight (plus MC_BOOTLOADER), then the plan on blank emulated boards, which are
+    stopped at the end; the timeouts given on the command line are raised to the emulation's where lower."""
+    missing = emulated.preflight()
+    pio = args.pio or default_pio()
+    if args.prebuilt:
+        find_toolchain(pio, Path(args.project), uploader="bossac", bossac=args.bossac, offset=args.offset, build=False)
+    else:
+        find_toolchain(pio, Path(args.project), uploader="bossac", bossac=args.bossac, offset=args.offset)
+    if missing:
+        raise PreflightError(missing)
+    if not 1 <= args.emulated_count <= emulated.N_BOARDS:
+        raise PreflightError(f"--emulated-count must be 1..{emulated.N_BOARDS}")
+    try:
+        with emulated.emulated_boards(
+            ROOT,
+            args.emulated_count,
+            control=Path(args.emulated_control) if args.emulated_control else None,
+            extra=tuple(args.emulated_arg),
+            out=out,
+        ) as (listing, inventory):
+            emu = argparse.Namespace(**vars(args))
+            emu.emulated, emu.uploader, emu.ports_json, emu.inventory = False, "bossac", str(listing), str(inventory)
+            if args.bootloader_timeout is None:
+                emu.bootloader_timeout = emulated.BOOTLOADER_TIMEOUT_S
+            if args.reappear_timeout is None:
+                emu.reappear_timeout = emulated.REAPPEAR_TIMEOUT_S
+            emu.emulated_query_timeout = emulated.IDENTITY_TIMEOUT_S
+            emu.jobs = args.jobs or args.emulated_count
+            return cmd_plan_or_flash(emu, port_lister(listing), out)
+    except emulated.EmulationError as exc:
+        out(f"error: {exc}", err=True)
+        return EXIT_FAILED
 
 
 def cmd_identify(

@@ -97,6 +97,18 @@ def with_toolchain(plan: Plan, tools: Toolchain, project: Path = ROOT) -> Plan:
     return replace(plan, steps=[upload_step(s.board, s.port, project=project, tools=tools) for s in plan.steps])
 
 
+def with_prebuilt(plan: Plan, tools: Toolchain, images: Path) -> Plan:
+    """The same boards, nothing built: bossac uploads images/cellNN/firmware.bin (or primary/), made from the
+    firmware.elf beside it when missing."""
+    assert tools.bossac is not None
+    steps = []
+    for s in plan.steps:
+        name = "primary" if s.board.role == "primary" else f"cell{s.board.cell:02d}"
+        upload = BossacUpload(tools.bossac, Path(images) / name / "firmware.bin", tools.offset)
+        steps.append(Step(s.board, s.port, s.env_name, (), (), upload))
+    return replace(plan, steps=steps)
+
+
 def make_plan(
     boards: list[Board],
     ports: list[Port],
@@ -159,7 +171,7 @@ def describe(plan: Plan) -> str:
         lines.append(f"  left alone (not in inventory): {p.device} serial {p.serial_number}")
     lines.append("commands:")
     for s in plan.steps:
-        lines.append(f"  {s.shell()}")
+        lines.append(f"  {s.shell() or '(prebuilt: ' + str(s.upload.firmware if s.upload else '') + ')'}")
         if s.upload is not None:
             touch = "" if s.port.in_bootloader else f"1200-baud touch of {s.port.device}, then "
             lines.append(f"    {touch}{s.upload.shell()}   (PORT: serial {s.board.serial}'s bootloader port)")

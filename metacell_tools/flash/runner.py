@@ -6,8 +6,10 @@ from __future__ import annotations
 import os
 import shlex
 import subprocess
+import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +28,8 @@ GONE = "did not come back"
 NO_IDENTITY = "no identity"
 MISMATCH = "identity mismatch"
 NOT_RUN = "not run"
+UNPLUGGED_S = 5.0  # a board absent from the listing this long while bossac talks to it was unplugged
+WATCH_EVERY_S = 0.25
 
 
 @dataclass
@@ -48,6 +52,16 @@ def check_identity(step: Step, ident: Identity, fw: str) -> str:
     return "" if want == got else f"expected {want.describe()}, board says {got.describe()}"
 
 
+def overwrote(offset: int) -> str:
+    """What an upload below the application's offset did to the board ("" at or above it)."""
+    if offset >= APP_OFFSET:
+        return ""
+    return (
+        f"; the upload at 0x{offset:x} overwrote the bootloader, so the board can neither start nor take an upload "
+        "over USB any more: restore the bootloader with an SWD probe (docs/hardware.md#when-a-board-fails-to-flash)"
+    )
+
+
 def wait_for_app_port(
     serial: str,
     list_ports: Callable[[], list[Port]],
@@ -58,6 +72,27 @@ def wait_for_app_port(
 ) -> Port | None:
     """The application-mode port of the board with this USB serial number, once it is back."""
     return wait_for_port(serial, list_ports, timeout, bootloader=False, poll=poll, sleep=sleep, clock=clock)
+
+
+class Gate:
+    """Where parallel uploads wait for each other: arrive() once per board, by its key (the n-th lets them all go;
+    wait=False only counts). For emulated boards: bossac waits 1 s of wall time for its erase's answer, and the
+    emulation keeps that pace only while every board is erasing (a board stalled in an erase costs nothing);
+    started together, the 17 erases run side by side."""
+
+    def __init__(self, n: int, timeout: float) -> None:
+        self.left, self.timeout = n, timeout
+        self.cond = threading.Condition()
+        self.arrived: set[int] = set()
+
+    def arrive(self, key: int, wait: bool = True) -> None:
+        with self.cond:
+            if key not in self.arrived:
+                self.arrived.add(key)
+                self.left -= 1
+                self.cond.notify_all()
+            if wait:
+                self.cond.wait_for(lambda: self.left <= 0, timeout=self.timeout)
 
 
 class Flasher:
@@ -78,24 +113,36 @@ class Flasher:
         sleep: Callable[[float], None] = time.sleep,
         clock: Callable[[], float] = time.monotonic,
         out: Callable[[str], None] = print,
+        together_s: float = 0.0,
     ) -> None:
         self.list_ports, self.expected_fw, self.run, self.query = list_ports, expected_fw, run, query
         self.touch, self.log_dir, self.upload_timeout = touch, Path(log_dir), upload_timeout
         self.reappear_timeout, self.bootloader_timeout = reappear_timeout, bootloader_timeout
         self.sleep, self.clock, self.out = sleep, clock, out
+        # > 0: parallel bossacs start together (each waits at most this long for the others to be ready)
+        self.together_s = together_s
+        self._gate: Gate | None = None
 
     def _log_path(self, step: Step) -> Path:
         name = "primary" if step.board.role == "primary" else f"cell{step.board.cell:02d}"
         return self.log_dir / f"{name}.log"
 
     def _call(
-        self, argv: tuple[str, ...], env: dict[str, str], log: Path, what: str, shown: str = ""
+        self,
+        argv: tuple[str, ...],
+        env: dict[str, str],
+        log: Path,
+        what: str,
+        shown: str = "",
+        serial: str = "",
     ) -> tuple[int, str] | str:
         """(exit status, output) of one command (`what` in messages), appended to the log; or why it could not run.
         The output is stdout, then stderr: both uploaders write their error to stderr, which a merged pipe can put
         before the progress lines still buffered on stdout (bossac's "No device found on PORT" is stderr only)."""
         with log.open("a") as f:
             f.write(f"$ {shown or shlex.join(argv)}\n")
+        if serial and self.run is subprocess.run:
+            return self._watched(argv, env, log, what, serial)
         try:
             res = self.run(
                 list(argv),
@@ -113,6 +160,47 @@ class Flasher:
         with log.open("a") as f:
             f.write(output if output.endswith("\n") or not output else output + "\n")
         return res.returncode, output
+
+    def _watched(self, argv: tuple[str, ...], env: dict[str, str], log: Path, what: str, serial: str):
+        """_call of an uploader that talks to the board with this serial number, stopped when the board leaves the
+        USB bus for UNPLUGGED_S while it runs (unplugged: bossac would wait on the dead port for ever)."""
+        try:
+            p = subprocess.Popen(list(argv), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        except FileNotFoundError as exc:
+            return f"cannot run {argv[0]}: {exc}"
+        end = time.monotonic() + self.upload_timeout
+        absent_since = None
+        with p:
+            while True:
+                try:
+                    stdout, stderr = p.communicate(timeout=WATCH_EVERY_S)
+                    break
+                except subprocess.TimeoutExpired:
+                    pass
+                try:
+                    here = any(q.serial_number == serial for q in self.list_ports())
+                except (OSError, ValueError):
+                    here = False
+                now = time.monotonic()
+                absent_since = None if here else (absent_since or now)
+                stop = ""
+                if absent_since is not None and now - absent_since >= UNPLUGGED_S:
+                    stop = (
+                        f"the board (serial {serial}) left the USB bus during {what} and did not come back within "
+                        f"{UNPLUGGED_S:g} s: unplugged? {what} stopped"
+                    )
+                elif now > end:
+                    stop = f"{what} did not finish in {self.upload_timeout:.0f} s"
+                if stop:
+                    p.kill()
+                    p.communicate()
+                    with log.open("a") as f:
+                        f.write(stop + "\n")
+                    return stop
+        output = (stdout or "") + (stderr or "")
+        with log.open("a") as f:
+            f.write(output if output.endswith("\n") or not output else output + "\n")
+        return p.returncode, output
 
     def _bossac(self, step: Step, env: dict[str, str], log: Path) -> Outcome | None:
         """Touch, bootloader port, bossac: None when the upload went through, else the failed Outcome."""
@@ -148,7 +236,9 @@ class Flasher:
                     "--bootloader-timeout",
                     log=log,
                 )
-        res = self._call(up.argv(boot.device), env, log, "bossac")
+        if self._gate is not None:
+            self._gate.arrive(id(step))
+        res = self._call(up.argv(boot.device), env, log, "bossac", serial=b.serial)
         if isinstance(res, str):
             return Outcome(step, UPLOAD_FAILED, res, log=log)
         rc, output = res
@@ -156,10 +246,18 @@ class Flasher:
             return Outcome(
                 step,
                 UPLOAD_FAILED,
-                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)",
+                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)"
+                + overwrote(up.offset),
                 log=log,
             )
         return None
+
+    def _flash_gated(self, step: Step) -> Outcome:
+        try:
+            return self.flash_one(step)
+        finally:
+            if self._gate is not None:
+                self._gate.arrive(id(step), wait=False)  # (once: a board that failed before bossac lets the others go)
 
     def flash_one(self, step: Step) -> Outcome:
         log = self._log_path(step)
@@ -167,13 +265,14 @@ class Flasher:
         log.write_text("")
         env = dict(os.environ)
         env.update(dict(step.env_vars))
-        res = self._call(step.argv, env, log, "pio", step.shell())
-        failed = BUILD_FAILED if step.upload is not None else UPLOAD_FAILED
-        if isinstance(res, str):
-            return Outcome(step, failed, res)
-        rc, output = res
-        if rc != 0:
-            return Outcome(step, failed, f"{uploader_error(output)} (pio exited with {rc})", log=log)
+        if step.argv:  # (none: a prebuilt image)
+            res = self._call(step.argv, env, log, "pio", step.shell())
+            failed = BUILD_FAILED if step.upload is not None else UPLOAD_FAILED
+            if isinstance(res, str):
+                return Outcome(step, failed, res)
+            rc, output = res
+            if rc != 0:
+                return Outcome(step, failed, f"{uploader_error(output)} (pio exited with {rc})", log=log)
         if step.upload is not None:
             bad = self._bossac(step, env, log)
             if bad is not None:
@@ -182,13 +281,7 @@ class Flasher:
             step.board.serial, self.list_ports, self.reappear_timeout, sleep=self.sleep, clock=self.clock
         )
         if port is None:
-            why = ""
-            if step.upload is not None and step.upload.offset < APP_OFFSET:
-                why = (
-                    f"; the upload at 0x{step.upload.offset:x} overwrote the bootloader, so the board can neither "
-                    "start nor take an upload over USB any more: restore the bootloader with an SWD probe "
-                    "(docs/hardware.md#when-a-board-fails-to-flash)"
-                )
+            why = overwrote(step.upload.offset) if step.upload is not None else ""
             return Outcome(
                 step,
                 GONE,
@@ -211,22 +304,56 @@ class Flasher:
             return Outcome(step, MISMATCH, diff, q.identity, log)
         return Outcome(step, OK, f"{q.identity.describe()} on {port.device}", q.identity, log)
 
-    def flash(self, plan: Plan, stop_on_error: bool = False) -> list[Outcome]:
+    def flash(self, plan: Plan, stop_on_error: bool = False, jobs: int = 1) -> list[Outcome]:
+        """Every step in the plan's order; jobs > 1 flashes that many boards at once (each its own port and
+        bossac; stop_on_error then starts no new board after a failure, the ones under way finish)."""
+        if jobs > 1:
+            return self._flash_parallel(plan, stop_on_error, jobs)
         outcomes: list[Outcome] = []
         n = len(plan.steps)
         for i, step in enumerate(plan.steps, 1):
             self.out(f"[{i}/{n}] {step.board.name}: serial {step.board.serial} on {step.port.device}")
             o = self.flash_one(step)
             outcomes.append(o)
-            self.out(
-                f"      {'OK' if o.ok else 'FAILED'}: {o.status}: {o.detail}"
-                + (f" (log {o.log})" if o.log and not o.ok else "")
-            )
+            self._said(o)
             if not o.ok and stop_on_error:
                 for rest in plan.steps[i:]:
                     outcomes.append(Outcome(rest, NOT_RUN, "stopped after an earlier failure"))
                 break
         return outcomes
+
+    def _said(self, o: Outcome, who: str = "") -> None:
+        self.out(
+            f"      {who}{'OK' if o.ok else 'FAILED'}: {o.status}: {o.detail}"
+            + (f" (log {o.log})" if o.log and not o.ok else "")
+        )
+
+    def _flash_parallel(self, plan: Plan, stop_on_error: bool, jobs: int) -> list[Outcome]:
+        from concurrent.futures import FIRST_COMPLETED, Future, wait
+
+        n = len(plan.steps)
+        done: dict[int, Outcome] = {}
+        failed = False
+        self._gate = Gate(n, self.together_s) if self.together_s and jobs >= n else None
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            running: dict[Future, int] = {}
+            queue = list(enumerate(plan.steps))
+            while queue or running:
+                while queue and len(running) < jobs and not (failed and stop_on_error):
+                    i, step = queue.pop(0)
+                    self.out(f"[{i + 1}/{n}] {step.board.name}: serial {step.board.serial} on {step.port.device}")
+                    running[pool.submit(self._flash_gated, step)] = i
+                if not running:
+                    break
+                finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i = running.pop(f)
+                    o = f.result()
+                    done[i] = o
+                    failed = failed or not o.ok
+                    self._said(o, f"{plan.steps[i].board.name}: ")
+        stopped = "stopped after an earlier failure"
+        return [done.get(i) or Outcome(step, NOT_RUN, stopped) for i, step in enumerate(plan.steps)]
 
 
 def summary(outcomes: list[Outcome]) -> str:

@@ -48,11 +48,12 @@ class Toolchain:
 
     def describe(self) -> str:
         build = "PlatformIO through MC_PIO_TREE's use.sh" if self.through_tree else f"PlatformIO ({self.pio})"
+        return f"build: {build}; upload: {self.describe_upload()}"
+
+    def describe_upload(self) -> str:
         if self.uploader == "pio":
-            upload = f"PlatformIO's uploader ({PIO_BOSSAC})"
-        else:
-            upload = f"bossac ({self.bossac}) at offset 0x{self.offset:x}, after a 1200-baud touch"
-        return f"build: {build}; upload: {upload}"
+            return f"PlatformIO's uploader ({PIO_BOSSAC})"
+        return f"bossac ({self.bossac}) at offset 0x{self.offset:x}, after a 1200-baud touch"
 
 
 def check_offset(offset: int, overwrite_bootloader: bool = False) -> str:
@@ -94,15 +95,19 @@ def find_toolchain(
     bossac: str | None = None,
     offset: int = APP_OFFSET,
     which: Callable[[str], str | None] = shutil.which,
+    build: bool = True,
 ) -> Toolchain:
-    """How this machine builds and uploads, or PreflightError naming everything that is missing (one line)."""
+    """How this machine builds and uploads, or PreflightError naming everything that is missing (one line).
+    build False: the images are prebuilt (PlatformIO is not needed)."""
     if uploader not in UPLOADERS:
         raise ValueError(f"uploader {uploader!r}: expected one of {UPLOADERS}")
     problems = []
     prefix: tuple[str, ...] = ()
     env: tuple[tuple[str, str], ...] = ()
-    found = _resolve(pio, which)
-    if found is None:
+    found = _resolve(pio, which) if build else None
+    if not build:
+        pass
+    elif found is None:
         problems.append(
             f"cannot build: PlatformIO ({pio}) not found (pip install platformio==6.2.0; make setup puts it in .venv; "
             "or name it with --pio)"
