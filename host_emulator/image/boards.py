@@ -16,7 +16,11 @@ up boards holding the bootloader alone, as new XIAOs arrive); without it the tie
 board from outside and the application restarts directly, enumerating again with the application's PID. Either way
 the port is made again as the operating system makes it when a device re-enumerates: a new pty behind the same
 stable name, the listing updated. --control DIR takes requests as files (unplug a board, make it ignore the touch,
-read every board's flash back). The boards' time runs as fast as it can but never ahead of real time.
+read every board's flash back). The boards' time runs as fast as it can but never ahead of real time. The mechanical
+plant is at rest unless --plant: then it starts (scene time 0, as `run --set model=image` starts it after bring-up)
+once every board is up running its application (after --blank boards were flashed), and the cells' motors and
+encoders move as on the rig; the scene's configuration is the client's to send (the experiment runner through the
+primary).
 Exit codes: 0 interrupted (ptys and listing removed), 2 bad arguments or the tier cannot run, 3 the run failed.
 """
 
@@ -402,6 +406,11 @@ def parser() -> argparse.ArgumentParser:
         help="directory watched for requests (empty files): unplug-TAG[-at-N] (the board ignores the 1200-baud "
         "touch), dump (every board's flash to flash-TAG.bin, then done-dump); TAG is mc01..mc16 or primary",
     )
+    ap.add_argument(
+        "--plant",
+        action="store_true",
+        help="start the plant once every board runs its application (default: kept at rest)",
+    )
     ap.add_argument("--speed", type=float, default=1.0, help="most simulated seconds per wall second (default 1)")
     return ap
 
@@ -439,7 +448,7 @@ def boards_main(argv: list[str] | None = None) -> int:
 
 
 def _world(args):
-    """The world of the first --count boards with the scene's parameters (its plant at rest)."""
+    """The world of the first --count boards with the scene's parameters (its plant at rest until _run starts it)."""
     from ..models.options import ConfigError
     from ..scene import load_scene
     from . import ImageTierUnavailable
@@ -491,6 +500,7 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
     signal.signal(signal.SIGHUP, lambda *a: stop.append(1))
     status = 0
     announced = False
+    planted = not args.plant  # the plant runs (or is to stay at rest)
     t_wall0, t_world0 = time.monotonic(), world.t
     control = Path(args.control) if args.control else None
     looked = 0.0
@@ -507,6 +517,9 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
                     f"ports in {dev_dir}, listing {listing}",
                     flush=True,
                 )
+            if not planted and all(b.mode == APPLICATION for b in boards):
+                planted = True
+                print(f"plant started at t = {world.start_plant():.3f} s", flush=True)
             lead = (world.t - t_world0) / args.speed - (time.monotonic() - t_wall0)
             if lead > 0:  # ahead of real time: wait for the clients (or for real time to catch up)
                 held = [b.port for b in boards if b.port is not None and b.port.client]
