@@ -19,6 +19,9 @@ hil (the firmware's control rate is the model's clock; plant steps per control t
 image (the flashed images; the plant steps per 50 us window, steps chosen from the stable limit):
     the hil presets' stepper and beta geometry (fast, balanced: symplectic_euler; exact: rk4, geometric beta)
 continuum: the knob sets nothing (models/continuum.py runs scipy BDF at its own tolerance).
+
+record() is what summary.json says of a run's accuracy (the options the preset changed, with the values they ran
+with).
 """
 
 from __future__ import annotations
@@ -111,3 +114,11 @@ def resolve_options(model: str, params, perturbations, options, level: str, expl
     check_level(level)
     rule = RESOLVERS.get(model)
     return options if rule is None else rule(params, perturbations, options, level, set(explicit))
+
+
+def record(model: str, level: str, scene_options, ran_options, explicit=()) -> dict:
+    """summary.json's "accuracy": the level, every knob the preset changed with the value it ran with
+    (preset_changed) and the knobs the scene set itself (scene_set: they beat the preset)."""
+    changed = {k: getattr(ran_options, k) for k in KNOB_KEYS if getattr(ran_options, k) != getattr(scene_options, k)}
+    scene_set = sorted(k for k in explicit if k in KNOB_KEYS)
+    return {"level": level, "preset_changed": changed, "scene_set": scene_set}

@@ -51,7 +51,7 @@ def run_solver(solver: Solver, t_end_s: float, trackers: Sequence[Tracker] = ())
                 tr.finish()
     wall = time.perf_counter() - t0
     t, a, b = rec.result()
-    return RunResult(t, a, b, wall, solver.info())
+    return RunResult(t, a, b, wall, solver.info(), getattr(getattr(solver, "model", None), "options", None))
 
 
 CHUNK_MAX_SAMPLES = 256  # output samples per compiled call at most

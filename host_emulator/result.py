@@ -4,6 +4,7 @@ controller returns and batches, summaries and plots consume (he.run wraps it in 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -15,6 +16,7 @@ class RunResult:
     beta: np.ndarray  # (T, N) rad
     wall_s: float
     info: dict = field(default_factory=dict)
+    options: Any = None  # the ModelOptions the solver ran with (the accuracy preset applied), None if unknown
 
     @property
     def realtime_factor(self) -> float:

@@ -7,6 +7,7 @@ experiment runner all build their summaries here.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import math
 from typing import TYPE_CHECKING, Any
@@ -88,6 +89,7 @@ def summarize(scene: Scene, res: RunResult, *, source: str | None = None) -> dic
     except ImportError:
         disp = None
     d = scene.as_dict()
+    ran, acc = _as_run(scene, res, source)
     out = {
         "scene": scene.name,
         "model": scene.model,
@@ -99,8 +101,27 @@ def summarize(scene: Scene, res: RunResult, *, source: str | None = None) -> dic
         "dispersion": disp,
         "solver": res.info,
         "params": d["params"],
-        "model_options": d["model_options"],
+        "model_options": d["model_options"] if ran is None else dataclasses.asdict(ran),
         "perturbation": d["perturbation"],
         "provenance": provenance(),
     }
+    if acc is not None:
+        out["accuracy"] = acc
     return clean(out)
+
+
+def _as_run(scene: Scene, res: RunResult, source: str | None) -> tuple[Any, dict | None]:
+    """(the ModelOptions the run used, summary.json's "accuracy" record), or (None, None) for a summary of data
+    the emulator did not produce here (the rig, a rehearsal's recording) that carries no options: its
+    model_options stay the scene's. The options come from the solver (RunResult.options), else from the scene's
+    preset resolved again (accuracy.resolve_options: what build_solver applies)."""
+    from ..accuracy import record, resolve_options
+
+    ran = getattr(res, "options", None)
+    if ran is None:
+        if source is not None and not source.startswith("emulator"):
+            return None, None
+        ran = resolve_options(
+            scene.model, scene.params, scene.perturbations, scene.options, scene.accuracy, scene.explicit_options
+        )
+    return ran, record(scene.model, scene.accuracy, scene.options, ran, scene.explicit_options)

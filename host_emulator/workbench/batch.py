@@ -71,7 +71,7 @@ def run_batch(scenes: Sequence[Scene], *, keep: str = "trajectory", errors: str 
             try:
                 r = run_scene(s, progress=False)
                 if keep == "final":
-                    r = RunResult(r.t[-1:], r.alpha[-1:], r.beta[-1:], r.wall_s, r.info)
+                    r = RunResult(r.t[-1:], r.alpha[-1:], r.beta[-1:], r.wall_s, r.info, r.options)
                 results[i] = r
             except NumericalInstability as e:
                 results[i] = e
@@ -136,4 +136,4 @@ def _run_hil_batch(scenes, keep, results, idx):
         else:
             t = np.array([s.t])
             a, b = s.x[None, :n].copy(), s.x[None, n:].copy()
-        results[idx[k]] = RunResult(t, a, b, wall / m, info)
+        results[idx[k]] = RunResult(t, a, b, wall / m, info, s.model.options)
