@@ -15,13 +15,16 @@ hil (the firmware's control rate is the model's clock; plant steps per control t
     fast      symplectic_euler, 1 step per tick   ~1-2 encoder counts from the converged loop over 3 s
     balanced  the same (the default): nothing cheaper exists, the loop's own quantisation dominates, and
               the served emulator (bus/serve) and bench-speed run exactly this loop
-    exact     rk4, 2 steps per tick, geometric beta   converged plant (2e-7 rad from 64 steps per tick)
+    exact     rk4, 2 steps per tick, geometric beta   2.9e-3 rad from 64 steps per tick with the geometric form
+              (small-angle form: converged, 2e-7 rad)
 image (the flashed images; the plant steps per 50 us window, steps chosen from the stable limit):
     the hil presets' stepper and beta geometry (fast, balanced: symplectic_euler; exact: rk4, geometric beta)
 continuum: the knob sets nothing (models/continuum.py runs scipy BDF at its own tolerance).
 
-record() is what summary.json says of a run's accuracy (the options the preset changed, with the values they ran
-with).
+Cost: exact is the dearest level except where a lattice scene sets the small-angle beta itself
+(exp3_single_sigma9, _sigma6: dop853 alone, cheaper than balanced); docs/accuracy.md#tiers has each shipped
+scene's cost per level. record() is what summary.json says of a run's accuracy (the options the preset changed,
+with the values they ran with, and the error estimate that `run` prints).
 """
 
 from __future__ import annotations
@@ -116,9 +119,52 @@ def resolve_options(model: str, params, perturbations, options, level: str, expl
     return options if rule is None else rule(params, perturbations, options, level, set(explicit))
 
 
-def record(model: str, level: str, scene_options, ran_options, explicit=()) -> dict:
+def record(model: str, level: str, scene_options, ran_options, explicit=(), preset_options=None) -> dict:
     """summary.json's "accuracy": the level, every knob the preset changed with the value it ran with
-    (preset_changed) and the knobs the scene set itself (scene_set: they beat the preset)."""
+    (preset_changed), the knobs the scene set itself (scene_set: they beat the preset), and the error estimate of
+    what ran (error_estimate; the preset's figure only where no knob the scene set differs from the preset's own
+    value, preset_options: the options the preset alone gives)."""
     changed = {k: getattr(ran_options, k) for k in KNOB_KEYS if getattr(ran_options, k) != getattr(scene_options, k)}
     scene_set = sorted(k for k in explicit if k in KNOB_KEYS)
-    return {"level": level, "preset_changed": changed, "scene_set": scene_set}
+    differs = [k for k in scene_set if preset_options is None or getattr(preset_options, k) != getattr(ran_options, k)]
+    return {
+        "level": level,
+        "preset_changed": changed,
+        "scene_set": scene_set,
+        "error_estimate": error_estimate(model, level, differs),
+    }
+
+
+def error_estimate(model: str, level: str, scene_set=()) -> dict:
+    """The measured errors of a run at `level` (host_emulator/tiers.py, docs/accuracy.md#tiers): integration_rad,
+    max |alpha - the same tier and components at a converged step| (None where not measured, or where the scene
+    sets a knob itself so the preset's figure does not apply), and vs_next_tier_rad, max |alpha - the next tier
+    up|; both on the default scene over 3 s."""
+    from .tiers import ERROR_VS_UP_RAD, PRESET_ERROR_RAD, UP
+
+    integ = None if scene_set else PRESET_ERROR_RAD.get((model, level))
+    return {
+        "integration_rad": integ,
+        "next_tier": UP.get(model),
+        "vs_next_tier_rad": ERROR_VS_UP_RAD.get(model),
+        "measured_on": "default scene, 3 s (python -m host_emulator.benchmarks.tiers)",
+        **({"note": f"the scene sets {', '.join(scene_set)} itself: no preset figure"} if scene_set else {}),
+    }
+
+
+def estimate_line(acc: dict) -> str:
+    """One line for `run`: the level and the error estimate of summary.json's "accuracy"."""
+    e = acc["error_estimate"]
+    parts = []
+    if e["integration_rad"] is not None:
+        parts.append(f"integration ~{e['integration_rad']:.2g} rad against a converged step")
+    elif e.get("note"):
+        parts.append(e["note"])
+    else:
+        parts.append("integration error not measured for this tier")
+    if e["vs_next_tier_rad"] is not None:
+        parts.append(f"~{e['vs_next_tier_rad']:.2g} rad from the {e['next_tier']} tier")
+    return (
+        f"  accuracy {acc['level']}: error estimate (max angle, measured on the default scene over 3 s): "
+        + "; ".join(parts)
+    )

@@ -36,7 +36,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .workbench.plots import plot_run
 
     try:
-        scene = load_scene(args.scene, list(args.set) + ([f"accuracy={args.accuracy}"] if args.accuracy else []))
+        extra = [f"accuracy={args.accuracy}"] if args.accuracy else []
+        scene = load_scene(args.scene, list(args.set) + extra + ([f"model={args.model}"] if args.model else []))
     except (ConfigError, KeyError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -51,6 +52,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
+    if scene.model_reason:
+        print(scene.model_reason)
     try:
         live, plot = _live_trackers(args, scene, out)
         res = run_scene(scene, progress=not args.quiet, trackers=live)
@@ -135,10 +138,20 @@ def _print_summary(s, out, files):
             + f" at {_fmt(d.get('fastest_growth_per_s'), '/s')}"
             + (f", period {_fmt(d['oscillation_period_s'], ' s')}" if d.get("oscillation_period_s") else "")
         )
+    if s.get("accuracy"):
+        from .accuracy import estimate_line
+
+        print(estimate_line(s["accuracy"]))
     print(
         f"  wrote {out}/summary.json, trajectories.npz"
         + ("" if not files else ", plots: " + ", ".join(str(f) for f in files))
     )
+
+
+def _model_names() -> tuple[str, ...]:
+    from .models import model_names
+
+    return model_names()
 
 
 def _positive_float(text: str) -> float:
@@ -225,6 +238,7 @@ def _main(argv=None) -> int:
         "  python -m host_emulator run exp1_ccw_ccw --set t_end_s=5 --out out/exp1 --no-plots\n"
         "  python -m host_emulator run default --live 50 --live-window 3    # live plot every 50 ms\n"
         "  python -m host_emulator run my_scene.toml --accuracy exact --print-every 1\n"
+        "  python -m host_emulator run exp3_single_sigma9 --model auto    # the cheapest tier for its question\n"
         "exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed.",
     )
     r.add_argument("scene", help="shipped scene name (see `scenes`) or path of a .toml scene file")
@@ -274,6 +288,13 @@ def _main(argv=None) -> int:
         choices=("fast", "balanced", "exact"),
         default=None,
         help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)",
+    )
+    r.add_argument(
+        "--model",
+        choices=(*_model_names(), "auto"),
+        default=None,
+        help="run this model instead of the scene's; auto: the cheapest tier that models the scene's `question` "
+        "(pattern, oscillation, growth, continuum, bus, timing, faults), said in one line (docs/accuracy.md#tiers)",
     )
     sub.add_parser(
         "dispersion",

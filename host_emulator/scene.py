@@ -36,6 +36,7 @@ TOP_KEYS = (
     "cells",
     "t_end_s",
     "accuracy",
+    "question",
     "params",
     "model_options",
     "perturbation",
@@ -59,6 +60,8 @@ class Scene:
     accuracy: str = "balanced"  # fast | balanced | exact (host_emulator/accuracy.py)
     explicit_options: tuple[str, ...] = ()  # model_options keys the scene set itself (they beat the preset)
     faults: tuple[Fault, ...] = ()  # image model only ([[fault]])
+    question: str = ""  # what the scene is for (host_emulator/tiers.py QUESTIONS), "" if it does not say
+    model_reason: str = ""  # model = "auto": the one line saying which tier was picked and why
 
     def as_dict(self) -> dict:
         """JSON-ready record of everything the run used."""
@@ -205,6 +208,7 @@ def scene_table(scene: Scene) -> dict:
         "cells": scene.cells,
         "t_end_s": scene.t_end_s,
         "accuracy": scene.accuracy,
+        **({"question": scene.question} if scene.question else {}),
         "params": params,
         "model_options": opts,
         "perturbation": d["perturbation"],
@@ -241,8 +245,15 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     desc = d.get("description", "")
     if not isinstance(desc, str):
         raise ConfigError(f"description = {desc!r}: expected a string")
-    if d["model"] not in model_names():
-        raise ConfigError(f"model = {d['model']!r}: expected one of {', '.join(model_names())}")
+    from .tiers import check_question, pick, question_of
+
+    question = check_question(d["question"]) if "question" in d else ""
+    model, reason = d["model"], ""
+    if model == "auto":  # the cheapest tier that models the scene's question
+        question = question_of(d)
+        model, reason = pick(question)
+    elif model not in model_names():
+        raise ConfigError(f"model = {model!r}: expected one of {', '.join(model_names())} or auto")
     cells = d["cells"]
     if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 4096:
         raise ConfigError(f"cells = {cells!r}: expected an integer in 1..4096")
@@ -257,7 +268,7 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
     if not isinstance(perts, list):
         raise ConfigError("perturbation: expected [[perturbation]] tables")
     perturbations = tuple(parse_perturbation(p, cells, f"perturbation[{i + 1}]") for i, p in enumerate(perts))
-    if d["model"] == "hil" and options.perturb_via == "firmware":
+    if model == "hil" and options.perturb_via == "firmware":
         for i, p in enumerate(perturbations):
             if abs(codec.si_to_raw("uN*m", p.torque_Nm)) > codec.LIMITS["PERTURB_MAX_UNM"]:
                 raise ConfigError(
@@ -269,15 +280,15 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         faults_in = [faults_in]
     if not isinstance(faults_in, list):
         raise ConfigError("fault: expected [[fault]] tables")
-    if faults_in and d["model"] != "image":
-        raise ConfigError(f"fault: only the image model injects faults into boards (model = {d['model']!r})")
+    if faults_in and model != "image":
+        raise ConfigError(f"fault: only the image model injects faults into boards (model = {model!r})")
     faults = tuple(parse_fault(f, cells, f"fault[{i + 1}]") for i, f in enumerate(faults_in))
     accuracy = check_level(d.get("accuracy", DEFAULT))
     explicit = tuple(d.get("model_options", {}).keys())
     return Scene(
         d["name"],
         desc,
-        d["model"],
+        model,
         cells,
         float(t_end),
         params,
@@ -287,6 +298,8 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         accuracy,
         explicit,
         faults,
+        question,
+        reason,
     )
 
 

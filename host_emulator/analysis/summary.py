@@ -107,6 +107,8 @@ def summarize(scene: Scene, res: RunResult, *, source: str | None = None) -> dic
     }
     if acc is not None:
         out["accuracy"] = acc
+    if getattr(scene, "model_reason", ""):
+        out["model_choice"] = {"question": scene.question, "reason": scene.model_reason}
     return clean(out)
 
 
@@ -115,7 +117,8 @@ def _as_run(scene: Scene, res: RunResult, source: str | None) -> tuple[Any, dict
     the emulator did not produce here (the rig, a rehearsal's recording) that carries no options: its
     model_options stay the scene's. The options come from the solver (RunResult.options), else from the scene's
     preset resolved again (accuracy.resolve_options: what build_solver applies)."""
-    from ..accuracy import record, resolve_options
+    from ..accuracy import KNOB_KEYS, record, resolve_options
+    from ..models.options import ModelOptions
 
     ran = getattr(res, "options", None)
     if ran is None:
@@ -124,4 +127,8 @@ def _as_run(scene: Scene, res: RunResult, source: str | None) -> tuple[Any, dict
         ran = resolve_options(
             scene.model, scene.params, scene.perturbations, scene.options, scene.accuracy, scene.explicit_options
         )
-    return ran, record(scene.model, scene.accuracy, scene.options, ran, scene.explicit_options)
+    pure = None  # the preset's own options, only needed where the scene set a knob itself
+    if any(k in KNOB_KEYS for k in scene.explicit_options):
+        base = dataclasses.replace(scene.options, **{k: getattr(ModelOptions(), k) for k in KNOB_KEYS})
+        pure = resolve_options(scene.model, scene.params, scene.perturbations, base, scene.accuracy)
+    return ran, record(scene.model, scene.accuracy, scene.options, ran, scene.explicit_options, pure)
