@@ -105,6 +105,11 @@ def _fmt(v, unit="", nd=4):
     return f"{v}{unit}"
 
 
+def _bonds(bonds) -> str:
+    """' at 4.5, 9.5' (the walls' bonds j + 0.5), or '' without walls."""
+    return " at " + ", ".join(f"{b:g}" for b in bonds) if bonds else ""
+
+
 def _print_summary(s, out, files):
     d = s.get("dispersion") or {}
     print(
@@ -116,7 +121,7 @@ def _print_summary(s, out, files):
         f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}"
     )
     print(
-        f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}   "
+        f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}{_bonds(s.get('domain_wall_bonds'))}   "
         f"wavelength 2(N-1)/Z: {_fmt(s['pattern_wavelength_cells'], ' cells')}   "
         f"dominant mode: {_fmt(s['dominant_mode'])} ({_fmt(s['dominant_mode_lambda_cells'], ' cells')})"
     )
