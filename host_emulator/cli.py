@@ -1,4 +1,4 @@
-"""Command line: `python -m host_emulator scenes | run SCENE | dispersion ... | bench-speed | bench`."""
+"""Command line: `python -m host_emulator scenes | run SCENE | plot PATH | dispersion ... | bench-speed | bench`."""
 
 from __future__ import annotations
 
@@ -67,7 +67,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .workbench.datasets import write_run
 
     write_run(out / "trajectories.npz", scene, res.t, res.alpha, res.beta, summary, summary["source"])
-    files = [] if args.no_plots else plot_run(res, scene, out)
+    files = [] if args.no_plots else plot_run(res, scene, out, fmt=args.format, column=args.column)
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _print_summary(summary, out, files)
@@ -192,6 +192,7 @@ SUBCOMMANDS = {
     "bench": (".benchmarks.cli", "main"),
     "image": (".image.cli", "image_main"),
     "boards": (".image.boards", "boards_main"),
+    "plot": (".workbench.figures", "plot_main"),
 }
 
 
@@ -273,12 +274,24 @@ def _main(argv=None) -> int:
         metavar="SECONDS",
         help="print max |alpha|, |beta| every SECONDS of simulated time",
     )
-    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.add_argument("--no-plots", action="store_true", help="skip the plots")
+    r.add_argument(
+        "--format",
+        choices=("png", "pdf", "svg"),
+        default="png",
+        help="the plots' file format (default png; pdf and svg for a paper)",
+    )
+    r.add_argument("--column", action="store_true", help="plots one paper column wide (3.4 in), fonts to match")
     r.add_argument(
         "--accuracy",
         choices=("fast", "balanced", "exact"),
         default=None,
         help="stepper/step/model fidelity preset (default: the scene's, else balanced; docs/accuracy.md)",
+    )
+    sub.add_parser(
+        "plot",
+        help="figures of a run or capture as PNG, PDF or SVG (see plot --help)",
+        epilog="example: python -m host_emulator plot --help",
     )
     sub.add_parser(
         "dispersion",
