@@ -1,4 +1,4 @@
-"""Command line: `python -m host_emulator scenes | run SCENE | plot PATH | dispersion ... | bench-speed | bench`."""
+"""Command line: `python -m host_emulator scenes | run SCENE | plot PATH | runs DIR | dispersion ... | bench ...`."""
 
 from __future__ import annotations
 
@@ -193,6 +193,7 @@ SUBCOMMANDS = {
     "image": (".image.cli", "image_main"),
     "boards": (".image.boards", "boards_main"),
     "plot": (".workbench.figures", "plot_main"),
+    "runs": (".workbench.catalogue", "runs_main"),
 }
 
 
@@ -292,6 +293,11 @@ def _main(argv=None) -> int:
         "plot",
         help="figures of a run or capture as PNG, PDF or SVG (see plot --help)",
         epilog="example: python -m host_emulator plot --help",
+    )
+    sub.add_parser(
+        "runs",
+        help="a catalogue of the runs and captures under a folder (see runs --help)",
+        epilog="example: python -m host_emulator runs --help",
     )
     sub.add_parser(
         "dispersion",
