@@ -34,8 +34,11 @@ def plot_main(argv: list[str] | None) -> int:
     from .plots import plot_run
 
     src = Path(args.path)
-    out = Path(args.out) if args.out else (src if src.is_dir() else src.parent)
-    made = not out.exists()
+    try:
+        out = Path(args.out) if args.out else (src if src.is_dir() else src.parent)
+        made = not out.exists()  # removed again (if still empty) when the input is refused
+    except OSError:  # a name too long for the file system: check_out_dir or load says so
+        out, made = Path(args.out) if args.out else src.parent, False
     problem = check_out_dir(out) if args.out else None  # a given --out: checked before any work
     if problem:
         print(f"plot: error: {problem}", file=sys.stderr)

@@ -37,7 +37,7 @@ WALK = [
     ),
     ("serve", "host_emulator", ["serve", "default", "--duration", "600"], "--link", [], "link"),
     ("animate", "host_emulator", ["animate", "default"], "--out", [], "gif"),
-    ("plot", "host_emulator", ["plot", "{emu}"], "--out", [], "dir"),
+    ("plot", "host_emulator", ["plot", "{rig}"], "--out", [], "dir"),
     ("bench", "host_emulator", ["bench"], "--out", [], "dir"),
     ("sweep-bench-json", "host_emulator.benchmarks.sweep", [], "--json", [], "file"),
     ("sweep-bench-plot", "host_emulator.benchmarks.sweep", [], "--plot", [], "file"),
