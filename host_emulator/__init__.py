@@ -9,6 +9,7 @@ Python API (imports are lazy, so ``import host_emulator`` is cheap)::
     he.plot_spacetime(r)                                       # a matplotlib Figure
     he.sweep("default", {"params.sigma": [0.05, 0.07]}, seeds=2, out="out/sw")   # xarray.Dataset
     d = he.design("lambda=10", push="8", out="out/d")   # parameters for a target pattern (design.json's content)
+    he.runs("out")                  # pandas table of every run and capture under a folder
 """
 
 __all__ = [
@@ -19,6 +20,7 @@ __all__ = [
     "sweep",
     "design",
     "load",
+    "runs",
     "plot_spacetime",
     "plot_final",
     "plot_dispersion",
@@ -40,6 +42,7 @@ _LAZY = {
     "sweep": "workbench.sweep",
     "design": "workbench.design",
     "load": "workbench.datasets",
+    "runs": "workbench.catalogue",
     "plot_phase_diagram": "workbench.sweep",
     "plot_regime_map": "workbench.sweep",
 }

@@ -1,4 +1,4 @@
-"""Command line: `python -m host_emulator scenes | run SCENE | dispersion ... | bench-speed | bench`."""
+"""Command line: `python -m host_emulator scenes | run SCENE | plot PATH | runs DIR | dispersion ... | bench ...`."""
 
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .workbench.datasets import write_run
 
     write_run(out / "trajectories.npz", scene, res.t, res.alpha, res.beta, summary, summary["source"])
-    files = [] if args.no_plots else plot_run(res, scene, out)
+    files = [] if args.no_plots else plot_run(res, scene, out, fmt=args.format, column=args.column)
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     _print_summary(summary, out, files)
@@ -108,6 +108,11 @@ def _fmt(v, unit="", nd=4):
     return f"{v}{unit}"
 
 
+def _bonds(bonds) -> str:
+    """' at 4.5, 9.5' (the walls' bonds j + 0.5), or '' without walls."""
+    return " at " + ", ".join(f"{b:g}" for b in bonds) if bonds else ""
+
+
 def _print_summary(s, out, files):
     d = s.get("dispersion") or {}
     print(
@@ -119,7 +124,7 @@ def _print_summary(s, out, files):
         f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}"
     )
     print(
-        f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}   "
+        f"  at rest: {s['at_rest']}   domain walls: {s['domain_walls']}{_bonds(s.get('domain_wall_bonds'))}   "
         f"wavelength 2(N-1)/Z: {_fmt(s['pattern_wavelength_cells'], ' cells')}   "
         f"dominant mode: {_fmt(s['dominant_mode'])} ({_fmt(s['dominant_mode_lambda_cells'], ' cells')})"
     )
@@ -200,6 +205,8 @@ SUBCOMMANDS = {
     "bench": (".benchmarks.cli", "main"),
     "image": (".image.cli", "image_main"),
     "boards": (".image.boards", "boards_main"),
+    "plot": (".workbench.figures", "plot_main"),
+    "runs": (".workbench.catalogue", "runs_main"),
 }
 
 
@@ -282,7 +289,14 @@ def _main(argv=None) -> int:
         metavar="SECONDS",
         help="print max |alpha|, |beta| every SECONDS of simulated time",
     )
-    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.add_argument("--no-plots", action="store_true", help="skip the plots")
+    r.add_argument(
+        "--format",
+        choices=("png", "pdf", "svg"),
+        default="png",
+        help="the plots' file format (default png; pdf and svg for a paper)",
+    )
+    r.add_argument("--column", action="store_true", help="plots one paper column wide (3.4 in), fonts to match")
     r.add_argument(
         "--accuracy",
         choices=("fast", "balanced", "exact"),
@@ -295,6 +309,16 @@ def _main(argv=None) -> int:
         default=None,
         help="run this model instead of the scene's; auto: the cheapest tier that models the scene's `question` "
         "(pattern, oscillation, growth, continuum, bus, timing, faults), said in one line (docs/accuracy.md#tiers)",
+    )
+    sub.add_parser(
+        "plot",
+        help="figures of a run or capture as PNG, PDF or SVG (see plot --help)",
+        epilog="example: python -m host_emulator plot --help",
+    )
+    sub.add_parser(
+        "runs",
+        help="a catalogue of the runs and captures under a folder (see runs --help)",
+        epilog="example: python -m host_emulator runs --help",
     )
     sub.add_parser(
         "dispersion",

@@ -8,7 +8,9 @@ Definitions (t in s, alpha/beta (T, N) in rad, cells j = 1..N at x_j = j - 1/2):
   [pi/N, pi] (wavelengths 2..2N cells), by least squares with A cos(kappa x_j) + B sin(kappa x_j); the
   kappa explaining most variance (grid, then refined) gives lambda = 2 pi / kappa. None when the profile
   is flat (peak-to-peak < tol_rad).
-* oscillation_period_s: on the cell that moves most after the peak excursion, y = alpha - (median over W),
+* oscillation_period_s: reported only when the final window W shows the motion (the run is not steady and the
+  last crossing below lies in W: ringing that has died out before the end is no oscillation). On the cell that
+  moves most after the peak excursion, y = alpha - (median over W),
   zero crossings with hysteresis (|y| must exceed the band on each side) are located by linear
   interpolation; with >= 3 crossings c_0..c_n, period = 2 (c_k - c_0) / k with k the largest even index
   (same-direction crossings, so an offset reference does not bias it). None otherwise.
@@ -30,6 +32,9 @@ How the source paper reads a pattern (its convention, reported beside the least-
 * pattern_wavelength_cells = 2 (N - 1) / Z: the wavelength in lattice spacings over the N - 1 spacings
   of the chain (30 / Z for 16 cells: one full period across the chain is 15, one and a half is 10,
   two is 7.5); None when Z = 0.
+* domain_wall_bonds: where the Z walls are: for each, the bond between cells j and j + 1 written j + 1/2 (as
+  design's targets are), at the zero of the straight line between the two cells of the sign change, rounded
+  to the nearest bond; [] at rest.
 * dominant_mode m: the free-end chain's linear modes are cos(pi m (j - 1/2) / N), m = 0..N-1 (wavelength
   2N/m cells); m is the index of the largest coefficient of the orthonormal cosine transform (DCT-II)
   of the final alpha profile; dominant_mode_lambda_cells = 2N/m (None for m = 0, the uniform mode).
@@ -38,6 +43,7 @@ How the source paper reads a pattern (its convention, reported beside the least-
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -51,6 +57,7 @@ __all__ = [
     "growth_rate",
     "is_steady",
     "domain_walls",
+    "domain_wall_bonds",
     "dominant_mode",
     "is_at_rest",
 ]
@@ -165,9 +172,15 @@ def _crossings(t, y, band):
 
 
 def temporal_period(
-    t: np.ndarray, alpha: np.ndarray, *, settle_window_s: float | None = None, tol_rad: float = DEFAULT_TOL_RAD
+    t: np.ndarray,
+    alpha: np.ndarray,
+    *,
+    settle_window_s: float | None = None,
+    tol_rad: float = DEFAULT_TOL_RAD,
+    until_the_end: bool = False,
 ) -> float | None:
-    """Temporal period (s) of the late motion, or None (see module docstring)."""
+    """Temporal period (s) of the late motion, or None (see module docstring). until_the_end: None unless the
+    last crossing lies in the final window (the motion goes on to the end of the run, not ringing that died)."""
     t = np.asarray(t, dtype=float)
     alpha = np.asarray(alpha, dtype=float)
     if alpha.ndim == 1:
@@ -184,6 +197,8 @@ def temporal_period(
     band = max(0.5 * tol_rad, 1e-9 * np.abs(y).max())  # one encoder count: quantisation jitter is no oscillation
     cr = _crossings(t[i0:], y, band)
     if len(cr) < 3:
+        return None
+    if until_the_end and cr[-1] < t[idx[0]]:
         return None
     k = (len(cr) - 1) // 2 * 2  # whole periods only: crossings in the same direction
     return 2.0 * (cr[k] - cr[0]) / k
@@ -229,6 +244,24 @@ def domain_walls(profile: np.ndarray, *, threshold_rad: float = WALL_THRESHOLD_R
     return int(np.count_nonzero(s[1:] != s[:-1]))
 
 
+def domain_wall_bonds(
+    profile: np.ndarray, *, threshold_rad: float = WALL_THRESHOLD_RAD, skip: Sequence[int] = ()
+) -> list[float]:
+    """Bond positions j + 0.5 of the sign changes counted by domain_walls (cells 1..N; skip: cells left out, as
+    design's rest cells), each at the zero of the straight line between the two cells, rounded to the nearest
+    bond (see module docstring)."""
+    if not (math.isfinite(threshold_rad) and threshold_rad >= 0):
+        raise ValueError(f"threshold_rad={threshold_rad!r} must be finite and >= 0")
+    u = np.asarray(profile, dtype=float)
+    keep = [j for j in range(u.size) if abs(u[j]) > threshold_rad and (j + 1) not in skip]
+    out = []
+    for a, b in zip(keep[:-1], keep[1:]):
+        if np.sign(u[a]) != np.sign(u[b]):
+            x = a + (b - a) * u[a] / (u[a] - u[b]) + 1.0  # 1-based position of the zero
+            out.append(math.floor(x) + 0.5 if x % 1 else x + 0.5)
+    return out
+
+
 def dominant_mode(profile: np.ndarray) -> int:
     """Index m of the largest orthonormal DCT-II coefficient: free-end chain mode cos(pi m (j - 1/2) / N)."""
     from scipy.fft import dct
@@ -271,16 +304,20 @@ def observables(
     at_rest = is_at_rest(t, alpha, beta, settle_window_s=settle_window_s, rest_tol_rad=rest_tol_rad)
     n = alpha.shape[1]
     walls = 0 if at_rest else domain_walls(alpha[-1], threshold_rad=wall_threshold_rad)
+    bonds = [] if at_rest else domain_wall_bonds(alpha[-1], threshold_rad=wall_threshold_rad)
     mode = None if at_rest else dominant_mode(alpha[-1])
     return {
         "steady": steady,
         "at_rest": at_rest,
         "domain_walls": walls,
+        "domain_wall_bonds": bonds,
         "pattern_wavelength_cells": (2.0 * (n - 1) / walls) if walls else None,
         "dominant_mode": mode,
         "dominant_mode_lambda_cells": (2.0 * n / mode) if mode else None,
         "pattern_period_cells": None if at_rest else spatial_period(alpha[-1], tol_rad=tol_rad),
-        "oscillation_period_s": temporal_period(t, alpha, settle_window_s=settle_window_s, tol_rad=tol_rad),
+        "oscillation_period_s": None
+        if steady
+        else temporal_period(t, alpha, settle_window_s=settle_window_s, tol_rad=tol_rad, until_the_end=True),
         "amplitude_rad": float(np.abs(alpha[-1]).max()),
         "final_alpha_rad": [float(v) for v in alpha[-1]],
         "final_beta_rad": [float(v) for v in beta[-1]],

@@ -157,6 +157,7 @@ def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
             "steady",
             "at_rest",
             "domain_walls",
+            "domain_wall_bonds",
             "pattern_wavelength_cells",
             "dominant_mode",
             "pattern_period_cells",

@@ -326,7 +326,14 @@ def _scene_attrs(s: dict) -> dict:
         },
         out,
     )
-    for k in ("steady", "at_rest", "domain_walls", "pattern_wavelength_cells", "oscillation_period_s"):
+    for k in (
+        "steady",
+        "at_rest",
+        "domain_walls",
+        "domain_wall_bonds",
+        "pattern_wavelength_cells",
+        "oscillation_period_s",
+    ):
         if k in s:
             _flat(f"observable.{k}", s[k], out)
     if s.get("provenance"):

@@ -62,6 +62,20 @@ FIG2_RUNS: dict[str, tuple[str, list[str], int]] = {
     "b": ("exp3_single_sigma6", [], 2),
 }
 FIG3_RUNS = {"a": ("exp5_rest", 0), "b": ("exp1_ccw_ccw", 2), "c": ("exp2_ccw_cw", 3)}
+# each run item's noise-seed check: (scene, overrides, the source's result, with encoder jitter too); the scenes
+# of `robustness` run as it runs them (its model: hil wherever the rig's noise is modelled), so the fractions are
+# its figures
+SEED_CHECKS: dict[str, tuple[str, list[str], object, bool]] = {
+    "2a.ii": ("exp3_single_sigma9", ["model=hil"], 4, True),
+    "2b.ii": ("exp3_single_sigma6", ["model=hil"], 2, True),
+    "2c.ii lattice": ("exp3_single_sigma14", ["model=lattice"], SOURCE_PERIOD_S, False),
+    "2c.ii hil": ("exp3_single_sigma14", ["model=hil", "params.bemf_comp=true"], SOURCE_PERIOD_S, True),
+    "exp. 4": ("exp4_stable_eta10", ["model=hil"], "rest", True),
+    "3a": ("exp5_rest", ["model=hil"], "rest", True),
+    "3b": ("exp1_ccw_ccw", ["model=hil"], 2, True),
+    "3c": ("exp2_ccw_cw", ["model=hil"], 3, True),
+}
+DEFAULT_SEEDS = 20
 
 
 @dataclass
@@ -73,6 +87,10 @@ class Item:
     agree: bool
     note: str = ""
     extra: dict = field(default_factory=dict)
+    # the noise-seed check of an item that comes from runs: (scene, overrides, the source's result, jitter too)
+    check: tuple[str, list[str], object, bool] | None = None
+    seeds: float | None = None  # fraction of the noise seeds selecting the source's result
+    seeds_jitter: float | None = None  # the same with encoder jitter (hil runs only)
 
     def as_dict(self) -> dict:
         return {
@@ -83,6 +101,8 @@ class Item:
             "agree": bool(self.agree),
             "note": self.note,
             **self.extra,
+            "seeds": self.seeds,
+            "seeds_jitter": self.seeds_jitter,
         }
 
 
@@ -149,6 +169,7 @@ def fig2_runs(items: list[Item]) -> dict[str, Any]:
         sc, res, o = _run(scene, sets)
         runs[key] = (sc, res)
         items.append(_walls_item(f"2{key}.ii", f"pattern after one push on alpha_8, sigma = {SIGMAS[key][0]}", z, [o]))
+        items[-1].check = SEED_CHECKS[f"2{key}.ii"]
     # c.ii: 14/125, eta x1 oscillates (actuator-limited lattice; hil with back-EMF compensation), eta x10 rests
     sc, res, o = _run("exp3_single_sigma14", ["model=lattice", "model_options.dt_out=0.002"])
     runs["c1"] = (sc, res)
@@ -161,6 +182,7 @@ def fig2_runs(items: list[Item]) -> dict[str, Any]:
             per,
             per is not None and abs(per - SOURCE_PERIOD_S) <= PERIOD_TOL * SOURCE_PERIOD_S,
             note=f"dominant mode {o['dominant_mode']} (0 = uniform), amplitude {o['amplitude_rad']:.3f} rad",
+            check=SEED_CHECKS["2c.ii lattice"],
         )
     )
     sc, res, o = _run("exp3_single_sigma14", ["params.bemf_comp=true"])
@@ -174,6 +196,7 @@ def fig2_runs(items: list[Item]) -> dict[str, Any]:
             per,
             per is not None and abs(per - SOURCE_PERIOD_S) <= PERIOD_TOL * SOURCE_PERIOD_S,
             note="the firmware's velocity estimate sets this period (docs/band-stiffness.md)",
+            check=SEED_CHECKS["2c.ii hil"],
         )
     )
     sc, res, o = _run("exp4_stable_eta10", [])
@@ -185,6 +208,7 @@ def fig2_runs(items: list[Item]) -> dict[str, Any]:
             "rest",
             "rest" if o["at_rest"] else "moving",
             o["at_rest"],
+            check=SEED_CHECKS["exp. 4"],
         )
     )
     return runs
@@ -212,7 +236,39 @@ def fig3_runs(items: list[Item], repeats: int) -> dict[str, Any]:
             )
         else:
             items.append(_walls_item(f"3{key}", f"pattern of {scene} ({repeats} noisy repeats)", z, obs))
+        items[-1].check = SEED_CHECKS[f"3{key}"]
     return runs
+
+
+def seed_checks(items: list[Item], seeds: int) -> None:
+    """Each run item's fraction of `seeds` noise seeds (and of the same with encoder jitter) selecting the source's
+    result (robustness.seed_fractions: its seeds, its noise, its agreement rule)."""
+    from .robustness import seed_fractions
+
+    for it in items:
+        if it.check is None or seeds < 1:
+            continue
+        name, sets, want, jitter = it.check
+        it.seeds, it.seeds_jitter = seed_fractions(name, sets, want, seeds, jitter=jitter)
+
+
+def _seed_runs(seeds: int) -> int:
+    return sum(seeds * (2 if jitter else 1) for _, _, _, jitter in SEED_CHECKS.values())
+
+
+def seed_counts(doc: dict) -> dict:
+    """What the seeds say, over the items that come from runs: how many every seed selects, most seeds (more than
+    half), fewer; each for the plain noise and with encoder jitter (items run on the lattice have no jitter)."""
+    out: dict = {}
+    for key in ("seeds", "seeds_jitter"):
+        fr = [i[key] for i in doc["items"] if i.get(key) is not None]
+        out[key] = {
+            "items": len(fr),
+            "every_seed": sum(f == 1.0 for f in fr),
+            "most_seeds": sum(0.5 < f < 1.0 for f in fr),
+            "at_most_half": sum(f <= 0.5 for f in fr),
+        }
+    return out
 
 
 # ---- figures ----------------------------------------------------------------------------------------
@@ -363,16 +419,19 @@ def draw_fig3(runs: dict[str, Any], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def build(out: Path, repeats: int = 10, *, quiet: bool = False) -> dict:
-    """Run every item, draw the figures into out/, write out/paper.json; returns its content. A progress bar (one
-    step per run) on a terminal unless quiet."""
+def build(out: Path, repeats: int = 10, *, seeds: int = 0, quiet: bool = False) -> dict:
+    """Run every item, check each run item over `seeds` noise seeds (0, the default here: no check; the command's
+    default is DEFAULT_SEEDS), draw the figures into out/, write out/paper.json; returns its content. A progress bar
+    (one step per run) on a terminal unless quiet."""
     t0 = time.perf_counter()
     items: list[Item] = []
     curves = fig2_theory(items)
-    _BAR[0] = bar(len(FIG2_RUNS) + 3 + len(FIG3_RUNS) * repeats, desc="paper", unit="run", quiet=quiet)
+    total = len(FIG2_RUNS) + 3 + len(FIG3_RUNS) * repeats + _seed_runs(seeds)
+    _BAR[0] = bar(total, desc="paper", unit="run", quiet=quiet)
     try:
         runs2 = fig2_runs(items)
         runs3 = fig3_runs(items, repeats)
+        seed_checks(items, seeds)
     finally:
         _BAR[0].close()
         _BAR[0] = None
@@ -386,17 +445,20 @@ def build(out: Path, repeats: int = 10, *, quiet: bool = False) -> dict:
         "agree": sum(i.agree for i in items),
         "total": len(items),
         "repeats": repeats,
+        "seeds": seeds,
         "noise": NOISE,
         "period_tolerance": PERIOD_TOL,
         "files": files,
         "wall_s": time.perf_counter() - t0,
     }
+    doc["seed_counts"] = seed_counts(doc)
     (out / "paper.json").write_text(json.dumps(doc, indent=2, default=_json_default) + "\n")
     return doc
 
 
-def paper_budget(repeats: int) -> str | None:
-    """The runs of `paper` (Fig. 2's five, Fig. 3's three panels x repeats) against the batch limit."""
+def paper_budget(repeats: int, seeds: int = DEFAULT_SEEDS) -> str | None:
+    """The runs of `paper` (Fig. 2's five, Fig. 3's three panels x repeats, each run item's seeds) against the batch
+    limit."""
     runs = [(s, sets) for s, sets, _ in FIG2_RUNS.values()] + [  # as fig2_runs runs them
         ("exp3_single_sigma14", ["model=lattice", "model_options.dt_out=0.002"]),
         ("exp3_single_sigma14", ["params.bemf_comp=true"]),
@@ -404,7 +466,10 @@ def paper_budget(repeats: int) -> str | None:
     ]
     fixed = sum(scene_cost(load_scene(n, sets)) for n, sets in runs)
     per = sum(scene_cost(load_scene(n, ["model=hil"])) for n, _ in FIG3_RUNS.values())
-    return batch_budget(fixed + repeats * per, f"paper --repeats {repeats}")
+    checks = sum(
+        seeds * (2 if jitter else 1) * scene_cost(load_scene(n, sets)) for n, sets, _, jitter in SEED_CHECKS.values()
+    )
+    return batch_budget(fixed + repeats * per + checks, f"paper --repeats {repeats} --seeds {seeds}")
 
 
 def _json_default(v):
@@ -435,12 +500,19 @@ def aligned(rows: list[list[str]], header: list[str], right: Sequence[int] = ())
     return [line(header), "  ".join("-" * w for w in widths)] + [line(r).rstrip() for r in rows]
 
 
+def _pct(v) -> str:
+    return "-" if v is None else f"{100 * v:.0f} %"
+
+
 def print_table(doc: dict, file: TextIO = sys.stdout) -> None:
+    seeds = doc.get("seeds", 0)
     rows = [
         [i["figure"], i["item"], _short(i["source"]), _short(i["ours"]), "yes" if i["agree"] else "NO"]
+        + ([_pct(i.get("seeds")), _pct(i.get("seeds_jitter"))] if seeds else [])
         for i in doc["items"]
     ]
-    for ln in aligned(rows, ["fig", "item", "source", "ours", "agree"]):
+    header = ["fig", "item", "source", "ours", "agree"] + (["seeds", "+jitter"] if seeds else [])
+    for ln in aligned(rows, header, right=(5, 6) if seeds else ()):
         print(ln, file=file)
     print(
         "legend: fig = the source's panel (exp. 4: its text, no panel); source = its number or classification in our "
@@ -448,30 +520,73 @@ def print_table(doc: dict, file: TextIO = sys.stdout) -> None:
         "host_emulator/workbench/paper.py (walls equal; period within 10 %; regimes equal; rest).",
         file=file,
     )
+    if seeds:
+        print(
+            f"        seeds = the fraction of {seeds} noise seeds (5 % spread of band stiffness and honey viscosity) "
+            "whose run selects the source's result;\n        +jitter = the same with 0.5 count rms encoder jitter "
+            "(hil runs); as `robustness --seeds N` counts them (- : a theory item, or no jitter on the lattice).",
+            file=file,
+        )
     print(f"{doc['agree']} of {doc['total']} items agree ({doc['repeats']} repeats, {doc['wall_s']:.1f} s)", file=file)
+    if seeds:
+        print(seeds_line(doc), file=file)
+
+
+def seeds_line(doc: dict) -> str:
+    """The summary of what the seeds say (seed_counts), naming the items that fewer than every seed select."""
+    c = doc["seed_counts"]
+
+    def counts(k: str) -> str:
+        n = c[k]
+        return (
+            f"every seed selects it in {n['every_seed']}, most seeds in {n['most_seeds']}, "
+            f"half or fewer in {n['at_most_half']}"
+        )
+
+    weak = [
+        f"{i['figure']} {_pct(i['seeds'])}"
+        + (f" ({_pct(i['seeds_jitter'])} with jitter)" if i["seeds_jitter"] is not None else "")
+        for i in doc["items"]
+        if i.get("seeds") is not None
+        and (i["seeds"] < 1.0 or (i["seeds_jitter"] is not None and i["seeds_jitter"] < 1.0))
+    ]
+    return (
+        f"over {doc['seeds']} noise seeds, of the {c['seeds']['items']} items from runs: {counts('seeds')}; "
+        f"with encoder jitter, of {c['seeds_jitter']['items']}: {counts('seeds_jitter')}"
+        + (f"\nbelow every seed: {', '.join(weak)}" if weak else "")
+    )
 
 
 def paper_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator paper",
         description="Regenerate the source paper's Fig. 2 and Fig. 3 and compare item by item.",
-        epilog="example: python -m host_emulator paper --out out/paper --repeats 10",
+        epilog="example: python -m host_emulator paper --out out/paper --repeats 10 --seeds 20",
     )
     ap.add_argument("--out", default="out/paper", help="output directory (default out/paper)")
     ap.add_argument(
         "--repeats", type=int, default=10, help="noisy hil repeats per Fig. 3 panel (default 10, as the rig)"
+    )
+    ap.add_argument(
+        "--seeds",
+        type=int,
+        default=DEFAULT_SEEDS,
+        help=f"noise seeds checking each run item, as `robustness` (default {DEFAULT_SEEDS}; 0: no check)",
     )
     ap.add_argument("--quiet", action="store_true", help="no progress bar (it shows on a terminal only anyway)")
     args = ap.parse_args(argv)
     if not 1 <= args.repeats <= 1000:
         print(f"paper: error: --repeats {args.repeats}: must be in 1..1000", file=sys.stderr)
         return 2
+    if not 0 <= args.seeds <= 10000:
+        print(f"paper: error: --seeds {args.seeds}: must be in 0..10000", file=sys.stderr)
+        return 2
     out = Path(args.out)
-    problem = check_out_dir(out) or paper_budget(args.repeats)
+    problem = check_out_dir(out) or paper_budget(args.repeats, args.seeds)
     if problem:
         print(f"paper: error: {problem}", file=sys.stderr)
         return 2
-    doc = build(out, args.repeats, quiet=args.quiet)
+    doc = build(out, args.repeats, seeds=args.seeds, quiet=args.quiet)
     print_table(doc)
     print(f"wrote {out}/paper.json, " + ", ".join(f"{out}/{f}" for f in doc["files"]))
     return 0 if doc["agree"] == doc["total"] else 1

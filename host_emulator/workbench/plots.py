@@ -48,17 +48,25 @@ def _save(fig, path):
 
 
 def _arrays(run, alpha=None, beta=None):
+    """(t, alpha, beta, view): arrays given as such, or any input inputs.as_run reads (view None for arrays)."""
     if alpha is not None:
-        return np.asarray(run, dtype=float), np.asarray(alpha, dtype=float), np.asarray(beta, dtype=float)
-    t = getattr(run, "time", None)
-    if t is None:
-        t = run.t
-    return np.asarray(t, dtype=float), np.asarray(run.alpha, dtype=float), np.asarray(run.beta, dtype=float)
+        return np.asarray(run, dtype=float), np.asarray(alpha, dtype=float), np.asarray(beta, dtype=float), None
+    from .inputs import as_run
+
+    v = as_run(run)
+    return v.time, v.alpha, v.beta, v
+
+
+def _abs_max(x) -> float:
+    """max |x| over the finite samples (0.0 when there are none: a capture's cell that never sent one)."""
+    x = np.abs(np.asarray(x, dtype=float))
+    x = x[np.isfinite(x)]
+    return float(x.max()) if x.size else 0.0
 
 
 def _growth_end(t, alpha, frac=0.9):
     """Time at which max_j |alpha_j| first reaches `frac` of its final-window level (the pattern has formed)."""
-    amp = np.abs(alpha).max(axis=1)
+    amp = np.abs(np.nan_to_num(alpha, nan=0.0)).max(axis=1)
     level = np.median(amp[int(0.9 * len(amp)) :]) if len(amp) > 10 else amp[-1]
     if not level > 0:
         return None
@@ -66,8 +74,40 @@ def _growth_end(t, alpha, frac=0.9):
     return float(t[k[0]]) if len(k) else None
 
 
+def _title_attrs(attrs: dict, title: str = "") -> str:
+    """A title from a dataset's attributes (a run loaded back, a capture): name (source), sigma and the pushes."""
+    name = title or str(attrs.get("scene") or "") or Path(str(attrs.get("origin") or "")).name
+    src = str(attrs.get("source") or "")
+    head = name + (f" ({src})" if src and not title and src not in name else "")
+    sig = attrs.get("params.sigma")
+    pushes, k = [], 1
+    while f"perturbation.{k}.cell" in attrs:
+        q = {f: attrs.get(f"perturbation.{k}.{f}") for f in ("chain", "cell", "torque_Nm", "duration_s")}
+        try:
+            tq = float(q["torque_Nm"]) * 1e3  # type: ignore[arg-type]  # a bad value: TypeError, caught
+            pushes.append(f"{tq:+.0f} mN·m on {q['chain']}_{q['cell']} for {q['duration_s']} s")
+        except (TypeError, ValueError):
+            pass
+        k += 1
+    if sig is None:
+        return head
+    sv = np.ravel(np.asarray(sig, dtype=float))
+    sig_text = f"sigma per cell {sv.min():.4g}..{sv.max():.4g}" if sv.size > 1 else f"sigma = {sv[0]:.4g}"
+    return head + f"\n{sig_text} N·m/rad; push: {', '.join(pushes) or 'no push'}"
+
+
+def _title_of(view, scene=None, title=""):
+    if scene is not None and hasattr(scene, "params"):
+        return _title(scene, title)
+    if view is not None and view.scene is not None:
+        return _title(view.scene, title)
+    if view is not None and view.attrs:
+        return _title_attrs(view.attrs, title)
+    return title
+
+
 def _title(scene=None, title=""):
-    if scene is None:
+    if scene is None or not hasattr(scene, "params"):
         return title
     p = scene.params
     push = (
@@ -100,10 +140,10 @@ def plot_spacetime(
     """Space-time maps of alpha and beta (cells x time); with growth_panel, a second column zooms on the
     growth phase (until the pattern reaches 90 % of its final amplitude, at least 0.5 s).
 
-    run: a RunResult (api or controller), or t with alpha=, beta= arrays (T, N). ax/axes: one Axes (alpha only)
-    or a sequence of 2 (alpha, beta) or 4 (alpha, beta, alpha zoom, beta zoom). Returns the Figure."""
-    t, a, b = _arrays(run, alpha, beta)
-    scene = scene if scene is not None else getattr(run, "scene", None)
+    run: a RunResult (api or controller), an xarray Dataset of the run layout (r.to_xarray(), he.load(...)), a run
+    directory or a capture path (anything he.load opens), or t with alpha=, beta= arrays (T, N). ax/axes: one Axes
+    (alpha only) or a sequence of 2 (alpha, beta) or 4 (alpha, beta, alpha zoom, beta zoom). Returns the Figure."""
+    t, a, b, view = _arrays(run, alpha, beta)
     if axes is None and ax is not None:
         axes = [ax] if not isinstance(ax, (list, tuple, np.ndarray)) else list(np.ravel(ax))
     if axes is None:
@@ -127,7 +167,7 @@ def plot_spacetime(
     for axi, data, lab, tz in panels:
         sel = slice(None) if tz is None else slice(0, int(np.searchsorted(t, tz, side="right")))
         d, tt = data[sel], t[sel]
-        lim = float(np.abs(data).max()) or 1.0
+        lim = _abs_max(data) or 1.0
         im = axi.imshow(
             d.T,
             aspect="auto",
@@ -145,7 +185,7 @@ def plot_spacetime(
             fig.colorbar(im, ax=axi, label=f"{lab} (rad)")
         else:
             axi.set_title(f"{lab}: growth phase, 0-{tz:.2g} s", fontsize=9)
-    axes[0].set_title(_title(scene, title) or "space-time", fontsize=9)
+    axes[0].set_title(_title_of(view, scene, title) or "space-time", fontsize=9)
     return fig
 
 
@@ -158,12 +198,14 @@ def plot_final(
     scene: Scene | None = None,
     title: str = "",
 ) -> FigureBase:
-    """Final alpha and beta profile against cell index. run: a RunResult, or final alpha with beta= (N,)."""
-    if alpha is None and not hasattr(run, "alpha"):
-        raise TypeError("plot_final(run) or plot_final(alpha_final, beta_final)")
-    if hasattr(run, "alpha"):
-        a, b = np.asarray(run.alpha)[-1], np.asarray(run.beta)[-1]
-        scene = scene if scene is not None else getattr(run, "scene", None)
+    """Final alpha and beta profile against cell index (each cell's last sample). run: a RunResult, an xarray
+    Dataset of the run layout, a run directory or a capture path, or final alpha with beta= (N,)."""
+    view = None
+    if alpha is None:
+        from .inputs import as_run
+
+        view = as_run(run)
+        a, b = view.final("alpha"), view.final("beta")
     else:
         a, b = np.asarray(run, dtype=float), np.asarray(alpha, dtype=float)  # plot_final(alpha, beta)
     if ax is None:
@@ -178,12 +220,12 @@ def plot_final(
     ax.set_ylabel("angle (rad)")
     cell_ticks(ax.xaxis, len(j))
     ax.legend()
-    ax.set_title(_title(scene, title) or "final pattern", fontsize=9)
+    ax.set_title(_title_of(view, scene, title) or "final pattern", fontsize=9)
     return fig
 
 
 def plot_dispersion(
-    params: Params,
+    params: Any,
     *,
     ax: Axes | None = None,
     inertia: bool = False,
@@ -192,8 +234,22 @@ def plot_dispersion(
 ) -> FigureBase:
     """Growth rate against wavelength (analysis.stability.plot_dispersion) of the given theory (theory_of(model,
     params, inertia); default the lattice with or without inertia); the measured period, if given, is marked as a
-    horizontal line at its angular frequency 2 pi / T. Returns the Figure."""
+    horizontal line at its angular frequency 2 pi / T. Returns the Figure.
+
+    params: a Params, or a run (a RunResult, a Dataset of the run layout, a run directory): its parameters, and its
+    model's theory unless theory= is given (a capture carries no parameters: ValueError)."""
     from ..analysis.stability import plot_dispersion as _pd
+    from ..params import Params
+
+    if not isinstance(params, Params):
+        from .inputs import as_run
+
+        view = as_run(params)
+        params = view.params
+        if params is None:
+            raise ValueError(f"plot_dispersion: {view.name or 'this run'} carries no parameters (a capture?)")
+        theory = theory if theory is not None else view.theory()
+        params = params.uniform() if params.heterogeneous else params
 
     if ax is None:
         fig = new_figure(figsize=(7, 4.2), constrained_layout=True)
@@ -254,9 +310,10 @@ def plot_dispersion_png(
     inertia: bool = False,
     measured_period_s: float | None = None,
     theory: Theory | None = None,
+    column: bool = False,
 ) -> bool:
-    """Write the dispersion plot to path (a chain whose cells differ: its modes, plot_chain_modes); False (no file)
-    if the analysis module is unavailable."""
+    """Write the dispersion plot to path, in the format its suffix names (a chain whose cells differ: its modes,
+    plot_chain_modes); False (no file) if the analysis module is unavailable. column: one paper column wide."""
     try:
         if params.heterogeneous:
             fig = plot_chain_modes(params, theory=theory)
@@ -264,26 +321,72 @@ def plot_dispersion_png(
             fig = plot_dispersion(params.uniform(), inertia=inertia, measured_period_s=measured_period_s, theory=theory)
     except ImportError:
         return False
+    if column:
+        _column(fig, 2.6 if not params.heterogeneous else 4.2)
     _save(fig, path)
     return True
 
 
-def plot_run(res: Any, scene: Scene, outdir: Path, *, source: str | None = None, name: str | None = None) -> list[Path]:
-    """The run's PNGs in outdir: spacetime.png, final_pattern.png, dispersion.png. Returns the paths.
+FORMATS = ("png", "pdf", "svg")  # what --format writes (matplotlib picks the writer by the suffix)
+COLUMN_WIDTH_IN = 3.4  # one column of a two-column paper (86 mm)
 
-    source labels the data in the titles ("emulator:<model>" by default, "rehearsal:<model>", "rig"); name replaces
-    the scene's name in them; the dispersion is the linear theory of the scene's model."""
-    from ..analysis.summary import theory_for
 
+def _column(fig, height_in: float) -> None:
+    """Resize a figure to one paper column, with fonts to match (titles 7 pt, the rest 6 pt)."""
+    fig.set_size_inches(COLUMN_WIDTH_IN, height_in)
+    for ax in fig.axes:
+        ax.title.set_fontsize(6.5)
+        for item in (ax.xaxis.label, ax.yaxis.label, *ax.get_xticklabels(), *ax.get_yticklabels()):
+            item.set_fontsize(6)
+        leg = ax.get_legend()
+        if leg is not None:
+            for tx in leg.get_texts():
+                tx.set_fontsize(5.5)
+
+
+def plot_run(
+    res: Any,
+    scene: Scene | None,
+    outdir: Path,
+    *,
+    source: str | None = None,
+    name: str | None = None,
+    fmt: str = "png",
+    column: bool = False,
+) -> list[Path]:
+    """The run's figures in outdir: spacetime, final_pattern and dispersion, as fmt (png, pdf or svg). Returns the
+    paths.
+
+    res: a controller RunResult (t, alpha, beta) with its scene, or anything inputs.as_run reads (scene None: the
+    run's own, or the attributes of a loaded run or capture; a capture has no dispersion). source labels the data in
+    the titles ("emulator:<model>" by default, "rehearsal:<model>", "rig"); name replaces the scene's name in them;
+    the dispersion is the linear theory of the scene's model. column: sized for one paper column (3.4 in wide,
+    without the growth-phase panel)."""
+    from .inputs import as_run
+
+    if fmt not in FORMATS:
+        raise ValueError(f"format {fmt!r}: expected one of {', '.join(FORMATS)}")
     outdir = Path(outdir)
-    label = source or f"emulator:{scene.model}"
-    name = name or scene.name
-    files = [outdir / "spacetime.png", outdir / "final_pattern.png"]
-    fig = plot_spacetime(res.t, res.alpha, res.beta, scene=scene, title=f"{name} ({label})")
+    view = as_run(res)
+    scene = scene if scene is not None else view.scene
+    label = source or (f"emulator:{scene.model}" if scene is not None else view.source)
+    name = name or (scene.name if scene is not None else view.name)
+    files = [outdir / f"spacetime.{fmt}", outdir / f"final_pattern.{fmt}"]
+    fig = plot_spacetime(view, scene=scene, title=f"{name} ({label})", growth_panel=not column)
+    if column:
+        _column(fig, 3.6)
     _save(fig, files[0])
-    fig = plot_final(res.alpha[-1], res.beta[-1], scene=scene, title=f"{name} ({label}): t = {res.t[-1]:.2f} s")
-    _save(fig, files[1])
-    d = outdir / "dispersion.png"
-    if plot_dispersion_png(scene.params, d, theory=theory_for(scene)):
+    fin = plot_final(view, scene=scene, title=f"{name} ({label}): t = {view.time[-1]:.2f} s")
+    if column:
+        _column(fin, 2.5)
+    _save(fin, files[1])
+    d = outdir / f"dispersion.{fmt}"
+    params = scene.params if scene is not None else view.params
+    theory = view.theory() if scene is None else None
+    if scene is not None:
+        from ..analysis.summary import theory_for
+
+        theory = theory_for(scene)
+    if params is not None and plot_dispersion_png(params, d, theory=theory, column=column):
         files.append(d)
     return files

@@ -42,6 +42,24 @@ def selects(o: dict, want: object) -> bool:
     return bool(not o["at_rest"] and o["domain_walls"] == want)
 
 
+def seed_fractions(
+    name: str, sets: Sequence[str], want: object, seeds: int, *, jitter: bool = True
+) -> tuple[float, float | None]:
+    """(fraction of `seeds` noise seeds whose run of scene `name` with `sets` selects `want`, the same with
+    ROBUST_JITTER_COUNTS of encoder jitter, None without jitter); seeds 2000, 2001, ... as robustness uses them."""
+    out: list[float | None] = []
+    for extra in ({}, {"encoder_jitter_counts": ROBUST_JITTER_COUNTS}):
+        if extra and not jitter:
+            out.append(None)
+            continue
+        hits = 0
+        for s in range(seeds):
+            noise = _noise_sets(2000 + s) + [f"model_options.noise.{k}={v}" for k, v in extra.items()]
+            hits += selects(_run(name, list(sets) + noise)[2], want)
+        out.append(hits / seeds)
+    return float(out[0] or 0.0), out[1]
+
+
 def _push_sets(scene, torque, duration):
     """Overrides giving every perturbation of the scene this magnitude (its sign kept) and duration."""
     out = []
@@ -82,15 +100,7 @@ def _robustness(names, seeds, torques, durations) -> dict:
         model, want = ROBUST_SCENES[name]
         base = [f"model={model}"]
         row: dict = {"model": model, "source": want}
-        for label, extra in (("seeds", {}), ("seeds_jitter", {"encoder_jitter_counts": ROBUST_JITTER_COUNTS})):
-            if extra and model != "hil":
-                row[label] = None
-                continue
-            hits = 0
-            for s in range(seeds):
-                sets = base + _noise_sets(2000 + s) + [f"model_options.noise.{k}={v}" for k, v in extra.items()]
-                hits += selects(_run(name, sets)[2], want)
-            row[label] = hits / seeds
+        row["seeds"], row["seeds_jitter"] = seed_fractions(name, base, want, seeds, jitter=model == "hil")
         scene = load_scene(name, base)
         grid = {}
         if scene.perturbations:

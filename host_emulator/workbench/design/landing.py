@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
-from ...analysis.observables import WALL_THRESHOLD_RAD
+from ...analysis.observables import WALL_THRESHOLD_RAD, domain_wall_bonds
 from ...params import Params
 from ...physics import reaction
 from .constants import DOMAIN_MIN_RAD
@@ -17,14 +16,7 @@ from .target import Target
 def final_walls(alpha: np.ndarray, rest: Sequence[int] = (), threshold: float = WALL_THRESHOLD_RAD) -> list[float]:
     """Bond positions of the sign changes of a final profile among its cells above `threshold` (rest cells left
     out), each at the zero of the straight line between the two cells, rounded to the nearest bond j + 0.5."""
-    u = np.asarray(alpha, dtype=float)
-    keep = [j for j in range(u.size) if abs(u[j]) > threshold and (j + 1) not in rest]
-    out = []
-    for a, b in zip(keep[:-1], keep[1:]):
-        if np.sign(u[a]) != np.sign(u[b]):
-            x = a + (b - a) * u[a] / (u[a] - u[b]) + 1.0  # 1-based position of the zero
-            out.append(math.floor(x) + 0.5 if x % 1 else x + 0.5)
-    return out
+    return domain_wall_bonds(alpha, threshold_rad=threshold, skip=rest)
 
 
 def domain_peaks(alpha: np.ndarray, walls: Sequence[float], rest: Sequence[int] = ()) -> list[float]:

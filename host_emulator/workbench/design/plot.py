@@ -3,19 +3,24 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .target import Target
 
+if TYPE_CHECKING:
+    from matplotlib.figure import FigureBase
 
-def plot_design(doc: dict, target: Target, path: Path) -> None:
-    """design.png: the verification runs' final profiles against the target, and the designed parameters."""
+
+def plot_design(doc: dict, target: Target, path: Path) -> FigureBase:
+    """design.png: the verification runs' final profiles against the target, and the designed parameters (legends
+    beside the axes, clear of every cell). Returns the Figure."""
     from matplotlib.figure import Figure
 
     n = target.cells
     cells = np.arange(1, n + 1)
-    fig = Figure(figsize=(8.0, 6.2))
+    fig = Figure(figsize=(9.6, 6.2))
     ax, bx = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     runs = doc["verification"]["runs"]
     for r in runs:
@@ -38,7 +43,7 @@ def plot_design(doc: dict, target: Target, path: Path) -> None:
         f"{v['seeds']} noise seeds, {100 * (v['fraction_pushes'] or 0):.0f} % of the pushes (hil)",
         fontsize=9,
     )
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: never over a cell
     for k in doc["vary"]:
         vals = np.broadcast_to(np.asarray(doc["params"][k], dtype=float), (n,))
         bx.step(cells, vals, where="mid", label=k)
@@ -46,7 +51,8 @@ def plot_design(doc: dict, target: Target, path: Path) -> None:
         bx.axvline(q["cell"], color="0.6", ls=":", lw=1)
     bx.set_xlabel("cell")
     bx.set_ylabel("N m/rad (alpha*: rad)")
-    bx.legend(fontsize=7, ncol=3)
+    bx.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     bx.set_xticks(cells)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    return fig

@@ -40,6 +40,8 @@ def hil_search(
     history: list[dict] = []
     per = seeds + len(SEARCH_PUSHES)
     done = [False]  # some candidate landed in every search and check run
+    gen = [0]  # scores() calls so far: the first guess, then one per generation of the evolution
+    best_frac = [0.0]  # the best fraction landing of any candidate so far
 
     def scores(xs: np.ndarray) -> np.ndarray:
         """Per candidate: the mean over its runs of 1 (landed) or CLOSE_WEIGHT x closeness, + the linear margin."""
@@ -79,7 +81,14 @@ def hil_search(
             out.append(float(np.mean(part)) + MARGIN_WEIGHT * gap)
             history.append({"fraction": frac, "linear_gap": gap})
             fracs.append(frac)
-        report(f"hil search: {len(xs)} candidate(s) x {per} runs, best fraction landing {max(fracs, default=0):.3f}")
+        top = max(fracs, default=0.0)
+        best_frac[0] = max(best_frac[0], top)
+        what = "first guess" if gen[0] == 0 else f"generation {gen[0]}"
+        report(
+            f"hil search, {what}: {len(xs)} candidate(s) x {per} runs; best of these lands in {top:.3f} "
+            f"of its runs (best so far {best_frac[0]:.3f})"
+        )
+        gen[0] += 1
         return np.array(out)
 
     s0 = scores(np.array([x0]))[0]

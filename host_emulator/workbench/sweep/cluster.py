@@ -30,7 +30,9 @@ def local_cluster(workers: int) -> LocalCluster:
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=None,
+        # no dashboard, and the scheduler's HTTP server (health, metrics) on a free port: None would mean
+        # Dask's default 8787, and a warning whenever a notebook's own Dask dashboard holds it
+        dashboard_address=":0",
         scheduler_kwargs={"dashboard": False},
         silence_logs=logging.ERROR,
     )

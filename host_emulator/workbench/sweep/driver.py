@@ -108,10 +108,13 @@ def sweep(
     if plots:
         if "params.sigma" in axes:
             _save(plot_phase_diagram(ds, base), out / "phase_diagram.png")
-        keys = list(map_keys or [k for k in axes if len(axes[k]) > 1][:2])
+        # the swept keys, never the seeds (they are pooled: the map shows the most frequent outcome over them)
+        keys = list(map_keys or [k for k in axes if len(axes[k]) > 1 and k != "seed"][:2])
+        names = coord_names(axes)
         if len(keys) == 2:
-            names = coord_names(axes)
             _save(plot_regime_map(ds, names.get(keys[0], keys[0]), names.get(keys[1], keys[1])), out / "regime_map.png")
+        elif len(keys) == 1:
+            _save(plot_regime_map(ds, names.get(keys[0], keys[0])), out / "regime_map.png")
     return ds
 
 

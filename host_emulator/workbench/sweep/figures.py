@@ -196,15 +196,16 @@ REGIME_MARKERS = {
 }
 
 
-def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = None) -> FigureBase:
+def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str | None = None, *, ax: Axes | None = None) -> FigureBase:
     """The most frequent outcome (rest / pattern / oscillation / moving / failed) over the other swept keys, on xkey
     x ykey (coordinate names, or the swept keys), and on each cell a marker for the regime the linear theory of
-    the model that ran gives there (first point of the pooled ones). Returns the Figure."""
+    the model that ran gives there (first point of the pooled ones). ykey None: one row over xkey (a one-parameter
+    sweep: the seeds pooled, never an axis). Returns the Figure."""
     from matplotlib.colors import ListedColormap
 
     xkey = _coord(ds, xkey) or xkey
-    ykey = _coord(ds, ykey) or ykey
-    for k in (xkey, ykey):
+    ykey = (_coord(ds, ykey) or ykey) if ykey is not None else None
+    for k in (xkey, ykey) if ykey is not None else (xkey,):
         if k not in ds.dims:
             raise SweepError(f"regime map: {k!r} is not a swept key; swept: {', '.join(map(str, ds['status'].dims))}")
     if ax is None:
@@ -213,7 +214,8 @@ def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = N
     import xarray as xr
 
     dims = ds["status"].dims
-    code = xr.DataArray(outcome(ds), dims=dims).transpose(ykey, xkey, ...)
+    code = xr.DataArray(outcome(ds), dims=dims)
+    code = code.transpose(ykey, xkey, ...) if ykey is not None else code.transpose(xkey, ...).expand_dims("row")
     c = code.values.reshape(code.shape[0], code.shape[1], -1)
     mode = np.full(c.shape[:2], -1)
     for i in range(c.shape[0]):
@@ -223,7 +225,8 @@ def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = N
                 mode[i, j] = np.bincount(v, minlength=len(OUTCOMES)).argmax()
     colours = ["0.85", "C0", "C3", "C1", "k"]
     cmap = ListedColormap(colours)
-    xv, yv = np.asarray(ds[xkey].values), np.asarray(ds[ykey].values)
+    xv = np.asarray(ds[xkey].values)
+    yv = np.asarray(ds[ykey].values) if ykey is not None else np.array(["all"])
     ax.imshow(
         np.ma.masked_less(mode, 0),
         origin="lower",
@@ -239,7 +242,9 @@ def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = N
 
     handles: list[Artist] = [Patch(color=cmap(i), label=f"run: {o}") for i, o in enumerate(OUTCOMES)]
     if "regime" in ds:
-        reg = ds["regime"].transpose(ykey, xkey, ...).values.astype(str).reshape(len(yv), len(xv), -1)[:, :, 0]
+        rg = ds["regime"]
+        rg = rg.transpose(ykey, xkey, ...) if ykey is not None else rg.transpose(xkey, ...).expand_dims("row")
+        reg = rg.values.astype(str).reshape(len(yv), len(xv), -1)[:, :, 0]
         for name, mk in REGIME_MARKERS.items():
             yy, xx = np.nonzero(reg == name)
             if len(xx):
@@ -258,7 +263,10 @@ def plot_regime_map(ds: xr.Dataset, xkey: str, ykey: str, *, ax: Axes | None = N
             lab.set_visible(False)
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.set_xlabel(ds[xkey].attrs.get("key", xkey))
-    ax.set_ylabel(ds[ykey].attrs.get("key", ykey))
+    if ykey is not None:
+        ax.set_ylabel(ds[ykey].attrs.get("key", ykey))
+    else:
+        ax.set_yticks([0], [f"all {ds.sizes.get('seed', 1)} seed(s)" if "seed" in ds.dims else "all"])
     ax.set_title(f"regime map (most frequent outcome): {ds.attrs.get('scene', '')}", fontsize=10)
     return ax.figure
 
