@@ -9,6 +9,9 @@ close (DTR): at each, the primary starts a new session (mc_link_session: channel
 closed, queued frames and any half line dropped) and the unread output is discarded,
 so a client that died without ``C`` leaves nothing stale for the next one.
 
+--wait-client holds the scene at t = 0 (nothing runs) until a client opens the port and its CAN channel (SLCAN O
+or L), then starts it: a capture (python -m can.logger, the rig logger) begins with the scene, its pushes included.
+
 One reader per port: a pty read by two programs gives each part of the bytes. While a client holds the pty,
 serve looks every second at which processes hold it (/proc, as the tools' portlock does); a second program is
 reported on stderr when it appears and counted (``second-client events`` in the final line).
@@ -64,7 +67,8 @@ def parser() -> argparse.ArgumentParser:
         epilog="examples:\n"
         "  python -m host_emulator serve default --slcan              # prints 'slcan pty: /dev/pts/N'\n"
         "  python -m host_emulator serve exp1_ccw_ccw --slcan --link /tmp/rig --absent 3,7\n"
-        "  python -m metacell_tools.rigtools.logger -c /dev/pts/N@115200 --out out/log   # in another shell",
+        "  python -m metacell_tools.rigtools.logger -c /dev/pts/N@115200 --out out/log   # in another shell\n"
+        "  python -m host_emulator serve default --slcan --wait-client   # the scene starts when the client opens it",
     )
     ap.add_argument(
         "scene", nargs="?", default="default", help="hil or image scene name or .toml path (default: default)"
@@ -85,6 +89,12 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--absent", type=_cells, default=(), help="cells that never answer (e.g. 3,7)")
     ap.add_argument("--stuck", type=_cells, default=(), help="cells that hold the bus until the timeout")
     ap.add_argument("--babble", type=_cells, default=(), help="cells that answer random bytes")
+    ap.add_argument(
+        "--wait-client",
+        action="store_true",
+        help="hold the scene at t = 0 until a client opens the port and its CAN channel (SLCAN O or L): a capture "
+        "(python -m can.logger) then holds the scene from its start, the scene's pushes included",
+    )
     return ap
 
 
@@ -124,6 +134,15 @@ def check_link(link: str) -> str | None:
     except OSError as e:
         return f"--link {show(link)}: cannot create it: {e.strerror or e}"
     return None
+
+
+def opens_channel(pending: bytearray, data: bytes) -> bool:
+    """Whether the client's bytes (appended to `pending`, the part of a line not yet ended) hold an SLCAN command
+    that opens the CAN channel (O, or L: listen only); the ended lines are dropped from `pending`."""
+    pending += data
+    *lines, rest = bytes(pending).split(b"\r")
+    pending[:] = rest[-64:]
+    return any(line.strip() in (b"O", b"L") for line in lines)
 
 
 class ClientWatch:
@@ -200,7 +219,16 @@ def serve_main(argv: list[str] | None = None) -> int:
             return 2
     watch = ClientWatch(path)
     print(f"slcan pty: {path}  (python -m can.logger -i slcan -c {path}@115200)", flush=True)
-    print(f"scene {scene.name}: {scene.description}; I2C {args.i2c_hz} Hz, {rig.n} cells", flush=True)
+    # the model first: a scene file's description names the model it was written for, not the one --set chose
+    print(
+        f"scene {scene.name}: model {scene.model}, I2C {args.i2c_hz} Hz, {rig.n} cells (the scene file says: "
+        f"{scene.description})",
+        flush=True,
+    )
+    started = not args.wait_client  # the scene's clock runs (--wait-client: from the client's channel open)
+    if not started:
+        print("waiting for a client: the scene starts when it opens the CAN channel (--wait-client)", flush=True)
+    line: bytearray = bytearray()  # --wait-client: the client's unfinished SLCAN line
     status = 0
     stop = []
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
@@ -213,8 +241,9 @@ def serve_main(argv: list[str] | None = None) -> int:
         while not stop:
             if args.duration is not None and sim_us >= args.duration * 1e6:
                 break
-            sim_us += int(CHUNK_S * 1e6)
-            rig.advance_to(sim_us)
+            if started:
+                sim_us += int(CHUNK_S * 1e6)
+                rig.advance_to(sim_us)
             try:
                 data = os.read(master, 4096)
                 present = True
@@ -228,10 +257,15 @@ def serve_main(argv: list[str] | None = None) -> int:
                 sessions += present
                 rig.session()
                 backlog.clear()
+                line.clear()
             if client:
                 watch.poll()
             if data:
                 backlog += rig.feed(data)
+                if not started and opens_channel(line, data):
+                    started = True
+                    t0 = time.monotonic()
+                    print(f"client opened the CAN channel (session {sessions}): scene started", flush=True)
             out = rig.drain()
             if len(backlog) + len(out) > BACKLOG_MAX:
                 dropped += len(out)  # nobody reads: drop new output (gaps show in seq)
@@ -244,7 +278,7 @@ def serve_main(argv: list[str] | None = None) -> int:
                 except OSError as e:
                     if e.errno not in (errno.EAGAIN, errno.EIO):
                         raise
-            lag = sim_us / 1e6 / args.speed - (time.monotonic() - t0)
+            lag = sim_us / 1e6 / args.speed - (time.monotonic() - t0) if started else CHUNK_S
             if lag > 0:
                 time.sleep(lag)
     except KeyboardInterrupt:

@@ -15,6 +15,7 @@ import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,9 +59,47 @@ def cache_dir() -> Path:
     return firmware.BUILD_DIR.parent / "image-elf"
 
 
+class BuildProgress:
+    """What a build of the flashed images says while it runs (minutes the first time): a line when it starts, then a
+    bar with one step per board and the time left (tqdm, on a terminal); elsewhere (a pipe, a log) one line per
+    board built with its time and an estimate of the rest (the boards still to build at the last board's time: the
+    first one also builds the shared core and library and takes longest)."""
+
+    def __init__(self, total: int, where: str, quiet: bool = False, file=None) -> None:
+        from metacell_common.progress import bar
+
+        self.total, self.done, self.quiet = total, 0, quiet
+        self.file = file or sys.stderr
+        self.say(
+            f"building {total} flashed image(s) with PlatformIO into {where} (once per change of src/, lib/ or "
+            "platformio.ini; the first board takes longest)"
+        )
+        self.bar = bar(total, desc="flashed images", unit="board", quiet=quiet, file=self.file)
+
+    def say(self, text: str) -> None:
+        if not self.quiet:
+            print(text, file=self.file, flush=True)
+
+    def start(self, label: str) -> None:
+        self.bar.set_postfix_str(f"building {label}", refresh=True)
+
+    def built(self, label: str, seconds: float) -> None:
+        self.done += 1
+        self.bar.update(1)
+        left = self.total - self.done
+        if self.bar.disable:
+            rest = f", about {left * seconds / 60:.1f} min left" if left else ""
+            self.say(f"built {label} in {seconds:.1f} s ({self.done}/{self.total}{rest})")
+
+    def close(self) -> None:
+        self.bar.close()
+
+
 def build_images(cells: int = N_CELLS, *, root: Path = ROOT, primary: bool = True, log=None, progress=None) -> ImageSet:
     """The ELFs of cells 1..cells and (unless primary is False) the primary, built now if the cache lacks them
-    (ImageBuildError). Without the primary, ImageSet.primary names a file that may not exist."""
+    (ImageBuildError). Without the primary, ImageSet.primary names a file that may not exist.
+
+    While it builds: `progress(k, total, label)` before each board when given, else a BuildProgress on stderr."""
     if not 1 <= cells <= N_CELLS:
         raise ValueError(f"cells = {cells}: expected 1..{N_CELLS}")
     digest = inputs_digest(root)
@@ -78,34 +117,51 @@ def build_images(cells: int = N_CELLS, *, root: Path = ROOT, primary: bool = Tru
     out.mkdir(parents=True, exist_ok=True)
     with open(out / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # parallel test workers build once
-        for k, (role, j) in enumerate(want):
-            if elf(role, j).is_file():
-                continue
-            if progress:
-                progress(k, len(want), "primary" if role == "primary" else f"cell {j}")
-            # every cell builds in one directory (only src/, whose flags name the cell, recompiles; the core and the
-            # library are shared): the loaded segments are those of a clean build (tests/host_emulator/image)
-            env_name, env_vars = board_build_env(role, j, root, build_root=out / "pio-build")
-            if role == "cell":
-                env_vars = (("PLATFORMIO_BUILD_DIR", str(out / "pio-build" / "build-cells")), env_vars[1])
-            env = dict(os.environ)
-            env.update(env_vars)
-            pio = pio_executable()
-            env.update(
-                PIO=str(pio),
-                PATH=f"{pio.parent}{os.pathsep}{env.get('PATH', '')}",
-                PIO_OFFLINE_WORK=str(out / "pio-work"),
-            )
-            t0 = time.monotonic()
-            r = subprocess.run([*prefix, "run", "-e", env_name], cwd=root, env=env, capture_output=True, text=True)
-            logtext = r.stdout + r.stderr
-            if log:
-                log(f"built {role}{'' if j is None else f' {j}'} in {time.monotonic() - t0:.1f} s")
-            if r.returncode != 0:
-                raise ImageBuildError(f"pio run -e {env_name} ({role} {j or ''}) failed:\n{logtext[-4000:]}")
-            built = Path(dict(env_vars)["PLATFORMIO_BUILD_DIR"]) / env_name / "firmware.elf"
-            if not built.is_file():
-                raise ImageBuildError(f"pio run -e {env_name} left no {built}")
-            elf(role, j).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(built, elf(role, j))
+        todo = [(role, j) for role, j in want if not elf(role, j).is_file()]  # another worker may have built some
+        shown = BuildProgress(len(todo), str(out)) if todo and progress is None else None
+        try:
+            for k, (role, j) in enumerate(want):
+                if elf(role, j).is_file():
+                    continue
+                label = "primary" if role == "primary" else f"cell {j}"
+                if progress:
+                    progress(k, len(want), label)
+                if shown:
+                    shown.start(label)
+                t0 = time.monotonic()
+                _build_one(root, out, role, j, prefix, elf(role, j), log)
+                if shown:
+                    shown.built(label, time.monotonic() - t0)
+        finally:
+            if shown:
+                shown.close()
     return ImageSet(tuple(elf("cell", j) for j in range(1, cells + 1)), elf("primary", None), digest)
+
+
+def _build_one(root: Path, out: Path, role: str, j: int | None, prefix: list, dest: Path, log) -> None:
+    """One board's `pio run` into the cache (dest); ImageBuildError with the end of its log if it fails."""
+    # every cell builds in one directory (only src/, whose flags name the cell, recompiles; the core and the
+    # library are shared): the loaded segments are those of a clean build (tests/host_emulator/image)
+    env_name, env_vars = board_build_env(role, j, root, build_root=out / "pio-build")
+    if role == "cell":
+        env_vars = (("PLATFORMIO_BUILD_DIR", str(out / "pio-build" / "build-cells")), env_vars[1])
+    env = dict(os.environ)
+    env.update(env_vars)
+    pio = pio_executable()
+    env.update(
+        PIO=str(pio),
+        PATH=f"{pio.parent}{os.pathsep}{env.get('PATH', '')}",
+        PIO_OFFLINE_WORK=str(out / "pio-work"),
+    )
+    t0 = time.monotonic()
+    r = subprocess.run([*prefix, "run", "-e", env_name], cwd=root, env=env, capture_output=True, text=True)
+    logtext = r.stdout + r.stderr
+    if log:
+        log(f"built {role}{'' if j is None else f' {j}'} in {time.monotonic() - t0:.1f} s")
+    if r.returncode != 0:
+        raise ImageBuildError(f"pio run -e {env_name} ({role} {j or ''}) failed:\n{logtext[-4000:]}")
+    built = Path(dict(env_vars)["PLATFORMIO_BUILD_DIR"]) / env_name / "firmware.elf"
+    if not built.is_file():
+        raise ImageBuildError(f"pio run -e {env_name} left no {built}")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(built, dest)

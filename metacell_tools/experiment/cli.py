@@ -141,22 +141,48 @@ def _positive_float(text: str) -> float:
 
 
 def make_live(args, scene, out: Path, source: str = "rig"):
-    """RigLive for --live (None without it); on a non-interactive matplotlib backend the figure goes to a PNG."""
+    """RigLive for --live (None without it, or when the renderer cannot start: said on stderr): the plot is drawn
+    by its own process (liveview.LiveView), so the runner never waits for it; on a non-interactive matplotlib
+    backend the figure goes to a PNG."""
     if getattr(args, "live", None) is None:
         return None
-    from host_emulator.workbench.trackers import PlotTracker
-
     from .live import RigLive
+    from .liveview import LiveView
 
-    tracker = PlotTracker(args.live, args.live_window, png=args.live_png)
-    live = RigLive(tracker, scene.cells, title=scene.name, source=source)
+    view = LiveView(args.live, args.live_window)
+    live = RigLive(view, scene.cells, title=scene.name, source=source)
     live.begin(0, scene.t_end_s)  # the window opens before the bus does
-    if not tracker.interactive and tracker.png is None:
+    if not view.wait_started():
+        print(f"live plot unavailable: {view.error}; running without it", file=sys.stderr)
+        view.terminate()
+        return None
+    if args.live_png:
+        view.set_png(args.live_png)
+    elif not view.interactive:
         out.mkdir(parents=True, exist_ok=True)
-        tracker.png = str(out / "live.png")
-    if tracker.png:
-        print(f"live plot: {tracker.png} is rewritten every {args.live:g} ms of the run", file=sys.stderr)
+        view.set_png(str(out / "live.png"))
+    if view.png:
+        print(f"live plot: {view.png} is rewritten every {args.live:g} ms of the run", file=sys.stderr)
     return live
+
+
+def end_live(live) -> None:
+    """Hand the renderer the last rows and let it finish: a PNG is complete when this returns; a window stays until
+    it is closed (Ctrl-C closes it too)."""
+    if live is None:
+        return
+    view = live.tracker
+    view.close()
+    if view.interactive and view.error is None:
+        print("live plot: close its window to exit", file=sys.stderr)
+        try:
+            view.wait()
+        except KeyboardInterrupt:
+            view.terminate()
+    elif view.wait(60) is None:
+        view.terminate()
+    if view.error and view.error != "the renderer exited":
+        print(f"live plot: {view.error}", file=sys.stderr)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -459,26 +485,31 @@ def cmd_run(
         print(f"error: {problem}", file=sys.stderr)
         return EXIT_USAGE
     live = make_live(args, scene, out, source)
-    rc, summary = execute(
-        scene,
-        plan,
-        channel,
-        interface,
-        out,
-        opts,
-        open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
-        plots=not args.no_plots,
-        plain_slcan=args.plain_slcan,
-        live=live,
-        source=source,
-    )
+    try:
+        rc, summary = execute(
+            scene,
+            plan,
+            channel,
+            interface,
+            out,
+            opts,
+            open_wait=open_wait if open_wait is not None else getattr(args, "open_wait", None),
+            plots=not args.no_plots,
+            plain_slcan=args.plain_slcan,
+            live=live,
+            source=source,
+        )
+    except BaseException:
+        if live is not None:
+            live.tracker.terminate()
+        raise
     if summary:
         print_summary(summary, out)
-    if live is not None and live.tracker.interactive:
-        from matplotlib import pyplot as plt
+        from .summary import push_lines
 
-        print("live plot: close its window to exit", file=sys.stderr)
-        plt.show()
+        for line in push_lines(summary):
+            print(line)
+    end_live(live)
     return rc
 
 

@@ -7,6 +7,10 @@ python-can log (ASC, BLF, ...). A directory with a summary.json gives the per-ce
 angles, with min..max over the repeats; a capture gives each cell's last sample. Each run is named by its source
 (rig, rehearsal:<model>, emulator:<model>, or unknown for a file that does not say). The table gives, per cell,
 both values and their difference, and the pattern period of each run.
+
+Runs with time series (anything but a summary alone) are also aligned on the push (align.py): each run's clock
+shifted to the onset of its pushed cell's motion, the table gives both onsets and the rms difference of alpha after
+it, and OUT_time.png (beside the overlay) draws every cell's alpha against the time since the push.
 """
 
 from __future__ import annotations
@@ -21,6 +25,8 @@ import numpy as np
 from host_emulator.analysis.observables import spatial_period
 from host_emulator.workbench.datasets import LoadError, _summary_source, final_profile, load
 from metacell_common.outpaths import check_out_file
+
+from . import align
 
 
 class CompareError(ValueError):
@@ -39,6 +45,8 @@ class Run:
     pattern_period_cells: float | None
     oscillation_period_s: float | None
     what: str  # how the final profile was taken
+    data: object = None  # its time series (the dataset host_emulator.load gives), None for a summary alone
+    push: tuple[int, str] | None = None  # (cell, chain) of its scene's first push, when it says
 
     @property
     def cells(self) -> int:
@@ -62,6 +70,10 @@ def _from_summary(d: Path, s: dict, source: str | None) -> Run:
             _arr(s.get(f"final_{chain}_max_rad", s[f"final_{chain}_rad"])),
         )
     reps = int(s.get("repeats", 1))
+    try:  # the time series beside the summary (trajectories.npz, the run's own files), if any
+        data = load(d, source=source)
+    except Exception:  # noqa: BLE001 - a summary alone still has its final angles
+        data = None
     return Run(
         d,
         source or _summary_source(s),
@@ -71,6 +83,8 @@ def _from_summary(d: Path, s: dict, source: str | None) -> Run:
         s.get("pattern_period_cells"),
         s.get("oscillation_period_s"),
         f"mean of {reps} repeat(s), bars min..max" if reps > 1 else "final sample",
+        data,
+        align.scene_push(s, getattr(data, "attrs", None)),
     )
 
 
@@ -108,6 +122,8 @@ def open_run(path: Path, source: str | None = None) -> Run:
         period,
         None,
         "each cell's last sample",
+        ds,
+        align.scene_push(None, dict(ds.attrs)),
     )
 
 
@@ -199,4 +215,22 @@ def compare(
     problem = check_out_file(out, "--out")  # before the plot is drawn: one line, never a traceback
     if problem:
         raise CompareError(problem)
-    return table(a, b), plot(a, b, out)
+    return table(a, b) + "\n" + "\n".join(in_time(a, b, out)), plot(a, b, out)
+
+
+def in_time(a: Run, b: Run, out: Path) -> list[str]:
+    """The alignment of the two runs' time series on the push (align.py): table lines, and OUT_time.png beside the
+    overlay when both runs hold the push."""
+    runs = (("A", a), ("B", b))
+    missing = [f"{x} ({r.path}) has no time series (a summary alone)" for x, r in runs if r.data is None]
+    if missing:
+        return align.lines(None, None, "; ".join(missing))
+    push = a.push or b.push  # one scene: a capture (no scene of its own) takes the other run's push
+    ta, tb = align.make_track(a.data, push), align.make_track(b.data, push)
+    text = align.lines(ta, tb)
+    png = align.plot(
+        ta, tb, out.with_name(f"{out.stem}_time{out.suffix}"), (a.source, b.source), a.scene or b.scene or "unknown"
+    )
+    if png is not None:
+        text.append(f" time series aligned on the push: {png}")
+    return text

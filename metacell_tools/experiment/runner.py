@@ -35,6 +35,10 @@ from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 
 from .plan import Command, ExperimentPlan
 
+_RESULT_BASE = proto.FRAMES["CMD_RESULT"]["base"]
+_RESULT_IDS = frozenset(_RESULT_BASE + j for j in range(1, proto.N_CELLS + 1))  # CMD_RESULT of every cell
+_PERTURB_ID = proto.REGISTERS["PERTURB"]["id"]
+
 
 class LinkError(RuntimeError):
     """The primary stopped answering (port lost, no frames for `silence_s`)."""
@@ -105,6 +109,7 @@ class Experiment:
         self.safe: list[int] | None = None  # result of the final ENABLE off
         self.identity: dict = {}  # {cell: IDENT block fields, or {"error": ...}} read before the first repeat
         self.live = live  # metacell_tools.experiment.live.RigLive or None: live plot fed from the logged frames
+        self._acks: dict | None = None  # while a PERTURB waits: {cell: primary clock when its CMD_RESULT came}
         self.t_session = time.time()
 
     # ---- frames --------------------------------------------------------------
@@ -114,6 +119,10 @@ class Experiment:
         for w in self.writers:
             w.on_message_received(msg)
         self.decoder.feed(msg)
+        if self._acks is not None and msg.arbitration_id in _RESULT_IDS and msg.data[:1] == bytes([_PERTURB_ID]):
+            # the port carries the primary's frames in the order it sent them: the newest sample before the result
+            # dates the result on the primary's clock, however late the laptop reads it
+            self._acks.setdefault(msg.arbitration_id - _RESULT_BASE, self.clock())
 
     def _check_silence(self):
         quiet = time.monotonic() - self.last_frame
@@ -368,16 +377,24 @@ class Experiment:
                     groups.setdefault(tuple(sorted(p.values.items())), []).append(p)
                 for _, ps in groups.items():
                     sent = rep.decoder.t_s - t0
-                    res = self.command(
-                        [p.cell for p in ps], "PERTURB", ps[0].values, "; ".join(p.label for p in ps), phase
-                    )
+                    acks: dict[int, float | None] = {}
+                    self._acks = acks
+                    try:
+                        res = self.command(
+                            [p.cell for p in ps], "PERTURB", ps[0].values, "; ".join(p.label for p in ps), phase
+                        )
+                    finally:
+                        self._acks = None
                     for p in ps:
+                        ack = acks.get(p.cell)
                         rep.perturbations.append(
                             {
                                 "label": p.label,
                                 "cell": p.cell,
+                                "chain": "alpha" if p.values.get("chain", 0) == 0 else "beta",
                                 "planned_s": p.start_s,
                                 "sent_s": sent,
+                                "acked_s": None if ack is None else ack - t0,
                                 "result": res.get(p.cell),
                             }
                         )

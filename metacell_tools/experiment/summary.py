@@ -57,13 +57,81 @@ def _longest_run(mask) -> slice:
     return best
 
 
+MOVE_COUNTS = 2  # a pushed cell has moved once its angle left the one at the send by this many counts
+LATE_CYCLES = 4  # a push acknowledged later than this many poll cycles after its recorded send left late
+
+
+def poll_cycle(arr: dict) -> float | None:
+    """The primary's poll cycle (s): the median interval between a cell's consecutive samples."""
+    d = np.diff(arr["t_s"], axis=0)
+    d = d[np.isfinite(d) & (d > 0)]
+    return float(np.median(d)) if d.size else None
+
+
+def push_timing(perturbations: list, arr: dict, t0: float | None, cycle: float | None) -> list:
+    """The perturbation records with when the plant first showed each push and the delays between the three times.
+
+    sent_s: the primary's clock of the newest sample the laptop had read when the command left (the runner's view);
+    acked_s: that of the newest sample before the cell's CMD_RESULT on the port (the primary sends its frames in
+    order, so this dates the acknowledgement on the primary's clock however late the laptop reads it); moved_s: the
+    first sample of the pushed cell's chain (its own time) at least MOVE_COUNTS counts from its last sample at or
+    before the send (None: it never moved). late: acknowledged more than LATE_CYCLES poll cycles after the send,
+    i.e. the laptop was reading the primary's frames late and the push left later than sent_s says."""
+    out = []
+    for p in perturbations:
+        q = dict(p)
+        j = int(q["cell"]) - 1
+        moved = None
+        if t0 is not None and j < arr["t_s"].shape[1] and q.get("sent_s") is not None:
+            t = arr["t_s"][:, j] - t0
+            c = arr[f"{q.get('chain', 'alpha')}_counts"][:, j]
+            ok = np.isfinite(t) & np.isfinite(c)
+            t, c = t[ok], c[ok]
+            before = np.nonzero(t <= q["sent_s"])[0]
+            if before.size:
+                after = np.nonzero((t > q["sent_s"]) & (np.abs(c - c[before[-1]]) >= MOVE_COUNTS))[0]
+                moved = float(t[after[0]]) if after.size else None
+        ack = q.get("acked_s")
+        q["moved_s"] = moved
+        q["ack_after_send_s"] = None if ack is None else ack - q["sent_s"]
+        q["move_after_ack_s"] = None if ack is None or moved is None else moved - ack
+        q["late"] = bool(ack is not None and cycle is not None and ack - q["sent_s"] > LATE_CYCLES * cycle)
+        out.append(q)
+    return out
+
+
+def push_lines(summary: dict) -> list[str]:
+    """One line per push of every repeat: planned, sent, acknowledged and moved times; late ones said so."""
+    lines = []
+
+    def f(v):
+        return "-" if v is None else f"{v:.3f}"
+
+    for r in summary.get("per_repeat", []):
+        for p in r.get("perturbations", []):
+            late = (
+                f"  LATE: acknowledged {p['ack_after_send_s']:.3f} s after the recorded send (the laptop read the "
+                "primary's frames late)"
+                if p.get("late")
+                else ""
+            )
+            lines.append(
+                f"  push {p['label']} (repeat {r['repeat']}): planned {f(p.get('planned_s'))} s, sent "
+                f"{f(p.get('sent_s'))} s, acknowledged {f(p.get('acked_s'))} s, moved {f(p.get('moved_s'))} s "
+                f"(poll cycle {f(r.get('poll_cycle_s'))} s){late}"
+            )
+    return lines
+
+
 def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
     """(per-repeat record, Series or None) of one repeat."""
     arr = rep.decoder.arrays()
+    cycle = poll_cycle(arr)
     rec = {
         "repeat": rep.index,
         "stopped": rep.stopped,
-        "perturbations": rep.perturbations,
+        "perturbations": push_timing(rep.perturbations, arr, rep.t0, cycle),
+        "poll_cycle_s": cycle,
         "rest_before_zero_counts": rep.rest_counts,
         "enabled_cells": rep.enabled_cells,
         "t_enable_s": rep.t0,  # the primary's clock at the drive enable: time 0 of the repeat's series
@@ -193,6 +261,7 @@ def build(
             "pattern_period_cells_repeats": [r["pattern_period_cells"] for r in done],
             "missing_cells": missing,
             "failed_commands": exp.failures,
+            "late_pushes": sum(1 for r in recs for p in r["perturbations"] if p["late"]),
             "gaps": sum(len(r["gaps"]) for r in recs),
             "samples_lost": sum(r["samples_lost"] for r in recs),
             "drive_off_confirmed": exp.safe == [],

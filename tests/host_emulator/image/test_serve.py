@@ -44,6 +44,8 @@ def server(images):
     first = p.stdout.readline()  # after the boards booted and the cells were configured (seconds of wall time)
     m = re.match(r"slcan pty: (\S+)", first)
     assert m, (first, p.stderr.read() if p.poll() is not None else "")
+    banner = p.stdout.readline()  # the model the --set chose, not the one the scene file's description names
+    assert banner.startswith("scene exp5_rest: model image, I2C 400000 Hz, 16 cells (the scene file says: "), banner
     yield m.group(1)
     p.send_signal(signal.SIGTERM)
     try:
