@@ -94,6 +94,11 @@ def check_run(scene: Scene) -> str | None:
             f"a core per board second); runs are limited to {IMAGE_MAX_T_END_S:g} s (about an hour)"
         )
     if scene.model == "image":
+        from .image.model import encoder_noise_problem
+
+        problem = encoder_noise_problem(o)
+        if problem:
+            return problem
         cost, why = image_cost(scene)
         if cost > IMAGE_MAX_CPU_S:
             return (

@@ -10,6 +10,7 @@ CELL_STATUS frames, as the laptop sees them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -83,6 +84,19 @@ def bring_up(world: World, params: Params, progress: bool = False) -> tuple[Lapt
     return lap, {"usb_enumerated_s": t_usb, "refused": refused}
 
 
+def encoder_noise_problem(opts: ModelOptions) -> str | None:
+    """The tier's encoders are the plant's own quadrature edges at the pins: encoder noise is refused (one line)."""
+    nz = opts.noise
+    for key in ("encoder_jitter_counts", "encoder_glitch_prob"):
+        if getattr(nz, key):
+            return (
+                f"model_options.noise.{key} = {getattr(nz, key)}: the image tier's encoders are the plant's own "
+                "quadrature edges at the boards' pins and take no encoder noise (its plant takes band_spread and "
+                "eta_spread; [[fault]] edge_storm puts glitches on a cable); model = hil samples a noisy encoder"
+            )
+    return None
+
+
 class ImageModel(LatticeModel):
     """The lattice plant driven by the flashed images (module docstring). Physics from the lattice model (its step
     limit judges the plant's window); the reaction torque reaches the plant only through the motors."""
@@ -104,6 +118,9 @@ class ImageModel(LatticeModel):
                 f"images are built for {BUILD_CTRL_RATE_HZ} Hz and a PWM period of {BUILD_PWM_TOP} (platformio.ini)"
             )
         problem = reaction_problem(params)  # the values every cell's firmware would refuse, as hil judges them
+        if problem:
+            raise ConfigError(problem)
+        problem = encoder_noise_problem(opts)
         if problem:
             raise ConfigError(problem)
 
@@ -153,6 +170,12 @@ class ImageSolver(Solver):
             _, cfg.substeps = choose_step(limit, cfg.window_s, opt.dt, opt.stepper, chain)
         windows = max(1, round(opt.dt_out / cfg.window_s))
         self.dt_out = windows * cfg.window_s
+        self.adjusted: list[str] = []  # what the tier changed of the options given (info, the run's output)
+        if not math.isclose(self.dt_out, opt.dt_out, rel_tol=1e-9):
+            self.adjusted.append(
+                f"model_options.dt_out = {opt.dt_out:g} s is output every {self.dt_out:g} s: whole plant windows of "
+                f"{cfg.window_s:g} s"
+            )
         try:
             images = build_images(p.cells)
             self.world = World(p, images, options=opt, perturbations=model.perturbations, config=cfg, x0=x0)
@@ -258,6 +281,7 @@ class ImageSolver(Solver):
         assert img is not None  # a scene's boards hold images (blank boards are for flashing)
         return {
             "dt_out_s": self.dt_out,
+            **({"dt_out_requested_s": self.model.options.dt_out, "adjusted": self.adjusted} if self.adjusted else {}),
             "window_s": w.config.window_s,
             "plant_steps_per_window": w.config.substeps,
             "stable_step_limit_s": self.limit,

@@ -18,7 +18,7 @@ class ConfigError(ValueError):
 @dataclass(frozen=True)
 class NoiseOptions:
     """Seeded noise. Spreads are relative standard deviations of a per-cell/per-bond factor
-    1 + s*N(0,1) (clipped at 0.2); encoder noise is hil only."""
+    1 + s*N(0,1) (clipped at 0.2); encoder noise is hil only (the image tier refuses it)."""
 
     seed: int = 0
     band_spread: float = 0.0  # stiffness factor of each band pair (bond), both chains

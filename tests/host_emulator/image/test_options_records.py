@@ -9,10 +9,14 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from host_emulator.limits import IMAGE_MAX_CPU_S, check_run, image_cost
-from host_emulator.models import ConfigError
+from host_emulator.models import ConfigError, make_model
+from host_emulator.models.options import ModelOptions, NoiseOptions
+from host_emulator.models.plant import spreads
+from host_emulator.params import Params
 from host_emulator.scene import list_scenes, load_scene
 from metacell_tools.rigtools import proto
 
@@ -78,3 +82,36 @@ def test_serve_judges_the_cost_before_the_boards_boot(tmp_path):
             "model_options.image.threads=16", "--duration", "1", timeout=120)  # fmt: skip
     assert r.returncode == 2 and "s of CPU" in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert "slcan pty" not in r.stdout
+
+
+# ---- item 6: the noise model ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("key,value", [("encoder_jitter_counts", 2.0), ("encoder_glitch_prob", 1e-4)])
+def test_encoder_noise_is_refused_in_one_line(key, value):
+    """The tier's encoders are the plant's quadrature edges; it used to ignore the encoder noise silently."""
+    with pytest.raises(ConfigError, match=f"model_options.noise.{key}") as e:
+        make_model("image", Params(), [], ModelOptions(noise=NoiseOptions(**{key: value})))
+    assert "\n" not in str(e.value)
+    msg = check_run(load_scene("default", ["model=image", f"model_options.noise.{key}={value}"]))
+    assert msg == str(e.value)  # before anything is built or written (run, serve, the API)
+
+
+def test_band_and_eta_spread_reach_the_image_tiers_plant(images):
+    """The spreads are the plant's: its factors are the seeded draw, and a deflected lattice moves differently."""
+    from host_emulator.image.world import World
+
+    p = Params()
+    x0 = np.zeros(2 * p.cells)
+    x0[7] = 0.3  # alpha_8 deflected: the bands and the honey act at once
+    noisy = ModelOptions(noise=NoiseOptions(seed=3, band_spread=0.1, eta_spread=0.1))
+    xs = []
+    for opts in (ModelOptions(), ModelOptions(), noisy):
+        w = World(p, images, options=opts, x0=x0)
+        band, eta = spreads(p, opts, p.cells)
+        assert [w.plant.kscale[c][j] for c in (0, 1) for j in range(p.cells)] == band.ravel().tolist()
+        assert [w.plant.eta[0][j] for j in range(p.cells)] == pytest.approx(p.eta_alpha * eta[0], rel=1e-15)
+        w.start_plant(0.0)
+        w.run_to(0.002)
+        xs.append(w.x.copy())
+    assert np.array_equal(xs[0], xs[1]) and not np.allclose(xs[0], xs[2], rtol=0, atol=1e-9)
