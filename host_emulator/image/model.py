@@ -215,8 +215,10 @@ class ImageSolver(Solver):
         names = {f"cell{b.cell}": b.index for b in w.boards if b.cell} | {
             "primary": w.primary.index if w.primary else -1
         }
+        self.fault_slots: list[int] = []  # each scene fault's index in the world's fault table
         for f in faults:
             t0 = self.t_start + f.start_s
+            self.fault_slots.append(w.nfaults())
             board = names.get(f.board, -1)
             if f.kind == "usb_no_read":
                 board = names["primary"]
@@ -228,6 +230,19 @@ class ImageSolver(Solver):
                 arg=f.rate_hz,
                 arg2=0 if f.chain == "alpha" else 1,
             )
+
+    def _fault_records(self) -> dict:
+        """The scene's faults as they went: those that took effect (faults_injected, each with fired_s, the scene
+        time it did: later than start_s when its board had no power at start_s) and those that did not, the run
+        having ended first (faults_unfired)."""
+        fired, unfired = [], []
+        for f, k in zip(self.model.faults, getattr(self, "fault_slots", ()), strict=False):
+            got = self.world.fault_fired(k)
+            if got is not None and got[0] == f.kind and got[2] is not None:
+                fired.append({**f.as_dict(), "fired_s": round(got[2] - self.t_start, 9)})
+            else:
+                unfired.append(f.as_dict())
+        return {"faults_injected": fired, **({"faults_unfired": unfired} if unfired else {})}
 
     def plant_step_s(self) -> float:
         """The plant's step: its window split into substeps (the boards' cost is judged by limits.check_run)."""
@@ -289,7 +304,7 @@ class ImageSolver(Solver):
             "perturb_via": self.model.options.perturb_via,
             "images": {"cell": str(img.path.parent.parent), "digest": img.sha256[:16]},
             **self.preamble,
-            "faults_injected": [f.as_dict() for f in self.model.faults],
+            **self._fault_records(),
             "boards": boards,
             "bus": {"transactions": int(bi.transactions), "nacks": int(bi.nacks), "timeouts": int(bi.timeouts_seen)},
             "laptop": {

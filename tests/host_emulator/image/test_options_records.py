@@ -5,6 +5,7 @@ are recorded as they went (dated when they took effect; those the run ended befo
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -21,6 +22,7 @@ from host_emulator.scene import list_scenes, load_scene
 from metacell_tools.rigtools import proto
 
 ROOT = proto.ROOT
+CPU_HZ = 48_000_000  # the SAMD21's core clock (the primary polls in a busy loop: every cycle is executed)
 
 
 def cli(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
@@ -115,3 +117,54 @@ def test_band_and_eta_spread_reach_the_image_tiers_plant(images):
         w.run_to(0.002)
         xs.append(w.x.copy())
     assert np.array_equal(xs[0], xs[1]) and not np.allclose(xs[0], xs[2], rtol=0, atol=1e-9)
+
+
+# ---- items 6 and 8: what a run reports ----------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_a_runs_records_say_what_it_did(tmp_path):
+    """dt_out raised to a whole window is said (output and summary.json); a hardfault due while its board had no
+    power is dated at the power-up that applied it; a fault past the run's end is listed as unfired."""
+    out = tmp_path / "o"
+    faults = {
+        1: {"kind": "silent", "board": "cell3", "start_s": 0, "duration_s": 0.005},
+        2: {"kind": "hardfault", "board": "cell3", "start_s": 0.002},
+        3: {"kind": "tick_dead", "cell": 5, "start_s": 1.0},
+    }
+    sets = ["model=image", "t_end_s=0.02", "model_options.dt_out=1e-6"]
+    sets += [f"fault.{i}.{k}={v}" for i, f in faults.items() for k, v in f.items()]
+    args = ["run", "default", "--no-plots", "--out", str(out)] + [x for s in sets for x in ("--set", s)]
+    r = cli(*args)
+    assert r.returncode == 0, r.stderr
+    assert "adjusted: model_options.dt_out = 1e-06 s is output every 5e-05 s" in r.stdout, r.stdout
+    s = json.loads((out / "summary.json").read_text())["solver"]
+    assert s["dt_out_s"] == pytest.approx(5e-5) and s["dt_out_requested_s"] == 1e-6 and len(s["adjusted"]) == 1
+    fired = {f["kind"]: f for f in s["faults_injected"]}
+    assert set(fired) == {"silent", "hardfault"}
+    assert fired["silent"]["fired_s"] == 0.0
+    assert fired["hardfault"]["start_s"] == 0.002 and fired["hardfault"]["fired_s"] == pytest.approx(0.005)  # power
+    assert [f["kind"] for f in s["faults_unfired"]] == ["tick_dead"]
+    t_up = s["scene_start_s"] + 0.005
+    assert f"cell 3: injected HardFault at t = {t_up:.6f} s" in s["notes"], [n for n in s["notes"] if "cell 3" in n]
+
+
+# ---- item 8: image profile ---------------------------------------------------------------------------------------
+
+
+def test_profile_top_must_be_positive():
+    r = cli("image", "profile", "--top", "-5", timeout=120)
+    assert r.returncode == 2 and "--top" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+
+
+@pytest.mark.slow
+def test_profile_counts_only_the_time_after_configuration(images):
+    """The primary executes every one of its 48 M cycles a second (it polls the bus in a busy loop): 0.01 s after
+    configuration is 480,000 cycles, not the bring-up's ~21.7 M besides."""
+    r = cli("image", "profile", "--board", "primary", "--seconds", "0.01", "--top", "3")
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"primary: ([\d,]+) cycles in 0.01 s after configuration", r.stdout)
+    assert m, r.stdout
+    total = int(m.group(1).replace(",", ""))
+    assert 0.95 * CPU_HZ * 0.01 <= total <= 1.001 * CPU_HZ * 0.01, total
+    assert len(r.stdout.strip().splitlines()) == 1 + 3
