@@ -119,6 +119,8 @@ def _print_summary(s, out, files):
         f"scene {s['scene']} ({s['model']}): {s['t_end_s']:.3g} s simulated in {s['wall_s']:.3g} s "
         f"wall ({s['realtime_factor']:.{0 if s['realtime_factor'] >= 10 else 2}f}x real time)"
     )
+    for note in (s.get("solver") or {}).get("adjusted", ()):  # options the model could not take as given
+        print(f"  adjusted: {note}")
     print(
         f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
         f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}"

@@ -38,6 +38,20 @@ REALTIME_CELL_STEPS_PER_S = MAX_CELL_STEPS / 3600  # what one core is held to: s
 # the image tier's cost is the boards', not the plant's: about 1.6 s of one core per board second on the default
 # scene (docs/image-tier.md), so half an hour of board time is about the hour the other limits allow
 IMAGE_MAX_T_END_S = 1800.0
+# The image tier's cost in seconds of CPU, judged before a board boots (image_cost): the boards' own work, the
+# rounds in which the world meets them, and the encoder edges of edge storms, over the bring-up and the run.
+# Measured with the default scene's images (2026-11-26, 16 cells): the boards 1.53-1.70 s of CPU per board second
+# for all 17 (docs/image-tier.md, Figures); a round 0.85 us on one thread and about 12 us per thread on more (the
+# pool's wake-up: 15 us on two, 44 on four, 195 on sixteen); an encoder edge about 6 us (full-speed edges,
+# docs/image-tier.md).
+IMAGE_CPU_PER_BOARD_S = 0.1  # s of CPU per board per board second
+IMAGE_BRING_UP_S = 2.5  # board time before scene time 0: the crystal's 2 s, USB, the cells configured (~2.43 s)
+IMAGE_WINDOW_S = 50e-6  # a round is at most the plant's window (image/model.py WINDOW_S)
+IMAGE_ROUND_CPU_S = 0.85e-6  # s of CPU per round, one thread
+IMAGE_ROUND_CPU_PER_THREAD_S = 12e-6  # ... and per thread on two or more
+IMAGE_EDGE_CPU_S = 6e-6  # s of CPU per encoder edge (a glitch pair of an edge storm is two)
+# the longest run the t_end limit allows at the default settings on two threads is about 3,600 s of CPU: room above it
+IMAGE_MAX_CPU_S = 5400.0
 
 
 class RunTooLarge(ConfigError):
@@ -79,6 +93,19 @@ def check_run(scene: Scene) -> str | None:
             f"t_end_s = {t_end} s: the image tier runs the flashed images instruction by instruction (about 1.6 s of "
             f"a core per board second); runs are limited to {IMAGE_MAX_T_END_S:g} s (about an hour)"
         )
+    if scene.model == "image":
+        from .image.model import encoder_noise_problem
+
+        problem = encoder_noise_problem(o)
+        if problem:
+            return problem
+        cost, why = image_cost(scene)
+        if cost > IMAGE_MAX_CPU_S:
+            return (
+                f"the image tier would take about {cost:.3g} s of CPU ({why}; limit {IMAGE_MAX_CPU_S:g} s, about an "
+                "hour and a half): a shorter run, model_options.image.round_s = 0 (rounds of the plant window), fewer "
+                "threads or shorter edge storms"
+            )
     if not o.dt_out <= t_end:
         return f"model_options.dt_out = {o.dt_out} s: must not exceed t_end_s = {t_end} s"
     if o.dt is not None and not o.dt <= o.dt_out:
@@ -104,6 +131,26 @@ def check_run(scene: Scene) -> str | None:
             f"arrays; this machine has {avail / 2**30:.3g} GiB available"
         )
     return None
+
+
+def image_cost(scene: Scene) -> tuple[float, str]:
+    """Seconds of CPU an image-tier run takes, estimated before anything boots (the IMAGE_* figures above), and
+    what makes them up (for the message)."""
+    io = scene.options.image
+    board_s = IMAGE_BRING_UP_S + scene.t_end_s
+    boards = IMAGE_CPU_PER_BOARD_S * (scene.cells + 1) * board_s
+    rnd = min(io.round_s, IMAGE_WINDOW_S) if io.round_s > 0 else IMAGE_WINDOW_S
+    per_round = IMAGE_ROUND_CPU_S if io.threads == 1 else IMAGE_ROUND_CPU_PER_THREAD_S * io.threads
+    rounds = board_s / rnd * per_round
+    edges = 0.0
+    for f in getattr(scene, "faults", ()):
+        if f.kind == "edge_storm":
+            edges += 2 * f.rate_hz * max(0.0, min(f.duration_s, scene.t_end_s - f.start_s)) * IMAGE_EDGE_CPU_S
+    parts = [
+        f"{boards:.3g} s for {scene.cells + 1} boards over {board_s:.4g} s of board time",
+        f"{rounds:.3g} s for rounds of {rnd:.3g} s on {io.threads} thread{'s' if io.threads > 1 else ''}",
+    ] + ([f"{edges:.3g} s for the edge storms' encoder edges"] if edges else [])
+    return boards + rounds + edges, ", ".join(parts)
 
 
 def check_out_dir(path: str | os.PathLike, opt: str = "--out") -> str | None:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .. import firmware
+from ..construct import checked_solver
 from ..controller import build_solver
 from ..models.hil import HilSolver
 from ..models.plant import NumericalInstability
@@ -309,7 +310,7 @@ def make_rig(scene_name: str = "default", opts: BusOptions | None = None, overri
             raise ValueError("--i2c-hz: the image tier's primary sets its own bus clock (400 kHz, its firmware)")
         from ..image.serve import make_image_rig
 
-        return make_image_rig(build_solver(sc)), sc
+        return make_image_rig(checked_solver(sc)), sc  # the run's cost judged before the boards boot
     if sc.model != "hil":
         raise ValueError(f'scene {sc.name!r} uses model {sc.model!r}; serving the bus needs model = "hil" or "image"')
     solver = build_solver(sc)

@@ -12,6 +12,10 @@ so a client that died without ``C`` leaves nothing stale for the next one.
 --wait-client holds the scene at t = 0 (nothing runs) until a client opens the port and its CAN channel (SLCAN O
 or L), then starts it: a capture (python -m can.logger, the rig logger) begins with the scene, its pushes included.
 
+Back-pressure: a rig that cannot take a client's bytes yet (the image tier's emulated USB host, whose buffer the
+primary drains at its own pace) holds them and says so (``ready()``); serve then stops reading the pty until it
+can, so a client writing faster than the primary reads blocks in its write and nothing it sent is lost.
+
 One reader per port: a pty read by two programs gives each part of the bytes. While a client holds the pty,
 serve looks every second at which processes hold it (/proc, as the tools' portlock does); a second program is
 reported on stderr when it appears and counted (``second-client events`` in the final line).
@@ -24,6 +28,7 @@ import argparse
 import errno
 import math
 import os
+import select
 import signal
 import sys
 import time
@@ -235,6 +240,9 @@ def serve_main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGHUP, lambda *a: stop.append(1))
     backlog = bytearray()
     dropped = 0
+    ready = getattr(rig, "ready", None)  # the image tier: False while it holds input the emulated USB cannot take
+    hangup = select.poll()  # POLLHUP on the master: no client holds the pty (seen without reading it)
+    hangup.register(master, 0)
     t0 = time.monotonic()
     sim_us = 0
     try:
@@ -244,14 +252,18 @@ def serve_main(argv: list[str] | None = None) -> int:
             if started:
                 sim_us += int(CHUNK_S * 1e6)
                 rig.advance_to(sim_us)
-            try:
-                data = os.read(master, 4096)
-                present = True
-            except OSError as e:
-                if e.errno not in (errno.EAGAIN, errno.EIO):
-                    raise
+            if ready is None or ready():
+                try:
+                    data = os.read(master, 4096)
+                    present = True
+                except OSError as e:
+                    if e.errno not in (errno.EAGAIN, errno.EIO):
+                        raise
+                    data = b""
+                    present = e.errno == errno.EAGAIN
+            else:  # back-pressure: the rig holds bytes it could not pass on; the client's stay in the pty meanwhile
                 data = b""
-                present = e.errno == errno.EAGAIN
+                present = not hangup.poll(0)
             if present != client:  # a client opened or closed the port: new session
                 client = present
                 sessions += present

@@ -10,6 +10,7 @@ CELL_STATUS frames, as the laptop sees them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -83,6 +84,19 @@ def bring_up(world: World, params: Params, progress: bool = False) -> tuple[Lapt
     return lap, {"usb_enumerated_s": t_usb, "refused": refused}
 
 
+def encoder_noise_problem(opts: ModelOptions) -> str | None:
+    """The tier's encoders are the plant's own quadrature edges at the pins: encoder noise is refused (one line)."""
+    nz = opts.noise
+    for key in ("encoder_jitter_counts", "encoder_glitch_prob"):
+        if getattr(nz, key):
+            return (
+                f"model_options.noise.{key} = {getattr(nz, key)}: the image tier's encoders are the plant's own "
+                "quadrature edges at the boards' pins and take no encoder noise (its plant takes band_spread and "
+                "eta_spread; [[fault]] edge_storm puts glitches on a cable); model = hil samples a noisy encoder"
+            )
+    return None
+
+
 class ImageModel(LatticeModel):
     """The lattice plant driven by the flashed images (module docstring). Physics from the lattice model (its step
     limit judges the plant's window); the reaction torque reaches the plant only through the motors."""
@@ -104,6 +118,9 @@ class ImageModel(LatticeModel):
                 f"images are built for {BUILD_CTRL_RATE_HZ} Hz and a PWM period of {BUILD_PWM_TOP} (platformio.ini)"
             )
         problem = reaction_problem(params)  # the values every cell's firmware would refuse, as hil judges them
+        if problem:
+            raise ConfigError(problem)
+        problem = encoder_noise_problem(opts)
         if problem:
             raise ConfigError(problem)
 
@@ -153,6 +170,12 @@ class ImageSolver(Solver):
             _, cfg.substeps = choose_step(limit, cfg.window_s, opt.dt, opt.stepper, chain)
         windows = max(1, round(opt.dt_out / cfg.window_s))
         self.dt_out = windows * cfg.window_s
+        self.adjusted: list[str] = []  # what the tier changed of the options given (info, the run's output)
+        if not math.isclose(self.dt_out, opt.dt_out, rel_tol=1e-9):
+            self.adjusted.append(
+                f"model_options.dt_out = {opt.dt_out:g} s is output every {self.dt_out:g} s: whole plant windows of "
+                f"{cfg.window_s:g} s"
+            )
         try:
             images = build_images(p.cells)
             self.world = World(p, images, options=opt, perturbations=model.perturbations, config=cfg, x0=x0)
@@ -192,8 +215,10 @@ class ImageSolver(Solver):
         names = {f"cell{b.cell}": b.index for b in w.boards if b.cell} | {
             "primary": w.primary.index if w.primary else -1
         }
+        self.fault_slots: list[int] = []  # each scene fault's index in the world's fault table
         for f in faults:
             t0 = self.t_start + f.start_s
+            self.fault_slots.append(w.nfaults())
             board = names.get(f.board, -1)
             if f.kind == "usb_no_read":
                 board = names["primary"]
@@ -205,6 +230,19 @@ class ImageSolver(Solver):
                 arg=f.rate_hz,
                 arg2=0 if f.chain == "alpha" else 1,
             )
+
+    def _fault_records(self) -> dict:
+        """The scene's faults as they went: those that took effect (faults_injected, each with fired_s, the scene
+        time it did: later than start_s when its board had no power at start_s) and those that did not, the run
+        having ended first (faults_unfired)."""
+        fired, unfired = [], []
+        for f, k in zip(self.model.faults, getattr(self, "fault_slots", ()), strict=False):
+            got = self.world.fault_fired(k)
+            if got is not None and got[0] == f.kind and got[2] is not None:
+                fired.append({**f.as_dict(), "fired_s": round(got[2] - self.t_start, 9)})
+            else:
+                unfired.append(f.as_dict())
+        return {"faults_injected": fired, **({"faults_unfired": unfired} if unfired else {})}
 
     def plant_step_s(self) -> float:
         """The plant's step: its window split into substeps (the boards' cost is judged by limits.check_run)."""
@@ -258,6 +296,7 @@ class ImageSolver(Solver):
         assert img is not None  # a scene's boards hold images (blank boards are for flashing)
         return {
             "dt_out_s": self.dt_out,
+            **({"dt_out_requested_s": self.model.options.dt_out, "adjusted": self.adjusted} if self.adjusted else {}),
             "window_s": w.config.window_s,
             "plant_steps_per_window": w.config.substeps,
             "stable_step_limit_s": self.limit,
@@ -265,7 +304,7 @@ class ImageSolver(Solver):
             "perturb_via": self.model.options.perturb_via,
             "images": {"cell": str(img.path.parent.parent), "digest": img.sha256[:16]},
             **self.preamble,
-            "faults_injected": [f.as_dict() for f in self.model.faults],
+            **self._fault_records(),
             "boards": boards,
             "bus": {"transactions": int(bi.transactions), "nacks": int(bi.nacks), "timeouts": int(bi.timeouts_seen)},
             "laptop": {

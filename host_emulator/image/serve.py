@@ -5,6 +5,11 @@ the drive on); then the scripted laptop lets go of the port (DTR low) and the pt
 slcan interface talks to the primary's own SLCAN over the emulated USB, and everything it reads (frames, results,
 PRIMARY_HEALTH) is what the flashed image sent. A client opening or closing the pty raises or drops DTR, as a
 laptop opening the rig's port does.
+
+Back-pressure: the laptop's USB host holds at most SAM_USB_BUF bytes for the primary's OUT endpoint. What it cannot
+take yet is held here (`held`) and offered again after each advance; while anything is held, `ready()` is False and
+serve stops reading the pty, so a client writing faster than the primary reads blocks in its own write (as on the
+rig, where the CDC driver's buffer fills), and nothing it sent is lost or refused.
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ class ImageRig:
         self.t0 = solver.t_start
         self.band_stops = 0
         self.transactions = 0
+        self.held = bytearray()  # the client's bytes the USB host could not take yet (oldest first)
+        self.held_most = 0  # the most ever held at once
 
     def advance_to(self, sim_us: int) -> None:
         try:
@@ -41,19 +48,32 @@ class ImageRig:
         except WorldError as e:
             raise NumericalInstability(f"image: {e}") from None
         self.transactions = int(self.world.bus_info().transactions)
+        self._offer()
 
     def session(self) -> None:
-        """The pty was opened or closed: DTR follows."""
+        """The pty was opened or closed: DTR follows; what the last client sent and the USB host had not taken yet
+        goes with its session (the primary drops a half line at a new session too)."""
         self.open = not self.open
+        self.held.clear()
         self.world.usb_dtr(self.port, self.open)
 
     def feed(self, data: bytes) -> bytes:
-        """Bytes from the client to the primary's USB OUT endpoint (its answers come through drain)."""
+        """Bytes from the client to the primary's USB OUT endpoint (its answers come through drain): what the USB
+        host cannot take now is held and offered again after each advance (ready() is False meanwhile)."""
         self.bytes_in += len(data)
-        sent = self.world.usb_write(self.port, data)
-        if sent < len(data):
-            raise ConfigError(f"image: the USB host's buffer is full ({sent} of {len(data)} bytes taken)")
+        self.held += data
+        self._offer()
+        self.held_most = max(self.held_most, len(self.held))
         return b""
+
+    def ready(self) -> bool:
+        """True when nothing is held: serve reads the pty only then (back-pressure on the client)."""
+        return not self.held
+
+    def _offer(self) -> None:
+        if self.held:
+            taken = self.world.usb_write(self.port, bytes(self.held))  # -1: the port is not attached (yet)
+            del self.held[: max(0, taken)]
 
     def drain(self) -> bytes:
         out = self.world.usb_read(self.port)
@@ -67,7 +87,8 @@ class ImageRig:
         usb = w.usb_info(self.port)
         return (
             f"the flashed images: {self.transactions} I2C transactions, {usb.in_bytes} bytes from the primary's "
-            f"USB ({usb.out_bytes} to it), {resets} board resets after power-up; {sim_s / wall_s:.2f}x real time "
+            f"USB ({usb.out_bytes} to it, at most {self.held_most} bytes held back while the USB host was full), "
+            f"{resets} board resets after power-up; {sim_s / wall_s:.2f}x real time "
             f"(the image tier cannot always keep up)"
         )
 

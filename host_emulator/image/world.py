@@ -282,6 +282,23 @@ class World:
         if rc != 0:
             raise ValueError(self.ffi.string(self.lib.sam_world_error(self._w)).decode())
 
+    def nfaults(self) -> int:
+        """Faults injected so far (the index of the next one, while the table has room)."""
+        return int(self.lib.sam_world_nfaults(self._w))
+
+    def fault_fired(self, k: int) -> tuple[str, int, float | None] | None:
+        """(kind, board, world time it took effect or None: not yet) of the k-th fault injected (None: no such)."""
+        out = self.ffi.new("sam_fault_info_t *")
+        if self.lib.sam_world_fault_info(self._w, k, out) != 0:
+            return None
+        kind = next(
+            (n[len("SAM_FAULT_") :].lower() for n in dir(self.lib)
+             if n.startswith("SAM_FAULT_") and n != "SAM_FAULT_COUNT" and getattr(self.lib, n) == out.kind),
+            str(out.kind),
+        )  # fmt: skip
+        fired = int(out.t_fired) / self.tu_hz if out.fired else None
+        return kind, int(out.mcu), fired
+
     def reset(self, b: int) -> None:
         """A system reset of board b now, as NVIC_SystemReset does (reset cause SYST, RAM kept): it restarts where a
         reset starts it, re-initialising its USB (the host sees it go and enumerate again). Like a USB host action

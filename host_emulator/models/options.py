@@ -18,7 +18,7 @@ class ConfigError(ValueError):
 @dataclass(frozen=True)
 class NoiseOptions:
     """Seeded noise. Spreads are relative standard deviations of a per-cell/per-bond factor
-    1 + s*N(0,1) (clipped at 0.2); encoder noise is hil only."""
+    1 + s*N(0,1) (clipped at 0.2); encoder noise is hil only (the image tier refuses it)."""
 
     seed: int = 0
     band_spread: float = 0.0  # stiffness factor of each band pair (bond), both chains
@@ -41,6 +41,7 @@ class ImageOptions:
 
 
 IMAGE_THREADS_MAX = 16
+IMAGE_ROUND_MIN_S = 1e-6  # round_s below this (48 CPU cycles) only multiplies the rounds' cost (limits.image_cost)
 CYCLE_MODELS = ("cache", "worst")
 BOOT_MODES = ("direct", "bootloader")  # image/bootloader.py BOOT_MODES
 
@@ -134,8 +135,11 @@ def parse_image(d: dict, prefix: str = "model_options.image") -> ImageOptions:
             kw[k] = v
         elif k == "round_s":
             kw[k] = _num(key, v, nonneg=True)
-            if kw[k] > 0.01:
-                raise ConfigError(f"{key} = {v!r}: expected 0 (the plant window) .. 0.01 s")
+            if kw[k] > 0.01 or 0 < kw[k] < IMAGE_ROUND_MIN_S:
+                raise ConfigError(
+                    f"{key} = {v!r}: expected 0 (the plant window) or {IMAGE_ROUND_MIN_S:g} .. 0.01 s (results do not "
+                    "depend on it; shorter rounds only cost time)"
+                )
     return ImageOptions(**kw)
 
 

@@ -520,6 +520,11 @@ def cmd_rehearse(args: argparse.Namespace) -> int:
     try:
         scene, plan = _prepare(args)
         _options(args)
+        if scene.model == "image":  # the rehearsal's server is the hil emulator's: it would not be what was asked
+            raise PlanError(
+                "model = image: a rehearsal runs the hil emulator's serve; for the flashed images run `python -m "
+                "host_emulator serve SCENE --slcan --set model=image` and `experiment run --channel PTY@115200`"
+            )
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -136,6 +136,15 @@ uint64_t sam_tu_hz(void);
 /* Start the plant clock: the plant's time is world time minus t_start (tu); before, the plant rests. */
 void sam_world_start_plant(sam_world_t *w, uint64_t t_start);
 int sam_world_fault(sam_world_t *w, int32_t kind, int32_t mcu, uint64_t t0, uint64_t t1, double arg, int32_t arg2);
+/* A fault as it went (sam_world_fault_info, by the order injected: k < sam_world_nfaults; a full table reuses an ended
+ * fault's place): fired, and t_fired when it took effect, later than t0 when its board was without power at t0 (it
+ * takes effect at power-up). */
+typedef struct {
+    int32_t kind, mcu, fired, ended;
+    uint64_t t0, t1, t_fired;
+} sam_fault_info_t;
+int sam_world_nfaults(const sam_world_t *w);
+int sam_world_fault_info(const sam_world_t *w, int k, sam_fault_info_t *out);
 /* Read a board's state; RAM (addr in 0x20000000..+32K); register access counters (2 * sam_nregs: reads, writes). */
 int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *out);
 int sam_world_read_mem(const sam_world_t *w, int mcu, uint32_t addr, uint8_t *buf, uint32_t len);

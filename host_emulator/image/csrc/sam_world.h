@@ -109,9 +109,11 @@ typedef struct {
 
 /* ---- faults ---- */
 #define SAM_MAX_FAULTS 256
+#define SAM_FAULT_UNFIRED 0xFFFFFFFFFFFFFFFFull   /* sam_fault_t.t_fired of a fault that has not taken effect */
 typedef struct {
     int kind, mcu, arg2, started, ended;
     uint64_t t0, t1;
+    uint64_t t_fired;     /* when it took effect (SAM_FAULT_UNFIRED: not yet) */
     double arg;
     uint64_t next;        /* edge storm: next glitch; spin: next edge */
     int32_t leg, dir;     /* spin back and forth: counts into the current leg, its direction */

@@ -36,6 +36,7 @@ static void fault_fire(sam_mcu_t *m, void *ctx)
             continue;
         if (!f->started && now >= f->t0) {
             f->started = 1;
+            f->t_fired = now;
             if (f->kind == SAM_FAULT_HARDFAULT) {
                 sam_note(m, "%s: injected HardFault at t = %.6f s", m->name, (double)now / (double)SAM_TU_HZ);
                 sam_irq_pend_sys(m, 3);
@@ -123,6 +124,31 @@ static void lines_changed(sam_world_t *w)
     p->t_blk = saved;
 }
 
+/* A board's own faults that came due while it had no power take effect now, at its power-up, and are dated so. */
+static void power_up_faults(sam_world_t *w, int mcu)
+{
+    int moved = 0;
+    for (int k = 0; k < w->nfault; k++) {
+        sam_fault_t *f = &w->fault[k];
+        if (f->mcu != mcu || f->started || f->ended || world_fault_level(f->kind) || f->t0 >= w->t)
+            continue;
+        int edges = f->kind == SAM_FAULT_EDGE_STORM || f->kind == SAM_FAULT_SPIN;
+        if (edges && f->t1 <= w->t) {   /* edges on the cable, all while the board was off: it saw none of them */
+            f->started = f->ended = 1;
+            f->t_fired = f->t0;
+            continue;
+        }
+        sam_world_note(w, "%s: a fault due at t = %.6f s while it had no power takes effect at power-up", w->mcu[mcu]->name,
+                       (double)f->t0 / (double)SAM_TU_HZ);
+        if (f->t1 < w->t)
+            f->t1 = w->t;
+        f->t0 = w->t;
+        moved = 1;
+    }
+    if (moved)
+        fault_schedule(w, mcu);
+}
+
 void sam_world_faults_apply(sam_world_t *w)
 {
     for (int k = 0; k < w->nfault; k++) {
@@ -132,6 +158,7 @@ void sam_world_faults_apply(sam_world_t *w)
         sam_mcu_t *m = f->mcu >= 0 ? w->mcu[f->mcu] : NULL;
         if (!f->started && w->t >= f->t0) {
             f->started = 1;
+            f->t_fired = w->t;
             if (f->kind == SAM_FAULT_STUCK_SDA) {
                 w->bus.sda_stuck = 1;
                 sam_world_note(w, "bus: SDA held low from t = %.6f s", (double)w->t / (double)SAM_TU_HZ);
@@ -155,6 +182,7 @@ void sam_world_faults_apply(sam_world_t *w)
                 m->t = w->t;
                 sam_world_note(w, "%s: power back at t = %.6f s", m->name, (double)w->t / (double)SAM_TU_HZ);
                 sam_mcu_power_on_reset(m);
+                power_up_faults(w, f->mcu);
             } else if (f->kind == SAM_FAULT_USB_NO_READ) {
                 w->usb[f->mcu].no_read = 0;
             }
@@ -196,8 +224,26 @@ int sam_world_fault(sam_world_t *w, int32_t kind, int32_t mcu, uint64_t t0, uint
     f->t1 = t1;
     f->arg = arg;
     f->arg2 = arg2;
+    f->t_fired = SAM_FAULT_UNFIRED;
     if (mcu >= 0 && kind != SAM_FAULT_STUCK_SDA && kind != SAM_FAULT_SILENT && kind != SAM_FAULT_USB_NO_READ)
         fault_schedule(w, mcu);
+    return 0;
+}
+
+int sam_world_nfaults(const sam_world_t *w) { return w->nfault; }
+
+int sam_world_fault_info(const sam_world_t *w, int k, sam_fault_info_t *out)
+{
+    if (k < 0 || k >= w->nfault)
+        return -1;
+    const sam_fault_t *f = &w->fault[k];
+    out->kind = f->kind;
+    out->mcu = f->mcu;
+    out->ended = f->ended;
+    out->t0 = f->t0;
+    out->t1 = f->t1;
+    out->fired = f->started;
+    out->t_fired = f->started ? f->t_fired : 0;
     return 0;
 }
 
