@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import re
 import struct
 from dataclasses import dataclass, field
@@ -18,6 +19,7 @@ from . import cycles
 
 APP_BASE = 0x2000  # the UF2 bootloader's application start: the image's vector table
 MAX_SEGMENTS = 16  # the project's images have two or three load segments
+MAX_HEADERS, MAX_SECTIONS = 64, 1024  # an image has a few program headers and a few dozen sections
 # the start-up code copies .data from flash to SRAM by words, and the vector table and literal pools are words
 SEGMENT_ALIGN = 4
 
@@ -108,10 +110,7 @@ def load_image(path: str | Path) -> FirmwareImage:
     """The image of an ELF file (ImageError, one line, for anything the tier cannot run or that is not an ELF)."""
     path = Path(path)
     data = path.read_bytes()
-    try:
-        segs, syms, marks = _read_elf(path, data)
-    except ELFError as e:
-        raise ImageError(f"{path}: not a readable ELF ({e})") from None
+    segs, syms, marks = read_elf(path, data)
     vt = next((sg for sg in segs if sg.addr == APP_BASE), None)
     if vt is None or len(vt.data) < 8:
         raise ImageError(f"{path}: no vector table at 0x{APP_BASE:x} (not linked for the bootloader)")
@@ -138,12 +137,34 @@ HEAP_BASE_NAMES = ("__end__", "end", "_end", "__bss_end__")
 BRK_PATTERN = re.compile(r"^(_ZZ5_sbrkE8heap_end|heap_end(\.\d+)?)$")
 
 
+def read_elf(path: Path, data: bytes) -> tuple[list[Segment], dict[str, tuple[int, int]], dict[str, int]]:
+    """(load segments, symbols, linker-script marks) of the ELF file `path` whose bytes are `data`, the segments
+    checked (check_segments); ImageError (one line) for anything else. fuzz/fuzz_elf.py fuzzes it."""
+    try:
+        return _read_elf(path, data)
+    except ImageError:
+        raise
+    except (ELFError, ValueError, LookupError, TypeError, AttributeError, AssertionError, struct.error) as e:
+        # pyelftools on a malformed file: its own errors, or whatever its structures raise on nonsense values
+        raise ImageError(f"{path}: not a readable ELF ({type(e).__name__}: {e})".replace("\n", " ")) from None
+    except RecursionError:
+        raise ImageError(f"{path}: not a readable ELF (nested too deeply)") from None
+
+
 def _read_elf(path: Path, data: bytes) -> tuple[list[Segment], dict[str, tuple[int, int]], dict[str, int]]:
-    """(load segments, symbols, linker-script marks) of the ELF; the segments are checked (check_segments)."""
-    with open(path, "rb") as fh:
+    with io.BytesIO(data) as fh:
         elf = ELFFile(fh)
         if elf["e_machine"] != "EM_ARM" or elf.elfclass != 32:
             raise ImageError(f"{path}: not a 32-bit ARM ELF")
+        # the header's tables inside the file and of sizes an image has (pyelftools would walk 65535 entries)
+        for what, off, num, size, most, want in (
+            ("program header", elf["e_phoff"], elf["e_phnum"], elf["e_phentsize"], MAX_HEADERS, 32),
+            ("section header", elf["e_shoff"], elf["e_shnum"], elf["e_shentsize"], MAX_SECTIONS, 40),
+        ):
+            if num and (num > most or size != want or not _in(off, num * size, (0, len(data)))):
+                raise ImageError(
+                    f"{path}: {what} table of {num} entries of {size} bytes at offset 0x{off:x}: not one an image has"
+                )
         headers = [
             LoadHeader(
                 int(seg["p_paddr"]),

@@ -4,6 +4,7 @@ Each refusal is one line and exit 2 from every command that loads the images (is
 
 from __future__ import annotations
 
+import base64
 import dataclasses
 import os
 import shutil
@@ -74,14 +75,32 @@ def test_load_segments_the_chip_cannot_hold_are_refused(elf, k, change, says):
     assert says in msg and str(elf) in msg and "\n" not in msg
 
 
-@pytest.mark.parametrize(
-    "blob", [b"", b"\x7fELF", b"\x7fELF\x01\x01\x01" + bytes(9) + b"\x02\x00\x28\x00" + bytes(200)]
+# fuzz/fuzz_elf.py's first find: e_phnum = 60416 entries of 0 bytes, which pyelftools walked for minutes
+PHNUM_60416 = base64.b64decode(
+    "f0VMRgEBAQAAAAAAAAAAAAIAKAABAAAAAQEBAAAAAAAAAH9FTEYBAQAAAAAA7AEAAAACAAADAAAAAAAAAgAFNAAgAAJGAQEBAAAAAAAAAAAAAgAoAAEAAAAB"
+    "AQEAAAAAAAAAAAAAAgAFNAAgAAIAKAAIAAcAACgACAAAAAAAAAAABwA="
 )
-def test_what_is_not_a_readable_elf_is_an_image_error(tmp_path, blob):
+
+
+@pytest.mark.parametrize(
+    "blob",
+    [b"", b"\x7fELF", b"\x7fELF\x01\x01\x01" + bytes(9) + b"\x02\x00\x28\x00" + bytes(200), PHNUM_60416],
+    ids=["empty", "magic", "no-tables", "phnum-60416"],
+)
+def test_what_is_not_a_readable_elf_is_one_image_error_line(tmp_path, blob):
     p = tmp_path / "firmware.elf"
     p.write_bytes(blob)
-    with pytest.raises(ImageError):
+    with pytest.raises(ImageError) as e:
         elfimage.load_image(p)
+    assert "\n" not in str(e.value)
+
+
+def test_header_tables_outside_the_file_are_refused(elf):
+    data = bytearray(elf.read_bytes())
+    struct.pack_into("<I", data, 32, len(data) - 100)  # e_shoff: the section headers run past the end
+    elf.write_bytes(bytes(data))
+    with pytest.raises(ImageError, match="section header table of .* entries of 40 bytes"):
+        elfimage.load_image(elf)
 
 
 def test_the_c_loader_refuses_a_segment_whose_end_wraps(images, monkeypatch):
