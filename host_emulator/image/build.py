@@ -110,8 +110,8 @@ def build_images(cells: int = N_CELLS, *, root: Path = ROOT, primary: bool = Tru
         return out / (f"cell{j:02d}" if role == "cell" else "primary") / "firmware.elf"
 
     if all(elf(r, j).is_file() for r, j in want):
-        for r, j in want:
-            check_cached(elf(r, j))
+        for role, j in want:
+            check_cached(elf(role, j))
         return ImageSet(tuple(elf("cell", j) for j in range(1, cells + 1)), elf("primary", None), digest)
     prefix, why = how_to_build(root)
     if prefix is None:
