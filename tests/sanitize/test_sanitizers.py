@@ -31,6 +31,7 @@ SANITIZED_TESTS = [
     "tests/host_emulator/image/test_guest_bounds.py",
     "tests/host_emulator/image/peripherals/test_nvic.py",
     "tests/host_emulator/models/test_steppers.py",
+    "tests/host_emulator/models/test_dop853.py",
     "tests/host_emulator/models/test_hil.py",
     # (an encoder property test of pure Python: 17 s under the sanitizers for no C)
     "--deselect=tests/host_emulator/models/test_hil.py::test_encoder_tracks_any_angle_sequence",
