@@ -37,6 +37,13 @@ if ! ls "$(clang -print-resource-dir)"/lib/linux/libclang_rt.fuzzer-x86_64.a >/d
     apt_install "libclang-rt-${ver}-dev"
 fi
 
+# the sanitizer job (tests/sanitize): gcc's ASan and UBSan runtimes, which libgcc-N-dev links and brings (libasan,
+# libubsan); Debian's gcc depends on it, a trimmed toolchain may not
+asan=$(cc -print-file-name=libasan.so 2>/dev/null || true)
+if [ "${asan#/}" = "$asan" ] || [ ! -e "$asan" ]; then
+    apt_install "libgcc-$(cc -dumpversion | cut -d. -f1)-dev"
+fi
+
 if [ ! -x .venv/bin/python ]; then
     "${PYTHON:-python3}" -m venv .venv
 fi

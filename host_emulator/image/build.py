@@ -5,7 +5,9 @@ its own build directory and the source-only flags that give a cell its number an
 uploads exactly these builds and the image tier runs them. ``build_images`` caches the ELFs by a hash of everything
 the build reads (src/, lib/, platformio.ini, the build hooks) and builds offline through a pre-installed tree's
 use.sh (MC_PIO_TREE) or with the user's own PlatformIO (~/.platformio holding the atmelsam platform), as
-``metacell_common.target.pio.how_to_build`` says (the flash tool asks it too).
+``metacell_common.target.pio.how_to_build`` says (the flash tool asks it too). Each cached ELF has its SHA-256 beside
+it (``firmware.elf.sha256``, as sha256sum writes it), recorded when it was built (or, for a cache from before the
+records, when first used); a cached ELF that no longer matches its record is refused (CorruptCacheError).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from metacell_common.target.pio import how_to_build, pio_executable
 from protocol.wire import N_CELLS
 
 from . import ImageTierUnavailable
+from .elfimage import ImageError
 
 ROOT = Path(__file__).resolve().parents[2]
 IMAGE_BUILD_INPUTS = ("src", "lib", "platformio.ini", "metacell_tools/flash/pio_fwcheck.py")
@@ -46,6 +49,42 @@ def inputs_digest(root: Path = ROOT) -> str:
             h.update(str(f.relative_to(root)).encode())
             h.update(f.read_bytes())
     return h.hexdigest()[:16]
+
+
+class CorruptCacheError(ImageError):
+    """A cached ELF is not the file that was built (its SHA-256 differs from the one recorded beside it)."""
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def digest_record(elf: Path) -> Path:
+    return elf.with_name(elf.name + ".sha256")
+
+
+def record_digest(elf: Path) -> None:
+    """Write the ELF's SHA-256 beside it (atomically: parallel test workers may record the same file)."""
+    rec = digest_record(elf)
+    tmp = rec.with_name(f"{rec.name}.{os.getpid()}.tmp")
+    tmp.write_text(f"{_sha256(elf)}  {elf.name}\n")
+    os.replace(tmp, rec)
+
+
+def check_cached(elf: Path) -> None:
+    """CorruptCacheError (one line) when a cached ELF differs from its recorded SHA-256; a cache from before the
+    records gets its record now."""
+    rec = digest_record(elf)
+    if not rec.is_file():
+        record_digest(elf)
+        return
+    want = rec.read_text(errors="replace").split(maxsplit=1)
+    got = _sha256(elf)
+    if not want or want[0] != got:
+        raise CorruptCacheError(
+            f"{elf}: SHA-256 {got[:16]}... is not the {want[0][:16] if want else 'empty'}... recorded when it was "
+            f"built: the image cache is corrupted (delete {elf.parents[1]} to rebuild it)"
+        )
 
 
 @dataclass(frozen=True)
@@ -110,6 +149,8 @@ def build_images(cells: int = N_CELLS, *, root: Path = ROOT, primary: bool = Tru
         return out / (f"cell{j:02d}" if role == "cell" else "primary") / "firmware.elf"
 
     if all(elf(r, j).is_file() for r, j in want):
+        for role, j in want:
+            check_cached(elf(role, j))
         return ImageSet(tuple(elf("cell", j) for j in range(1, cells + 1)), elf("primary", None), digest)
     prefix, why = how_to_build(root)
     if prefix is None:
@@ -122,6 +163,7 @@ def build_images(cells: int = N_CELLS, *, root: Path = ROOT, primary: bool = Tru
         try:
             for k, (role, j) in enumerate(want):
                 if elf(role, j).is_file():
+                    check_cached(elf(role, j))
                     continue
                 label = "primary" if role == "primary" else f"cell {j}"
                 if progress:
@@ -165,3 +207,4 @@ def _build_one(root: Path, out: Path, role: str, j: int | None, prefix: list, de
         raise ImageBuildError(f"pio run -e {env_name} left no {built}")
     dest.parent.mkdir(parents=True, exist_ok=True)
     shutil.copy2(built, dest)
+    record_digest(dest)

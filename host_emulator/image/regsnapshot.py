@@ -13,7 +13,7 @@ import sys
 from functools import lru_cache
 from pathlib import Path
 
-from .regtable import Field, Peripheral, PinFunction, Register, RegTableError, Table, load
+from .regtable import Field, HeadersMissing, Peripheral, PinFunction, Register, RegTableError, Table, check, load
 
 SNAPSHOT = Path(__file__).resolve().parent / "samd21g18a_regtable.json"
 SOURCE = "snapshot"  # Table.source of a table read from SNAPSHOT
@@ -126,14 +126,17 @@ def load_snapshot() -> Table:
         ]
         periphs.append(Peripheral(p["name"], p["struct"], p["base"], p["size"], p["irq"], tuple(p["views"]), regs))
     pinmux = [PinFunction(*f) for f in data["pinmux"]]
-    return Table(periphs, SOURCE, pinmux, tuple(data["vendor_macros"]))
+    table = Table(periphs, SOURCE, pinmux, tuple(data["vendor_macros"]))
+    check(table)
+    return table
 
 
 def load_or_snapshot(pio_tree: str | None = None) -> Table:
-    """The table from the headers where they are found (load), else from the committed snapshot."""
+    """The table from the headers where they are found (load), else from the committed snapshot. Headers that are
+    there but wrong (unparsable, or values the chip cannot have: regtable.check) are refused, never replaced."""
     try:
         return load(pio_tree)
-    except RegTableError:
+    except HeadersMissing:
         if not SNAPSHOT.is_file():
             raise
         return load_snapshot()

@@ -36,9 +36,29 @@ DEVICE_HEADER = "samd21g18a.h"
 # unions of mode views (the CTRLA.MODE or the USB mode selects the active one)
 VIEW_UNIONS = ("Tc", "Sercom", "Usb")
 
+# What the compiled runtime can hold (csrc/sam.h, sam_regtab.h, sam_mmio.c), checked before a table reaches C (check):
+# the peripheral regions it maps (sam_mmio.c's REGION_BASE/REGION_SIZE: APB A, B, C, the IOBUS, the system control
+# space), the Cortex-M0+'s 32 external interrupt lines, SAM_MAX_PERIPH instances of at most 4 mode views each
+PERIPHERAL_REGIONS = (
+    (0x40000000, 0x2000),
+    (0x41000000, 0x8000),
+    (0x42000000, 0x6000),
+    (0x60000000, 0x1000),
+    (0xE000E000, 0x1000),
+)
+NVIC_LINES = 32
+MAX_PERIPHERALS = 48
+MAX_VIEWS = 4
+MAX_REGISTERS = 0x7FFF  # register indices are int16_t in the offset maps
+MAX_FIELDS = 0xFFFF  # sam_reg_t.field0 is a uint16_t
+
 
 class RegTableError(ImageTierUnavailable):
     """The vendor headers are missing or not in the expected form."""
+
+
+class HeadersMissing(RegTableError):
+    """No vendor headers where they were looked for (the committed snapshot may stand in: regsnapshot)."""
 
 
 @dataclass(frozen=True)
@@ -143,7 +163,7 @@ def find_include_dirs(pio_tree: str | os.PathLike | None = None) -> tuple[Path, 
         tried.append(str(r))
         if (a / DEVICE_HEADER).is_file() and (c / "core_cm0plus.h").is_file():
             return a, c
-    raise RegTableError(
+    raise HeadersMissing(
         "the SAMD21 device headers (framework-cmsis-atmel, framework-cmsis) are not installed: looked in "
         + ", ".join(tried)
         + "; set MC_PIO_TREE to an offline PlatformIO tree or install PlatformIO's atmelsam platform"
@@ -420,7 +440,64 @@ def load(pio_tree: str | None = None) -> Table:
     for p in periphs:
         if not p.registers:
             raise RegTableError(f"{p.name} ({p.struct}): no registers parsed")
-    return Table(periphs, str(atmel), _pinmux(atmel))
+    table = Table(periphs, str(atmel), _pinmux(atmel))
+    check(table)
+    return table
+
+
+def check(table: Table) -> None:
+    """RegTableError (one line naming the value and where it came from) unless every value of the table fits the
+    chip and the runtime's C: interrupt lines 0..31 and each used once, instance windows inside a peripheral region
+    and apart, registers 1, 2 or 4 bytes wide, aligned and inside their instance's window, resets and fields inside
+    their width, views, pins and pin functions that exist, and counts the C's index types hold."""
+    src = table.source
+
+    def bad(what: str) -> RegTableError:
+        return RegTableError(f"register table from {src}: {what}")
+
+    if not 1 <= len(table.peripherals) <= MAX_PERIPHERALS:
+        raise bad(f"{len(table.peripherals)} instances (1..{MAX_PERIPHERALS})")
+    irqs: dict[int, str] = {}
+    windows: list[tuple[int, int, str]] = []
+    nregs = nfields = 0
+    for p in table.peripherals:
+        if p.irq is not None:
+            if not 0 <= p.irq < NVIC_LINES:
+                raise bad(f"{p.name}_IRQn = {p.irq}: the NVIC has lines 0..{NVIC_LINES - 1}")
+            if p.irq in irqs:
+                raise bad(f"{p.name}_IRQn = {p.irq}: the line of {irqs[p.irq]} already")
+            irqs[p.irq] = p.name
+        if len(p.views) > MAX_VIEWS:
+            raise bad(f"{p.name}: {len(p.views)} mode views (at most {MAX_VIEWS})")
+        if not any(b <= p.base and 0 < p.size <= b + n - p.base for b, n in PERIPHERAL_REGIONS):
+            raise bad(f"{p.name} at 0x{p.base:x} (+0x{p.size:x}): outside the chip's peripheral regions")
+        windows.append((p.base, p.size, p.name))
+        for r in p.registers:
+            where = f"{r.full} at offset 0x{r.offset:x}"
+            if r.size not in (1, 2, 4):
+                raise bad(f"{where}: {r.size} bytes wide (1, 2 or 4)")
+            if r.offset < 0 or r.offset % r.size or r.size > p.size - r.offset:
+                raise bad(f"{where}: outside {p.name}'s 0x{p.size:x}-byte window or not aligned to its width")
+            if r.access not in ACCESS_CODE or (r.view and r.view not in p.views):
+                raise bad(f"{where}: access {r.access!r}, view {r.view!r} unknown")
+            if not 0 <= r.reset < 1 << (8 * r.size):
+                raise bad(f"{where}: reset value 0x{r.reset:x} wider than the register")
+            if len(r.fields) > 255:
+                raise bad(f"{where}: {len(r.fields)} fields")
+            for f in r.fields:
+                if f.pos < 0 or f.width < 1 or f.width > 8 * r.size - f.pos:
+                    raise bad(f"{where}: field {f.name} at bit {f.pos}, {f.width} wide, outside its {8 * r.size} bits")
+        nregs += len(p.registers)
+        nfields += sum(len(r.fields) for r in p.registers)
+    windows.sort()
+    for (a, n, x), (b, _, y) in zip(windows, windows[1:]):
+        if b < a + n:
+            raise bad(f"the windows of {x} (0x{a:x} +0x{n:x}) and {y} (0x{b:x}) overlap")
+    if nregs > MAX_REGISTERS or nfields > MAX_FIELDS:
+        raise bad(f"{nregs} registers, {nfields} fields (at most {MAX_REGISTERS}, {MAX_FIELDS})")
+    for pf in table.pinmux:
+        if not (0 <= pf.pin < 64 and 0 <= pf.func < 8):
+            raise bad(f"pin function {pf.periph}/{pf.signal}: pin {pf.pin} (0..63), function {pf.func} (0..7)")
 
 
 # ---------------------------------------------------------------- C output
@@ -433,7 +510,9 @@ def emit_c(table: Table) -> str:
     """C source of the table (sam_regtab.h declares the types): sam_periphs[], sam_regs[], sam_fields[].
 
     Registers are ordered by peripheral, then view, then offset; sam_regs[i].alias is the index of the register
-    an alias (set/clr/tgl) acts on (itself when it holds the hidden value, as INTENSET does for INTENCLR)."""
+    an alias (set/clr/tgl) acts on (itself when it holds the hidden value, as INTENSET does for INTENCLR). The table
+    is checked first (check): nothing the runtime's C cannot hold is emitted."""
+    check(table)
     lines = [
         "/* Generated by host_emulator.image.regtable from the vendor's device headers; do not edit. */",
         '#include "sam_regtab.h"',

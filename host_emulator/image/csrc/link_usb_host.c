@@ -152,7 +152,8 @@ static void ctl_start(sam_mcu_t *m, const uint8_t setup[8], const uint8_t *data,
     }
     memcpy(h->setup, setup, 8);
     uint16_t wlen = (uint16_t)(setup[6] | setup[7] << 8);
-    h->ctl_len = setup[0] & 0x80 ? wlen : (n < sizeof h->ctl_data ? n : sizeof h->ctl_data);
+    h->ctl_len = setup[0] & 0x80 ? (wlen < sizeof h->ctl_data ? wlen : sizeof h->ctl_data)
+                                 : (n < sizeof h->ctl_data ? n : sizeof h->ctl_data);
     if (!(setup[0] & 0x80) && data)
         memcpy(h->ctl_data, data, h->ctl_len);
     h->ctl_done = 0;

@@ -204,6 +204,7 @@ typedef struct {
 } sam_index_t;
 extern sam_index_t sam_idx;
 void sam_index_init(void);
+int sam_regtab_check(char *err, size_t cap);
 
 /* ---- sam_mcu.c: a board's life cycle ---- */
 int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id);

@@ -68,6 +68,11 @@ static void halt_untimed(sam_mcu_t *m, uint32_t a, const sam_insn_cost_t *ic)
 static int cost_span(const sam_mcu_t *m, uint32_t addr, uint32_t end, sam_blkcost_t *bc, sam_insn_cost_t *bad,
                      uint32_t *at)
 {
+    if (end < addr || end > SAM_FLASH_SIZE) {   /* a block outside the flash (the hooks cover only the flash) */
+        bad->text = "a block outside the flash";
+        *at = addr;
+        return -1;
+    }
     bc->addr = addr;
     bc->size = (uint16_t)(end - addr);
     if (m->cost_core && addr >= m->tab_lo && end <= m->app_end) {
@@ -83,11 +88,16 @@ static int cost_span(const sam_mcu_t *m, uint32_t addr, uint32_t end, sam_blkcos
     uint8_t refund = 0;
     sam_insn_cost_t ic;
     for (uint32_t a = addr; a < end; a += ic.size) {
+        if (end - a < 2) {
+            bad->text = "an instruction across the block's end";
+            *at = a;
+            return -1;
+        }
         uint16_t hw1 = (uint16_t)(m->flash[a] | m->flash[a + 1] << 8), hw2 = 0;
-        if (a + 4 <= SAM_FLASH_SIZE)
+        if (SAM_FLASH_SIZE - a >= 4)
             hw2 = (uint16_t)(m->flash[a + 2] | m->flash[a + 3] << 8);
-        if (sam_cost_insn(hw1, hw2, &ic) || a + ic.size > end) {
-            if (a + ic.size > end)
+        if (sam_cost_insn(hw1, hw2, &ic) || ic.size > end - a) {
+            if (ic.size > end - a)
                 ic.text = "an instruction across the block's end";
             *bad = ic;
             *at = a;

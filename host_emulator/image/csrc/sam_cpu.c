@@ -34,9 +34,9 @@ void sam_fail(sam_mcu_t *m, const char *fmt, ...)
 uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok)
 {
     const uint8_t *p = NULL;
-    if (addr + 4 <= SAM_FLASH_SIZE)
+    if (addr <= SAM_FLASH_SIZE - 4)
         p = m->flash + addr;
-    else if (addr >= SAM_RAM_BASE && addr + 4 <= SAM_RAM_BASE + SAM_RAM_SIZE)
+    else if (addr >= SAM_RAM_BASE && addr - SAM_RAM_BASE <= SAM_RAM_SIZE - 4)
         p = m->ram + (addr - SAM_RAM_BASE);
     if (!p || (addr & 3)) {
         if (ok)
@@ -50,7 +50,7 @@ uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok)
 
 int sam_cpu_ram_write32(sam_mcu_t *m, uint32_t addr, uint32_t v)
 {
-    if (addr < SAM_RAM_BASE || addr + 4 > SAM_RAM_BASE + SAM_RAM_SIZE || (addr & 3))
+    if (addr < SAM_RAM_BASE || addr - SAM_RAM_BASE > SAM_RAM_SIZE - 4 || (addr & 3))
         return 0;
     uint8_t *p = m->ram + (addr - SAM_RAM_BASE);
     p[0] = (uint8_t)v;

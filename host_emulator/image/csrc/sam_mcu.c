@@ -13,11 +13,13 @@ int sam_init_fail(sam_mcu_t *m, const char *what, uc_err e)
 
 int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id)
 {
-    sam_index_init();
     memset(m, 0, sizeof *m);
     m->w = w;
     m->id = id;
     snprintf(m->name, sizeof m->name, "board %d", id);
+    if (sam_regtab_check(m->errmsg, sizeof m->errmsg))
+        return -1;
+    sam_index_init();
     m->flash = calloc(1, SAM_FLASH_SIZE);
     m->ram = calloc(1, SAM_RAM_SIZE);
     m->nvm = calloc(1, SAM_NVM_SIZE);
@@ -25,8 +27,6 @@ int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id)
     m->touch = calloc(2 * (size_t)sam_nregs, sizeof(uint32_t));
     m->notes = malloc(SAM_BOARD_NOTES);
     if (!m->flash || !m->ram || !m->nvm || !m->ff.snap_ram || !m->touch || !m->notes)
-        return -1;
-    if (sam_nperiphs > SAM_MAX_PERIPH)
         return -1;
     if (sam_cpu_open(m))
         return -1;

@@ -124,9 +124,69 @@ typedef struct {
     int scs, iobus;
 } region_t;
 
+/* (regtable.PERIPHERAL_REGIONS lists the same regions) */
 #define NREGIONS 5
 static const uint32_t REGION_BASE[NREGIONS] = {0x40000000u, 0x41000000u, 0x42000000u, 0x60000000u, 0xE000E000u};
 static const uint32_t REGION_SIZE[NREGIONS] = {0x2000u, 0x8000u, 0x6000u, 0x1000u, 0x1000u};  /* whole 4 KiB pages */
+
+/* The generated table's values, checked before any board uses them: regtable.check refuses a bad table in Python
+ * first; this keeps one that got past it from indexing outside the runtime's arrays. 0, or -1 with err set. */
+int sam_regtab_check(char *err, size_t cap)
+{
+    static const char *const needed[] = {"PM", "SYSCTRL", "GCLK", "WDT", "EIC", "NVMCTRL", "PORT", "PORT_IOBUS",
+                                         "USB", "TC3", "TCC0", "TCC1", "TCC2", "NVIC", "SCB", "SysTick"};
+    if (sam_nperiphs < 1 || sam_nperiphs > SAM_MAX_PERIPH || sam_nregs > 0x7FFFu) {
+        snprintf(err, cap, "register table: %u instances (1..%d), %u registers", sam_nperiphs, SAM_MAX_PERIPH, sam_nregs);
+        return -1;
+    }
+    for (unsigned pi = 0; pi < sam_nperiphs; pi++) {
+        const sam_periph_t *p = &sam_periphs[pi];
+        int inside = 0;
+        for (int i = 0; i < NREGIONS; i++)
+            if (p->base >= REGION_BASE[i] && p->base - REGION_BASE[i] < REGION_SIZE[i] && p->size > 0 &&
+                p->size <= REGION_SIZE[i] - (p->base - REGION_BASE[i]))
+                inside = 1;
+        if (!inside || p->irq < -1 || p->irq > 31 || p->nviews > 4 || p->reg0 > p->reg1 || p->reg1 > sam_nregs) {
+            snprintf(err, cap, "register table: %s at 0x%x (+0x%x), IRQ %d, %u views, registers %u..%u: out of range",
+                     p->name, p->base, p->size, p->irq, p->nviews, p->reg0, p->reg1);
+            return -1;
+        }
+        for (unsigned ri = p->reg0; ri < p->reg1; ri++) {
+            const sam_reg_t *r = &sam_regs[ri];
+            if ((r->size != 1 && r->size != 2 && r->size != 4) || r->size > p->size || r->offset > p->size - r->size ||
+                r->periph != pi || r->view > p->nviews || r->alias >= sam_nregs || r->field0 > sam_nfields ||
+                r->nfields > sam_nfields - r->field0) {
+                snprintf(err, cap, "register table: %s at offset 0x%x, %u bytes: out of range", r->name, r->offset,
+                         r->size);
+                return -1;
+            }
+        }
+    }
+    for (unsigned k = 0; k < sam_nfields; k++) {
+        const sam_field_t *f = &sam_fields[k];
+        if (f->reg >= sam_nregs || f->width < 1 || f->pos >= 32 || f->width > 32 - f->pos) {
+            snprintf(err, cap, "register table: field %s at bit %u, %u wide: out of range", f->name, f->pos, f->width);
+            return -1;
+        }
+    }
+    for (unsigned k = 0; k < sam_npinmux; k++)
+        if (sam_pinmux[k].pin > 63 || sam_pinmux[k].func > 7) {
+            snprintf(err, cap, "register table: pin function %s/%s on pin %u, function %u", sam_pinmux[k].periph,
+                     sam_pinmux[k].signal, sam_pinmux[k].pin, sam_pinmux[k].func);
+            return -1;
+        }
+    for (size_t k = 0; k < sizeof needed / sizeof needed[0]; k++)
+        if (sam_periph_index(needed[k]) < 0) {
+            snprintf(err, cap, "register table: no instance %s", needed[k]);
+            return -1;
+        }
+    int port = sam_periph_index("PORT"), iobus = sam_periph_index("PORT_IOBUS");
+    if (sam_periphs[iobus].size > sam_periphs[port].size) {
+        snprintf(err, cap, "register table: PORT_IOBUS's window is larger than PORT's");
+        return -1;
+    }
+    return 0;
+}
 
 static int reg_access(sam_mcu_t *m, region_t *rg, uint32_t addr, unsigned size, int write, uint32_t *val)
 {

@@ -59,6 +59,8 @@ int sam_nvic_best_pending(const sam_mcu_t *m, int *prio)
 
 void sam_irq_level(sam_mcu_t *m, int irq, int on)
 {
+    if (irq < 0 || irq > 31)   /* no line (sam_regtab_check admits -1 .. 31 only) */
+        return;
     uint32_t bit = 1u << irq;
     if (on) {
         if (!(m->nvic.level & bit)) {
@@ -73,6 +75,8 @@ void sam_irq_level(sam_mcu_t *m, int irq, int on)
 
 void sam_irq_pend_sys(sam_mcu_t *m, int exc)
 {
+    if (exc < 0 || exc > 15)
+        return;
     m->nvic.sys_pending |= 1u << exc;
     m->irq_check = 1;
 }

@@ -161,7 +161,7 @@ static void command(sam_mcu_t *m, uint32_t v)
 static int buffer_store(sam_mcu_t *m, uint32_t addr, uint32_t size, uint32_t val)
 {
     nvm_t *n = st(m);
-    if (size == 1 || (addr & (size - 1u)) || addr + size > SAM_FLASH_SIZE)
+    if (size == 1 || (addr & (size - 1u)) || addr > SAM_FLASH_SIZE - size)
         return 0;
     uint32_t off = addr & (NVM_PAGE - 1u);
     for (uint32_t k = 0; k < size; k++)
@@ -181,7 +181,7 @@ static int buffer_store(sam_mcu_t *m, uint32_t addr, uint32_t size, uint32_t val
 int sam_nvm_cpu_store(sam_mcu_t *m)
 {
     uint32_t pc = cpu_reg(m, UC_ARM_REG_PC) & ~1u, r[8];
-    if (pc + 2 > SAM_FLASH_SIZE || !st(m))
+    if (pc > SAM_FLASH_SIZE - 2 || !st(m))
         return 0;
     for (int i = 0; i < 8; i++)
         r[i] = cpu_reg(m, UC_ARM_REG_R0 + i);

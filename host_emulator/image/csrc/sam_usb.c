@@ -48,7 +48,7 @@ static uint32_t desc_addr(sam_mcu_t *m, int ep, int bank)
 
 uint8_t *sam_usb_ram(sam_mcu_t *m, uint32_t a, uint32_t n)
 {
-    if (a < SAM_RAM_BASE || a + n > SAM_RAM_BASE + SAM_RAM_SIZE)
+    if (a < SAM_RAM_BASE || a - SAM_RAM_BASE > SAM_RAM_SIZE || n > SAM_RAM_SIZE - (a - SAM_RAM_BASE))
         return NULL;
     return m->ram + (a - SAM_RAM_BASE);
 }

@@ -15,14 +15,14 @@ static uint64_t tu_of(double s) { return (uint64_t)llround(s * (double)SAM_TU_HZ
 /* Append a line to a notes buffer of capacity cap; when full, the oldest lines go (whole lines). */
 static void notes_append(char *buf, uint32_t *len, uint32_t cap, const char *line, uint32_t n)
 {
-    if (*len + n > cap) {
+    if (n > cap - *len) {
         uint32_t drop = *len / 2;
         while (drop < *len && buf[drop - 1] != '\n')
             drop++;
         memmove(buf, buf + drop, *len - drop);
         *len -= drop;
     }
-    if (*len + n <= cap) {
+    if (n <= cap - *len) {
         memcpy(buf + *len, line, n);
         *len += n;
     }
@@ -211,6 +211,15 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
         return sam_world_fail(w, "board %d: cell %d out of range or taken", mcu, cell + 1);
     if (role == SAM_ROLE_PRIMARY && w->primary_mcu >= 0)
         return sam_world_fail(w, "board %d: a second primary", mcu);
+    if (nsegs < 0 || (nsegs > 0 && !segs))
+        return sam_world_fail(w, "board %d: %d image segments", mcu, nsegs);
+    /* every segment inside the flash (below the application only with boot from the reset vector: the bootloader);
+     * bounds as `len > SIZE - addr`, which no address can wrap */
+    for (int k = 0; k < nsegs; k++)
+        if ((!img->boot && segs[k].addr < SAM_APP_BASE) || segs[k].addr > SAM_FLASH_SIZE ||
+            segs[k].len > SAM_FLASH_SIZE - segs[k].addr || (segs[k].len && !segs[k].data))
+            return sam_world_fail(w, "board %d: image segment at 0x%x (+%u) outside the application flash", mcu,
+                                  segs[k].addr, segs[k].len);
     /* the ELF's cycle tables, all or none (none: the decoder costs every block, sam_cost.c) */
     int tables = img->cost_core != NULL;
     if (tables != (img->cost_wait != NULL) || tables != (img->cost_lit != NULL) || tables != (img->refund != NULL) ||
@@ -238,13 +247,9 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
     m->cell = role == SAM_ROLE_CELL ? cell : -1;
     if (img->boot)
         memset(m->flash, 0xFF, SAM_FLASH_SIZE);   /* a real board's flash: erased but for what was programmed */
-    for (int k = 0; k < nsegs; k++) {
-        /* below the application only with boot from the reset vector: the bootloader */
-        if ((!img->boot && segs[k].addr < SAM_APP_BASE) || segs[k].addr + segs[k].len > SAM_FLASH_SIZE)
-            return sam_world_fail(w, "board %d: image segment at 0x%x (+%u) outside the application flash", mcu, segs[k].addr,
-                        segs[k].len);
-        memcpy(m->flash + segs[k].addr, segs[k].data, segs[k].len);
-    }
+    for (int k = 0; k < nsegs; k++)
+        if (segs[k].len)
+            memcpy(m->flash + segs[k].addr, segs[k].data, segs[k].len);
     m->boot = img->boot != 0;
     m->entry_sp = img->entry_sp;
     m->entry_pc = img->entry_pc;
@@ -336,11 +341,11 @@ int sam_world_read_mem(const sam_world_t *w, int mcu, uint32_t addr, uint8_t *bu
     if (mcu < 0 || mcu >= SAM_MAX_MCU || !w->mcu[mcu])
         return -1;
     sam_mcu_t *m = w->mcu[mcu];
-    if (addr >= SAM_RAM_BASE && addr + len <= SAM_RAM_BASE + SAM_RAM_SIZE) {
+    if (addr >= SAM_RAM_BASE && addr - SAM_RAM_BASE <= SAM_RAM_SIZE && len <= SAM_RAM_SIZE - (addr - SAM_RAM_BASE)) {
         memcpy(buf, m->ram + (addr - SAM_RAM_BASE), len);
         return 0;
     }
-    if (addr + len <= SAM_FLASH_SIZE) {
+    if (addr <= SAM_FLASH_SIZE && len <= SAM_FLASH_SIZE - addr) {
         memcpy(buf, m->flash + addr, len);
         return 0;
     }

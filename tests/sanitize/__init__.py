@@ -1,0 +1,1 @@
+"""The C runtimes under AddressSanitizer and UndefinedBehaviorSanitizer (test_sanitizers.py runs the rest)."""
