@@ -39,6 +39,33 @@ def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
     return None
 
 
+CAPTURE_FILES = ("csv", "npz", "asc", "blf", "db", "log", "trc", "txt", "mf4")  # every file a run may write
+
+
+def held_capture(prefix: Path) -> tuple[int, list[Path]] | None:
+    """(samples, files) when prefix names a capture that holds data, else None. The CSV is what every run writes
+    and --repair rebuilds from: a capture holds data when its CSV has a row or its NPZ a sample; without either, a
+    non-empty log file of the prefix counts. A run that recorded no frame (a port that never opened) holds none."""
+    files = [p for p in (prefix.with_suffix("." + f) for f in CAPTURE_FILES) if p.is_file()]
+    if not files:
+        return None
+    csv, npz = prefix.with_suffix(".csv"), prefix.with_suffix(".npz")
+    rows = 0
+    if csv.is_file():
+        with open(csv, "rb") as f:
+            rows = max(0, sum(1 for line in f if line.strip()) - 1)
+    if not rows and npz.is_file():
+        try:
+            with np.load(npz, allow_pickle=False) as z:
+                key = "alpha" if "alpha" in z.files else "alpha_counts" if "alpha_counts" in z.files else None
+                rows = int(np.sum(~np.isnan(z[key]))) if key else 0
+        except Exception:  # noqa: BLE001 - an NPZ that does not read is still a file someone may want
+            rows = -1
+    if rows or (not (csv.is_file() or npz.is_file()) and any(p.stat().st_size for p in files)):
+        return rows, files
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv)
@@ -56,7 +83,8 @@ def _main(argv: list[str] | None = None) -> int:
         "  python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run2 --duration 30 --formats asc\n"
         '  python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/run3 --do "2:perturb 8 --torque 0.02 '
         '--duration 0.1"\n'
-        "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
+        "an --out that already holds a capture is refused (exit 2, nothing changed) unless --overwrite is given.\n"
+        "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input (also: --out holds a capture), "
         "3 run failed (port, no frames, write error).",
     )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
@@ -71,6 +99,11 @@ def _main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument(
         "--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)"
+    )
+    ap.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the capture --out already names (default: refuse it, exit 2, nothing changed)",
     )
     ap.add_argument("--bitrate", type=int, default=None, help="CAN bit rate sent as Sn (ignored by the primary)")
     ap.add_argument(
@@ -131,9 +164,24 @@ def _main(argv: list[str] | None = None) -> int:
     known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
     if not formats or any(f not in known for f in formats):
         return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
+    held = held_capture(Path(args.out))
+    if held and not args.overwrite:
+        rows, files = held
+        what = f"{rows} samples" if rows > 0 else "a capture"
+        return bad(
+            f"--out {show(args.out)} holds {what} ({', '.join(p.suffix for p in files)}): nothing was changed; "
+            "choose another name, or --overwrite to replace it"
+        )
     problem = check_out(Path(args.out), formats)
     if problem:
         return bad(problem)
+    if held:
+        for p in held[1] + [Path(args.out).with_name(Path(args.out).name + ".npz.tmp")]:
+            p.unlink(missing_ok=True)
+        print(
+            f"logger: --overwrite: removed the capture {show(args.out)} ({', '.join(p.suffix for p in held[1])})",
+            file=sys.stderr,
+        )
     log = RigLogger(
         args.interface,
         args.channel,
