@@ -7,6 +7,8 @@ the output checks before the port is opened, --repair, and the summary line (the
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import math
 import sys
 from collections.abc import Sequence
@@ -15,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from metacell_common.cli import unexpected
-from metacell_common.outpaths import check_out_dir, check_out_file, show
+from metacell_common.outpaths import check_out_dir, check_out_file, created_mark, remove_created_since, show
 
 from ..command import build, parser
 from .files import RunFailed, repair
@@ -67,10 +69,14 @@ def held_capture(prefix: Path) -> tuple[int, list[Path]] | None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    mark = created_mark()
     try:
-        return _main(argv)
+        rc = _main(argv)
     except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
         return unexpected(e, "logger")
+    if rc == 2:
+        remove_created_since(mark)  # a rejection leaves no empty directory behind
+    return rc
 
 
 def _main(argv: list[str] | None = None) -> int:
@@ -164,6 +170,22 @@ def _main(argv: list[str] | None = None) -> int:
     known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
     if not formats or any(f not in known for f in formats):
         return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
+    commands = []
+    for item in args.do:  # checked before anything is written; argparse's usage text is no part of the line
+        t, sep, text = item.partition(":")
+        said = io.StringIO()
+        try:
+            tt = float(t)
+            if not (sep and math.isfinite(tt) and tt >= 0):
+                raise ValueError(f"time {t!r}")
+            with contextlib.redirect_stderr(said):
+                a = parser().parse_args(["-c", "-"] + text.split())
+            build(a)
+            commands.append((tt, text))
+        except (ValueError, SystemExit) as e:
+            lines = said.getvalue().strip().splitlines()
+            why = lines[-1].split("error: ", 1)[-1] if lines else str(e)
+            return bad(f"--do {show(repr(item))}: expected T:COMMAND with a valid command ({why})")
     held = held_capture(Path(args.out))
     if held and not args.overwrite:
         rows, files = held
@@ -193,18 +215,7 @@ def _main(argv: list[str] | None = None) -> int:
         wait_open_s=args.wait_open,
         source=args.source,
     )
-    for item in args.do:
-        t, sep, text = item.partition(":")
-        try:
-            tt = float(t)
-            if not (sep and math.isfinite(tt) and tt >= 0):
-                raise ValueError(f"time {t!r}")
-            a = parser().parse_args(["-c", "-"] + text.split())
-            build(a)
-            log.commands.append((tt, text))
-        except (ValueError, SystemExit) as e:
-            return bad(f"--do {item!r}: expected T:COMMAND with a valid command ({e})")
-    log.commands.sort()
+    log.commands = sorted(commands)
     try:
         n = log.run(args.duration)
     except RunFailed as e:
