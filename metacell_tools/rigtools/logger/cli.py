@@ -48,7 +48,10 @@ def held_capture(prefix: Path) -> tuple[int, list[Path]] | None:
     """(samples, files) when prefix names a capture that holds data, else None. The CSV is what every run writes
     and --repair rebuilds from: a capture holds data when its CSV has a row or its NPZ a sample; without either, a
     non-empty log file of the prefix counts. A run that recorded no frame (a port that never opened) holds none."""
-    files = [p for p in (prefix.with_suffix("." + f) for f in CAPTURE_FILES) if p.is_file()]
+    try:
+        files = [p for p in (prefix.with_suffix("." + f) for f in CAPTURE_FILES) if p.is_file()]
+    except OSError:  # a name too long, a place no one may look: check_out says why
+        return None
     if not files:
         return None
     csv, npz = prefix.with_suffix(".csv"), prefix.with_suffix(".npz")
