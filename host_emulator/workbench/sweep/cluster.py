@@ -114,11 +114,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
                 bar.update(len(results))
         bar.close()
     except KeyboardInterrupt:
-        import logging
-
-        # Ctrl-C: the cluster's own shutdown chatter (asyncio cancellations) is no news to the user
-        for name in ("distributed", "asyncio", "tornado"):
-            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        quiet_shutdown()
         raise
     finally:
         with contextlib.suppress(Exception):
@@ -126,6 +122,15 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         if cluster is not None:
             with contextlib.suppress(Exception):
                 cluster.close()
+
+
+def quiet_shutdown() -> None:
+    """Ctrl-C: the Dask client's own shutdown chatter (asyncio cancellations, gather tasks whose AllExit nobody
+    retrieved, with their tracebacks) is no news to the user: those loggers say nothing from here on."""
+    import logging
+
+    for name in ("distributed", "asyncio", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
 def _closing(bar, items):

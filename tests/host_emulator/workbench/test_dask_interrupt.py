@@ -52,6 +52,41 @@ def test_ctrl_c_to_the_process_group_prints_no_worker_traceback(tmp_path):
     assert p.returncode == 3 and err.strip().splitlines()[-1].startswith("sweep: interrupted"), err
 
 
+@pytest.mark.slow
+def test_ctrl_c_to_design_on_dask_prints_no_client_traceback(tmp_path):
+    """design --scheduler: a Ctrl-C while the hil ensembles run on the cluster (the scheduler holds the design's
+    tasks: no sleep decides it) printed the client's cancelled gather tasks ("Task exception was never retrieved",
+    AllExit tracebacks) before its line."""
+    from distributed import Client
+
+    from tests.host_emulator.workbench.test_sweep import _start_cluster, _stop
+
+    addr, procs = _start_cluster(tmp_path, n_workers=1)
+    p = None
+    try:
+        p = subprocess.Popen(
+            [sys.executable, "-m", "host_emulator", "design", "--target", "lambda=10", "--push", "8", "--quiet",
+             "--scheduler", addr, "--out", str(tmp_path / "d")],
+            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_session,
+        )  # fmt: skip
+        with Client(addr, timeout="60s") as c:
+            deadline = time.monotonic() + 600
+            while p.poll() is None and time.monotonic() < deadline:
+                if c.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)):
+                    break
+                time.sleep(0.2)
+        assert p.poll() is None, "design ended before it could be interrupted"
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=600)
+    finally:
+        if p is not None and p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+        _stop(procs)
+    assert "Traceback" not in err and "never retrieved" not in err, err
+    assert p.returncode == 3 and err.strip().splitlines() == ["error: interrupted"], err
+
+
 def _server(greeting: bytes | None):
     """A TCP service on a free port: greeting sent on accept, then the connection closed."""
     srv = socket.socket()
