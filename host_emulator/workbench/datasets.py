@@ -290,7 +290,7 @@ def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
     ).assign_attrs(origin=str(path))
 
 
-def _check_time_order(path: Path, arr: Mapping[str, np.ndarray]) -> None:
+def _check_time_order(path: str | Path, arr: Mapping[str, np.ndarray]) -> None:
     """A capture's cycles run forward in time within a segment (the decoder unwraps every sample's clock forward):
     a row whose time lies before an earlier cycle's is data the decoder misread (frames of another protocol that
     happen to use this protocol's IDs), a LoadError."""
