@@ -381,6 +381,8 @@ def _load_dir(d: Path, source: str | None, repeat: int | None) -> xr.Dataset:
         s = None
     except json.JSONDecodeError as e:
         raise LoadError(f"{f}: not valid JSON: {e}") from None
+    if s is not None and not isinstance(s, dict):
+        raise LoadError(f"{f}: not a run summary (a JSON {type(s).__name__}, not an object)")
     if s is None:
         if (d / "trajectories.npz").exists():
             return read_npz(d / "trajectories.npz", {"source": source} if source else None)
@@ -419,7 +421,17 @@ def load(path: str | Path, *, source: str | None = None, repeat: int | None = No
         return _load(Path(path), source, repeat)
     except LoadError:
         raise
-    except (OSError, ValueError, EOFError, KeyError, IndexError, ArithmeticError, struct.error, zlib.error) as e:
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        LookupError,
+        ArithmeticError,
+        AttributeError,
+        TypeError,
+        struct.error,
+        zlib.error,
+    ) as e:
         raise LoadError(f"{path}: cannot read it ({_why(e)})") from None
 
 

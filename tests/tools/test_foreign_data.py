@@ -136,3 +136,18 @@ def test_every_unreadable_input_is_a_load_error(tmp_path, name):
         load(p)
     text = str(e.value)
     assert text.startswith(str(p)) and "\n" not in text and len(text) < 400, text
+
+
+@pytest.mark.parametrize(
+    "summary",
+    [[1, 2], "x", {"scene": "default", "per_repeat": [1, 2]}, {"scene": "default", "per_repeat": [{"x": 1}]}],
+    ids=["list", "string", "repeats-not-tables", "repeat-without-number"],
+)
+def test_a_run_directory_with_a_foreign_summary_is_a_load_error(tmp_path, summary):
+    import json
+
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    for repeat in (None, 1):
+        with pytest.raises(LoadError) as e:
+            load(tmp_path, repeat=repeat)
+        assert str(e.value).startswith(str(tmp_path)) and "\n" not in str(e.value), str(e.value)
