@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from metacell_common.cli import unexpected
+from metacell_common.outpaths import created_mark, remove_created_since
 
 from .firmware import FirmwareBuildError
 from .outpaths import check_out_file
@@ -178,7 +179,16 @@ def cmd_bench(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Exit codes: 0 ok, 2 bad input (values, paths), 3 the run failed."""
+    """Exit codes: 0 ok, 2 bad input (values, paths; an output directory made for it is removed again), 3 the run
+    failed."""
+    mark = created_mark()
+    rc = _guarded(argv)
+    if rc == 2:
+        remove_created_since(mark)  # a rejection leaves nothing behind
+    return rc
+
+
+def _guarded(argv: list[str] | None) -> int:
     try:
         return _main(argv)
     except FirmwareBuildError as e:  # no sources, no compiler: say what is missing, not a traceback

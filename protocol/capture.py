@@ -386,12 +386,30 @@ def partial_cycles(segment: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return out
 
 
-def read_rows(csv: Path) -> np.ndarray:
-    """The row table of a streamed CSV (complete lines only)."""
+def read_rows(csv: Path, n_cells: int = wire.N_CELLS) -> np.ndarray:
+    """The row table of a streamed CSV (complete lines only). A row that is not one of the logger's (a column that
+    is no number, a segment or cycle that is not a whole number, a cell outside the rig's 1..n_cells) is a
+    ValueError naming its line: foreign rows never widen the capture to cells the rig has not."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rows = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
-    return rows.reshape(-1, 8)
+    if rows.size and rows.shape[1] != 8:
+        raise ValueError(f"{rows.shape[1]} columns, the logger writes 8 ({CSV_HEADER.strip()})")
+    rows = rows.reshape(-1, 8)
+    for col, name, lo, hi in ((2, "cell", 1, n_cells), (0, "segment", 0, None), (1, "cycle", None, None)):
+        v = rows[:, col]
+        bad = ~np.isfinite(v) | (v != np.round(v))
+        if lo is not None:
+            bad |= v < lo
+        if hi is not None:
+            bad |= v > hi
+        if bad.any():
+            i = int(np.argmax(bad))
+            want = (
+                f"a whole number in {lo}..{hi}" if hi is not None else "a whole number" + (" >= 0" if lo == 0 else "")
+            )
+            raise ValueError(f"data row {i + 1}: {name} {v[i]:g}, expected {want} (not a row of this rig's logger)")
+    return rows
 
 
 def gaps_from_rows(rows: np.ndarray) -> list[tuple[int, int, int, int]]:

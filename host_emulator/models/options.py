@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -256,6 +257,18 @@ class Fault:
         return {k: getattr(self, k) for k in ("kind", "start_s", "board", "duration_s", "chain", "rate_hz")}
 
 
+FAULT_MAX_S = 1e6  # s: a fault's start and duration (11.6 days, far beyond any image run's t_end_s)
+
+
+def _fault_time(key: str, v, **kw) -> float:
+    """A fault's time in s: a finite number within FAULT_MAX_S (the boards count time in clock cycles: 1e15 s or
+    1e300 s would overflow them long after the run started)."""
+    t = _num(key, v, **kw)
+    if t > FAULT_MAX_S:
+        raise ConfigError(f"{key} = {v!r}: at most {FAULT_MAX_S:g} s")
+    return t
+
+
 def parse_fault(d: dict, cells: int, where: str) -> Fault:
     """A [[fault]] table: kind, start_s, and the keys its kind takes (FAULT_KINDS); cell = N or board = "primary"
     | "cellN" name the board."""
@@ -271,7 +284,7 @@ def parse_fault(d: dict, cells: int, where: str) -> Fault:
             raise ConfigError(f"{where}.{k}: a {kind} fault takes {', '.join(sorted(allowed))}")
     if "start_s" not in d:
         raise ConfigError(f"{where}: missing key start_s")
-    kw: dict[str, Any] = {"kind": kind, "start_s": _num(f"{where}.start_s", d["start_s"], nonneg=True)}
+    kw: dict[str, Any] = {"kind": kind, "start_s": _fault_time(f"{where}.start_s", d["start_s"], nonneg=True)}
     if "cell" in d and "board" in d:
         raise ConfigError(f"{where}: give cell or board, not both")
     if "cell" in takes or "board" in takes:
@@ -282,9 +295,8 @@ def parse_fault(d: dict, cells: int, where: str) -> Fault:
             kw["board"] = f"cell{j}"
         elif "board" in d:
             b = d["board"]
-            ok = b == "primary" or (
-                isinstance(b, str) and b.startswith("cell") and b[4:].isdigit() and 1 <= int(b[4:]) <= cells
-            )
+            ok = b == "primary" or (isinstance(b, str) and re.fullmatch(r"cell[1-9][0-9]{0,5}", b) is not None)
+            ok = ok and (b == "primary" or 1 <= int(b[4:]) <= cells)  # ASCII digits, no leading zero: cell7
             if not ok or "cell" in takes:
                 want = f"cell1..cell{cells}" + ("" if "cell" in takes else " or primary")
                 raise ConfigError(f"{where}.board = {b!r}: expected {want}")
@@ -294,7 +306,7 @@ def parse_fault(d: dict, cells: int, where: str) -> Fault:
     if "duration_s" in takes:
         if "duration_s" not in d:
             raise ConfigError(f"{where}: a {kind} fault needs duration_s")
-        kw["duration_s"] = _num(f"{where}.duration_s", d["duration_s"], positive=True)
+        kw["duration_s"] = _fault_time(f"{where}.duration_s", d["duration_s"], positive=True)
     if kind == "edge_storm":
         if d.get("chain", "alpha") not in CHAINS:
             raise ConfigError(f"{where}.chain = {d['chain']!r}: expected alpha or beta")

@@ -36,6 +36,7 @@ renamed (``save_npz_atomic``): a reader never finds a cut or empty NPZ, even aft
 from __future__ import annotations
 
 import json
+import struct
 import zipfile
 import zlib
 from collections.abc import Mapping
@@ -54,6 +55,7 @@ from metacell_common.runlayout import (
     write_npz,
 )
 from protocol.capture import SampleDecoder, gaps_from_rows, read_rows, rows_to_arrays
+from protocol.wire import N_CELLS, frame_kind
 
 from ..physics import reaction
 from .api import _flat, netcdf_attrs
@@ -81,6 +83,8 @@ __all__ = [
 ]
 
 CAN_LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc", ".mf4", ".db")
+FOREIGN_MAX = 0.05  # a python-can log with more of its frames outside the project's CAN database is refused
+TIME_SLACK_S = 1e-3  # a cycle may start this much before the previous one ended (each cell's own clock reading)
 
 
 class LoadError(ValueError):
@@ -234,12 +238,13 @@ def _read_npz(path: Path, attrs: Mapping[str, Any] | None) -> xr.Dataset:
 
 
 # ---- captures -----------------------------------------------------------------------------------------------
-def _from_rows(rows: np.ndarray, gaps, attrs) -> xr.Dataset:
+def _from_rows(rows: np.ndarray, gaps, attrs, path: Path) -> xr.Dataset:
     if gaps is None:  # a CSV alone: the gaps its cycle counters show
         gaps = gaps_from_rows(rows)
 
-    n = int(rows[:, 2].max()) if len(rows) else 16
-    return from_logger_arrays(rows_to_arrays(rows, max(n, 16), gaps), attrs)
+    arr = rows_to_arrays(rows, N_CELLS, gaps)  # read_rows refused cells outside the rig's 1..N_CELLS
+    _check_time_order(path, arr)
+    return from_logger_arrays(arr, attrs)
 
 
 def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
@@ -250,19 +255,29 @@ def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
 
     notes: list[str] = []
     dec = SampleDecoder(report=notes.append)
-    frames = 0
+    frames = foreign = 0
     try:
         with can.LogReader(str(path)) as reader:
             for msg in reader:
                 if msg.is_error_frame:
                     continue
+                if msg.is_extended_id or msg.is_remote_frame or frame_kind(msg.arbitration_id)[0] == "UNKNOWN":
+                    foreign += 1
                 dec.feed(msg)
                 frames += 1
-    except (OSError, ValueError) as e:
-        raise LoadError(f"{path}: cannot read as a python-can log: {e}") from None
+    except Exception as e:  # noqa: BLE001 - python-can's readers parse any bytes: struct.error, zlib.error, ...
+        raise LoadError(f"{path}: cannot read as a python-can log ({_why(e)})") from None
+    foreign += sum(text.startswith("undecodable") for text in notes)
+    if frames and foreign > FOREIGN_MAX * frames:
+        raise LoadError(
+            f"{path}: {foreign} of {frames} frames ({100 * foreign / frames:.0f} %) are not this protocol's (CAN IDs "
+            f"or lengths the project's CAN database does not define; limit {100 * FOREIGN_MAX:g} %): not a capture "
+            "of this rig"
+        )
     if not dec.rows and not dec.held:
         raise LoadError(f"{path}: {frames} frame(s), none a CELL_SAMPLE of this protocol")
     arr = dec.arrays()
+    _check_time_order(path, arr)
     return from_logger_arrays(
         arr,
         {
@@ -275,8 +290,32 @@ def read_can_log(path: str | Path, source: str | None = None) -> xr.Dataset:
     ).assign_attrs(origin=str(path))
 
 
+def _check_time_order(path: str | Path, arr: Mapping[str, np.ndarray]) -> None:
+    """A capture's cycles run forward in time within a segment (the decoder unwraps every sample's clock forward):
+    a row whose time lies before an earlier cycle's is data the decoder misread (frames of another protocol that
+    happen to use this protocol's IDs), a LoadError."""
+    seg, ts = np.asarray(arr["segment"]), np.asarray(arr["t_s"], dtype=float)
+    for s in np.unique(seg):
+        rows = ts[seg == s]
+        t = rows[np.isfinite(rows).any(axis=1)]
+        if not len(t):
+            continue
+        first, last = np.nanmin(t, axis=1), np.nanmax(t, axis=1)
+        back = first[1:] < np.maximum.accumulate(last[:-1]) - TIME_SLACK_S
+        if back.any():
+            i = int(np.argmax(back)) + 1
+            raise LoadError(
+                f"{path}: times run backwards (segment {int(s)}, row {i}: a cycle at {first[i]:.6g} s follows one "
+                f"that ended at {np.maximum.accumulate(last)[i - 1]:.6g} s): not a capture of this rig"
+            )
+
+
 def _logger_csv(path: Path, source: str | None) -> xr.Dataset:
-    rows = read_rows(path)
+    try:
+        rows = read_rows(path)
+    except ValueError as e:
+        what = " ".join(str(e).split())[:200]
+        raise LoadError(f"{path}: not the logger's CSV ({what})") from None
     meta = {}
     npz = path.with_suffix(".npz")
     if npz.exists():  # the capture's attributes (source, provenance) live in its NPZ
@@ -290,7 +329,7 @@ def _logger_csv(path: Path, source: str | None) -> xr.Dataset:
         meta["source"] = source
     meta.setdefault("source", "unknown")
     meta["capture"] = "logger CSV"
-    return _from_rows(rows, None, meta).assign_attrs(origin=str(path))
+    return _from_rows(rows, None, meta, path).assign_attrs(origin=str(path))
 
 
 def _is_logger_csv(path: Path) -> bool:
@@ -349,6 +388,8 @@ def _load_dir(d: Path, source: str | None, repeat: int | None) -> xr.Dataset:
         s = None
     except json.JSONDecodeError as e:
         raise LoadError(f"{f}: not valid JSON: {e}") from None
+    if s is not None and not isinstance(s, dict):
+        raise LoadError(f"{f}: not a run summary (a JSON {type(s).__name__}, not an object)")
     if s is None:
         if (d / "trajectories.npz").exists():
             return read_npz(d / "trajectories.npz", {"source": source} if source else None)
@@ -381,8 +422,35 @@ def _load_dir(d: Path, source: str | None, repeat: int | None) -> xr.Dataset:
 def load(path: str | Path, *, source: str | None = None, repeat: int | None = None) -> xr.Dataset:
     """Open a run directory, an experiment directory, a logger capture, a python-can log, an NPZ or a NetCDF file
     (module docstring) as one xarray.Dataset. source: the label for data whose file does not say what produced it
-    (``rig``, ``emulator:hil``, ...); repeat: an experiment directory's repeat (default: the summary's first)."""
-    p = Path(path)
+    (``rig``, ``emulator:hil``, ...); repeat: an experiment directory's repeat (default: the summary's first).
+    Every input it cannot read is a LoadError of one line naming the path (never a reader's own exception)."""
+    try:
+        return _load(Path(path), source, repeat)
+    except LoadError:
+        raise
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        LookupError,
+        ArithmeticError,
+        AttributeError,
+        TypeError,
+        struct.error,
+        zlib.error,
+    ) as e:
+        raise LoadError(f"{path}: cannot read it ({_why(e)})") from None
+
+
+def _why(e: BaseException) -> str:
+    """'zlib.error: Error -3 while ...' on one line of at most 200 characters of message."""
+    name = type(e).__name__
+    if name == "error":  # struct.error, zlib.error: the module says what failed
+        name = f"{type(e).__module__}.error"
+    return f"{name}: {' '.join(str(e).split())[:200] or '(no message)'}"
+
+
+def _load(p: Path, source: str | None, repeat: int | None) -> xr.Dataset:
     if source is not None and not (source == "rig" or source.split(":")[0] in ("emulator", "rehearsal", "unknown")):
         raise LoadError(f"source={source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
     if p.is_dir():
@@ -402,8 +470,13 @@ def load(path: str | Path, *, source: str | None = None, repeat: int | None = No
     if suf == ".nc":
         import xarray as xr
 
-        with xr.open_dataset(p, engine="scipy") as nc:
-            ds = nc.load()
+        try:
+            with xr.open_dataset(p, engine="scipy") as nc:
+                ds = nc.load()
+        except Exception as e:  # noqa: BLE001 - scipy's reader says "not a valid NetCDF 3 file" as a TypeError
+            raise LoadError(f"{p}: cannot read as NetCDF ({_why(e)})") from None
+        if not all(k in ds.variables and ds[k].dims == ("time", "cell") for k in ("alpha", "beta")):
+            raise LoadError(f"{p}: a NetCDF file but not a run dataset (no alpha, beta over time x cell)")
         if source:
             ds.attrs["source"] = source
         return ds

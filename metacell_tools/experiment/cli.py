@@ -565,10 +565,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from metacell_common.outpaths import created_mark, remove_created_since
+
     args = parser().parse_args(argv)
+    mark = created_mark()
     try:
-        return {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
+        rc = {"run": cmd_run, "rehearse": cmd_rehearse, "compare": cmd_compare}[args.cmd](args)
     except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
         from metacell_common.cli import unexpected
 
         return unexpected(e, "experiment")
+    if rc == EXIT_USAGE:
+        remove_created_since(mark)  # a rejection leaves no empty directory behind
+    return rc

@@ -14,6 +14,7 @@ irq --elf F    interrupt map of a linked image: vector table, fault entry and re
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -207,6 +208,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--out", help="golden-header: output path")
     a = ap.parse_args(argv)
+    if a.limit is not None and not (math.isfinite(a.limit) and 0 < a.limit <= 1):
+        print(f"fwcheck: --limit {a.limit}: expected a fraction of the CPU in (0, 1]", file=sys.stderr)
+        return 2
     try:
         if a.command == "golden-header":
             problem = check_out_file(a.out, "--out") if a.out else None

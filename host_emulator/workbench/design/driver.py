@@ -76,6 +76,14 @@ def design(
         raise DesignError(f"--per-cell {','.join(per_cell)}: each must also be in --vary ({','.join(vary)})")
     if not (1 <= seeds <= 1000 and 1 <= search_seeds <= 1000 and 0 <= maxiter <= 1000 and 0 < require <= 1):
         raise DesignError("seeds and search seeds in 1..1000, maxiter in 0..1000, require in (0, 1]")
+    if scheduler:  # not an address, not Dask, nobody there: one line, before --out is created
+        from ..sweep.cluster import check_scheduler
+        from ..sweep.errors import SweepError, SweepFailed
+
+        try:
+            scheduler = check_scheduler(scheduler)
+        except (SweepError, SweepFailed) as e:
+            raise DesignError(str(e)) from None
     outp = Path(out)
     why = check_out_dir(outp)
     if why:

@@ -83,7 +83,13 @@ class Runner:
         size = max(1, math.ceil(len(tables) / (2 * nw)))
         chunks = [tables[i : i + size] for i in range(0, len(tables), size)]
         futs = self.client.map(run_tables, chunks, pure=False, retries=2)
-        return [r for part in self.client.gather(futs) for r in part]
+        try:
+            return [r for part in self.client.gather(futs) for r in part]
+        except KeyboardInterrupt:
+            from ..sweep.cluster import quiet_shutdown
+
+            quiet_shutdown()  # Ctrl-C: one line (the caller's), no traceback of the client's cancelled tasks
+            raise
 
     def close(self) -> None:
         if self.client is not None:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from metacell_common.cli import cells_text
+from metacell_common.outpaths import show
 
 
 class DesignError(ValueError):
@@ -63,12 +64,12 @@ def _cells_arg(text: str, n: int, what: str) -> tuple[int, ...]:
         try:
             a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
         except ValueError:
-            raise DesignError(f"{what} {text!r}: expected cell numbers or ranges such as 9-16") from None
+            raise DesignError(f"{what} {show(repr(text))}: expected cell numbers or ranges such as 9-16") from None
         if not (1 <= a <= b <= n):
-            raise DesignError(f"{what} {text!r}: cells must lie in 1..{n}")
+            raise DesignError(f"{what} {show(repr(text))}: cells must lie in 1..{n}")
         out += [j for j in range(a, b + 1) if j not in out]
     if not out:
-        raise DesignError(f"{what} {text!r}: no cells")
+        raise DesignError(f"{what} {show(repr(text))}: no cells")
     return tuple(sorted(out))
 
 
@@ -78,14 +79,14 @@ def parse_target(text: str, cells: int = 16, rest: str | Sequence[int] | None = 
     key = key.strip().lower()
     rest_cells = () if not rest else (_cells_arg(rest, cells, "--rest") if isinstance(rest, str) else tuple(rest))
     if not sep or key not in ("lambda", "walls"):
-        raise DesignError(f"--target {text!r}: expected lambda=N (cells) or walls=A.5,B.5,...")
+        raise DesignError(f"--target {show(repr(text))}: expected lambda=N (cells) or walls=A.5,B.5,...")
     if key == "lambda":
         try:
             lam = float(val)
         except ValueError:
-            raise DesignError(f"--target {text!r}: lambda must be a number of cells") from None
+            raise DesignError(f"--target {show(repr(text))}: lambda must be a number of cells") from None
         if not (math.isfinite(lam) and lam > 0):
-            raise DesignError(f"--target {text!r}: lambda must be a positive number of cells")
+            raise DesignError(f"--target {show(repr(text))}: lambda must be a positive number of cells")
         z = 2 * (cells - 1) / lam
         if rest_cells:
             raise DesignError("--rest: give the walls of the patterned part (walls=...), not a wavelength")
@@ -97,19 +98,25 @@ def parse_target(text: str, cells: int = 16, rest: str | Sequence[int] | None = 
             )
         z = int(round(z))
         return Target("lambda", z, (), 2 * (cells - 1) / z, rest_cells, cells)
-    walls = []
+    walls: list[float] = []
     for w in val.split(","):
         try:
             x = float(w)
         except ValueError:
-            raise DesignError(f"--target {text!r}: {w!r} is not a bond position such as 5.5") from None
+            raise DesignError(
+                f"--target {show(repr(text))}: {show(repr(w))} is not a bond position such as 5.5"
+            ) from None
         if not (abs(x - math.floor(x) - 0.5) < 1e-9 and 1 <= math.floor(x) <= cells - 1):
             raise DesignError(
-                f"--target {text!r}: wall {w.strip()} must sit on a bond j.5 between cells j and j+1, 1 <= j <= "
-                f"{cells - 1}"
+                f"--target {show(repr(text))}: wall {show(w.strip())} must sit on a bond j.5 between cells j and j+1, "
+                f"1 <= j <= {cells - 1}"
+            )
+        if x in walls:
+            raise DesignError(
+                f"--target {show(repr(text))}: wall {w.strip()} is given twice (each bond holds one wall at most)"
             )
         walls.append(x)
-    walls = sorted(set(walls))
+    walls = sorted(walls)
     for c in rest_cells:
         if any(abs(c - w) < 1 for w in walls):
             raise DesignError(f"--rest: cell {c} borders a wall of the target; rest cells lie outside the pattern")
@@ -132,13 +139,13 @@ def parse_pushes(text: str | Sequence[int], cells: int = 16) -> tuple[Push, ...]
         try:
             cell = int(c)
         except ValueError:
-            raise DesignError(f"--push {text!r}: expected CELL[:SIGN],... such as 8 or 1:+,16:-") from None
+            raise DesignError(f"--push {show(repr(text))}: expected CELL[:SIGN],... such as 8 or 1:+,16:-") from None
         if not 1 <= cell <= cells:
-            raise DesignError(f"--push {text!r}: cell {cell} outside 1..{cells}")
+            raise DesignError(f"--push {show(repr(text))}: cell {cell} outside 1..{cells}")
         sign = {"": 1, "+": 1, "ccw": 1, "-": -1, "cw": -1}.get(s.strip().lower())
         if sign is None:
-            raise DesignError(f"--push {text!r}: sign {s!r}: expected + (CCW) or - (CW)")
+            raise DesignError(f"--push {show(repr(text))}: sign {show(repr(s))}: expected + (CCW) or - (CW)")
         out.append(Push(cell, sign))
     if not out or len({p.cell for p in out}) != len(out):
-        raise DesignError(f"--push {text!r}: expected distinct cells")
+        raise DesignError(f"--push {show(repr(text))}: expected distinct cells")
     return tuple(out)

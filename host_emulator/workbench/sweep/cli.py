@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from ...models import ConfigError
 from .driver import sweep
@@ -112,7 +113,9 @@ def sweep_main(argv: list[str] | None = None) -> int:
         print(f"error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", file=sys.stderr)
         return 2
     except SweepFailed as e:
-        print(f"error: sweep failed: {e}; finished points are kept in {args.out}/points.jsonl", file=sys.stderr)
+        kept = Path(args.out, "points.jsonl")
+        where = f"; finished points are kept in {kept}" if kept.exists() else ""
+        print(f"error: sweep failed: {e}{where}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print(

@@ -21,21 +21,45 @@ if TYPE_CHECKING:
 
 
 def local_cluster(workers: int) -> LocalCluster:
-    """The cluster a sweep starts when given no scheduler: one single-threaded worker process per core."""
+    """The cluster a sweep starts when given no scheduler: one single-threaded worker process per core. The worker
+    processes ignore SIGINT (they inherit SIG_IGN while they start: Python then installs no KeyboardInterrupt
+    handler, nor asyncio its own), so a Ctrl-C to the terminal's process group reaches only this process, which
+    closes the cluster: no worker prints a KeyboardInterrupt traceback. A Ctrl-C in the seconds the cluster takes
+    to start is not seen (press it again once the progress bar shows)."""
     import logging
 
     from distributed import LocalCluster
 
-    return LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        # no dashboard, and the scheduler's HTTP server (health, metrics) on a free port: None would mean
-        # Dask's default 8787, and a warning whenever a notebook's own Dask dashboard holds it
-        dashboard_address=":0",
-        scheduler_kwargs={"dashboard": False},
-        silence_logs=logging.ERROR,
-    )
+    with _sigint_ignored():
+        return LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            # no dashboard, and the scheduler's HTTP server (health, metrics) on a free port: None would mean
+            # Dask's default 8787, and a warning whenever a notebook's own Dask dashboard holds it
+            dashboard_address=":0",
+            scheduler_kwargs={"dashboard": False},
+            # a failed point is recorded in points.jsonl; a worker whose scheduler closed first (Ctrl-C) would
+            # log its heartbeat's traceback at ERROR
+            silence_logs=logging.CRITICAL,
+        )
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """SIGINT ignored inside, so the processes started here inherit SIG_IGN; the handler before it restored on
+    the way out. A no-op outside the main thread (signal handlers live there)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def chunk_size(points: int, workers: int) -> int:
@@ -49,8 +73,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
     from distributed import Client, as_completed
 
     cluster = None
-    if scheduler:
-        _probe_scheduler(scheduler)
+    if scheduler:  # checked by check_scheduler before anything was written
         try:
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError) as e:
@@ -93,11 +116,7 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
                 bar.update(len(results))
         bar.close()
     except KeyboardInterrupt:
-        import logging
-
-        # Ctrl-C: the cluster's own shutdown chatter (asyncio cancellations) is no news to the user
-        for name in ("distributed", "asyncio", "tornado"):
-            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        quiet_shutdown()
         raise
     finally:
         with contextlib.suppress(Exception):
@@ -105,6 +124,15 @@ def _run_on_dask(todo, out: Path, scheduler, workers, chunk, progress):
         if cluster is not None:
             with contextlib.suppress(Exception):
                 cluster.close()
+
+
+def quiet_shutdown() -> None:
+    """Ctrl-C: the Dask client's own shutdown chatter (asyncio cancellations, gather tasks whose AllExit nobody
+    retrieved, with their tracebacks) is no news to the user: those loggers say nothing from here on."""
+    import logging
+
+    for name in ("distributed", "asyncio", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
 def _closing(bar, items):
@@ -121,21 +149,55 @@ def _first_line(e: BaseException) -> str:
     return text.splitlines()[0] if text else type(e).__name__
 
 
-def _probe_scheduler(address: str, timeout_s: float = 5.0) -> None:
-    """Fail at once (SweepFailed) on a tcp:// scheduler nobody listens at, instead of the client's 20 s wait."""
+HANDSHAKE_S = 10.0  # a Dask scheduler sends its handshake as soon as it accepts a connection
+HANDSHAKE_MAX = 1 << 20  # bytes: a Dask handshake is a few hundred
+
+
+def check_scheduler(address: str, timeout_s: float = 5.0) -> str:
+    """The Dask scheduler address to connect to (a bare HOST:PORT is tcp://HOST:PORT), checked before anything is
+    written: SweepError (bad input, exit 2) for an address that is not tcp://HOST:PORT or a service that is not a
+    Dask scheduler (its first bytes are no Dask handshake: Dask's own client would take them for a frame length and
+    try to allocate exabytes); SweepFailed (exit 3) when nobody listens there."""
     import socket
+    import struct
     from urllib.parse import urlsplit
 
-    if not address.startswith("tcp://"):
-        return
-    u = urlsplit(address)
+    text = str(address).strip()
+    shown = text if len(text) <= 80 else text[:60] + "..."
+    if "://" not in text:
+        text = "tcp://" + text
+    u = urlsplit(text)
     try:
         host, port = u.hostname, u.port
     except ValueError:
-        raise SweepError(f"--scheduler {address}: expected tcp://HOST:PORT") from None
-    if not host or not port:
-        raise SweepError(f"--scheduler {address}: expected tcp://HOST:PORT")
+        host = port = None
+    if u.scheme != "tcp" or not host or not port or u.path not in ("", "/") or u.query or u.fragment:
+        raise SweepError(f"--scheduler {shown}: expected tcp://HOST:PORT (a Dask scheduler's address)")
     try:
-        socket.create_connection((host, port), timeout=timeout_s).close()
+        sock = socket.create_connection((host, port), timeout=timeout_s)
     except OSError as e:
-        raise SweepFailed(f"--scheduler {address}: cannot connect: {e.strerror or e}") from None
+        raise SweepFailed(f"--scheduler {shown}: cannot connect: {e.strerror or e}") from None
+    try:
+        sock.settimeout(HANDSHAKE_S)
+        head = _recv(sock, 8)
+        size = struct.unpack("<Q", head)[0] if len(head) == 8 else 0
+        if not 0 < size <= HANDSHAKE_MAX or len(_recv(sock, size)) < size:
+            raise SweepError(f"--scheduler {shown}: answers, but not as a Dask scheduler (no Dask handshake)")
+    except OSError:
+        raise SweepError(
+            f"--scheduler {shown}: answers, but sent no Dask handshake in {HANDSHAKE_S:g} s (not a Dask scheduler?)"
+        ) from None
+    finally:
+        sock.close()
+    return f"tcp://{host}:{port}" if ":" not in host else f"tcp://[{host}]:{port}"
+
+
+def _recv(sock, n: int) -> bytes:
+    """Up to n bytes (fewer only when the peer closes)."""
+    buf = b""
+    while len(buf) < n:
+        part = sock.recv(min(n - len(buf), 65536))
+        if not part:
+            break
+        buf += part
+    return buf

@@ -18,7 +18,7 @@ from ...construct import scene_cost
 from ...limits import RunTooLarge, batch_budget
 from ...scene import _value, scene_table
 from ..api import override_list
-from .cluster import _run_on_dask
+from .cluster import _run_on_dask, check_scheduler
 from .dataset import to_dataset
 from .errors import SweepError
 from .figures import _save, plot_phase_diagram, plot_regime_map
@@ -83,11 +83,13 @@ def sweep(
     specs, axes = point_specs(scene_ref, grid, seeds, fixed)
     base = _load_spec({"scene": scene_ref, "overrides": fixed})
     _load_spec(specs[0])  # a bad key fails here, before anything is written
+    cost = estimate_cost(specs)  # a bad key, a point too long or a sweep too large fails here, before any cluster
+    if scheduler:
+        scheduler = check_scheduler(scheduler)  # not Dask, not an address: before --out is created
     out = Path(out)
     problem = check_out_dir(out)
     if problem:
         raise SweepError(problem)
-    cost = estimate_cost(specs)  # a bad key, a point too long or a sweep too large fails here, before any cluster
     if progress:
         print(f"sweep: {len(specs)} points, about {cost:.3g} cell steps in all", file=sys.stderr)
     definition = {"scene": scene_ref, "fixed": list(fixed), "axes": {k: list(v) for k, v in axes.items()}}

@@ -7,7 +7,9 @@ Writes <out>.<fmt> for every python-can format asked for (asc blf csv db log trc
 <out>.csv (one row per cell sample, on disk within 1.5 s of its frame) and, at the end,
 <out>.npz (the one run layout host_emulator.load reads, time x cell with a `partial` flag
 per cycle; written to a temporary name and renamed; see docs/datapath.md).
-`--repair PREFIX` puts the files of a killed or full-disk run right (BLF cut to its last
+An --out that already holds a capture (its CSV has a row, its NPZ a sample) is refused, exit 2 and nothing
+changed, unless --overwrite is given (which removes the old capture's files first); a capture put right by
+--repair is one too. `--repair PREFIX` puts the files of a killed or full-disk run right (BLF cut to its last
 object, NPZ rebuilt from the CSV). A port another program holds is refused. Every gap in a cell's
 sequence counter is reported on stderr with its length as it happens and kept in the NPZ;
 a link silent for more than a second is reported; a lost connection is reported, retried
@@ -36,7 +38,7 @@ from protocol.capture import (
 )
 from protocol.codec import RAD_PER_COUNT
 
-from .cli import check_out, main
+from .cli import check_out, held_capture, main
 from .files import (
     BLF_HEADER,
     BLF_OBJ,
@@ -66,6 +68,7 @@ __all__ = [
     "SampleDecoder",
     "channel_source",
     "check_out",
+    "held_capture",
     "flush_writer",
     "format_rows",
     "gaps_from_rows",

@@ -7,6 +7,8 @@ the output checks before the port is opened, --repair, and the summary line (the
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import math
 import sys
 from collections.abc import Sequence
@@ -15,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from metacell_common.cli import unexpected
-from metacell_common.outpaths import check_out_dir, check_out_file, show
+from metacell_common.outpaths import check_out_dir, check_out_file, created_mark, remove_created_since, show
 
 from ..command import build, parser
 from .files import RunFailed, repair
@@ -39,11 +41,45 @@ def check_out(prefix: Path, formats: Sequence[str]) -> str | None:
     return None
 
 
-def main(argv: list[str] | None = None) -> int:
+CAPTURE_FILES = ("csv", "npz", "asc", "blf", "db", "log", "trc", "txt", "mf4")  # every file a run may write
+
+
+def held_capture(prefix: Path) -> tuple[int, list[Path]] | None:
+    """(samples, files) when prefix names a capture that holds data, else None. The CSV is what every run writes
+    and --repair rebuilds from: a capture holds data when its CSV has a row or its NPZ a sample; without either, a
+    non-empty log file of the prefix counts. A run that recorded no frame (a port that never opened) holds none."""
     try:
-        return _main(argv)
+        files = [p for p in (prefix.with_suffix("." + f) for f in CAPTURE_FILES) if p.is_file()]
+    except OSError:  # a name too long, a place no one may look: check_out says why
+        return None
+    if not files:
+        return None
+    csv, npz = prefix.with_suffix(".csv"), prefix.with_suffix(".npz")
+    rows = 0
+    if csv.is_file():
+        with open(csv, "rb") as f:
+            rows = max(0, sum(1 for line in f if line.strip()) - 1)
+    if not rows and npz.is_file():
+        try:
+            with np.load(npz, allow_pickle=False) as z:
+                key = "alpha" if "alpha" in z.files else "alpha_counts" if "alpha_counts" in z.files else None
+                rows = int(np.sum(~np.isnan(z[key]))) if key else 0
+        except Exception:  # noqa: BLE001 - an NPZ that does not read is still a file someone may want
+            rows = -1
+    if rows or (not (csv.is_file() or npz.is_file()) and any(p.stat().st_size for p in files)):
+        return rows, files
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    mark = created_mark()
+    try:
+        rc = _main(argv)
     except Exception as e:  # noqa: BLE001 - the last guard: one line, never a traceback (MC_DEBUG=1 shows it)
         return unexpected(e, "logger")
+    if rc == 2:
+        remove_created_since(mark)  # a rejection leaves no empty directory behind
+    return rc
 
 
 def _main(argv: list[str] | None = None) -> int:
@@ -56,7 +92,8 @@ def _main(argv: list[str] | None = None) -> int:
         "  python -m metacell_tools.rigtools.logger -c /dev/ttyACM0@115200 -o out/run2 --duration 30 --formats asc\n"
         '  python -m metacell_tools.rigtools.logger -c /dev/pts/3@115200 -o out/run3 --do "2:perturb 8 --torque 0.02 '
         '--duration 0.1"\n'
-        "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input, "
+        "an --out that already holds a capture is refused (exit 2, nothing changed) unless --overwrite is given.\n"
+        "exit codes: 0 ok (also after Ctrl-C, SIGTERM, SIGHUP), 2 bad input (also: --out holds a capture), "
         "3 run failed (port, no frames, write error).",
     )
     ap.add_argument("-i", "--interface", default="slcan", help="python-can interface (default slcan)")
@@ -71,6 +108,11 @@ def _main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument(
         "--formats", default="asc", help="python-can log formats, comma separated (asc,blf,csv,log,trc,...)"
+    )
+    ap.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the capture --out already names (default: refuse it, exit 2, nothing changed)",
     )
     ap.add_argument("--bitrate", type=int, default=None, help="CAN bit rate sent as Sn (ignored by the primary)")
     ap.add_argument(
@@ -131,9 +173,40 @@ def _main(argv: list[str] | None = None) -> int:
     known = ("asc", "blf", "csv", "db", "log", "trc", "txt", "mf4")
     if not formats or any(f not in known for f in formats):
         return bad(f"--formats: expected some of {','.join(known)}, got {args.formats!r}")
+    commands = []
+    for item in args.do:  # checked before anything is written; argparse's usage text is no part of the line
+        t, sep, text = item.partition(":")
+        said = io.StringIO()
+        try:
+            tt = float(t)
+            if not (sep and math.isfinite(tt) and tt >= 0):
+                raise ValueError(f"time {t!r}")
+            with contextlib.redirect_stderr(said):
+                a = parser().parse_args(["-c", "-"] + text.split())
+            build(a)
+            commands.append((tt, text))
+        except (ValueError, SystemExit) as e:
+            lines = said.getvalue().strip().splitlines()
+            why = lines[-1].split("error: ", 1)[-1] if lines else str(e)
+            return bad(f"--do {show(repr(item))}: expected T:COMMAND with a valid command ({why})")
+    held = held_capture(Path(args.out))
+    if held and not args.overwrite:
+        rows, files = held
+        what = f"{rows} samples" if rows > 0 else "a capture"
+        return bad(
+            f"--out {show(args.out)} holds {what} ({', '.join(p.suffix for p in files)}): nothing was changed; "
+            "choose another name, or --overwrite to replace it"
+        )
     problem = check_out(Path(args.out), formats)
     if problem:
         return bad(problem)
+    if held:
+        for p in held[1] + [Path(args.out).with_name(Path(args.out).name + ".npz.tmp")]:
+            p.unlink(missing_ok=True)
+        print(
+            f"logger: --overwrite: removed the capture {show(args.out)} ({', '.join(p.suffix for p in held[1])})",
+            file=sys.stderr,
+        )
     log = RigLogger(
         args.interface,
         args.channel,
@@ -145,18 +218,7 @@ def _main(argv: list[str] | None = None) -> int:
         wait_open_s=args.wait_open,
         source=args.source,
     )
-    for item in args.do:
-        t, sep, text = item.partition(":")
-        try:
-            tt = float(t)
-            if not (sep and math.isfinite(tt) and tt >= 0):
-                raise ValueError(f"time {t!r}")
-            a = parser().parse_args(["-c", "-"] + text.split())
-            build(a)
-            log.commands.append((tt, text))
-        except (ValueError, SystemExit) as e:
-            return bad(f"--do {item!r}: expected T:COMMAND with a valid command ({e})")
-    log.commands.sort()
+    log.commands = sorted(commands)
     try:
         n = log.run(args.duration)
     except RunFailed as e:

@@ -248,7 +248,9 @@ class RigLogger:
         if "blf" in self.formats:
             repair_blf(self.prefix.with_suffix(".blf"))  # a stop() that failed (full disk) leaves a cut container
         try:
-            self.arrays = rows_to_arrays(read_rows(self.prefix.with_suffix(".csv")), self.decoder.n, self.decoder.gaps)
+            self.arrays = rows_to_arrays(
+                read_rows(self.prefix.with_suffix(".csv"), self.decoder.n), self.decoder.n, self.decoder.gaps
+            )
             write_capture(
                 self.prefix.with_suffix(".npz"),
                 self.arrays,
