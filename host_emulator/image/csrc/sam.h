@@ -80,6 +80,8 @@ typedef struct {
     uint32_t sys_active;
     uint8_t prio[32];      /* 0..3: the implemented top two bits of each IPR byte */
     uint8_t prio_svc, prio_pendsv, prio_systick;
+    uint8_t entering;      /* the exception whose entry just ended, until its handler's first instruction runs: a
+                              higher-priority one arriving meanwhile takes its place (late arrival) */
     uint32_t ipr[8];       /* IPR words as written (only bits 7:6 of each byte are implemented) */
     uint32_t vtor;
     uint32_t scr, shpr2, shpr3;
