@@ -16,6 +16,7 @@ import pytest
 
 from host_emulator.image.world import World, WorldConfig
 from host_emulator.params import Params
+from metacell_tools.fwcheck import irqmap
 
 from .conftest import configured
 
@@ -120,6 +121,55 @@ def check_encoder_counts_at_speed(images) -> list[str]:
     return problems
 
 
+#: The cell's NVIC priorities (docs/hardware.md "Interrupt priorities"; 0 most urgent) and the primary's (the core's:
+#: USBCore.cpp leaves USB at 0, the variant's Wire SERCOM2 at 3; the poll runs from loop()).
+DOCUMENTED_PRIORITIES = {
+    "cell": {"EIC": 0, "TC3": 1, "SERCOM2": 2, "USB": 3},
+    "primary": {"USB": 0, "SERCOM2": 3},
+}
+
+
+def check_nvic_priorities(images) -> list[str]:
+    """The priorities read back from each board's NVIC after bring-up (what the image programmed, wherever it
+    applied them) are the documented ones, and every enabled interrupt of a cell is below the EIC."""
+    w, _ = configured(images, 1, start_plant=False)
+    problems = []
+    for b in w.boards:
+        i = w.info(b.index)
+        got = {name: int(i.nvic_prio[irqmap.IRQN[name]]) for name in DOCUMENTED_PRIORITIES[b.role]}
+        if got != DOCUMENTED_PRIORITIES[b.role]:
+            problems.append(f"{b.name}: NVIC priorities {got}, documented {DOCUMENTED_PRIORITIES[b.role]}")
+        if b.role == "cell":
+            eic = irqmap.IRQN["EIC"]
+            below = [n for n, q in irqmap.IRQN.items() if q != eic and int(i.nvic_enabled) >> q & 1]
+            if any(int(i.nvic_prio[irqmap.IRQN[n]]) <= int(i.nvic_prio[eic]) for n in below):
+                problems.append(f"{b.name}: the EIC is not alone at the top of the enabled interrupts")
+    return problems
+
+
+#: Edge rate of the encoder stress check: 80,000 counts/s on one encoder, 4.3 times the motors' no-load rate on the
+#: drive supply (18,600 counts/s, docs/hardware.md "CPU budget"), with the CPU budget's worst-case cycle model: the
+#: edges come faster than the tick's worst-case run, so an edge held off by a tick above the EIC shows.
+STRESS_RATE = 80_000.0
+
+
+def check_encoder_stress(images) -> list[str]:
+    """The alpha encoder turns back and forth at STRESS_RATE for 0.1 s under the worst-case cycle model: every
+    count, no decoder error, no fault."""
+    w, lap = configured(images, 1, WorldConfig(cycle_model="worst"), start_plant=False)
+    t = w.t + 0.001
+    end = _wobble(w, 1, STRESS_RATE, t, t + 0.1)
+    lap.pump(0.2)
+    angle = lap.rx.sample(1)["alpha"]
+    errors, faults = _counts(lap, 1)
+    problems = []
+    if abs(angle - end * 2 * np.pi / 400) > 1e-6:
+        problems.append(f"alpha reads {angle / (2 * np.pi / 400):.0f} counts, turned to {end}")
+    if errors or faults:
+        problems.append(f"decoder errors {errors}, faults 0x{faults:x}")
+    return problems
+
+
 def check_encoders_while_usb_talks(images) -> list[str]:
     """A host enumerates the cell's USB port (control transfers, a slow host: 300 us a packet) while its alpha
     encoder turns at 30,000 counts/s: no decoder error, every count."""
@@ -143,13 +193,30 @@ CHECKS = {
     "drive": check_drive_reaches_the_motor,
     "encoder-at-speed": check_encoder_counts_at_speed,
     "encoder-usb": check_encoders_while_usb_talks,
+    "nvic-priorities": check_nvic_priorities,
+    "encoder-stress": check_encoder_stress,
 }
-NEEDS_PRIMARY = {"drive", "encoder-at-speed", "encoder-usb"}
+NEEDS_PRIMARY = {
+    "drive",
+    "encoder-at-speed",
+    "encoder-usb",
+    "nvic-priorities",
+    "encoder-stress",
+    "fault-sleeps-drivers",
+}
 
 
 @pytest.mark.parametrize("name", CHECKS)
 def test_the_shipped_images_pass_every_check(images, name):
     assert CHECKS[name](images) == []
+
+
+def test_fwcheck_irq_passes_on_every_built_image(images):
+    """`fwcheck irq` (vectors, fault entry and record, the cell's priority table and where setup applies it) on
+    each image the tier runs: the 16 cells' and the primary's."""
+    for role, elf in [("cell", e) for e in images.cells] + [("primary", images.primary)]:
+        rep = irqmap.check(elf, role)
+        assert rep.ok, f"{elf}: {rep.errors}"
 
 
 HW = "src/cell/samd21_hw.cpp"
@@ -182,6 +249,15 @@ def _on_demand_sampling(s):
     s.replace(HW, "    PORT->Group[PB].CTRL.reg |= ENC_SAMPLE_PB;", "")
 
 
+def _priorities_swapped_as_applied(s):
+    # the table stays right (fwcheck irq passes): the loop applies EIC's and TC3's priorities to each other
+    s.replace(
+        HW,
+        "NVIC_SetPriority((IRQn_Type)hw_irq_priority[i][0], hw_irq_priority[i][1]);",
+        "NVIC_SetPriority((IRQn_Type)hw_irq_priority[i][0], hw_irq_priority[i < 2 ? 1 - i : i][1]);",
+    )
+
+
 def _usb_priority_reverted(s):
     s.revert("a5a8df8")
 
@@ -197,6 +273,8 @@ MUTANTS = {
     "pwm-pmux-letter": (_pmux_letter, "drive"),
     "encoders-sampled-on-demand": (_on_demand_sampling, "encoder-at-speed"),
     "usb-irq-at-encoder-priority (revert a5a8df8)": (_usb_priority_reverted, "encoder-usb"),
+    # observables: the NVIC read back (EIC 1, TC3 0) and, at 80,000 counts/s, edges held off behind the tick
+    "eic-tc3-priorities-swapped-as-applied": (_priorities_swapped_as_applied, "nvic-priorities"),
     "watchdog-fed-while-tick-dead (revert 6318086)": (_wdt_tick_fix_reverted, "watchdog-dead-tick"),
 }
 
