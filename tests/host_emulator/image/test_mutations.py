@@ -14,6 +14,7 @@ import re
 import numpy as np
 import pytest
 
+from host_emulator.image import board as wiring
 from host_emulator.image.world import World, WorldConfig
 from host_emulator.params import Params
 from metacell_tools.fwcheck import irqmap
@@ -170,6 +171,35 @@ def check_encoder_stress(images) -> list[str]:
     return problems
 
 
+def check_fault_puts_the_drivers_to_sleep(images) -> list[str]:
+    """Drive on (alpha turned 200 counts: nSLEEP high), then a HardFault: between the fault's entry and the reset
+    request (the write to SCB.AIRCR) the trace shows the PORT write that takes nSLEEP low."""
+    w, lap = configured(images, 1, start_plant=False)
+    t = w.t + 0.001
+    w.spin(1, "alpha", 20000.0, t, t + 200 / 20000.0 - 1e-9)
+    lap.pump(0.03)
+    if w.motor(1, 0)[1] != 1.0:
+        return ["the alpha driver was not awake before the fault (the check tests nothing)"]
+    cell = w.boards[0].index
+    w.trace(32, 1 << cell)
+    w.fault("hardfault", w.t + 0.0013, board=cell)
+    lap.pump(0.005)
+    notes = [n for n in w.take_notes() if n.startswith("chg ")]
+    entry = next((k for k, n in enumerate(notes) if " enter 3 " in n), None)
+    if entry is None:
+        return ["no HardFault entry in the trace"]
+    reset = next((k for k, n in enumerate(notes) if k > entry and " W SCB.AIRCR " in n), None)
+    if reset is None:
+        return ["no reset request after the HardFault"]
+    pin = wiring.pin_number(wiring.CELL_WIRING["nsleep"])
+    group, bit = pin // 32, 1 << (pin % 32)
+    for n in notes[entry:reset]:
+        m = re.search(rf" W PORT(?:_IOBUS)?\.Group\[{group}\]\.(OUTCLR|OUT) = 0x([0-9a-f]+)", n)
+        if m and (int(m.group(2), 16) & bit if m.group(1) == "OUTCLR" else not int(m.group(2), 16) & bit):
+            return []
+    return ["nSLEEP is not taken low between the fault's entry and the reset request"]
+
+
 def check_encoders_while_usb_talks(images) -> list[str]:
     """A host enumerates the cell's USB port (control transfers, a slow host: 300 us a packet) while its alpha
     encoder turns at 30,000 counts/s: no decoder error, every count."""
@@ -195,6 +225,7 @@ CHECKS = {
     "encoder-usb": check_encoders_while_usb_talks,
     "nvic-priorities": check_nvic_priorities,
     "encoder-stress": check_encoder_stress,
+    "fault-sleeps-drivers": check_fault_puts_the_drivers_to_sleep,
 }
 NEEDS_PRIMARY = {
     "drive",
@@ -258,6 +289,14 @@ def _priorities_swapped_as_applied(s):
     )
 
 
+def _fault_leaves_drivers_awake(s):
+    s.replace(
+        MAIN,
+        'extern "C" void sys_safe_outputs(void) { hw_drivers_off(); }',
+        'extern "C" void sys_safe_outputs(void) {}',
+    )
+
+
 def _usb_priority_reverted(s):
     s.revert("a5a8df8")
 
@@ -276,6 +315,8 @@ MUTANTS = {
     # observables: the NVIC read back (EIC 1, TC3 0) and, at 80,000 counts/s, edges held off behind the tick (194
     # decoder errors and ENCODER_A; the 40,000 counts/s check sees none)
     "eic-tc3-priorities-swapped-as-applied": (_priorities_swapped_as_applied, ("nvic-priorities", "encoder-stress")),
+    # observable: the trace between the HardFault's entry and the AIRCR write holds no PORT write taking nSLEEP low
+    "fault-handler-leaves-drivers-awake": (_fault_leaves_drivers_awake, "fault-sleeps-drivers"),
     "watchdog-fed-while-tick-dead (revert 6318086)": (_wdt_tick_fix_reverted, "watchdog-dead-tick"),
 }
 
