@@ -116,7 +116,8 @@ typedef struct {
     uint32_t snap_regs[20];
     uint32_t snap_cache[8];
     uint8_t *snap_ram;
-    uint32_t snap_lo;      /* static data and heap compared: RAM offsets [0, snap_lo) */
+    int mid_valid;         /* snap_ram holds all of RAM at the snapshot, also between the heap's break and SP */
+    int idle;              /* the last pass compared parked (0 after a miss): the board looks idle */
     int parked;            /* stopped at a verified fixed point: state == snapshot at a loop() entry */
     int resumed;           /* just resumed at a loop() entry: that pass runs (its event is due inside it) */
     uint64_t anchor, period, period_cycles;

@@ -117,16 +117,24 @@ static int tcc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
         *v = now < s->sync_until ? s->sync_bits : 0;
         return SAM_DONE;
     }
+    /* STATUS.CCBVn and CCn change at the UPDATE that takes a buffered value over, which is no event (tcc_commit
+     * applies it when next looked at): while one is pending, a read of them is activity, so a loop() polling them is
+     * never fast-forwarded past the change (sam_ff.c) */
     if (off == TCC_STATUS_OFFSET) {
         uint32_t st = s->running ? 0 : TCC_STATUS_STOP;
         for (int c = 0; c < s->nch; c++)
             if (s->t_apply[c] != SAM_NEVER)
                 st |= TCC_STATUS_CCBV0 << c;
+        if (st & (((1u << s->nch) - 1u) * TCC_STATUS_CCBV0))
+            sam_activity(m);
         *v = st;
         return SAM_DONE;
     }
     if (off >= TCC_CC_OFFSET && off < TCC_CC_OFFSET + 16) {
-        *v = s->cc[(off - TCC_CC_OFFSET) / 4];
+        int c = (int)(off - TCC_CC_OFFSET) / 4;
+        *v = s->cc[c];
+        if (c < s->nch && s->t_apply[c] != SAM_NEVER)
+            sam_activity(m);
         return SAM_DONE;
     }
     if (off >= TCC_CCB_OFFSET && off < TCC_CCB_OFFSET + 16) {
