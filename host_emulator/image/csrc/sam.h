@@ -157,6 +157,8 @@ struct sam_mcu {
     uint64_t cycles;       /* CPU cycles executed (for reports) */
     uint64_t *prof;        /* cycles charged per block start (halfword index), NULL: not profiling */
     uint64_t act;          /* activity counter (events, interrupts, state-changing register accesses) */
+    uint64_t ep_noted;     /* bit ri % 64: an enable-protected write to register ri was noted */
+    uint64_t ep_writes;    /* writes to enable-protected fields while enabled (ignored, as on silicon) */
     /* events */
     uint64_t slot[SAM_NSLOTS];
     uint64_t next_ev;
@@ -247,6 +249,8 @@ int sam_reg_index(int pi, const char *name);
 uint32_t sam_reg_get(sam_mcu_t *m, int ri);
 void sam_reg_put(sam_mcu_t *m, int ri, uint32_t v);
 void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* the table's access rule */
+/* sam_protect.c: v with the `protect` bits of register ri kept as they are when the peripheral is enabled (noted) */
+uint32_t sam_enable_protected(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask, uint32_t protect, int enabled);
 int sam_reg_at(sam_mcu_t *m, int pi, uint32_t offset);   /* register at this offset in the active view, or -1 */
 static inline uint32_t sam_rd32(const uint8_t *p)
 {
