@@ -4,7 +4,14 @@ Every check runs on the shipped images first (it must find nothing), then on the
 defect): the TC3 handler that no longer clears its flag, a wrong TC3 period, the watchdog fed from the tick, a
 wrong pin-mux letter for the PWM outputs, on-demand sampling of the encoder pins, and the review's two
 execution-only defects reverted from this repository's history: the cell's USB interrupt at the encoders'
-priority (a5a8df8) and the watchdog fed while the control tick is dead (6318086).
+priority (a5a8df8) and the watchdog fed while the control tick is dead (6318086); and the classes of issue 29:
+the EIC's and TC3's priorities swapped where the table is applied, the watchdog enabled before it is configured
+(its period then enable-protected), a wrong watchdog key, a fault handler that leaves the drivers awake. Each
+mutant names the check(s) that catch it and, beside it, the observable.
+
+Not in the catalogue, with the reason: the primary's SCL split (T_LOW/T_HIGH are not modelled: issue 29 item 2),
+the PWM prescaler and period as waveforms (only the mean duty is: item 4); an unaligned access (Unicorn's
+Cortex-M0 does not trap it: peripherals/test_core_faults.py).
 """
 
 from __future__ import annotations
@@ -252,6 +259,7 @@ def test_fwcheck_irq_passes_on_every_built_image(images):
 
 HW = "src/cell/samd21_hw.cpp"
 MAIN = "src/cell/main.cpp"
+SYS = "src/common/samd21_sys.cpp"
 
 
 def _flag_clear_removed(s):
@@ -289,6 +297,15 @@ def _priorities_swapped_as_applied(s):
     )
 
 
+def _watchdog_enabled_before_configured(s):
+    # enable first: CONFIG is then enable-protected, the 1 s period is ignored and the reset value's 16 s stays
+    s.replace(SYS, "    WDT->CTRL.reg = 0;   /* configure while disabled */", "    WDT->CTRL.reg = WDT_CTRL_ENABLE;")
+
+
+def _watchdog_wrong_key(s):
+    s.replace(SYS, "    WDT->CLEAR.reg = WDT_CLEAR_CLEAR_KEY;", "    WDT->CLEAR.reg = 0x5A;")
+
+
 def _fault_leaves_drivers_awake(s):
     s.replace(
         MAIN,
@@ -317,6 +334,10 @@ MUTANTS = {
     "eic-tc3-priorities-swapped-as-applied": (_priorities_swapped_as_applied, ("nvic-priorities", "encoder-stress")),
     # observable: the trace between the HardFault's entry and the AIRCR write holds no PORT write taking nSLEEP low
     "fault-handler-leaves-drivers-awake": (_fault_leaves_drivers_awake, "fault-sleeps-drivers"),
+    # observable: no watchdog reset 1.3 s after the tick dies (the period in force is CONFIG's reset value, 16 s)
+    "watchdog-enabled-before-configured": (_watchdog_enabled_before_configured, "watchdog-dead-tick"),
+    # observable: the first feed resets the cell (a wrong key in WDT.CLEAR is a system reset): resets, no steady tick
+    "watchdog-wrong-key": (_watchdog_wrong_key, "tick"),
     "watchdog-fed-while-tick-dead (revert 6318086)": (_wdt_tick_fix_reverted, "watchdog-dead-tick"),
 }
 
