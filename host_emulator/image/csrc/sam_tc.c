@@ -210,6 +210,7 @@ static void tc_fire(sam_mcu_t *m, int pi)
     if (s->pending_enable && now >= s->sync_until) {
         s->pending_enable = 0;
         tc_start(m, pi, now);
+        tc_schedule(m, pi);   /* its first wrap from the count it starts at (t_wrap was the last run's, or 0) */
     }
     if (s->running && now >= s->t_wrap) {
         s->tb = s->t_wrap;

@@ -16,6 +16,7 @@ typedef struct {
     uint32_t per;
     uint32_t cc[4], ccb[4];
     uint64_t t_apply[4];         /* the UPDATE at which ccb becomes cc (SAM_NEVER: none pending) */
+    uint8_t locked[4];           /* ccb written under CTRLB.LUPD: valid (STATUS.CCBV), copied after LUPD clears */
     int nch;
     int gclk_id;
 } tcc_t;
@@ -48,6 +49,8 @@ static uint64_t tcc_next_update(tcc_t *s, uint64_t t)
         return s->t0;
     return s->t0 + ((t - s->t0) / s->period + 1u) * s->period;
 }
+
+#define TCC_CTRLBCLR_OFFSET 0x04   /* CTRLBCLR, beside CTRLBSET (0x05): the same bits */
 
 static void tcc_commit(tcc_t *s, uint64_t t)
 {
@@ -123,10 +126,11 @@ static int tcc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
     if (off == TCC_STATUS_OFFSET) {
         uint32_t st = s->running ? 0 : TCC_STATUS_STOP;
         for (int c = 0; c < s->nch; c++)
-            if (s->t_apply[c] != SAM_NEVER)
+            if (s->t_apply[c] != SAM_NEVER || s->locked[c])
                 st |= TCC_STATUS_CCBV0 << c;
-        if (st & (((1u << s->nch) - 1u) * TCC_STATUS_CCBV0))
-            sam_activity(m);
+        for (int c = 0; c < s->nch; c++)
+            if (s->t_apply[c] != SAM_NEVER)
+                sam_activity(m);
         *v = st;
         return SAM_DONE;
     }
@@ -214,6 +218,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         s->cc[c] = v & 0xFFFFFFu;
         s->ccb[c] = s->cc[c];
         s->t_apply[c] = SAM_NEVER;
+        s->locked[c] = 0;
         sam_activity(m);
         tcc_schedule(m, pi);
         return SAM_DONE;
@@ -223,10 +228,22 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         tcc_sync(m, s, TCC_SYNCBUSY_CCB0 << c);
         s->ccb[c] = v & 0xFFFFFFu;
         /* buffered: takes effect at the next UPDATE (the counter's wrap) after the write has synchronised */
-        s->t_apply[c] = (tcc_reg(m, pi, TCC_CTRLBSET_OFFSET) & TCC_CTRLBSET_LUPD) ? SAM_NEVER
-                                                                                   : tcc_next_update(s, s->sync_until);
+        s->locked[c] = (tcc_reg(m, pi, TCC_CTRLBSET_OFFSET) & TCC_CTRLBSET_LUPD) != 0;
+        s->t_apply[c] = s->locked[c] ? SAM_NEVER : tcc_next_update(s, s->sync_until);
         if (!s->running)
             s->t_apply[c] = SAM_NEVER;
+        sam_activity(m);
+        tcc_schedule(m, pi);
+        return SAM_DONE;
+    }
+    if (off == TCC_CTRLBCLR_OFFSET && (v & TCC_CTRLBSET_LUPD)) {
+        /* 31.6.2.6 Double Buffering: with LUPD cleared, the buffers written meanwhile are copied at the next UPDATE */
+        sam_generic_write(m, ri, v, mask);
+        for (int c = 0; c < s->nch; c++)
+            if (s->locked[c]) {
+                s->locked[c] = 0;
+                s->t_apply[c] = s->running ? tcc_next_update(s, now) : SAM_NEVER;
+            }
         sam_activity(m);
         tcc_schedule(m, pi);
         return SAM_DONE;

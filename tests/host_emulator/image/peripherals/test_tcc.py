@@ -129,11 +129,6 @@ def test_lock_update_holds_the_buffer_across_the_boundary():
     assert h.read("TCC0.CC[2]") == 250
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="model discrepancy: a CCB written while LUPD is set is dropped for good (t_apply stays SAM_NEVER); "
-    "clearing LUPD does not copy it at the next UPDATE, and STATUS.CCBV reads 0 meanwhile",
-)
 def test_clearing_lock_update_copies_the_buffer_at_the_next_boundary():
     """DS40001882 31.6.2.6 Double Buffering: when CTRLB.LUPD is cleared, the buffer values (CCBV set) are copied
     on the next UPDATE condition."""
