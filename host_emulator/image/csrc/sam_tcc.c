@@ -115,6 +115,11 @@ static int tcc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
     tcc_t *s = m->pst[pi];
     uint32_t off = sam_regs[ri].offset;
     uint64_t now = sam_now(m);
+    for (int c = 0; c < s->nch; c++)
+        if (now >= s->t_apply[c]) {   /* a buffered value is taken over: the motors integrate the old duty first */
+            sam_world_tcc_will_change(m, tcc_index(pi));
+            break;
+        }
     tcc_commit(s, now);
     if (off == TCC_SYNCBUSY_OFFSET) {
         *v = now < s->sync_until ? s->sync_bits : 0;

@@ -107,12 +107,6 @@ def test_the_plant_sees_the_old_duty_up_to_the_boundary_and_the_new_one_after():
     buffered_duty_change(read_after_update=False)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="model discrepancy: tcc_read commits the buffer (tcc_commit) without letting the motors integrate first "
-    "(tcc_write does, through sam_world_tcc_will_change), so a TCC read after the UPDATE gives the new duty to the "
-    "plant back to its last integration point, before the boundary",
-)
 def test_a_register_read_after_the_boundary_does_not_move_the_duty_change():
     """DS40001882 31.6.2.6 Double Buffering: the copy happens at the UPDATE condition, whatever the CPU reads
     afterwards; reading SYNCBUSY after the boundary must not change what the output did before it."""
