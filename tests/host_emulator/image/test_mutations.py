@@ -16,12 +16,14 @@ Cortex-M0 does not trap it: peripherals/test_core_faults.py).
 
 from __future__ import annotations
 
+import json
 import re
 
 import numpy as np
 import pytest
 
 from host_emulator.image import board as wiring
+from host_emulator.image.cli import image_main
 from host_emulator.image.world import World, WorldConfig
 from host_emulator.params import Params
 from metacell_tools.fwcheck import irqmap
@@ -135,6 +137,15 @@ DOCUMENTED_PRIORITIES = {
     "cell": {"EIC": 0, "TC3": 1, "SERCOM2": 2, "USB": 3},
     "primary": {"USB": 0, "SERCOM2": 3},
 }
+
+
+def test_image_nvic_reports_each_boards_programmed_priorities(images, capsys):
+    """`image nvic` prints, per board, the priority of every interrupt enabled in its NVIC after bring-up: on the
+    cells the documented table, on the primary the core's."""
+    assert image_main(["nvic", "--board", "cell1", "--board", "primary", "--seconds", "0.01", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["cell 1"] == DOCUMENTED_PRIORITIES["cell"]
+    assert {k: report["primary"][k] for k in DOCUMENTED_PRIORITIES["primary"]} == DOCUMENTED_PRIORITIES["primary"]
 
 
 def check_nvic_priorities(images) -> list[str]:
