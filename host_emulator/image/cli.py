@@ -5,6 +5,8 @@ each touches, profile where each spends its cycles.
     image registers [--board B]     run the boards from power-up, the laptop configuring the cells as a run does,
                                     and list every register each image read or wrote (reads, writes)
     image profile [--board B]       the same run; CPU cycles per function of a board's image, most first
+    image nvic [--board B]          the same run; the NVIC priorities each image programmed (0 most urgent), read
+                                    back from its NVIC: every enabled interrupt
 
 Exit codes: 0 ok, 2 bad arguments, 3 the images cannot be built or the run failed.
 """
@@ -27,7 +29,8 @@ def _parser() -> argparse.ArgumentParser:
         epilog="examples:\n"
         "  python -m host_emulator image build\n"
         "  python -m host_emulator image registers --board cell1 --board primary\n"
-        "  python -m host_emulator image profile --board primary --seconds 0.5\n",
+        "  python -m host_emulator image profile --board primary --seconds 0.5\n"
+        "  python -m host_emulator image nvic --board cell1 --board primary\n",
     )
     sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND", help="what to do with the images")
     sub.add_parser(
@@ -38,6 +41,7 @@ def _parser() -> argparse.ArgumentParser:
     for name, what, example in (
         ("registers", "list every register each image touched", "registers --board cell1 --board primary"),
         ("profile", "cycles per function", "profile --board primary --seconds 0.5 --top 10"),
+        ("nvic", "the NVIC priorities each image programmed", "nvic --board cell1 --board primary"),
     ):
         p = sub.add_parser(name, help=what, epilog=f"example: python -m host_emulator image {example}")
         p.add_argument("--board", action="append", default=[], help="cellN or primary (default: all / primary)")
@@ -117,6 +121,17 @@ def image_main(argv: list[str] | None = None) -> int:
                     for r in regs:
                         print(f"  {r['register']:<40} {r['reads']:>9} reads {r['writes']:>9} writes")
             return 0
+        if args.cmd == "nvic":
+            w = _bring_up(args.seconds)
+            boards = _boards(w, args.board, [b.name.replace(" ", "") for b in w.boards])
+            nvic_report = {b.name: nvic_priorities(w, b.index) for b in boards}
+            if args.json:
+                json.dump(nvic_report, sys.stdout, indent=1)
+                print()
+            else:
+                for name, prios in nvic_report.items():
+                    print(f"{name}: " + ", ".join(f"{k} {v}" for k, v in prios.items()))
+            return 0
         # profile
         names = args.board or ["primary"]
         w = _bring_up(args.seconds, names)
@@ -139,6 +154,17 @@ def image_main(argv: list[str] | None = None) -> int:
     except (ConfigError, ValueError) as e:
         print(f"image: {e}", file=sys.stderr)
         return 2
+
+
+def nvic_priorities(world, b: int) -> dict[str, int]:
+    """The priority (0..3, 0 most urgent) of every interrupt enabled in board b's NVIC, as the image programmed
+    them (read back from the NVIC, wherever the image set them), most urgent first."""
+    from metacell_tools.fwcheck.irqmap import IRQN
+
+    i = world.info(b)
+    names = {n: name for name, n in IRQN.items()}
+    out = {names.get(n, f"IRQ{n}"): int(i.nvic_prio[n]) for n in range(32) if int(i.nvic_enabled) >> n & 1}
+    return dict(sorted(out.items(), key=lambda kv: kv[1]))
 
 
 def by_function(profile: np.ndarray, image) -> list[tuple[str, int]]:

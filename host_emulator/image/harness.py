@@ -173,6 +173,7 @@ class Program:
     labels: dict[str, int]
     tables: cycles.BlockTables | None  # None: no ELF tables, the board's decoder costs the code (csrc/sam_cost.c)
     vectors: list[int] = field(default_factory=list)
+    heap_base: int = 0  # end of its static data in SRAM, as an ELF's `end` gives it (0: unknown, all RAM is data)
 
     @property
     def image(self) -> bytes:
@@ -289,7 +290,7 @@ class Harness:
         if arrays:
             im.cost_core, im.cost_wait, im.cost_lit, im.refund = arrays
         im.code_end = APP_BASE + len(p.image) if arrays else 0
-        im.loop_pc, im.heap_base, im.brk_var = p.idle, 0, 0
+        im.loop_pc, im.heap_base, im.brk_var = p.idle, p.heap_base, 0
         self._keep += [data, seg, im, t, *arrays]
         name = f"{role} {idx}".encode()
         r = lib.SAM_ROLE_CELL if role == "cell" else lib.SAM_ROLE_PRIMARY

@@ -80,6 +80,8 @@ typedef struct {
     uint32_t sys_active;
     uint8_t prio[32];      /* 0..3: the implemented top two bits of each IPR byte */
     uint8_t prio_svc, prio_pendsv, prio_systick;
+    uint8_t entering;      /* the exception whose entry just ended, until its handler's first instruction runs: a
+                              higher-priority one arriving meanwhile takes its place (late arrival) */
     uint32_t ipr[8];       /* IPR words as written (only bits 7:6 of each byte are implemented) */
     uint32_t vtor;
     uint32_t scr, shpr2, shpr3;
@@ -114,7 +116,8 @@ typedef struct {
     uint32_t snap_regs[20];
     uint32_t snap_cache[8];
     uint8_t *snap_ram;
-    uint32_t snap_lo;      /* static data and heap compared: RAM offsets [0, snap_lo) */
+    int mid_valid;         /* snap_ram holds all of RAM at the snapshot, also between the heap's break and SP */
+    int idle;              /* the last pass compared parked (0 after a miss): the board looks idle */
     int parked;            /* stopped at a verified fixed point: state == snapshot at a loop() entry */
     int resumed;           /* just resumed at a loop() entry: that pass runs (its event is due inside it) */
     uint64_t anchor, period, period_cycles;
@@ -154,6 +157,8 @@ struct sam_mcu {
     uint64_t cycles;       /* CPU cycles executed (for reports) */
     uint64_t *prof;        /* cycles charged per block start (halfword index), NULL: not profiling */
     uint64_t act;          /* activity counter (events, interrupts, state-changing register accesses) */
+    uint64_t ep_noted;     /* bit ri % 64: an enable-protected write to register ri was noted */
+    uint64_t ep_writes;    /* writes to enable-protected fields while enabled (ignored, as on silicon) */
     /* events */
     uint64_t slot[SAM_NSLOTS];
     uint64_t next_ev;
@@ -245,6 +250,8 @@ int sam_reg_index(int pi, const char *name);
 uint32_t sam_reg_get(sam_mcu_t *m, int ri);
 void sam_reg_put(sam_mcu_t *m, int ri, uint32_t v);
 void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* the table's access rule */
+/* sam_protect.c: v with the `protect` bits of register ri kept as they are when the peripheral is enabled (noted) */
+uint32_t sam_enable_protected(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask, uint32_t protect, int enabled);
 int sam_reg_at(sam_mcu_t *m, int pi, uint32_t offset);   /* register at this offset in the active view, or -1 */
 static inline uint32_t sam_rd32(const uint8_t *p)
 {

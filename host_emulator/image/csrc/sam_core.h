@@ -40,6 +40,7 @@ uint64_t sam_cost_tail(const sam_mcu_t *m, uint32_t pc, uint32_t end);
 
 /* ---- sam_nvic.c ---- */
 int sam_nvic_best_pending(const sam_mcu_t *m, int *prio);
+int sam_nvic_exec_prio(const sam_mcu_t *m);              /* of the active exceptions (4: none), before PRIMASK */
 int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret);   /* stack a frame and enter exception e; 1 on success */
 int sam_nvic_take(sam_mcu_t *m, uint32_t ret);           /* take the best pending exception if it may pre-empt */
 void sam_nvic_return(sam_mcu_t *m);                      /* an exception return (EXC_RETURN in handler mode) */

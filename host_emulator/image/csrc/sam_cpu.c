@@ -108,13 +108,12 @@ void sam_set_cpu_clock(sam_mcu_t *m)
         sam_systick_reclock(m, old);
 }
 
-/* A fault of the memory system (the run loop: Unicorn stopped with an error): HardFault, or lockup in it. */
-void sam_cpu_enter_fault(sam_mcu_t *m, uc_err e)
+/* HardFault for a fault the image caused at pc (the exception returns there); a fault while HardFault (or NMI)
+ * is active locks the core up (ARMv6-M B1.5.13 Lockup). */
+static void hardfault(sam_mcu_t *m, uint32_t pc, const char *what)
 {
-    uint32_t pc = sam_cpu_reg(m, UC_ARM_REG_PC);
     uint32_t ipsr = sam_cpu_reg(m, UC_ARM_REG_XPSR) & 0x3Fu;
-    sam_note(m, "%s: HardFault (%s at 0x%08x, pc 0x%05x) at t = %.6f s", m->name, uc_strerror(e),
-                   m->fault_addr, pc, (double)m->t / (double)SAM_TU_HZ);
+    sam_note(m, "%s: HardFault (%s, pc 0x%05x) at t = %.6f s", m->name, what, pc, (double)m->t / (double)SAM_TU_HZ);
     if (ipsr == 3 || ipsr == 2) {
         sam_cpu_lockup(m, "fault in the HardFault handler");
         return;
@@ -123,21 +122,65 @@ void sam_cpu_enter_fault(sam_mcu_t *m, uc_err e)
     sam_nvic_enter(m, 3, pc);
 }
 
+/* A fault of the memory system (the run loop: Unicorn stopped with an error): HardFault, or lockup in it. */
+void sam_cpu_enter_fault(sam_mcu_t *m, uc_err e)
+{
+    char what[96];
+    snprintf(what, sizeof what, "%s at 0x%08x", uc_strerror(e), m->fault_addr);
+    hardfault(m, sam_cpu_reg(m, UC_ARM_REG_PC), what);
+}
+
 /* ---------------------------------------------------------------- hooks */
 
-/* Exception return (Unicorn raises EXCP_EXCEPTION_EXIT for a branch to EXC_RETURN in handler mode). */
-#define EXCP_EXCEPTION_EXIT 8
+/* Unicorn's exception numbers (QEMU's target/arm/cpu.h EXCP_*): what the hook below receives. */
+#define EXCP_UDEF 1             /* UDF, and any encoding ARMv6-M does not define: PC at the instruction */
+#define EXCP_SWI 2              /* SVC: PC after the instruction */
+#define EXCP_PREFETCH_ABORT 3
+#define EXCP_DATA_ABORT 4
+#define EXCP_BKPT 7             /* BKPT: PC at the instruction */
+#define EXCP_EXCEPTION_EXIT 8   /* a branch to EXC_RETURN in handler mode */
+#define EXCP_INVSTATE 18        /* a branch with bit 0 clear (T = 0) */
+#define EXCP_UNALIGNED 22       /* an unaligned LDR/STR (ARMv6-M traps every one: CCR.UNALIGN_TRP reads 1) */
 
+/* The instructions that raise an exception on ARMv6-M (B1.5 "ARMv6-M exception model"): SVC takes SVCall when its
+ * priority is above the execution priority, else HardFault (escalation); UDF, BKPT without a debugger, an
+ * unaligned access, an interworking branch to ARM state and a bus error all take HardFault. The block the
+ * instruction ended was charged whole: what did not run of it is refunded. */
 static void hook_intr(uc_engine *uc, uint32_t intno, void *ud)
 {
     sam_mcu_t *m = ud;
     (void)uc;
-    if (intno != EXCP_EXCEPTION_EXIT) {
-        m->fault_addr = sam_cpu_reg(m, UC_ARM_REG_PC);
-        sam_fail(m, "CPU exception %u (an instruction the model does not execute: SVC, BKPT, UDF, WFI)", intno);
+    if (intno == EXCP_EXCEPTION_EXIT) {
+        sam_nvic_return(m);
         return;
     }
-    sam_nvic_return(m);
+    uint32_t pc = sam_cpu_reg(m, UC_ARM_REG_PC) & ~1u;
+    m->fault_addr = pc;
+    const char *what = NULL;
+    switch (intno) {
+    case EXCP_SWI:
+        sam_cpu_resume_after(m, pc);   /* the SVC ran: the rest of its block did not */
+        if (m->nvic.prio_svc < sam_nvic_exec_prio(m) && !(sam_cpu_reg(m, UC_ARM_REG_PRIMASK) & 1u)) {
+            m->nvic.sys_pending |= 1u << 11;
+            sam_nvic_enter(m, 11, pc);
+        } else {
+            hardfault(m, pc, "SVC with SVCall's priority not above the execution priority");
+        }
+        return;
+    case EXCP_UDEF: what = "UDF or an undefined instruction"; break;
+    case EXCP_BKPT: what = "BKPT with no debugger attached"; break;
+    case EXCP_UNALIGNED: what = "unaligned access"; break;
+    case EXCP_DATA_ABORT:
+    case EXCP_PREFETCH_ABORT: what = "bus error"; break;
+    case EXCP_INVSTATE: what = "a branch to ARM state (bit 0 clear)"; break;
+    default: break;
+    }
+    if (!what) {
+        sam_fail(m, "CPU exception %u (an instruction the model does not execute: WFI, WFE)", intno);
+        return;
+    }
+    sam_cpu_resume_after(m, pc);
+    hardfault(m, pc, what);
 }
 
 /* ---------------------------------------------------------------- faults from the memory system */
@@ -198,6 +241,7 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
     }
     if ((m->irq_check | m->primask_wait) && sam_nvic_take(m, addr))
         return;   /* the PC moved to the handler: this block does not run now */
+    m->nvic.entering = 0;   /* a handler's first instruction runs: its entry can no longer be overtaken */
     if (addr == m->ff.loop_pc && m->ff.enabled && sam_ff_boundary(m)) {
         uc_emu_stop(uc);
         return;

@@ -2,6 +2,19 @@
 #include <string.h>
 #include "sam_core.h"
 
+#define SAM_FF_CHUNK 1024u   /* bytes compared before a copy of the snapshot between the break and SP */
+
+/* The snapshot's RAM between the break (lo) and SP (hi) made equal to the board's, copied where it differs. */
+static void sync_mid(sam_mcu_t *m, uint32_t lo, uint32_t hi)
+{
+    uint8_t *snap = m->ff.snap_ram;
+    for (uint32_t a = lo; a < hi; a += SAM_FF_CHUNK) {
+        uint32_t n = hi - a < SAM_FF_CHUNK ? hi - a : SAM_FF_CHUNK;
+        if (memcmp(m->ram + a, snap + a, n))
+            memcpy(snap + a, m->ram + a, n);
+    }
+}
+
 int sam_ff_boundary(sam_mcu_t *m)
 {
     sam_ff_t *f = &m->ff;
@@ -14,8 +27,12 @@ int sam_ff_boundary(sam_mcu_t *m)
     for (int i = 0; i < SAM_NCORE_REGS; i++)
         ptrs[i] = &regs[i];
     uc_reg_read_batch(m->uc, (int *)sam_core_regs, ptrs, SAM_NCORE_REGS);
-    /* The RAM a pass can leave changed: static data and the heap up to its break, and the live stack above SP.
-     * RAM below SP at a loop() entry is free stack: whatever a pass leaves there is never read before written. */
+    /* The RAM a pass can leave changed is all of it: static data and the heap below the break, the live stack above
+     * SP, and between them the free stack and objects at fixed addresses (the fault record at 0x20007800). A pass
+     * parks only when the whole RAM is as it was at the previous entry. The part between the break and SP is mostly
+     * free stack no pass touches and costs a compare of ~28 KB: it is kept in the snapshot (copied where it changed)
+     * only while the board looks idle (its last compared pass parked); otherwise a pass that matches elsewhere takes
+     * it then, and parks at the next entry if that pass changed nothing either (one pass later). */
     uint32_t lo = m->heap_base, hi = regs[13] - SAM_RAM_BASE;
     if (m->brk_var) {
         int ok = 0;
@@ -24,27 +41,39 @@ int sam_ff_boundary(sam_mcu_t *m)
             lo = brk - SAM_RAM_BASE;
     }
     if (hi > SAM_RAM_SIZE || hi < lo)
-        hi = lo;   /* SP outside SRAM (the core faults soon): the whole RAM counts */
+        hi = lo;   /* SP outside SRAM (the core faults soon): [0, lo) and [lo, end) are the whole RAM */
     if (f->snap_valid && m->act == f->snap_act) {
         f->checks++;
         if (!memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
-            lo == f->snap_lo && !memcmp(m->ram, f->snap_ram, lo) &&
-            !memcmp(m->ram + hi, f->snap_ram + hi, SAM_RAM_SIZE - hi)) {
-            /* one whole pass changed nothing and met nothing: it repeats exactly until the next event */
-            f->period = m->t - f->snap_t;
-            f->period_cycles = m->cycles - f->snap_cycles;
-            f->anchor = m->t;
-            f->parked = 1;
-            f->parks++;
-            return 1;
+            !memcmp(m->ram, f->snap_ram, lo) && !memcmp(m->ram + hi, f->snap_ram + hi, SAM_RAM_SIZE - hi)) {
+            if (f->mid_valid && !memcmp(m->ram + lo, f->snap_ram + lo, hi - lo)) {
+                /* one whole pass changed nothing and met nothing: it repeats exactly until the next event */
+                f->period = m->t - f->snap_t;
+                f->period_cycles = m->cycles - f->snap_cycles;
+                f->anchor = m->t;
+                f->parked = 1;
+                f->parks++;
+                f->idle = 1;
+                return 1;
+            }
+            if (!f->mid_valid) {   /* the rest of RAM from here; the snapshot is this entry's */
+                sync_mid(m, lo, hi);
+                f->mid_valid = 1;
+                f->snap_t = m->t;
+                f->snap_cycles = m->cycles;
+                return 0;
+            }
         }
         f->misses++;
+        f->idle = 0;
     }
     memcpy(f->snap_regs, regs, sizeof regs);
     memcpy(f->snap_cache, m->cache_tag, sizeof m->cache_tag);
     memcpy(f->snap_ram, m->ram, lo);
     memcpy(f->snap_ram + hi, m->ram + hi, SAM_RAM_SIZE - hi);
-    f->snap_lo = lo;
+    f->mid_valid = f->idle;   /* it parked last time it was compared: keep the rest of RAM in the snapshot too */
+    if (f->mid_valid)
+        sync_mid(m, lo, hi);
     f->snap_act = m->act;
     f->snap_t = m->t;
     f->snap_cycles = m->cycles;

@@ -23,7 +23,7 @@ int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id)
     m->flash = calloc(1, SAM_FLASH_SIZE);
     m->ram = calloc(1, SAM_RAM_SIZE);
     m->nvm = calloc(1, SAM_NVM_SIZE);
-    m->ff.snap_ram = malloc(SAM_RAM_SIZE);
+    m->ff.snap_ram = calloc(1, SAM_RAM_SIZE);
     m->touch = calloc(2 * (size_t)sam_nregs, sizeof(uint32_t));
     m->notes = malloc(SAM_BOARD_NOTES);
     if (!m->flash || !m->ram || !m->nvm || !m->ff.snap_ram || !m->touch || !m->notes)

@@ -15,7 +15,7 @@ static int exc_prio(const sam_mcu_t *m, int e)
 }
 
 /* Execution priority of the active exceptions (4: thread mode, none active), before PRIMASK. */
-static int active_prio(const sam_mcu_t *m)
+int sam_nvic_exec_prio(const sam_mcu_t *m)
 {
     int p = 4;
     for (int e = 2; e < 16; e++)
@@ -131,9 +131,54 @@ int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret)
     m->cycles += EXC_ENTRY_CYCLES;
     m->act++;
     m->irq_check = 1;
+    m->nvic.entering = (uint8_t)e;
     if (e == 3)
         m->hardfaults++;
     return 1;
+}
+
+/* Late arrival (ARMv6-M B1.5.12; the Cortex-M0+ implements it): an exception of higher priority than the one being
+ * entered that becomes pending before that entry ends (here: an event processed at the handler's first
+ * instruction, which falls due during the entry's cycles) is entered instead, on the same frame and at no extra
+ * cost; the first stays pending, its handler runs after (tail-chained) unless it is pre-empted again. */
+static void late_arrival(sam_mcu_t *m, int e0, int e)
+{
+    int ok = 0;
+    uint32_t vec = sam_mem_read32(m, m->nvic.vtor + 4u * (uint32_t)e, &ok);
+    if (!ok || !(vec & 1u)) {
+        sam_cpu_lockup(m, "exception vector unreadable or not Thumb");
+        return;
+    }
+    if (e0 >= 16) {
+        m->nvic.active &= ~(1u << (e0 - 16));
+        m->nvic.pending |= 1u << (e0 - 16);
+    } else {
+        m->nvic.sys_active &= ~(1u << e0);
+        m->nvic.sys_pending |= 1u << e0;
+    }
+    if (e >= 16) {
+        m->nvic.pending &= ~(1u << (e - 16));
+        m->nvic.active |= 1u << (e - 16);
+    } else {
+        m->nvic.sys_pending &= ~(1u << e);
+        m->nvic.sys_active |= 1u << e;
+    }
+    if (e == 3)
+        m->hardfaults++;
+    uint32_t sp = sam_cpu_reg(m, UC_ARM_REG_SP);
+    uint32_t ret = sam_mem_read32(m, sp + 24u, NULL), from = sam_mem_read32(m, sp + 28u, NULL) & 0x3Fu;
+    if ((m->w->cfg.trace & 8) && (m->w->cfg.trace_boards >> m->id & 1))
+        sam_note(m, "exc %.3f us %s enter %d from %u at 0x%05x (late arrival: %d pending)",
+                 (double)m->t * 1e6 / (double)SAM_TU_HZ, m->name, e, from, ret, e0);
+    else if ((m->w->cfg.trace & 32) && (m->w->cfg.trace_boards >> m->id & 1))
+        sam_note(m, "chg %llu %s enter %d from %u at 0x%05x (late arrival: %d pending)", (unsigned long long)m->t,
+                 m->name, e, from, ret, e0);
+    sam_cpu_set(m, UC_ARM_REG_IPSR, (uint32_t)e);
+    sam_cpu_rebuild_hflags(m);
+    sam_cpu_set(m, UC_ARM_REG_PC, vec);
+    m->nvic.entering = (uint8_t)e;
+    m->act++;
+    m->irq_check = 1;
 }
 
 /* Take the best pending exception if it may pre-empt now; ret = where the interrupted code resumes. */
@@ -145,12 +190,17 @@ int sam_nvic_take(sam_mcu_t *m, uint32_t ret)
     m->primask_wait = 0;
     if (!e)
         return 0;
-    int ap = active_prio(m);
+    int ap = sam_nvic_exec_prio(m);
     if (bp >= ap)
         return 0;   /* re-evaluated when an exception returns */
     if (bp >= 0 && sam_cpu_reg(m, UC_ARM_REG_PRIMASK) & 1u) {
         m->primask_wait = 1;   /* CPSIE ends its translation block: checked at every block until taken */
         return 0;
+    }
+    int e0 = m->nvic.entering;
+    if (e0) {   /* still at the first instruction of e0's handler: its entry has just ended */
+        late_arrival(m, e0, e);
+        return 1;
     }
     return sam_nvic_enter(m, e, ret);
 }
@@ -196,7 +246,7 @@ void sam_nvic_return(sam_mcu_t *m)
      * reusing the frame (ARMv6-M); PRIMASK is part of that context and unchanged by the return */
     int bp;
     int e2 = sam_nvic_best_pending(m, &bp);
-    if (e2 && bp < active_prio(m) && !(bp >= 0 && (sam_cpu_reg(m, UC_ARM_REG_PRIMASK) & 1u))) {
+    if (e2 && bp < sam_nvic_exec_prio(m) && !(bp >= 0 && (sam_cpu_reg(m, UC_ARM_REG_PRIMASK) & 1u))) {
         int ok2 = 0;
         uint32_t vec = sam_mem_read32(m, m->nvic.vtor + 4u * (uint32_t)e2, &ok2);
         if (!ok2 || !(vec & 1u)) {
@@ -219,6 +269,7 @@ void sam_nvic_return(sam_mcu_t *m)
         m->t += (uint64_t)TAIL_CHAIN_CYCLES * m->cyc_tu;
         m->cycles += TAIL_CHAIN_CYCLES;
         m->irq_check = 1;
+        m->nvic.entering = (uint8_t)e2;
         return;
     }
     int ids[6] = {UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12, UC_ARM_REG_LR};

@@ -98,6 +98,8 @@ static int sercom_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
             return SAM_DONE;
         }
         uint32_t old = sam_sercom_reg32(m, pi, 0);
+        /* every field but SWRST and ENABLE: enable-protected (sam_protect.c) */
+        v = sam_enable_protected(m, ri, v, mask, ~3u, (old & 2u) != 0);
         sam_generic_write(m, ri, v, mask);
         uint32_t nv = sam_sercom_reg32(m, pi, 0);
         s->mode = (int)((nv >> 2) & 7u);

@@ -178,6 +178,8 @@ static int i2c_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         sam_sercom_irq(m, pi);
         return SAM_DONE;
     }
+    if (off == SERCOM_I2CM_BAUD_OFFSET && s->mode == 5)   /* the master's BAUD: enable-protected (sam_protect.c) */
+        v = sam_enable_protected(m, ri, v, mask, 0xFFFFFFFFu, s->enabled);
     if (off == SERCOM_I2CM_BAUD_OFFSET || off == SERCOM_I2CM_INTENSET_OFFSET || off == SERCOM_I2CM_INTENCLR_OFFSET ||
         off == SERCOM_I2CM_DBGCTRL_OFFSET) {
         sam_generic_write(m, ri, v, mask);

@@ -154,6 +154,8 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
             return SAM_DONE;
         }
         uint32_t old = tc_reg(m, pi, TC_CTRLA_OFFSET, 2);
+        /* PRESCSYNC, RUNSTDBY, PRESCALER, WAVEGEN, MODE: enable-protected (sam_protect.c) */
+        v = sam_enable_protected(m, ri, v, mask, 0x3F0Cu | 0x60u, (old & TC_CTRLA_ENABLE) != 0);
         tc_sync(m, s);
         sam_generic_write(m, ri, v, mask);
         uint32_t nv = tc_reg(m, pi, TC_CTRLA_OFFSET, 2);
@@ -208,6 +210,7 @@ static void tc_fire(sam_mcu_t *m, int pi)
     if (s->pending_enable && now >= s->sync_until) {
         s->pending_enable = 0;
         tc_start(m, pi, now);
+        tc_schedule(m, pi);   /* its first wrap from the count it starts at (t_wrap was the last run's, or 0) */
     }
     if (s->running && now >= s->t_wrap) {
         s->tb = s->t_wrap;

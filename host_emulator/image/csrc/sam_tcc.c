@@ -16,6 +16,7 @@ typedef struct {
     uint32_t per;
     uint32_t cc[4], ccb[4];
     uint64_t t_apply[4];         /* the UPDATE at which ccb becomes cc (SAM_NEVER: none pending) */
+    uint8_t locked[4];           /* ccb written under CTRLB.LUPD: valid (STATUS.CCBV), copied after LUPD clears */
     int nch;
     int gclk_id;
 } tcc_t;
@@ -48,6 +49,8 @@ static uint64_t tcc_next_update(tcc_t *s, uint64_t t)
         return s->t0;
     return s->t0 + ((t - s->t0) / s->period + 1u) * s->period;
 }
+
+#define TCC_CTRLBCLR_OFFSET 0x04   /* CTRLBCLR, beside CTRLBSET (0x05): the same bits */
 
 static void tcc_commit(tcc_t *s, uint64_t t)
 {
@@ -112,21 +115,35 @@ static int tcc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
     tcc_t *s = m->pst[pi];
     uint32_t off = sam_regs[ri].offset;
     uint64_t now = sam_now(m);
+    for (int c = 0; c < s->nch; c++)
+        if (now >= s->t_apply[c]) {   /* a buffered value is taken over: the motors integrate the old duty first */
+            sam_world_tcc_will_change(m, tcc_index(pi));
+            break;
+        }
     tcc_commit(s, now);
     if (off == TCC_SYNCBUSY_OFFSET) {
         *v = now < s->sync_until ? s->sync_bits : 0;
         return SAM_DONE;
     }
+    /* STATUS.CCBVn and CCn change at the UPDATE that takes a buffered value over, which is no event (tcc_commit
+     * applies it when next looked at): while one is pending, a read of them is activity, so a loop() polling them is
+     * never fast-forwarded past the change (sam_ff.c) */
     if (off == TCC_STATUS_OFFSET) {
         uint32_t st = s->running ? 0 : TCC_STATUS_STOP;
         for (int c = 0; c < s->nch; c++)
-            if (s->t_apply[c] != SAM_NEVER)
+            if (s->t_apply[c] != SAM_NEVER || s->locked[c])
                 st |= TCC_STATUS_CCBV0 << c;
+        for (int c = 0; c < s->nch; c++)
+            if (s->t_apply[c] != SAM_NEVER)
+                sam_activity(m);
         *v = st;
         return SAM_DONE;
     }
     if (off >= TCC_CC_OFFSET && off < TCC_CC_OFFSET + 16) {
-        *v = s->cc[(off - TCC_CC_OFFSET) / 4];
+        int c = (int)(off - TCC_CC_OFFSET) / 4;
+        *v = s->cc[c];
+        if (c < s->nch && s->t_apply[c] != SAM_NEVER)
+            sam_activity(m);
         return SAM_DONE;
     }
     if (off >= TCC_CCB_OFFSET && off < TCC_CCB_OFFSET + 16) {
@@ -206,6 +223,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         s->cc[c] = v & 0xFFFFFFu;
         s->ccb[c] = s->cc[c];
         s->t_apply[c] = SAM_NEVER;
+        s->locked[c] = 0;
         sam_activity(m);
         tcc_schedule(m, pi);
         return SAM_DONE;
@@ -215,10 +233,22 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         tcc_sync(m, s, TCC_SYNCBUSY_CCB0 << c);
         s->ccb[c] = v & 0xFFFFFFu;
         /* buffered: takes effect at the next UPDATE (the counter's wrap) after the write has synchronised */
-        s->t_apply[c] = (tcc_reg(m, pi, TCC_CTRLBSET_OFFSET) & TCC_CTRLBSET_LUPD) ? SAM_NEVER
-                                                                                   : tcc_next_update(s, s->sync_until);
+        s->locked[c] = (tcc_reg(m, pi, TCC_CTRLBSET_OFFSET) & TCC_CTRLBSET_LUPD) != 0;
+        s->t_apply[c] = s->locked[c] ? SAM_NEVER : tcc_next_update(s, s->sync_until);
         if (!s->running)
             s->t_apply[c] = SAM_NEVER;
+        sam_activity(m);
+        tcc_schedule(m, pi);
+        return SAM_DONE;
+    }
+    if (off == TCC_CTRLBCLR_OFFSET && (v & TCC_CTRLBSET_LUPD)) {
+        /* 31.6.2.6 Double Buffering: with LUPD cleared, the buffers written meanwhile are copied at the next UPDATE */
+        sam_generic_write(m, ri, v, mask);
+        for (int c = 0; c < s->nch; c++)
+            if (s->locked[c]) {
+                s->locked[c] = 0;
+                s->t_apply[c] = s->running ? tcc_next_update(s, now) : SAM_NEVER;
+            }
         sam_activity(m);
         tcc_schedule(m, pi);
         return SAM_DONE;

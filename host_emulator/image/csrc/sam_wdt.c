@@ -76,6 +76,15 @@ static void wdt_sync(sam_mcu_t *m, int pi)
     s->sync_until = d == SAM_NEVER ? SAM_NEVER : now + d;
 }
 
+/* CTRL.ENABLE as the enable protection sees it: written (it reads back at once) or in effect */
+static int wdt_enabled(sam_mcu_t *m, int pi)
+{
+    const wdt_t *s = m->pst[pi];
+    if (s->ctrl_pending & 0x80u)
+        return (s->ctrl_pending & WDT_CTRL_ENABLE) != 0;
+    return (sam_reg_get(m, sam_idx.wdt_ctrl) & WDT_CTRL_ENABLE) != 0;
+}
+
 static int wdt_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
 {
     wdt_t *s = m->pst[pi];
@@ -97,12 +106,14 @@ static int wdt_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         wdt_sync(m, pi);
         s->ctrl_pending = (uint8_t)(v | 0x80u);
     } else if (off == WDT_CONFIG_OFFSET) {
+        v = sam_enable_protected(m, ri, v, mask, 0xFFu, wdt_enabled(m, pi));
         wdt_sync(m, pi);
         sam_reg_put(m, ri, (sam_reg_get(m, ri) & ~mask) | v);
     } else if (off == WDT_INTENSET_OFFSET && v) {
         sam_fail(m, "the WDT early warning interrupt is not modelled");
         return SAM_DONE;
     } else if (off == WDT_EWCTRL_OFFSET) {
+        v = sam_enable_protected(m, ri, v, mask, 0x0Fu, wdt_enabled(m, pi));
         wdt_sync(m, pi);
         sam_reg_put(m, ri, (sam_reg_get(m, ri) & ~mask) | v);
     } else {

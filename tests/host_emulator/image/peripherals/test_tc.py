@@ -54,11 +54,6 @@ def test_the_count_runs_from_zero_to_cc0_and_wraps_with_ovf_and_mc0():
     assert next_wrap(h, cc0) == wrap + (cc0 + 1) * TICK
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="model discrepancy: tc_fire takes the enable's own event for an overflow (its t_wrap is still 0 or "
-    "the last run's), so OVF and MC0 are set at the enable and the count is phased to that old wrap time",
-)
 def test_the_counter_starts_from_count_at_the_enable_with_no_flag():
     """DS40001882 30.6.2.1 Initialization / 30.6.2.3 Counter Mode: once enabled (CTRLA.ENABLE synchronised,
     30.6.6) the counter counts up from COUNT (zero after reset); OVF is set only when it wraps, CC0 + 1 ticks on."""

@@ -107,12 +107,6 @@ def test_the_plant_sees_the_old_duty_up_to_the_boundary_and_the_new_one_after():
     buffered_duty_change(read_after_update=False)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="model discrepancy: tcc_read commits the buffer (tcc_commit) without letting the motors integrate first "
-    "(tcc_write does, through sam_world_tcc_will_change), so a TCC read after the UPDATE gives the new duty to the "
-    "plant back to its last integration point, before the boundary",
-)
 def test_a_register_read_after_the_boundary_does_not_move_the_duty_change():
     """DS40001882 31.6.2.6 Double Buffering: the copy happens at the UPDATE condition, whatever the CPU reads
     afterwards; reading SYNCBUSY after the boundary must not change what the output did before it."""
@@ -129,11 +123,6 @@ def test_lock_update_holds_the_buffer_across_the_boundary():
     assert h.read("TCC0.CC[2]") == 250
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="model discrepancy: a CCB written while LUPD is set is dropped for good (t_apply stays SAM_NEVER); "
-    "clearing LUPD does not copy it at the next UPDATE, and STATUS.CCBV reads 0 meanwhile",
-)
 def test_clearing_lock_update_copies_the_buffer_at_the_next_boundary():
     """DS40001882 31.6.2.6 Double Buffering: when CTRLB.LUPD is cleared, the buffer values (CCBV set) are copied
     on the next UPDATE condition."""
