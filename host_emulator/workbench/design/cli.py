@@ -72,12 +72,19 @@ def design_main(argv: list[str] | None = None) -> int:
     except DesignError as e:
         print(f"design: error: {e}", file=sys.stderr)
         return 2
-    v = doc["verification"]
+    v, c = doc["verification"], doc["cross_check"]
     print(
         f"design {doc['target']} (push {doc['push_text']}): lands in {100 * v['fraction_seeds']:.0f} % of "
-        f"{v['seeds']} noise seeds and {100 * (v['fraction_pushes'] or 0):.0f} % of "
-        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it); "
-        f"{doc['search']['hil_runs']} hil runs, {doc['search']['wall_s']:.0f} s"
+        f"{v['seeds']} draws of the rig's uncertainty and {100 * (v['fraction_pushes'] or 0):.0f} % of "
+        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it), "
+        f"{100 * c['fraction_seeds']:.0f} % of the same draws in {c['model']}; "
+        f"{doc['search']['hil_runs']} runs, {doc['search']['wall_s']:.0f} s"
+    )
+    fw = doc["assumes"]["firmware"]
+    print(
+        f"  assumes: back-EMF compensation {'on' if fw['bemf_comp'] else 'off'}, PWM limit {fw['pwm_limit_ticks']} "
+        f"of {fw['pwm_top']} ticks, control rate {fw['control_rate_hz']:g} Hz, stepper "
+        f"{doc['assumes']['model_options']['stepper']}"
     )
     for k in doc["vary"]:
         val = doc["params"][k]

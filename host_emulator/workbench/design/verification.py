@@ -1,7 +1,9 @@
-"""Step 3, verification: the written scene.toml run as `run` loads it, over noise seeds and the push range."""
+"""Step 3, verification: the written scene.toml run as `run` loads it, over draws of the rig's uncertainty and the
+push range; and the same draws in a second model (the cross-model check)."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -9,18 +11,40 @@ import numpy as np
 
 from ...physics import reaction
 from ...scene import load_scene, scene_table
-from .constants import NOISE, PUSH_DURATIONS_S, PUSH_TORQUES_NM, VERIFY_SEED0
+from .constants import CROSS_MODEL, NOISE, PUSH_DURATIONS_S, PUSH_TORQUES_NM, VERIFY_SEED0
 from .ensembles import Runner, _noise
 from .landing import final_walls, miss_reason, torque_ok
 from .target import Target
 
 
-def verify(scene_path: Path, target: Target, runner: Runner, seeds: int = 20, *, pushes_too: bool = True) -> dict:
-    """Run the written scene file as `run` loads it: `seeds` noise seeds (VERIFY_SEED0..) and, with pushes_too, every
-    push of the documented range (no noise); the fraction of each that lands, and every run's walls."""
+def cross_table(table: dict, model: str = CROSS_MODEL) -> dict:
+    """A hil scene table as the second model runs it: the same scene and noise draws, the model's own accuracy
+    preset (the hil's stepper and plant steps are the firmware loop's, not the lattice's)."""
+    t = json.loads(json.dumps(table))
+    t["model"] = model
+    mo = t.get("model_options", {})
+    for k in ("stepper", "substeps", "dt", "perturb_via"):
+        mo.pop(k, None)
+    return t
+
+
+def verify(
+    scene_path: Path,
+    target: Target,
+    runner: Runner,
+    seeds: int = 20,
+    *,
+    pushes_too: bool = True,
+    model: str | None = None,
+) -> dict:
+    """Run the written scene file as `run` loads it: `seeds` noise seeds (VERIFY_SEED0..: draws of the rig's
+    uncertainty) and, with pushes_too, every push of the documented range (no noise); the fraction of each that
+    lands, and every run's walls. model: run it in that model instead (cross_table: the same draws)."""
     sc = load_scene(str(scene_path))
     p = sc.params
     base = scene_table(sc)
+    if model is not None:
+        base = cross_table(base, model)
     tables = [_noise(base, VERIFY_SEED0 + s) for s in range(seeds)]
     grid = [(tq, du) for tq in PUSH_TORQUES_NM for du in PUSH_DURATIONS_S] if pushes_too else []
     for tq, du in grid:
@@ -58,6 +82,7 @@ def verify(scene_path: Path, target: Target, runner: Runner, seeds: int = 20, *,
     fs = float(np.mean([r["landed"] for r in runs[:seeds]])) if seeds else None
     fp = float(np.mean([r["landed"] for r in runs[seeds:]])) if grid else None
     return {
+        "model": base["model"],
         "seeds": seeds,
         "noise": NOISE,
         "fraction_seeds": fs,
