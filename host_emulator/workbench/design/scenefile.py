@@ -45,8 +45,10 @@ FIRMWARE_KEYS = ("bemf_comp", "pwm_top", "vmax_v", "supply_v", "control_rate_hz"
 
 
 def pwm_limit_ticks(p: Params) -> int:
-    """The PWM limit a cell is given for these parameters (image.model.setup_commands, the experiment runner)."""
-    return round(min(p.vmax_v, p.supply_v) / p.supply_v * p.pwm_top)
+    """The PWM limit in force in a cell configured for these parameters: the runner's PWM_LIMIT command
+    (image.model.setup_commands) clamped by the firmware to duty_max = floor(vmax_mv * pwm_top / supply_mv)."""
+    sent = round(min(p.vmax_v, p.supply_v) / p.supply_v * p.pwm_top)
+    return min(sent, round(p.vmax_v * 1000) * p.pwm_top // round(p.supply_v * 1000))
 
 
 def assumed_options(base_table: dict, p: Params) -> dict:

@@ -96,7 +96,7 @@ def test_design_lambda_10_push_8_verified_by_running_its_scene(tmp_path, capsys)
     assert "lands in" in capsys.readouterr().out
     # the search held the firmware's configuration fixed: design.json names it, scene.toml writes it explicitly
     fw = doc["assumes"]["firmware"]
-    assert fw["bemf_comp"] is False and fw["pwm_limit_ticks"] == round(5.86 / 9.0 * 2400) and fw["pwm_top"] == 2400
+    assert fw["bemf_comp"] is False and fw["pwm_limit_ticks"] == 5860 * 2400 // 9000 and fw["pwm_top"] == 2400
     assert doc["assumes"]["model_options"]["stepper"] == sc.options.stepper == "symplectic_euler"
     written = tomllib.loads((tmp_path / "scene.toml").read_text())
     assert {k: written["params"][k] for k in ("bemf_comp", "pwm_top", "vmax_v", "control_rate_hz")} == {
