@@ -3,8 +3,13 @@ random wall layouts.
 
     python -m host_emulator.benchmarks.design_table --out out/design_table      # about half an hour on one core
 
-Every target is designed with the command's defaults (push on cell 8, 20 verification seeds, the documented push
-range) and verified by running its scene.toml (host_emulator.workbench.design). Wavelengths: lambda = 2 (n - 1) / Z
+Every target is designed with the command's defaults (push on cell 8, 20 verification draws of the rig's uncertainty,
+the documented push range) and verified by running its scene.toml (host_emulator.workbench.design), in hil and, with
+the same draws, in the lattice (the cross-model check). `--target TARGET@PUSH` (repeatable) designs those instead:
+
+    python -m host_emulator.benchmarks.design_table --out out/design_five --target lambda=7.5@6,10 \
+        --target lambda=10@8 --target walls=4.5,11.5@6,10 --target walls=2.5,10.5,14.5@8 --target walls=5.5,10.5@8
+ Wavelengths: lambda = 2 (n - 1) / Z
 for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's default_rng(`--seed`): 1 to 4 walls
 on bonds 1.5 .. n - 0.5, consecutive walls at least `--spacing` cells apart. Prints a markdown table per family
 (target, verified fraction of seeds and of pushes, why the most common miss among the seeds missed and its walls,
@@ -72,6 +77,9 @@ def _row(target: str, doc: dict, wall_s: float) -> dict:
         "target": target,
         "fraction_seeds": v["fraction_seeds"],
         "fraction_pushes": v["fraction_pushes"],
+        "cross_model": doc["cross_check"]["model"],
+        "fraction_cross": doc["cross_check"]["fraction_seeds"],
+        "push": doc["push_text"],
         "reached": doc["reached"],
         "missed": [{"why": k[0], "walls": list(k[1]), "runs": c} for k, c in missed.most_common(1)],
         "linear_score": doc["linear_theory"]["score"],
@@ -91,6 +99,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=23, help="seed of the layouts (default 23)")
     ap.add_argument("--push", default="8", help="pushes of every design (default 8)")
     ap.add_argument("--only", choices=("lambda", "walls"), default=None, help="one family only")
+    ap.add_argument(
+        "--target",
+        action="append",
+        default=None,
+        metavar="TARGET[@PUSH]",
+        help="design these targets only (repeatable), each with its own pushes after @ (default --push), e.g. "
+        "walls=4.5,11.5@6,10; the rows form one table",
+    )
     ap.add_argument(
         "--band-scan", action="store_true", help="only the scan of the firmware's gain box for the fastest mode"
     )
@@ -112,44 +128,56 @@ def main(argv: list[str] | None = None) -> int:
         print(f"design_table: error: {why}", file=sys.stderr)
         return 2
     n = 16
-    targets = []
-    if args.only in (None, "lambda"):
-        targets += [("lambda", f"lambda={2 * (n - 1) / z:.6g}") for z in range(1, n)]
-    if args.only in (None, "walls"):
+    targets: list[tuple[str, str, str]] = []  # (family, target, pushes)
+    if args.target:
+        for spec in args.target:
+            tgt, _, push = spec.partition("@")
+            targets.append(("given", tgt, push or args.push))
+    if args.only in (None, "lambda") and not args.target:
+        targets += [("lambda", f"lambda={2 * (n - 1) / z:.6g}", args.push) for z in range(1, n)]
+    if args.only in (None, "walls") and not args.target:
         targets += [
-            ("walls", "walls=" + ",".join(f"{w:g}" for w in lay))
+            ("walls", "walls=" + ",".join(f"{w:g}" for w in lay), args.push)
             for lay in wall_layouts(args.layouts, n, args.spacing, args.seed)
         ]
     rows = []
     t_all = time.perf_counter()
-    for fam, tgt in targets:
+    for fam, tgt, push in targets:
         t0 = time.perf_counter()
-        d = design(tgt, args.push, out=out / tgt.replace("=", "_").replace(",", "_"), nearest=False)
+        name = tgt + ("" if push == args.push else "_push_" + push)
+        try:
+            d = design(tgt, push, out=out / name.replace("=", "_").replace(",", "_").replace(":", ""), nearest=False)
+        except ValueError as e:  # DesignError: a bad --target
+            print(f"design_table: error: {tgt}@{push}: {e}", file=sys.stderr)
+            return 2
         rows.append({"family": fam, **_row(tgt, d, time.perf_counter() - t0)})
         r = rows[-1]
         print(
-            f"{tgt:28s} seeds {100 * r['fraction_seeds']:5.0f} %  pushes {100 * (r['fraction_pushes'] or 0):5.0f} %  "
+            f"{tgt:28s} seeds {100 * r['fraction_seeds']:5.0f} %  {r['cross_model']} "
+            f"{100 * r['fraction_cross']:5.0f} %  pushes {100 * (r['fraction_pushes'] or 0):5.0f} %  "
             f"{r['hil_runs']:5d} runs {r['wall_s']:6.0f} s",
             file=sys.stderr,
             flush=True,
         )
         (out / "design_table.json").write_text(json.dumps({"push": args.push, "rows": rows}, indent=1) + "\n")
-    for fam in ("lambda", "walls"):
+    for fam in ("given", "lambda", "walls"):
         fr = [r for r in rows if r["family"] == fam]
         if not fr:
             continue
         print(
-            "\n| target | seeds landing | pushes landing | most missed seeds: why (their walls) | hil runs | wall s |"
+            "\n| target | push | rig draws landing: hil | the same draws: lattice | pushes landing (hil) "
+            "| most missed draws: why (their walls) | runs | wall s |"
         )
-        print("|---|---:|---:|---|---:|---:|")
+        print("|---|---|---:|---:|---:|---|---:|---:|")
         for r in fr:
             miss = "-"
             if r["missed"]:
                 m = r["missed"][0]
                 miss = f"{m['runs']}: {m['why']} ({', '.join(f'{w:g}' for w in m['walls']) or 'none'})"
             print(
-                f"| {r['target']} | {100 * r['fraction_seeds']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | "
-                f"{miss} | {r['hil_runs']} | {r['wall_s']:.0f} |"
+                f"| {r['target']} | {r['push']} | {100 * r['fraction_seeds']:.0f} % | "
+                f"{100 * r['fraction_cross']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | {miss} | "
+                f"{r['hil_runs']} | {r['wall_s']:.0f} |"
             )
         ok = sum(r["fraction_seeds"] >= 0.9 for r in fr)
         print(f"\n{fam}: {ok} of {len(fr)} targets land in >= 90 % of the seeds")
