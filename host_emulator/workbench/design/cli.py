@@ -75,10 +75,10 @@ def design_main(argv: list[str] | None = None) -> int:
     v, c = doc["verification"], doc["cross_check"]
     print(
         f"design {doc['target']} (push {doc['push_text']}): lands in {100 * v['fraction_seeds']:.0f} % of "
-        f"{v['seeds']} draws of the rig's uncertainty and {100 * (v['fraction_pushes'] or 0):.0f} % of "
-        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it), "
-        f"{100 * c['fraction_seeds']:.0f} % of the same draws in {c['model']}; "
-        f"{doc['search']['hil_runs']} runs, {doc['search']['wall_s']:.0f} s"
+        f"{v['seeds']} noise seeds and {100 * (v['fraction_pushes'] or 0):.0f} % of "
+        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it; each "
+        f"seed a draw of the rig's uncertainty), {100 * c['fraction_seeds']:.0f} % of the same seeds in "
+        f"{c['model']}; {doc['search']['hil_runs']} runs, {doc['search']['wall_s']:.0f} s"
     )
     fw = doc["assumes"]["firmware"]
     print(
