@@ -68,7 +68,18 @@ def band_scan(n: int = 16, points: tuple[int, int, int] = (25, 26, 26)) -> dict:
     return {"laws": total, "fastest_mode_counts": dict(sorted(count.items())), "largest_m": max(count)}
 
 
-def _row(target: str, doc: dict, wall_s: float) -> dict:
+def bemf_on_fraction(out: Path, target: str, seeds: int) -> float:
+    """The fraction of the verification's draws (the same seeds) landing when the design's scene runs in hil with the
+    firmware's back-EMF compensation on (params.bemf_comp = true), a configuration the design does not assume."""
+    from ..workbench.design import Runner, parse_target, verify
+
+    v = verify(
+        out / "scene.toml", parse_target(target), Runner(), seeds, pushes_too=False, overrides=["params.bemf_comp=true"]
+    )
+    return float(v["fraction_seeds"])
+
+
+def _row(target: str, doc: dict, wall_s: float, bemf_on: float) -> dict:
     v = doc["verification"]
     missed = Counter(
         (r.get("why") or "error", tuple(r.get("walls", ()))) for r in v["runs"][: v["seeds"]] if not r["landed"]
@@ -79,6 +90,7 @@ def _row(target: str, doc: dict, wall_s: float) -> dict:
         "fraction_pushes": v["fraction_pushes"],
         "cross_model": doc["cross_check"]["model"],
         "fraction_cross": doc["cross_check"]["fraction_seeds"],
+        "fraction_bemf_on": bemf_on,
         "push": doc["push_text"],
         "reached": doc["reached"],
         "missed": [{"why": k[0], "walls": list(k[1]), "runs": c} for k, c in missed.most_common(1)],
@@ -145,16 +157,19 @@ def main(argv: list[str] | None = None) -> int:
     for fam, tgt, push in targets:
         t0 = time.perf_counter()
         name = tgt + ("" if push == args.push else "_push_" + push)
+        where = out / name.replace("=", "_").replace(",", "_").replace(":", "")
         try:
-            d = design(tgt, push, out=out / name.replace("=", "_").replace(",", "_").replace(":", ""), nearest=False)
+            d = design(tgt, push, out=where, nearest=False)
         except ValueError as e:  # DesignError: a bad --target
             print(f"design_table: error: {tgt}@{push}: {e}", file=sys.stderr)
             return 2
-        rows.append({"family": fam, **_row(tgt, d, time.perf_counter() - t0)})
+        wall = time.perf_counter() - t0
+        rows.append({"family": fam, **_row(tgt, d, wall, bemf_on_fraction(where, tgt, d["verification"]["seeds"]))})
         r = rows[-1]
         print(
             f"{tgt:28s} seeds {100 * r['fraction_seeds']:5.0f} %  {r['cross_model']} "
-            f"{100 * r['fraction_cross']:5.0f} %  pushes {100 * (r['fraction_pushes'] or 0):5.0f} %  "
+            f"{100 * r['fraction_cross']:5.0f} %  bemf on {100 * r['fraction_bemf_on']:5.0f} %  "
+            f"pushes {100 * (r['fraction_pushes'] or 0):5.0f} %  "
             f"{r['hil_runs']:5d} runs {r['wall_s']:6.0f} s",
             file=sys.stderr,
             flush=True,
@@ -168,10 +183,10 @@ def main(argv: list[str] | None = None) -> int:
         print(
             "\n| target |"
             + (" push |" if given else "")
-            + " seeds landing: hil | pushes landing | the same seeds: lattice | most missed seeds: why (their walls) "
-            "| runs | wall s |"
+            + " seeds landing: hil | pushes landing | the same seeds: lattice | hil, back-EMF comp. on "
+            "| most missed seeds: why (their walls) | runs | wall s |"
         )
-        print("|---|" + ("---|" if given else "") + "---:|---:|---:|---|---:|---:|")
+        print("|---|" + ("---|" if given else "") + "---:|---:|---:|---:|---|---:|---:|")
         for r in fr:
             miss = "-"
             if r["missed"]:
@@ -181,7 +196,8 @@ def main(argv: list[str] | None = None) -> int:
                 f"| {r['target']} |"
                 + (f" {r['push']} |" if given else "")
                 + f" {100 * r['fraction_seeds']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | "
-                f"{100 * r['fraction_cross']:.0f} % | {miss} | {r['hil_runs']} | {r['wall_s']:.0f} |"
+                f"{100 * r['fraction_cross']:.0f} % | {100 * r['fraction_bemf_on']:.0f} % | {miss} | {r['hil_runs']} | "
+                f"{r['wall_s']:.0f} |"
             )
         ok = sum(r["fraction_seeds"] >= 0.9 for r in fr)
         print(f"\n{fam}: {ok} of {len(fr)} targets land in >= 90 % of the seeds")

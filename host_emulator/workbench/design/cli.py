@@ -86,6 +86,11 @@ def design_main(argv: list[str] | None = None) -> int:
         f"of {fw['pwm_top']} ticks, control rate {fw['control_rate_hz']:g} Hz, stepper "
         f"{doc['assumes']['model_options']['stepper']}"
     )
+    if c["fraction_seeds"] < doc["require"] <= v["fraction_seeds"] and not fw["bemf_comp"]:
+        print(
+            f"  note: without the motors' back-EMF damping ({c['model']}) it lands in "
+            f"{100 * c['fraction_seeds']:.0f} %: keep back-EMF compensation off on the rig (command apply checks it)"
+        )
     for k in doc["vary"]:
         val = doc["params"][k]
         print(f"  {k}: " + (" ".join(f"{x:.4g}" for x in val) if isinstance(val, list) else f"{val:.6g}"))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -36,11 +37,13 @@ def verify(
     *,
     pushes_too: bool = True,
     model: str | None = None,
+    overrides: Sequence[str] = (),
 ) -> dict:
     """Run the written scene file as `run` loads it: `seeds` noise seeds (VERIFY_SEED0..: draws of the rig's
     uncertainty) and, with pushes_too, every push of the documented range (no noise); the fraction of each that
-    lands, and every run's walls. model: run it in that model instead (cross_table: the same draws)."""
-    sc = load_scene(str(scene_path))
+    lands, and every run's walls. model: run it in that model instead (cross_table: the same draws); overrides:
+    --set items applied to the scene first (e.g. another firmware setting than the design assumes)."""
+    sc = load_scene(str(scene_path), list(overrides))
     p = sc.params
     base = scene_table(sc)
     if model is not None:

@@ -13,6 +13,7 @@ from host_emulator.controller import run_scene
 from host_emulator.models.options import RIG_UNCERTAINTY, rig_noise_overrides
 from host_emulator.scene import load_scene, scene_table
 from host_emulator.workbench import design as D
+from metacell_tools.rigtools import command
 
 
 def test_targets_parse_and_refuse_what_does_not_fit():
@@ -102,6 +103,7 @@ def test_design_lambda_10_push_8_verified_by_running_its_scene(tmp_path, capsys)
     assert {k: written["params"][k] for k in ("bemf_comp", "pwm_top", "vmax_v", "control_rate_hz")} == {
         k: fw[k] for k in ("bemf_comp", "pwm_top", "vmax_v", "control_rate_hz")
     } and written["model_options"]["stepper"] == "symplectic_euler"
+    assert command.design_config(str(tmp_path)) == {"bemf": 0, "pwm_limit": fw["pwm_limit_ticks"]}  # what apply checks
     # the second model: the same draws in the lattice, reported beside the hil's
     assert doc["cross_check"]["model"] == "lattice" and doc["cross_check"]["seeds"] == 6
     assert 0 <= doc["cross_check"]["fraction_seeds"] <= 1 and doc["verification"]["noise"] == RIG_UNCERTAINTY
