@@ -5,7 +5,9 @@ random wall layouts.
 
 Every target is designed with the command's defaults (push on cell 8, 20 verification draws of the rig's uncertainty,
 the documented push range) and verified by running its scene.toml (host_emulator.workbench.design), in hil and, with
-the same draws, in the lattice (the cross-model check). `--target TARGET@PUSH` (repeatable) designs those instead:
+the same draws, in the lattice (the cross-model check); its scene.toml is then run again in hil on 20 fresh draws
+(seeds 9000..) and on the verification's draws with back-EMF compensation on. `--target TARGET@PUSH` (repeatable)
+designs those instead:
 
     python -m host_emulator.benchmarks.design_table --out out/design_five --target lambda=7.5@6,10 \
         --target lambda=10@8 --target walls=4.5,11.5@6,10 --target walls=2.5,10.5,14.5@8 --target walls=5.5,10.5@8
@@ -68,18 +70,22 @@ def band_scan(n: int = 16, points: tuple[int, int, int] = (25, 26, 26)) -> dict:
     return {"laws": total, "fastest_mode_counts": dict(sorted(count.items())), "largest_m": max(count)}
 
 
-def bemf_on_fraction(out: Path, target: str, seeds: int) -> float:
-    """The fraction of the verification's draws (the same seeds) landing when the design's scene runs in hil with the
-    firmware's back-EMF compensation on (params.bemf_comp = true), a configuration the design does not assume."""
+FRESH_SEED0 = 9000  # fresh draws: seeds neither the search (3000.., 4000..) nor the verification (2000..) used
+
+
+def rechecks(out: Path, target: str, seeds: int) -> tuple[float, float]:
+    """(fraction of `seeds` fresh draws of the rig's uncertainty (FRESH_SEED0..) landing when the design's scene.toml
+    runs in hil again; fraction of the verification's draws (the same seeds) landing with the firmware's back-EMF
+    compensation on (params.bemf_comp = true), a configuration the design does not assume)."""
     from ..workbench.design import Runner, parse_target, verify
 
-    v = verify(
-        out / "scene.toml", parse_target(target), Runner(), seeds, pushes_too=False, overrides=["params.bemf_comp=true"]
-    )
-    return float(v["fraction_seeds"])
+    tgt, sc = parse_target(target), out / "scene.toml"
+    fresh = verify(sc, tgt, Runner(), seeds, pushes_too=False, seed0=FRESH_SEED0)
+    bemf = verify(sc, tgt, Runner(), seeds, pushes_too=False, overrides=["params.bemf_comp=true"])
+    return float(fresh["fraction_seeds"]), float(bemf["fraction_seeds"])
 
 
-def _row(target: str, doc: dict, wall_s: float, bemf_on: float) -> dict:
+def _row(target: str, doc: dict, wall_s: float, again: tuple[float, float]) -> dict:
     v = doc["verification"]
     missed = Counter(
         (r.get("why") or "error", tuple(r.get("walls", ()))) for r in v["runs"][: v["seeds"]] if not r["landed"]
@@ -90,7 +96,8 @@ def _row(target: str, doc: dict, wall_s: float, bemf_on: float) -> dict:
         "fraction_pushes": v["fraction_pushes"],
         "cross_model": doc["cross_check"]["model"],
         "fraction_cross": doc["cross_check"]["fraction_seeds"],
-        "fraction_bemf_on": bemf_on,
+        "fraction_fresh": again[0],
+        "fraction_bemf_on": again[1],
         "push": doc["push_text"],
         "reached": doc["reached"],
         "missed": [{"why": k[0], "walls": list(k[1]), "runs": c} for k, c in missed.most_common(1)],
@@ -164,11 +171,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"design_table: error: {tgt}@{push}: {e}", file=sys.stderr)
             return 2
         wall = time.perf_counter() - t0
-        rows.append({"family": fam, **_row(tgt, d, wall, bemf_on_fraction(where, tgt, d["verification"]["seeds"]))})
+        rows.append({"family": fam, **_row(tgt, d, wall, rechecks(where, tgt, d["verification"]["seeds"]))})
         r = rows[-1]
         print(
             f"{tgt:28s} seeds {100 * r['fraction_seeds']:5.0f} %  {r['cross_model']} "
-            f"{100 * r['fraction_cross']:5.0f} %  bemf on {100 * r['fraction_bemf_on']:5.0f} %  "
+            f"{100 * r['fraction_cross']:5.0f} %  fresh {100 * r['fraction_fresh']:5.0f} %  "
+            f"bemf on {100 * r['fraction_bemf_on']:5.0f} %  "
             f"pushes {100 * (r['fraction_pushes'] or 0):5.0f} %  "
             f"{r['hil_runs']:5d} runs {r['wall_s']:6.0f} s",
             file=sys.stderr,
@@ -183,10 +191,10 @@ def main(argv: list[str] | None = None) -> int:
         print(
             "\n| target |"
             + (" push |" if given else "")
-            + " seeds landing: hil | pushes landing | the same seeds: lattice | hil, back-EMF comp. on "
-            "| most missed seeds: why (their walls) | runs | wall s |"
+            + " seeds landing: hil | pushes landing | the same seeds: lattice | fresh seeds: hil "
+            "| hil, back-EMF comp. on | most missed seeds: why (their walls) | runs | wall s |"
         )
-        print("|---|" + ("---|" if given else "") + "---:|---:|---:|---:|---|---:|---:|")
+        print("|---|" + ("---|" if given else "") + "---:|---:|---:|---:|---:|---|---:|---:|")
         for r in fr:
             miss = "-"
             if r["missed"]:
@@ -196,7 +204,8 @@ def main(argv: list[str] | None = None) -> int:
                 f"| {r['target']} |"
                 + (f" {r['push']} |" if given else "")
                 + f" {100 * r['fraction_seeds']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | "
-                f"{100 * r['fraction_cross']:.0f} % | {100 * r['fraction_bemf_on']:.0f} % | {miss} | {r['hil_runs']} | "
+                f"{100 * r['fraction_cross']:.0f} % | {100 * r['fraction_fresh']:.0f} % | "
+                f"{100 * r['fraction_bemf_on']:.0f} % | {miss} | {r['hil_runs']} | "
                 f"{r['wall_s']:.0f} |"
             )
         ok = sum(r["fraction_seeds"] >= 0.9 for r in fr)

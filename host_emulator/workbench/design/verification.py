@@ -38,17 +38,19 @@ def verify(
     pushes_too: bool = True,
     model: str | None = None,
     overrides: Sequence[str] = (),
+    seed0: int = VERIFY_SEED0,
 ) -> dict:
     """Run the written scene file as `run` loads it: `seeds` noise seeds (VERIFY_SEED0..: draws of the rig's
     uncertainty) and, with pushes_too, every push of the documented range (no noise); the fraction of each that
     lands, and every run's walls. model: run it in that model instead (cross_table: the same draws); overrides:
-    --set items applied to the scene first (e.g. another firmware setting than the design assumes)."""
+    --set items applied to the scene first (e.g. another firmware setting than the design assumes); seed0: the first
+    seed (another range: fresh draws)."""
     sc = load_scene(str(scene_path), list(overrides))
     p = sc.params
     base = scene_table(sc)
     if model is not None:
         base = cross_table(base, model)
-    tables = [_noise(base, VERIFY_SEED0 + s) for s in range(seeds)]
+    tables = [_noise(base, seed0 + s) for s in range(seeds)]
     grid = [(tq, du) for tq in PUSH_TORQUES_NM for du in PUSH_DURATIONS_S] if pushes_too else []
     for tq, du in grid:
         t = _noise(base, None)
@@ -60,11 +62,7 @@ def verify(
     cap = p.kt * p.vmax_v
     runs = []
     for i, r in enumerate(res):
-        what = (
-            {"seed": VERIFY_SEED0 + i}
-            if i < seeds
-            else {"torque_Nm": grid[i - seeds][0], "duration_s": grid[i - seeds][1]}
-        )
+        what = {"seed": seed0 + i} if i < seeds else {"torque_Nm": grid[i - seeds][0], "duration_s": grid[i - seeds][1]}
         if "error" in r:
             runs.append({**what, "landed": False, "error": r["error"]})
             continue
