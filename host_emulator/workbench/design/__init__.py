@@ -26,6 +26,8 @@ The design, in three steps:
    cells within 0.1 rad, and no reaction torque beyond the drivers' 5.86 V (44 mN m);
 3. verification of the written scene.toml as ``run`` loads it: 20 draws of the rig's uncertainty (seeds 2000.., as
    the robustness command's `rig` column) and the whole push range (PUSH_TORQUES_NM x PUSH_DURATIONS_S, no noise);
+   a design landing in at least ``require`` of them is confirmed on as many fresh draws (seeds 5000..), and is
+   reported as reached only if those land as often (20 draws are a noisy estimate of the rate);
 4. the cross-model check: the same 20 draws in the ``lattice`` (CROSS_MODEL: the ideal reaction, no motors and so
    no back-EMF damping), reported beside the hil's fraction (design.json ``cross_check``).
 
@@ -51,6 +53,7 @@ from .constants import (  # noqa: F401
     BOUNDS,
     CHECK_SEED0,
     CLOSE_WEIGHT,
+    CONFIRM_SEED0,
     DOMAIN_FILL_MODE,
     DOMAIN_MIN_RAD,
     FULL_BONUS,

@@ -94,10 +94,15 @@ def design_main(argv: list[str] | None = None) -> int:
     for k in doc["vary"]:
         val = doc["params"][k]
         print(f"  {k}: " + (" ".join(f"{x:.4g}" for x in val) if isinstance(val, list) else f"{val:.6g}"))
+    conf = doc["confirmation"]
+    if conf is not None:
+        print(f"  confirmed on {conf['seeds']} fresh seeds: {100 * conf['fraction_seeds']:.0f} % land")
     if not doc["reached"]:
         near = doc["nearest_reachable"]
         print(
-            f"NOT REACHED: below {100 * doc['require']:.0f} % of the seeds; nearest reachable: "
+            f"NOT REACHED: below {100 * doc['require']:.0f} % of the seeds"
+            + (" (the fresh seeds)" if conf is not None else "")
+            + "; nearest reachable: "
             + (f"{near['target']} ({100 * near['fraction_seeds']:.0f} %)" if near else "none found nearby")
         )
     print(f"wrote {out}/design.json, scene.toml, design.png")
