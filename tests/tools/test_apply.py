@@ -175,3 +175,15 @@ def test_apply_refuses_a_design_assuming_another_configuration_and_sets_it_when_
     assert command.main(["-c", served.channel, "apply", str(_six(tmp_path, "off.json")), "--configure"]) == 0
     with _bus(served.channel) as bus:
         assert command.read_config(RigClient(bus), cells) == conf
+
+
+def test_a_design_whose_configuration_is_unreadable_is_a_one_line_error(tmp_path, capsys):
+    d = json.loads(_six(tmp_path, "bad.json").read_text())
+    del d["assumes"]["firmware"]["pwm_limit_ticks"]
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    with pytest.raises(ApplyError):
+        command.design_config(str(tmp_path / "bad.json"))
+    assert command.main(["-c", "/nonexistent@115200", "apply", str(tmp_path / "bad.json")]) == 2
+    err = capsys.readouterr().err
+    assert "firmware configuration is unreadable" in err and err.count("\n") == 1
+    assert command.design_config(str(_design(tmp_path))) is None  # written before designs recorded it: no check
