@@ -100,6 +100,7 @@ def _row(target: str, doc: dict, wall_s: float, again: tuple[float, float]) -> d
         "fraction_bemf_on": again[1],
         "push": doc["push_text"],
         "reached": doc["reached"],
+        "fraction_confirm": (doc.get("confirmation") or {}).get("fraction_seeds"),
         "missed": [{"why": k[0], "walls": list(k[1]), "runs": c} for k, c in missed.most_common(1)],
         "linear_score": doc["linear_theory"]["score"],
         "first_guess_score": doc["linear_theory"]["first_guess_score"],
@@ -191,11 +192,12 @@ def main(argv: list[str] | None = None) -> int:
         print(
             "\n| target |"
             + (" push |" if given else "")
-            + " seeds landing: hil | pushes landing | the same seeds: lattice | fresh seeds: hil "
+            + " seeds landing: hil | pushes landing | the same seeds: lattice | confirmed: reached | fresh seeds: hil "
             "| hil, back-EMF comp. on | most missed seeds: why (their walls) | runs | wall s |"
         )
-        print("|---|" + ("---|" if given else "") + "---:|---:|---:|---:|---:|---|---:|---:|")
+        print("|---|" + ("---|" if given else "") + "---:|---:|---:|---:|---:|---:|---|---:|---:|")
         for r in fr:
+            conf = "" if r["fraction_confirm"] is None else f"{100 * r['fraction_confirm']:.0f} %: "
             miss = "-"
             if r["missed"]:
                 m = r["missed"][0]
@@ -204,12 +206,14 @@ def main(argv: list[str] | None = None) -> int:
                 f"| {r['target']} |"
                 + (f" {r['push']} |" if given else "")
                 + f" {100 * r['fraction_seeds']:.0f} % | {100 * (r['fraction_pushes'] or 0):.0f} % | "
-                f"{100 * r['fraction_cross']:.0f} % | {100 * r['fraction_fresh']:.0f} % | "
+                f"{100 * r['fraction_cross']:.0f} % | {conf}{'yes' if r['reached'] else 'no'} | "
+                f"{100 * r['fraction_fresh']:.0f} % | "
                 f"{100 * r['fraction_bemf_on']:.0f} % | {miss} | {r['hil_runs']} | "
                 f"{r['wall_s']:.0f} |"
             )
         ok = sum(r["fraction_seeds"] >= 0.9 for r in fr)
         print(f"\n{fam}: {ok} of {len(fr)} targets land in >= 90 % of the seeds")
+        print(f"{fam}: {sum(r['reached'] for r in fr)} reported reached (confirmed on as many fresh seeds, 5000..)")
     print(f"\ntotal wall time {time.perf_counter() - t_all:.0f} s", file=sys.stderr)
     return 0
 
