@@ -26,8 +26,8 @@ The design, in three steps:
    cells within 0.1 rad, and no reaction torque beyond the drivers' 5.86 V (44 mN m);
 3. verification of the written scene.toml as ``run`` loads it: 20 draws of the rig's uncertainty (seeds 2000.., as
    the robustness command's `rig` column) and the whole push range (PUSH_TORQUES_NM x PUSH_DURATIONS_S, no noise);
-   a design landing in at least ``require`` of them is confirmed on as many fresh draws (seeds 5000..), and is
-   reported as reached only if those land as often (20 draws are a noisy estimate of the rate);
+   then as many fresh draws (seeds 5000.., the confirmation): the target is reached when the verification's and
+   the confirmation's draws together land in at least ``require`` (20 draws are a noisy estimate of the rate);
 4. the cross-model check: the same 20 draws in the ``lattice`` (CROSS_MODEL: the ideal reaction, no motors and so
    no back-EMF damping), reported beside the hil's fraction (design.json ``cross_check``).
 
@@ -38,7 +38,7 @@ cells run another back-EMF or PWM setting (``--configure`` sets them).
 
 Parameters stay in the firmware's ranges (|k| <= 0.25 N m/rad, 0 <= alpha* <= 2 pi, k1 > max(k2, 0)) and are
 rounded to the registers' resolution (1 uN m/rad, 1 urad). A target the search cannot bring to ``require``
-(default 0.9) of the noise seeds is reported as unreachable, with the nearest target that is reachable.
+(default 0.9) of those draws is reported as unreachable, with the nearest target that is reachable.
 Outputs in --out: design.json, scene.toml, design.png.
 
 The modules, one job each: constants (the numbers above), target (the input: target and pushes), landing (does a

@@ -23,7 +23,8 @@ def design_main(argv: list[str] | None = None) -> int:
         "  python -m host_emulator design --target walls=2.5,5.5 --rest 9-16 --push 4 --out out/half\n"
         "then: python -m host_emulator run out/design_l10/scene.toml\n"
         "      python -m metacell_tools.rigtools.command -c PORT@115200 apply out/design_l10/design.json\n"
-        "exit codes: 0 the target is reached (>= --require of the noise seeds), 2 bad input, 3 not reached "
+        "exit codes: 0 the target is reached (>= --require of the verification's and as many fresh noise seeds), "
+        "2 bad input, 3 not reached "
         "(design.json names the nearest reachable target).",
     )
     ap.add_argument("--target", required=True, help="lambda=N (cells; Z = 2(n-1)/N walls) or walls=A.5,B.5,...")
@@ -95,14 +96,15 @@ def design_main(argv: list[str] | None = None) -> int:
         val = doc["params"][k]
         print(f"  {k}: " + (" ".join(f"{x:.4g}" for x in val) if isinstance(val, list) else f"{val:.6g}"))
     conf = doc["confirmation"]
-    if conf is not None:
-        print(f"  confirmed on {conf['seeds']} fresh seeds: {100 * conf['fraction_seeds']:.0f} % land")
+    print(
+        f"  confirmation on {conf['seeds']} fresh seeds: {100 * conf['fraction_seeds']:.0f} % land; "
+        f"{100 * conf['pooled']:.1f} % of all {2 * conf['seeds']}"
+    )
     if not doc["reached"]:
         near = doc["nearest_reachable"]
         print(
-            f"NOT REACHED: below {100 * doc['require']:.0f} % of the seeds"
-            + (" (the fresh seeds)" if conf is not None else "")
-            + "; nearest reachable: "
+            f"NOT REACHED: below {100 * doc['require']:.0f} % of the verification's and the confirmation's seeds"
+            "; nearest reachable: "
             + (f"{near['target']} ({100 * near['fraction_seeds']:.0f} %)" if near else "none found nearby")
         )
     print(f"wrote {out}/design.json, scene.toml, design.png")

@@ -14,7 +14,7 @@ NOISE = dict(RIG_UNCERTAINTY)
 CROSS_MODEL = "lattice"  # the second model a design is re-checked in, under the same draws (no motors: no back-EMF)
 VERIFY_SEED0 = 2000  # verification seeds (the robustness command's)
 SEARCH_SEED0 = 3000  # search seeds: never the verification's
-CONFIRM_SEED0 = 5000  # a design verified in >= require of its seeds is confirmed on as many fresh draws (5000..)
+CONFIRM_SEED0 = 5000  # the confirmation: as many fresh draws as the verification's (5000..), pooled with them
 CHECK_SEED0 = 4000  # a search candidate that lands in every search run is checked on as many fresh seeds (4000..)
 REQUIRE = 0.9
 MARGIN_WEIGHT = 0.05

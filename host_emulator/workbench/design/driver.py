@@ -117,12 +117,13 @@ def design(
         ver = verify(scene_path, tgt, runner, seeds)
         report(f"cross-check in {CROSS_MODEL}: the same {seeds} draws")
         cross = verify(scene_path, tgt, runner, seeds, pushes_too=False, model=CROSS_MODEL)
-        confirm = None
-        if ver["fraction_seeds"] >= require:  # 20 draws are a noisy estimate: reached only if fresh ones agree
-            report(f"confirming on {seeds} fresh draws")
-            c = verify(scene_path, tgt, runner, seeds, pushes_too=False, seed0=CONFIRM_SEED0)
-            confirm = {"seeds": seeds, "seed0": CONFIRM_SEED0, "fraction_seeds": c["fraction_seeds"]}
-        reached = bool(ver["fraction_seeds"] >= require and confirm and confirm["fraction_seeds"] >= require)
+        # 20 draws are a noisy estimate of the rate: as many fresh ones, and the target is reached when all of them
+        # together land in >= require (a design verified at 90 % by luck is not reported reached)
+        report(f"confirming on {seeds} fresh draws")
+        c = verify(scene_path, tgt, runner, seeds, pushes_too=False, seed0=CONFIRM_SEED0)
+        pooled = (ver["fraction_seeds"] + c["fraction_seeds"]) / 2
+        confirm = {"seeds": seeds, "seed0": CONFIRM_SEED0, "fraction_seeds": c["fraction_seeds"], "pooled": pooled}
+        reached = bool(pooled >= require)
         near = None
         if not reached and nearest:
             near = nearest_reachable(

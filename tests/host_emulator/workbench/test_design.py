@@ -85,7 +85,9 @@ def test_design_lambda_10_push_8_verified_by_running_its_scene(tmp_path, capsys)
     assert rc == 0
     doc = json.loads((tmp_path / "design.json").read_text())
     assert doc["reached"] and doc["verification"]["fraction_seeds"] >= 0.9
-    assert doc["confirmation"]["seeds"] == 6 and doc["confirmation"]["fraction_seeds"] >= 0.9  # fresh draws agree
+    conf = doc["confirmation"]  # as many fresh draws, pooled with the verification's for `reached`
+    assert conf["seeds"] == 6 and conf["pooled"] == (conf["fraction_seeds"] + doc["verification"]["fraction_seeds"]) / 2
+    assert conf["pooled"] >= 0.9
     assert {"design.json", "scene.toml", "design.png"} <= {p.name for p in tmp_path.iterdir()}
     assert doc["linear_theory"]["score"] > 1 and doc["search"]["hil_runs"] >= 6
     # the scene as `run` loads it, with a noise seed the verification used: three walls (lambda = 10)
