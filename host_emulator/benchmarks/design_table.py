@@ -1,7 +1,7 @@
 """The design table of docs/design.md: `design`'s verified success over every wavelength that fits the chain and over
 random wall layouts.
 
-    python -m host_emulator.benchmarks.design_table --out out/design_table      # about half an hour on one core
+    python -m host_emulator.benchmarks.design_table --out out/design_table      # about 15 minutes on one core
 
 Every target is designed with the command's defaults (push on cell 8, 20 verification draws of the rig's uncertainty,
 the documented push range) and verified by running its scene.toml (host_emulator.workbench.design), in hil and, with
@@ -11,11 +11,13 @@ designs those instead:
 
     python -m host_emulator.benchmarks.design_table --out out/design_five --target lambda=7.5@6,10 \
         --target lambda=10@8 --target walls=4.5,11.5@6,10 --target walls=2.5,10.5,14.5@8 --target walls=5.5,10.5@8
- Wavelengths: lambda = 2 (n - 1) / Z
-for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's default_rng(`--seed`): 1 to 4 walls
-on bonds 1.5 .. n - 0.5, consecutive walls at least `--spacing` cells apart. Prints a markdown table per family
-(target, verified fraction of seeds and of pushes, why the most common miss among the seeds missed and its walls,
-hil runs, wall time) and writes design_table.json and every design's directory under --out.
+
+Wavelengths: lambda = 2 (n - 1) / Z for Z = 1 .. n - 1 walls. Wall layouts: `--layouts` of them drawn with numpy's
+default_rng(`--seed`): 1 to 4 walls on bonds 1.5 .. n - 0.5, consecutive walls at least `--spacing` cells apart.
+Prints a markdown table per family (target, verified fraction of seeds and of pushes, the lattice's, the
+confirmation's and whether the target is reached, the fresh draws' and back-EMF compensation's, why the most common
+miss among the seeds missed and its walls, runs, wall time) and writes design_table.json and every design's
+directory under --out.
 """
 
 from __future__ import annotations
