@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 
 from .options import ConfigError, ModelOptions, NoiseOptions, Perturbation
-from .plant import NumericalInstability
+from .plant import NumericalInstability, draw_rig
 from .solver import Solver
 from .steppers import STEPPERS
 
@@ -40,8 +40,11 @@ def model_class(name: str):
 
 
 def make_model(name: str, params, perturbations=(), options: ModelOptions | None = None):
-    """Instantiate a registered model by name."""
-    return model_class(name)(params, perturbations, options)
+    """Instantiate a registered model by name, with the noise options' inertia and push draws applied
+    (plant.draw_rig: nothing changes while those spreads are 0)."""
+    cls = model_class(name)
+    params, perturbations = draw_rig(params, list(perturbations), options)
+    return cls(params, perturbations, options)
 
 
 register_model("continuum", ".continuum_adapter:ContinuumModel")

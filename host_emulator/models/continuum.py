@@ -85,6 +85,25 @@ def _laplacian(n, h):
     return sp.diags([off, main, off], [-1, 0, 1], shape=(n, n), format="csr") / (h * h)
 
 
+def _face_factors(band_row, cells: int, m: int) -> np.ndarray:
+    """Stiffness factor of each of the n - 1 inner faces (face i between points i and i + 1, at x = (i + 1) / m):
+    the factor of the bond nearest to it (bond b joins cells b + 1 and b + 2, at x = b + 1)."""
+    if cells < 2:
+        return np.ones(cells * m - 1)
+    xf = np.arange(1, cells * m) / m
+    b = np.clip(np.floor(xf + 0.5).astype(int) - 1, 0, cells - 2)
+    return np.asarray(band_row, dtype=float)[b]
+
+
+def _laplacian_weighted(n, h, w):
+    """Zero-flux second difference with face weights w (n - 1): (L u)_i = sum over i's faces of w (u_nb - u_i) / h^2;
+    all weights 1 is _laplacian."""
+    main = np.zeros(n)
+    main[:-1] -= w
+    main[1:] -= w
+    return sp.diags([w, main, w], [-1, 0, 1], shape=(n, n), format="csr") / (h * h)
+
+
 def _check_params(params):
     bad = []
     for name in ("eta_alpha", "eta_beta", "ka_eff", "kb_eff"):
@@ -116,6 +135,7 @@ def simulate_continuum(
     initial: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
     max_angle_rad: float = 1e4,
     method: str = "BDF",
+    spread: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate the PDE from rest (or ``initial``) and return (t, alpha, beta) sampled at the cell centres.
 
@@ -124,6 +144,9 @@ def simulate_continuum(
     Per-cell reaction parameters (Params.per_cell) hold over each cell's interval [j-1, j] of x (piecewise constant).
     initial: optional callable x -> (alpha0, beta0) evaluated at the grid points x (cells, 0..cells),
         for linear-theory checks; default: rest.
+    spread: (band, eta) factors of plant.spreads (2, cells) each, the noise model's draws: bond b's stiffness
+        factor holds on the grid's faces nearest to it (x in [b + 1/2, b + 3/2], the end faces take the end bonds),
+        cell j's viscosity factor on its interval; None: none (the uniform equations above, as before).
     Raises ValueError for bad input, ContinuumError if the solver fails or |angle| exceeds max_angle_rad.
     """
     _check_params(params)
@@ -145,9 +168,17 @@ def simulate_continuum(
     h = 1.0 / m
     x = (np.arange(n) + 0.5) * h
     lap = _laplacian(n, h)
-    ea, eb = params.eta_alpha, params.eta_beta
-    da = (params.ka_eff / ea) * lap
-    db = (params.kb_eff / eb) * lap
+    ea: float | np.ndarray = params.eta_alpha
+    eb: float | np.ndarray = params.eta_beta
+    if spread is None:
+        da = (params.ka_eff / ea) * lap
+        db = (params.kb_eff / eb) * lap
+    else:
+        band, eta = (np.asarray(v, dtype=float) for v in spread)
+        ea = params.eta_alpha * np.repeat(eta[0, :cells], m)
+        eb = params.eta_beta * np.repeat(eta[1, :cells], m)
+        da = sp.diags(params.ka_eff / ea) @ _laplacian_weighted(n, h, _face_factors(band[0], cells, m))
+        db = sp.diags(params.kb_eff / eb) @ _laplacian_weighted(n, h, _face_factors(band[1], cells, m))
     if params.per_cell_keys:
         # the law of grid point i is its cell's: per-point arrays, broadcast by physics.reaction
         law: object = SimpleNamespace(**{k: np.repeat(params.per_cell(k), m) for k in REACTION_KEYS})
@@ -178,9 +209,9 @@ def simulate_continuum(
             if p["start_s"] <= t_mid < p["start_s"] + p["duration_s"]:
                 sl = slice((p["cell"] - 1) * m, p["cell"] * m)
                 if p["chain"] == "alpha":
-                    fa[sl] += p["torque_Nm"] / ea
+                    fa[sl] += p["torque_Nm"] / (ea[sl] if isinstance(ea, np.ndarray) else ea)
                 else:
-                    fb[sl] += p["torque_Nm"] / eb
+                    fb[sl] += p["torque_Nm"] / (eb[sl] if isinstance(eb, np.ndarray) else eb)
         return fa, fb
 
     def make_rhs(fa, fb):

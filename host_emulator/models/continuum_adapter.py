@@ -15,6 +15,16 @@ if TYPE_CHECKING:
     from ..params import Params
 
 
+def _spread(m: ContinuumModel):
+    """The noise model's band and viscosity factors (plant.spreads), or None when it draws none."""
+    nz = m.options.noise
+    if not (nz.band_spread > 0 or nz.eta_spread > 0):
+        return None
+    from .plant import spreads
+
+    return spreads(m.params, m.options, m.n)
+
+
 class ContinuumModel:
     name = "continuum"
 
@@ -62,6 +72,7 @@ class ContinuumSolver(Solver):
                 [q.as_dict() for q in m.perturbations],
                 dt_out_s=self.dt_out,
                 points_per_cell=m.options.points_per_cell,
+                spread=_spread(m),
             )
         except (ArithmeticError, FloatingPointError) as e:
             raise NumericalInstability(f"continuum: {e}") from e

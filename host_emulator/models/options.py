@@ -18,14 +18,20 @@ class ConfigError(ValueError):
 
 @dataclass(frozen=True)
 class NoiseOptions:
-    """Seeded noise. Spreads are relative standard deviations of a per-cell/per-bond factor
-    1 + s*N(0,1) (clipped at 0.2); encoder noise is hil only (the image tier refuses it)."""
+    """Seeded noise: the ways a rig differs from the model (docs/physics.md#the-rigs-uncertainty). Each spread s
+    draws a factor per bond, cell, chain or push: 1 + s*N(0,1) (clipped at 0.2) with distribution "normal", uniform
+    in [1 - s, 1 + s] with "uniform"; push_timing_s shifts each push's start by t*N(0,1) or uniformly in [-t, t].
+    Encoder noise is hil only (the image tier refuses it). Every spread 0 (the default): the scene's own values, nothing drawn."""
 
     seed: int = 0
     band_spread: float = 0.0  # stiffness factor of each band pair (bond), both chains
     eta_spread: float = 0.0  # honey viscosity factor of each cell (alpha chain)
     encoder_jitter_counts: float = 0.0  # std dev of the sampled encoder position, counts
     encoder_glitch_prob: float = 0.0  # per encoder per plant step: an illegal AB pair
+    inertia_spread: float = 0.0  # inertia factor of each chain (the plant holds one inertia per chain)
+    push_spread: float = 0.0  # torque factor of each perturbation (a hand's push)
+    push_timing_s: float = 0.0  # shift of each perturbation's start, s (a start below 0 becomes 0)
+    distribution: str = "normal"  # "normal" or "uniform": how the factors and shifts above are drawn
 
 
 @dataclass(frozen=True)
@@ -89,6 +95,28 @@ def _num(key, v, *, integer=False, positive=False, nonneg=False):
     return int(v) if integer else float(v)
 
 
+DISTRIBUTIONS = ("normal", "uniform")
+
+# The rig's uncertainty (docs/physics.md#the-rigs-uncertainty): how far a built rig may differ from the model, as
+# [model_options.noise] keys. Stated estimates (nothing here is a measured tolerance): each band's stiffness
+# x[0.85, 1.15], honey viscosity x[0.7, 1.3], inertias x[0.9, 1.1], a hand push's magnitude x[0.7, 1.3] and its
+# timing +-50 ms, each uniform. `design` searches and verifies under it, `robustness` reports the shipped scenes
+# under it; `--set model_options.noise.KEY=VALUE` with these values gives any run the same draws.
+RIG_UNCERTAINTY = {
+    "distribution": "uniform",
+    "band_spread": 0.15,
+    "eta_spread": 0.3,
+    "inertia_spread": 0.1,
+    "push_spread": 0.3,
+    "push_timing_s": 0.05,
+}
+
+
+def rig_noise_overrides(seed: int) -> list[str]:
+    """The --set items giving a run the rig's uncertainty (RIG_UNCERTAINTY) drawn with this seed."""
+    return [f"model_options.noise.seed={seed}"] + [f"model_options.noise.{k}={v}" for k, v in RIG_UNCERTAINTY.items()]
+
+
 def parse_noise(d: dict, prefix: str = "model_options.noise") -> NoiseOptions:
     if not isinstance(d, dict):
         raise ConfigError(f"{prefix}: expected a table")
@@ -100,6 +128,10 @@ def parse_noise(d: dict, prefix: str = "model_options.noise") -> NoiseOptions:
     for k, v in d.items():
         if k == "seed":
             kw[k] = _num(f"{prefix}.seed", v, integer=True, nonneg=True)
+        elif k == "distribution":
+            if v not in DISTRIBUTIONS:
+                raise ConfigError(f"{prefix}.{k} = {v!r}: expected one of {', '.join(DISTRIBUTIONS)}")
+            kw[k] = v
         elif k == "encoder_glitch_prob":
             kw[k] = _num(f"{prefix}.{k}", v, nonneg=True)
             if kw[k] > 1:

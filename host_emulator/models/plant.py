@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import weakref
 from collections.abc import Sequence
 from typing import Any
@@ -25,17 +26,53 @@ class NumericalInstability(RuntimeError):
 def spreads(params: Params, options: ModelOptions, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-bond band-stiffness factors (2, n) and per-cell eta factors (2, n) from the seeded noise options.
 
-    Factor = max(0.2, 1 + s * N(0, 1)). Honey (eta_spread) is on the alpha chain only.
+    Factor = max(0.2, 1 + s * N(0, 1)) (distribution "normal"), or uniform in [1 - s, 1 + s] ("uniform"). Honey
+    (eta_spread) is on the alpha chain only.
     """
     nz = options.noise
     rng = np.random.default_rng(nz.seed)
     band = np.ones((2, n))
     eta = np.ones((2, n))
     if nz.band_spread > 0:
-        band[:, : n - 1] = np.maximum(0.2, 1 + nz.band_spread * rng.standard_normal((2, n - 1)))
+        band[:, : n - 1] = factors(rng, nz.band_spread, (2, n - 1), nz.distribution)
     if nz.eta_spread > 0:
-        eta[0] = np.maximum(0.2, 1 + nz.eta_spread * rng.standard_normal(n))
+        eta[0] = factors(rng, nz.eta_spread, n, nz.distribution)
     return band, eta
+
+
+def factors(rng: np.random.Generator, s: float, shape, distribution: str = "normal") -> np.ndarray:
+    """Spread factors: max(0.2, 1 + s N(0, 1)) ("normal") or uniform in [1 - s, 1 + s] (at least 0.2)."""
+    if distribution == "uniform":
+        return np.maximum(0.2, 1 + s * rng.uniform(-1.0, 1.0, shape))
+    return np.maximum(0.2, 1 + s * rng.standard_normal(shape))
+
+
+def draw_rig(params: Params, perturbations: Sequence[Perturbation], options: ModelOptions | None):
+    """(params, perturbations) with the noise options' inertia, push and timing draws applied (NoiseOptions): one
+    inertia factor per chain, one torque factor and one start shift per perturbation. Their own stream
+    (default_rng([seed, 1])), so the band and viscosity draws of a seed stay what they were; with every one of these
+    spreads 0 the arguments come back as they are."""
+    if options is None:
+        return params, perturbations
+    nz = options.noise
+    if not (nz.inertia_spread > 0 or nz.push_spread > 0 or nz.push_timing_s > 0):
+        return params, perturbations
+    rng = np.random.default_rng([nz.seed, 1])
+    if nz.inertia_spread > 0:
+        fi = factors(rng, nz.inertia_spread, 2, nz.distribution)
+        params = params.with_overrides(I_a=params.I_a * float(fi[0]), I_b=params.I_b * float(fi[1]))
+    m = len(perturbations)
+    ft = factors(rng, nz.push_spread, m, nz.distribution) if nz.push_spread > 0 else np.ones(m)
+    if nz.push_timing_s > 0:
+        u = rng.uniform(-1.0, 1.0, m) if nz.distribution == "uniform" else rng.standard_normal(m)
+        dt = nz.push_timing_s * u
+    else:
+        dt = np.zeros(m)
+    out = [
+        dataclasses.replace(q, torque_Nm=q.torque_Nm * float(f), start_s=max(0.0, q.start_s + float(d)))
+        for q, f, d in zip(perturbations, ft, dt)
+    ]
+    return params, out
 
 
 def build_plant(

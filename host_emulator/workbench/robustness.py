@@ -12,6 +12,7 @@ from typing import TextIO
 
 from ..construct import scene_cost
 from ..limits import batch_budget
+from ..models.options import RIG_UNCERTAINTY, rig_noise_overrides
 from ..outpaths import check_out_dir
 from ..progress import bar
 from ..scene import load_scene
@@ -77,14 +78,14 @@ def robustness(
     *,
     quiet: bool = True,
 ) -> dict:
-    """Per scene: the fraction of noise seeds (5 % band and viscosity spread; and the same with encoder jitter)
-    and of hand pushes (every torque x duration, no noise) that select the source's result. quiet=False: a progress
-    bar (one step per run) on a terminal."""
+    """Per scene: the fraction of noise seeds (5 % band and viscosity spread; the same with encoder jitter; and draws
+    of the rig's uncertainty, docs/physics.md#the-rigs-uncertainty) and of hand pushes (every torque x duration, no
+    noise) that select the source's result. quiet=False: a progress bar (one step per run) on a terminal."""
     names = list(scenes or ROBUST_SCENES)
     total = 0
     for name in names:
         model = ROBUST_SCENES[name][0]
-        total += seeds * (2 if model == "hil" else 1)
+        total += seeds * (3 if model == "hil" else 2)
         total += len(torques) * len(durations) if load_scene(name).perturbations else 0
     _BAR[0] = bar(total, desc="robustness", unit="run", quiet=quiet)
     try:
@@ -101,6 +102,10 @@ def _robustness(names, seeds, torques, durations) -> dict:
         base = [f"model={model}"]
         row: dict = {"model": model, "source": want}
         row["seeds"], row["seeds_jitter"] = seed_fractions(name, base, want, seeds, jitter=model == "hil")
+        # the rig's uncertainty: band, viscosity, inertia, push magnitude and timing drawn (the same seeds as design)
+        row["seeds_rig"] = (
+            sum(selects(_run(name, base + rig_noise_overrides(2000 + s))[2], want) for s in range(seeds)) / seeds
+        )
         scene = load_scene(name, base)
         grid = {}
         if scene.perturbations:
@@ -132,7 +137,7 @@ def robustness_budget(
     for name in scenes or ROBUST_SCENES:
         model, _ = ROBUST_SCENES[name]
         scene = load_scene(name, [f"model={model}"])
-        runs = seeds * (2 if model == "hil" else 1) + (len(torques) * len(durations) if scene.perturbations else 0)
+        runs = seeds * (3 if model == "hil" else 2) + (len(torques) * len(durations) if scene.perturbations else 0)
         total += runs * scene_cost(scene)
     return batch_budget(total, f"robustness --seeds {seeds}")
 
@@ -156,17 +161,22 @@ def print_robustness(res: dict, seeds: int, file: TextIO = sys.stdout) -> None:
                 src,
                 pct(r["seeds"]),
                 pct(r["seeds_jitter"]),
+                pct(r["seeds_rig"]),
                 pct(r["pushes"]),
                 "-" if mp is None else f"{mp * 1e3:g} mN*m",
             ]
         )
-    for ln in aligned(rows, ["scene", "model", "source", "seeds", "+jitter", "pushes", "min push"], right=(3, 4, 5)):
+    head = ["scene", "model", "source", "seeds", "+jitter", "rig", "pushes", "min push"]
+    for ln in aligned(rows, head, right=(3, 4, 5, 6)):
         print(ln, file=file)
     print(
         "legend: source = the source's result (Z domain walls, rest, or an oscillation period);\n"
         f"        seeds = the fraction of {seeds} noise seeds (5 % spread of band stiffness and honey viscosity) "
         "selecting it;\n"
         f"        +jitter = the same with {ROBUST_JITTER_COUNTS} count rms encoder jitter (hil only);\n"
+        f"        rig = the fraction of {seeds} draws of the rig's uncertainty (bands x[0.85, 1.15], viscosity "
+        "x[0.7, 1.3], inertia x[0.9, 1.1],\n"
+        "              push x[0.7, 1.3] and +-50 ms; docs/physics.md#the-rigs-uncertainty) selecting it;\n"
         f"        pushes = the fraction of {len(ROBUST_TORQUES_NM)} torques x {len(ROBUST_DURATIONS_S)} durations "
         "(no noise) selecting it;\n"
         "        min push = the smallest torque that selects it at every duration.",
@@ -206,6 +216,7 @@ def robustness_main(argv: list[str] | None) -> int:
             "seeds": args.seeds,
             "noise": NOISE,
             "jitter_counts": ROBUST_JITTER_COUNTS,
+            "rig_uncertainty": RIG_UNCERTAINTY,
             "torques_Nm": list(ROBUST_TORQUES_NM),
             "durations_s": list(ROBUST_DURATIONS_S),
             "scenes": res,

@@ -36,6 +36,8 @@ from .slcanbus import open_bus
 
 PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_star": "ASTAR", "astar": "ASTAR"}
 CTRL_RATE_HZ = 2000  # cell control tick (platformio.ini MC_CTRL_RATE_HZ)
+PWM_TOP = 2400  # the PWM period in timer ticks (platformio.ini MC_PWM_TOP)
+SUPPLY_V, VMAX_V = 9.0, 5.86  # the scenes' defaults (host_emulator.params): supply and the drivers' cap
 
 
 def number(text: str) -> float:
@@ -169,6 +171,91 @@ def design_registers(path: str) -> dict[int, dict[str, int]]:
     return out
 
 
+def design_config(path: str) -> dict[str, int] | None:
+    """The cells' configuration a design assumes: {"bemf": 0/1, "pwm_limit": timer ticks in force} from design.json's
+    `assumes.firmware` (or a scene .toml's params: bemf_comp, and the PWM limit the experiment runner's setup leaves
+    in force for vmax_v, supply_v, pwm_top); None for a design.json written before designs recorded it. ApplyError
+    if unreadable."""
+    f = Path(path)
+    if f.is_dir():
+        f = f / "design.json"
+    try:
+        if f.suffix == ".toml":
+            p = tomllib.loads(f.read_text()).get("params", {})
+            supply, vmax = float(p.get("supply_v", SUPPLY_V)), float(p.get("vmax_v", VMAX_V))
+            top = int(p.get("pwm_top", PWM_TOP))
+            fw = {
+                "bemf_comp": bool(p.get("bemf_comp", False)),
+                "pwm_limit_ticks": min(  # the runner's PWM_LIMIT, clamped by the firmware to its duty_max
+                    round(min(vmax, supply) / supply * top), round(vmax * 1000) * top // round(supply * 1000)
+                ),
+            }
+        else:
+            fw = json.loads(f.read_text()).get("assumes", {}).get("firmware")
+            if fw is None:
+                return None
+        return {"bemf": int(bool(fw["bemf_comp"])), "pwm_limit": int(fw["pwm_limit_ticks"])}
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ApplyError(f"{path}: its firmware configuration is unreadable ({type(e).__name__}: {e})") from None
+
+
+def read_config(client: RigClient, cells: Sequence[int]) -> dict[int, dict[str, int] | None]:
+    """{cell: {"bemf": back-EMF compensation on (SNAPSHOT flags), "pwm_limit": PWM limit in force (PARAMS)}}, None
+    for a cell whose blocks did not come back."""
+    info = client.info(cells, blocks=("SNAPSHOT", "PARAMS"))
+    out: dict[int, dict[str, int] | None] = {}
+    for j in cells:
+        d = info.get(j, {})
+        if "SNAPSHOT" not in d or "PARAMS" not in d:
+            out[j] = None
+            continue
+        out[j] = {
+            "bemf": (int(d["SNAPSHOT"]["flags"]) >> proto.D.CELL_FLAGS["BEMF"]) & 1,
+            "pwm_limit": int(d["PARAMS"]["pwm_limit"]),
+        }
+    return out
+
+
+def _config_text(c: dict[str, int] | None) -> str:
+    if c is None:
+        return "no answer"
+    return f"back-EMF compensation {'on' if c['bemf'] else 'off'}, PWM limit {c['pwm_limit']}"
+
+
+def check_config(client: RigClient, cells: Sequence[int], config: dict[str, int], configure: bool, report) -> bool:
+    """The cells' configuration against the design's: True when every cell has it (configure: after setting it on
+    those that differ, and reading it back). Without configure a difference is refused, nothing sent."""
+    have = read_config(client, cells)
+    differ = [j for j in cells if have[j] != config]
+    if not differ:
+        return True
+    silent = [j for j in differ if have[j] is None]
+    if silent:
+        report(f"refused: cell(s) {','.join(map(str, silent))} did not report their configuration; nothing written")
+        return False
+    if not configure:
+        for j in differ:
+            report(f"cell {j:2d}: {_config_text(have[j])}; the design assumes {_config_text(config)}")
+        report(
+            f"refused: {len(differ)} cell(s) run another configuration than the design assumes; nothing written "
+            "(--configure sets it)"
+        )
+        return False
+    for reg, values in (("PWM_LIMIT", {"ticks": config["pwm_limit"]}), ("BEMF", {"on": config["bemf"]})):
+        res = client.command(differ, reg, **values)
+        bad = {j: r for j, r in res.items() if r != "OK"}
+        if bad:
+            report(f"refused: {reg} answered " + ", ".join(f"cell {j}: {r}" for j, r in sorted(bad.items())))
+            return False
+    after = read_config(client, differ)
+    wrong = [j for j in differ if after[j] != config]
+    for j in wrong:
+        report(f"cell {j:2d}: configured, but reads back {_config_text(after[j])}")
+    if not wrong:
+        report(f"configured {len(differ)} cell(s): {_config_text(config)}")
+    return not wrong
+
+
 def _writes(old: dict[str, int], new: dict[str, int]) -> list[tuple[str, int]]:
     """The register writes taking one cell from `old` to `new` (raw values), K1/K2 in an order that keeps
     k1 > k2 after each: K1 first when the new k1 exceeds the old k2, else K2 first."""
@@ -187,11 +274,20 @@ def read_params(client: RigClient, cells: Sequence[int]) -> dict[int, dict[str, 
     return out
 
 
-def apply_design(client: RigClient, want: dict[int, dict[str, int]], report=print) -> bool:
+def apply_design(
+    client: RigClient,
+    want: dict[int, dict[str, int]],
+    report=print,
+    config: dict[str, int] | None = None,
+    configure: bool = False,
+) -> bool:
     """Write every cell's parameters, read them back; all or nothing: when some cell does not answer before, or
     rejects a write, every cell already written gets its old values back (and nothing else is sent). True when
-    every cell holds the design's values afterwards."""
+    every cell holds the design's values afterwards. config (design_config): first the cells' back-EMF
+    compensation and PWM limit must be the design's, else nothing is written (configure: set them first)."""
     cells = sorted(want)
+    if config is not None and not check_config(client, cells, config, configure, report):
+        return False
     before = read_params(client, cells)
     missing = [j for j in cells if before[j] is None]
     if missing:
@@ -331,6 +427,12 @@ def parser():
         "apply out/design_l10/design.json",
     )
     a.add_argument("design", help="design.json of `python -m host_emulator design` (or its directory, or a .toml)")
+    a.add_argument(
+        "--configure",
+        action="store_true",
+        help="set the back-EMF compensation and PWM limit the design assumes where a cell differs (default: refuse, "
+        "nothing written)",
+    )
     w = add("pwm-limit", "PWM duty limit in timer ticks (<= 2400; capped at 5.86 V)", "pwm-limit all 1200")
     w.add_argument("cells", type=_cells, help=cells_help)
     w.add_argument("ticks", type=int, help="timer ticks of the 2400-tick PWM period (0..65535; the cell caps it)")
@@ -379,6 +481,7 @@ def _main(argv: list[str] | None = None) -> int:
     try:
         reg, values = build(args)
         want = design_registers(args.design) if args.cmd == "apply" else None
+        config = design_config(args.design) if args.cmd == "apply" else None
         if reg != "APPLY":
             proto.pack_payload(reg, **values)
     except ValueError as e:
@@ -395,7 +498,7 @@ def _main(argv: list[str] | None = None) -> int:
         return 3
     if want is not None:
         with bus:
-            ok = apply_design(RigClient(bus, args.timeout), want)
+            ok = apply_design(RigClient(bus, args.timeout), want, config=config, configure=args.configure)
         print(f"apply {args.design}: {'every cell holds its parameters' if ok else 'NOT applied'}")
         return 0 if ok else 1
     if args.cmd == "info":

@@ -134,3 +134,56 @@ def test_per_cell_parameters_round_trip_through_the_command_tool_against_serve(s
     for j in range(1, 7):
         assert got[j] == want[j]
     assert got[6]["SIGMA"] == round(SIGMA[5] * 1e6) != got[1]["SIGMA"]
+
+
+def _six(tmp_path, name, **firmware):
+    """A six-cell design.json (cell 7 is absent from `served`) assuming this firmware configuration."""
+    fw = {"bemf_comp": False, "pwm_limit_ticks": 5860 * 2400 // 9000, "pwm_top": 2400, **firmware}
+    d = {"cells": 6, "params": {"k_ab": 0.021, "sigma": SIGMA[:6], "k1": 0.06, "k2": -0.05, "alpha_star": 1.1}}
+    d["assumes"] = {"firmware": fw}
+    f = tmp_path / name
+    f.write_text(json.dumps(d))
+    return f
+
+
+def test_apply_refuses_a_design_assuming_another_configuration_and_sets_it_when_asked(served, tmp_path, capsys):
+    cells = list(range(1, 7))
+    with _bus(served.channel) as bus:
+        before = read_params(RigClient(bus), cells)
+        conf = command.read_config(RigClient(bus), cells)
+    assert all(c == {"bemf": 0, "pwm_limit": 5860 * 2400 // 9000} for c in conf.values())
+    on = _six(tmp_path, "on.json", bemf_comp=True)
+    assert command.design_config(str(on)) == {"bemf": 1, "pwm_limit": 1562}
+    # the rig runs without back-EMF compensation, the design assumes it: refused, nothing written
+    assert command.main(["-c", served.channel, "apply", str(on)]) == 1
+    out = capsys.readouterr().out
+    assert "back-EMF compensation off" in out and "refused" in out and "NOT applied" in out
+    with _bus(served.channel) as bus:
+        assert read_params(RigClient(bus), cells) == before
+        assert command.read_config(RigClient(bus), cells) == conf
+    # --configure: the cells get the design's configuration, then its parameters
+    assert command.main(["-c", served.channel, "apply", str(on), "--configure"]) == 0
+    assert "configured 6 cell(s)" in capsys.readouterr().out
+    with _bus(served.channel) as bus:
+        assert all(c == {"bemf": 1, "pwm_limit": 1562} for c in command.read_config(RigClient(bus), cells).values())
+        assert read_params(RigClient(bus), [3])[3]["SIGMA"] == round(SIGMA[2] * 1e6)
+    # a design assuming the configuration in force: applied without --configure; then back as `served` started
+    half = _six(tmp_path, "half.json", bemf_comp=True, pwm_limit_ticks=1000)
+    assert command.main(["-c", served.channel, "apply", str(half)]) == 1
+    capsys.readouterr()
+    assert command.main(["-c", served.channel, "apply", str(_six(tmp_path, "again.json", bemf_comp=True))]) == 0
+    assert command.main(["-c", served.channel, "apply", str(_six(tmp_path, "off.json")), "--configure"]) == 0
+    with _bus(served.channel) as bus:
+        assert command.read_config(RigClient(bus), cells) == conf
+
+
+def test_a_design_whose_configuration_is_unreadable_is_a_one_line_error(tmp_path, capsys):
+    d = json.loads(_six(tmp_path, "bad.json").read_text())
+    del d["assumes"]["firmware"]["pwm_limit_ticks"]
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    with pytest.raises(ApplyError):
+        command.design_config(str(tmp_path / "bad.json"))
+    assert command.main(["-c", "/nonexistent@115200", "apply", str(tmp_path / "bad.json")]) == 2
+    err = capsys.readouterr().err
+    assert "firmware configuration is unreadable" in err and err.count("\n") == 1
+    assert command.design_config(str(_design(tmp_path))) is None  # written before designs recorded it: no check

@@ -13,8 +13,9 @@ The design, in three steps:
    the target's walls (or wall count) and fill every domain, with as large a gap as possible to the next mode;
 2. search over batched hil ensembles (workbench.batch, firmware in the loop; on Dask with ``--scheduler``):
    differential evolution again, seeded around the first guess, each generation one batched call, maximising
-   the fraction of runs that land on the target over ``search_seeds`` noise seeds (the robustness command's
-   noise model) and the corners of the push range (a missed run earning 0.3 x its closeness: the share of the
+   the fraction of runs that land on the target over ``search_seeds`` noise seeds (each a draw of the rig's
+   uncertainty, models.options.RIG_UNCERTAINTY: band stiffness, viscosity, inertia, push magnitude and timing) and
+   the corners of the push range (a missed run earning 0.3 x its closeness: the share of the
    target's walls it has and of the chain it fills, so the search can climb before anything lands), plus a
    margin: 0.05 x the linear gap (so among equally successful designs the one farthest from a competing mode
    wins). A candidate that lands in every search run is run again on as many fresh noise seeds (4000..), which
@@ -23,12 +24,21 @@ The design, in three steps:
    (sign changes among the cells above 0.1 rad, each rounded to the nearest bond), every cell off the walls
    beyond 0.1 rad and every domain reaching 0.3 rad (a filled pattern, not a bump on a chain at rest), the rest
    cells within 0.1 rad, and no reaction torque beyond the drivers' 5.86 V (44 mN m);
-3. verification of the written scene.toml as ``run`` loads it: 20 noise seeds (seeds 2000.., as the robustness
-   command) and the whole push range (PUSH_TORQUES_NM x PUSH_DURATIONS_S, no noise).
+3. verification of the written scene.toml as ``run`` loads it: 20 draws of the rig's uncertainty (seeds 2000.., as
+   the robustness command's `rig` column) and the whole push range (PUSH_TORQUES_NM x PUSH_DURATIONS_S, no noise);
+   then as many fresh draws (seeds 5000.., the confirmation): the target is reached when the verification's and
+   the confirmation's draws together land in at least ``require`` (20 draws are a noisy estimate of the rate);
+4. the cross-model check: the same 20 draws in the ``lattice`` (CROSS_MODEL: the ideal reaction, no motors and so
+   no back-EMF damping), reported beside the hil's fraction (design.json ``cross_check``).
+
+design.json's ``assumes`` names what the search held fixed: the firmware settings (back-EMF compensation, PWM limit
+in force, PWM period, control rate, supply and the drivers' cap) and the hil's model options (stepper, plant steps
+per tick, accuracy preset); scene.toml writes them explicitly, and ``rigtools.command apply`` refuses a rig whose
+cells run another back-EMF or PWM setting (``--configure`` sets them).
 
 Parameters stay in the firmware's ranges (|k| <= 0.25 N m/rad, 0 <= alpha* <= 2 pi, k1 > max(k2, 0)) and are
 rounded to the registers' resolution (1 uN m/rad, 1 urad). A target the search cannot bring to ``require``
-(default 0.9) of the noise seeds is reported as unreachable, with the nearest target that is reachable.
+(default 0.9) of those draws is reported as unreachable, with the nearest target that is reachable.
 Outputs in --out: design.json, scene.toml, design.png.
 
 The modules, one job each: constants (the numbers above), target (the input: target and pushes), landing (does a
@@ -43,6 +53,7 @@ from .constants import (  # noqa: F401
     BOUNDS,
     CHECK_SEED0,
     CLOSE_WEIGHT,
+    CONFIRM_SEED0,
     DOMAIN_FILL_MODE,
     DOMAIN_MIN_RAD,
     FULL_BONUS,

@@ -23,7 +23,8 @@ def design_main(argv: list[str] | None = None) -> int:
         "  python -m host_emulator design --target walls=2.5,5.5 --rest 9-16 --push 4 --out out/half\n"
         "then: python -m host_emulator run out/design_l10/scene.toml\n"
         "      python -m metacell_tools.rigtools.command -c PORT@115200 apply out/design_l10/design.json\n"
-        "exit codes: 0 the target is reached (>= --require of the noise seeds), 2 bad input, 3 not reached "
+        "exit codes: 0 the target is reached (>= --require of the verification's and as many fresh noise seeds), "
+        "2 bad input, 3 not reached "
         "(design.json names the nearest reachable target).",
     )
     ap.add_argument("--target", required=True, help="lambda=N (cells; Z = 2(n-1)/N walls) or walls=A.5,B.5,...")
@@ -72,20 +73,38 @@ def design_main(argv: list[str] | None = None) -> int:
     except DesignError as e:
         print(f"design: error: {e}", file=sys.stderr)
         return 2
-    v = doc["verification"]
+    v, c = doc["verification"], doc["cross_check"]
     print(
         f"design {doc['target']} (push {doc['push_text']}): lands in {100 * v['fraction_seeds']:.0f} % of "
         f"{v['seeds']} noise seeds and {100 * (v['fraction_pushes'] or 0):.0f} % of "
-        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it); "
-        f"{doc['search']['hil_runs']} hil runs, {doc['search']['wall_s']:.0f} s"
+        f"{len(v['push_torques_Nm']) * len(v['push_durations_s'])} pushes (hil, scene.toml as run loads it; each "
+        f"seed a draw of the rig's uncertainty), {100 * c['fraction_seeds']:.0f} % of the same seeds in "
+        f"{c['model']}; {doc['search']['hil_runs']} runs, {doc['search']['wall_s']:.0f} s"
     )
+    fw = doc["assumes"]["firmware"]
+    print(
+        f"  assumes: back-EMF compensation {'on' if fw['bemf_comp'] else 'off'}, PWM limit {fw['pwm_limit_ticks']} "
+        f"of {fw['pwm_top']} ticks, control rate {fw['control_rate_hz']:g} Hz, stepper "
+        f"{doc['assumes']['model_options']['stepper']}"
+    )
+    if c["fraction_seeds"] < doc["require"] <= v["fraction_seeds"] and not fw["bemf_comp"]:
+        print(
+            f"  note: without the motors' back-EMF damping ({c['model']}) it lands in "
+            f"{100 * c['fraction_seeds']:.0f} %: keep back-EMF compensation off on the rig (command apply checks it)"
+        )
     for k in doc["vary"]:
         val = doc["params"][k]
         print(f"  {k}: " + (" ".join(f"{x:.4g}" for x in val) if isinstance(val, list) else f"{val:.6g}"))
+    conf = doc["confirmation"]
+    print(
+        f"  confirmation on {conf['seeds']} fresh seeds: {100 * conf['fraction_seeds']:.0f} % land; "
+        f"{100 * conf['pooled']:.1f} % of all {2 * conf['seeds']}"
+    )
     if not doc["reached"]:
         near = doc["nearest_reachable"]
         print(
-            f"NOT REACHED: below {100 * doc['require']:.0f} % of the seeds; nearest reachable: "
+            f"NOT REACHED: below {100 * doc['require']:.0f} % of the verification's and the confirmation's seeds"
+            "; nearest reachable: "
             + (f"{near['target']} ({100 * near['fraction_seeds']:.0f} %)" if near else "none found nearby")
         )
     print(f"wrote {out}/design.json, scene.toml, design.png")

@@ -1,14 +1,20 @@
 """The design's fixed numbers: the push range, the noise model and its seeds, the search's weights, the parameters'
 search box and the registers' resolution, and the landing thresholds (see the package docstring)."""
 
+from ...models.options import RIG_UNCERTAINTY
+
 # the documented range of hand pushes (as the robustness command): torque (N m) x duration (s), no noise
 PUSH_TORQUES_NM = (0.005, 0.01, 0.02, 0.04)
 PUSH_DURATIONS_S = (0.05, 0.1, 0.2)
 SEARCH_PUSHES = ((0.01, 0.05), (0.04, 0.2), (0.005, 0.2), (0.04, 0.05))  # the range's corners, in the search
 NOMINAL_PUSH = (0.02, 0.1)  # the scene's push: 20 mN m for 0.1 s, 0.1 s after the start
-NOISE = {"band_spread": 0.05, "eta_spread": 0.05}  # the robustness command's noise model
+# the search's and the verification's ensemble: the rig's uncertainty (docs/physics.md#the-rigs-uncertainty), each
+# noise seed one draw of band stiffness, viscosity, inertia, push magnitude and timing
+NOISE = dict(RIG_UNCERTAINTY)
+CROSS_MODEL = "lattice"  # the second model a design is re-checked in, under the same draws (no motors: no back-EMF)
 VERIFY_SEED0 = 2000  # verification seeds (the robustness command's)
 SEARCH_SEED0 = 3000  # search seeds: never the verification's
+CONFIRM_SEED0 = 5000  # the confirmation: as many fresh draws as the verification's (5000..), pooled with them
 CHECK_SEED0 = 4000  # a search candidate that lands in every search run is checked on as many fresh seeds (4000..)
 REQUIRE = 0.9
 MARGIN_WEIGHT = 0.05

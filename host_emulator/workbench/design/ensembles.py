@@ -37,8 +37,9 @@ def _noise(t: dict, seed: int | None) -> dict:
     t = json.loads(json.dumps(t))
     nz = t.setdefault("model_options", {}).setdefault("noise", {})
     if seed is None:
-        for k in NOISE:
-            nz[k] = 0.0
+        for k, v in NOISE.items():
+            if not isinstance(v, str):
+                nz[k] = 0.0
     else:
         nz.update(NOISE)
         nz["seed"] = seed

@@ -2,6 +2,7 @@
 running its own scene.toml, the Dask path, bad input and an unreachable target."""
 
 import json
+import tomllib
 
 import numpy as np
 import pytest
@@ -9,8 +10,10 @@ import pytest
 import host_emulator as he
 from host_emulator.cli import main as emulator_main
 from host_emulator.controller import run_scene
-from host_emulator.scene import load_scene
+from host_emulator.models.options import RIG_UNCERTAINTY, rig_noise_overrides
+from host_emulator.scene import load_scene, scene_table
 from host_emulator.workbench import design as D
+from metacell_tools.rigtools import command
 
 
 def test_targets_parse_and_refuse_what_does_not_fit():
@@ -82,6 +85,9 @@ def test_design_lambda_10_push_8_verified_by_running_its_scene(tmp_path, capsys)
     assert rc == 0
     doc = json.loads((tmp_path / "design.json").read_text())
     assert doc["reached"] and doc["verification"]["fraction_seeds"] >= 0.9
+    conf = doc["confirmation"]  # as many fresh draws, pooled with the verification's for `reached`
+    assert conf["seeds"] == 6 and conf["pooled"] == (conf["fraction_seeds"] + doc["verification"]["fraction_seeds"]) / 2
+    assert conf["pooled"] >= 0.9
     assert {"design.json", "scene.toml", "design.png"} <= {p.name for p in tmp_path.iterdir()}
     assert doc["linear_theory"]["score"] > 1 and doc["search"]["hil_runs"] >= 6
     # the scene as `run` loads it, with a noise seed the verification used: three walls (lambda = 10)
@@ -92,14 +98,28 @@ def test_design_lambda_10_push_8_verified_by_running_its_scene(tmp_path, capsys)
     assert len(D.final_walls(r.alpha[-1])) == 3
     assert doc["verification"]["runs"][1]["final_alpha_rad"] == [round(float(v), 4) for v in r.alpha[-1]]
     assert "lands in" in capsys.readouterr().out
+    # the search held the firmware's configuration fixed: design.json names it, scene.toml writes it explicitly
+    fw = doc["assumes"]["firmware"]
+    assert fw["bemf_comp"] is False and fw["pwm_limit_ticks"] == 5860 * 2400 // 9000 and fw["pwm_top"] == 2400
+    assert doc["assumes"]["model_options"]["stepper"] == sc.options.stepper == "symplectic_euler"
+    written = tomllib.loads((tmp_path / "scene.toml").read_text())
+    assert {k: written["params"][k] for k in ("bemf_comp", "pwm_top", "vmax_v", "control_rate_hz")} == {
+        k: fw[k] for k in ("bemf_comp", "pwm_top", "vmax_v", "control_rate_hz")
+    } and written["model_options"]["stepper"] == "symplectic_euler"
+    assert command.design_config(str(tmp_path)) == {"bemf": 0, "pwm_limit": fw["pwm_limit_ticks"]}  # what apply checks
+    # the second model: the same draws in the lattice, reported beside the hil's
+    assert doc["cross_check"]["model"] == "lattice" and doc["cross_check"]["seeds"] == 6
+    assert 0 <= doc["cross_check"]["fraction_seeds"] <= 1 and doc["verification"]["noise"] == RIG_UNCERTAINTY
+    # reported as landing: so it does on fresh draws of the rig's uncertainty (seeds no search or check used)
+    fresh = [scene_table(load_scene(str(tmp_path / "scene.toml"), rig_noise_overrides(9000 + s))) for s in range(10)]
+    hits = [D.landing._landed(D.parse_target("lambda=10"), sc.params, r) for r in D.run_tables(fresh)]
+    assert sum(hits) >= 9
 
 
 def test_design_api_and_dask_give_the_runs_of_the_local_batch(tmp_path):
     from distributed import LocalCluster
 
     sc = load_scene("default", ["t_end_s=2"])
-    from host_emulator.scene import scene_table
-
     tables = [D._noise(scene_table(sc), s) for s in (1, 2)]
     local = D.run_tables(tables)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:

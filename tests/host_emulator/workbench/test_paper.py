@@ -34,6 +34,8 @@ def test_robustness_counts_seeds_and_pushes_that_select_the_source():
     assert res["exp2_ccw_cw"]["seeds"] == 1.0 and res["exp2_ccw_cw"]["pushes"] == 1.0
     assert res["exp2_ccw_cw"]["min_push_Nm"] == 0.01 and len(res["exp2_ccw_cw"]["push_grid"]) == 2
     assert res["exp5_rest"]["seeds"] == 1.0 and res["exp5_rest"]["pushes"] is None
+    # under the rig's uncertainty too (band, viscosity, inertia, push and timing drawn): exp2's three walls hold
+    assert res["exp2_ccw_cw"]["seeds_rig"] == 1.0 and 0 <= res["exp5_rest"]["seeds_rig"] <= 1
     # a jittering encoder reading is itself a push: rest does not survive it at 9/125
     assert res["exp5_rest"]["seeds_jitter"] < 1.0
     assert selects({"at_rest": False, "domain_walls": 3}, 3) and not selects({"at_rest": True, "domain_walls": 0}, 3)
