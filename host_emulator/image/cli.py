@@ -159,7 +159,7 @@ def image_main(argv: list[str] | None = None) -> int:
 def nvic_priorities(world, b: int) -> dict[str, int]:
     """The priority (0..3, 0 most urgent) of every interrupt enabled in board b's NVIC, as the image programmed
     them (read back from the NVIC, wherever the image set them), most urgent first."""
-    from metacell_tools.fwcheck.irqmap import IRQN
+    from metacell_common.target.vectors import IRQN
 
     i = world.info(b)
     names = {n: name for name, n in IRQN.items()}

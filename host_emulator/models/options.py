@@ -21,7 +21,8 @@ class NoiseOptions:
     """Seeded noise: the ways a rig differs from the model (docs/physics.md#the-rigs-uncertainty). Each spread s
     draws a factor per bond, cell, chain or push: 1 + s*N(0,1) (clipped at 0.2) with distribution "normal", uniform
     in [1 - s, 1 + s] with "uniform"; push_timing_s shifts each push's start by t*N(0,1) or uniformly in [-t, t].
-    Encoder noise is hil only (the image tier refuses it). Every spread 0 (the default): the scene's own values, nothing drawn."""
+    Encoder noise is hil only (the image tier refuses it). Every spread 0 (the default): the scene's own values,
+    nothing drawn."""
 
     seed: int = 0
     band_spread: float = 0.0  # stiffness factor of each band pair (bond), both chains

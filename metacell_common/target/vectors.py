@@ -1,0 +1,47 @@
+"""The SAMD21's vector table: the name of every exception slot and the interrupt number of every peripheral."""
+
+from __future__ import annotations
+
+# SAMD21 exception numbers 0..44 (0: initial SP; 16 + n: interrupt n), as in the core's cortex_handlers.c
+SLOTS: tuple[str | None, ...] = (
+    "SP",
+    "Reset",
+    "NMI",
+    "HardFault",
+    *([None] * 7),
+    "SVC",
+    None,
+    None,
+    "PendSV",
+    "SysTick",
+    "PM",
+    "SYSCTRL",
+    "WDT",
+    "RTC",
+    "EIC",
+    "NVMCTRL",
+    "DMAC",
+    "USB",
+    "EVSYS",
+    "SERCOM0",
+    "SERCOM1",
+    "SERCOM2",
+    "SERCOM3",
+    "SERCOM4",
+    "SERCOM5",
+    "TCC0",
+    "TCC1",
+    "TCC2",
+    "TC3",
+    "TC4",
+    "TC5",
+    "TC6",
+    "TC7",
+    "ADC",
+    "AC",
+    "DAC",
+    "PTC",
+    "I2S",
+    None,
+)
+IRQN = {name: i - 16 for i, name in enumerate(SLOTS) if name and i >= 16}
