@@ -302,8 +302,8 @@ class World:
     def reset(self, b: int) -> None:
         """A system reset of board b now, as NVIC_SystemReset does (reset cause SYST, RAM kept): it restarts where a
         reset starts it, re-initialising its USB (the host sees it go and enumerate again). Like a USB host action
-        from outside (csrc/sam_usb.c USB_API_S) it lands 50 us after the world's time: later than any board can be
-        (a board that skips idle passes resumes before an event: one in its past would break the schedule)."""
+        from outside (csrc/sam_usb.c USB_API_S) it lands 50 us after the world's time, or at the board's own time if
+        a stall (NVMCTRL programming a row) has moved it past that (sam_world_fault): never in a board's past."""
         self.fault("reset", self.t + API_S, board=b)
 
     def spin(

@@ -208,6 +208,15 @@ int sam_world_fault(sam_world_t *w, int32_t kind, int32_t mcu, uint64_t t0, uint
         if (w->plant_start != SAM_NEVER)
             return sam_world_fail(w, "spin: the plant runs (it drives the encoders itself)");
     }
+    /* a board whose clock a stall has moved past t0 (NVMCTRL programming a row: up to 0.85 ms) meets the action at its
+     * own time, the window moved with it: never in a board's past (World.reset and the USB host's api_time give an
+     * outside action 50 us after the world's time, which such a board has already passed) */
+    if (mcu >= 0 && kind != SAM_FAULT_STUCK_SDA && kind != SAM_FAULT_SILENT && kind != SAM_FAULT_USB_NO_READ &&
+        w->mcu[mcu]->t > t0) {
+        uint64_t late = w->mcu[mcu]->t - t0;
+        t0 += late;
+        t1 = t1 > SAM_NEVER - late ? SAM_NEVER : t1 + late;
+    }
     int slot = w->nfault;
     for (int k = 0; slot >= SAM_MAX_FAULTS && k < w->nfault; k++)   /* full: an ended one's place is taken */
         if (w->fault[k].ended)
