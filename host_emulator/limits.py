@@ -77,7 +77,7 @@ def check_run(scene: Scene) -> str | None:
             continue
         per = name in p.per_cell_keys
         for j, v in enumerate(p.per_cell(name)):
-            if not (math.isfinite(v) and abs(v) * 1e6 < INT32):
+            if not (math.isfinite(v) and abs(float(v)) * 1e6 < INT32):  # a Python float: inf, no numpy overflow warning
                 where = f"params.{name}[{j + 1}] (cell {j + 1})" if per else f"params.{name}"
                 return f"{where} = {v}: does not fit the firmware's int32 micro-units (|value| < {INT32 / 1e6:g})"
     for name, (lo, hi) in RANGES.items():
