@@ -431,6 +431,7 @@ def print_summary(s: dict, out: Path) -> None:
     print(
         f"  at rest: {s['at_rest']}   domain walls: {f(s['domain_walls'])} "
         f"(repeats: {', '.join(f(v) for v in s['domain_walls_repeats'])})"
+        + (f" at bonds {', '.join(f'{b:g}' for b in s['domain_wall_bonds'])}" if s.get("domain_wall_bonds") else "")
     )
     print("  final alpha (rad, mean): " + " ".join("  n/a" if v is None else f"{v:+.2f}" for v in s["final_alpha_rad"]))
     if s["repeats"] > 1:

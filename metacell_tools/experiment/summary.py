@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from host_emulator.analysis.observables import observables, spatial_period
+from host_emulator.analysis.observables import domain_wall_bonds, observables, spatial_period
 from host_emulator.analysis.summary import summarize
 from host_emulator.controller import RunResult
 from host_emulator.scene import Scene
@@ -151,6 +151,7 @@ def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
             steady=False,
             at_rest=False,
             domain_walls=None,
+            domain_wall_bonds=None,
             pattern_period_cells=None,
             oscillation_period_s=None,
             final_alpha_rad=[None] * n_cells,
@@ -169,6 +170,7 @@ def repeat_result(rep: Repeat, n_cells: int) -> tuple[dict, Series | None]:
         # the emulator's observables: a chain at rest has no pattern, whatever a flatness test reads into it
         at_rest=obs.get("at_rest", False),
         domain_walls=obs.get("domain_walls"),
+        domain_wall_bonds=_wall_bonds(s.alpha[-1], pres, obs),
         oscillation_period_s=obs.get("oscillation_period_s"),
         pattern_period_cells=(
             spatial_period(s.alpha[-1, run]) if run.stop - run.start >= 3 and not obs.get("at_rest", False) else None
@@ -249,6 +251,8 @@ def build(
             "at_rest": bool(done) and all(r["at_rest"] for r in done),
             "domain_walls": median("domain_walls"),
             "domain_walls_repeats": [r["domain_walls"] for r in done],
+            "domain_wall_bonds": _most_common([r.get("domain_wall_bonds") for r in done]),
+            "domain_wall_bonds_repeats": [r.get("domain_wall_bonds") for r in done],
             "pattern_period_cells": median("pattern_period_cells"),
             "oscillation_period_s": median("oscillation_period_s"),
             **stats,
@@ -314,3 +318,23 @@ def write(out: Path, summary: dict) -> Path:
     f = Path(out) / "summary.json"
     f.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return f
+
+
+def _wall_bonds(final_alpha: np.ndarray, present: np.ndarray, obs: dict) -> list[float] | None:
+    """Where the walls of a repeat's final alpha are: the bonds j + 0.5 between cells j and j + 1 (cells numbered
+    on the rig: a cell without data is left out, as the emulator's domain_wall_bonds skips it); [] at rest; None
+    without any data."""
+    if not present.any():
+        return None
+    if obs.get("at_rest", False):
+        return []
+    missing = [j + 1 for j in range(len(present)) if not present[j]]
+    return domain_wall_bonds(np.where(present, final_alpha, 0.0), skip=missing)
+
+
+def _most_common(lists: list) -> list[float] | None:
+    """The wall positions most repeats agree on (the first such in repeat order); None without a repeat."""
+    known = [tuple(v) for v in lists if v is not None]
+    if not known:
+        return None
+    return list(max(known, key=known.count))

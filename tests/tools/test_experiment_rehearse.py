@@ -141,6 +141,7 @@ def test_acceptance_rehearsal_of_two_site_scene_gives_summary_and_overlay(tmp_pa
     # may select a different pattern far from the pushes, as on the rig.
     ra, ea = np.array(s["per_repeat"][0]["final_alpha_rad"]), np.array(e["final_alpha_rad"])
     assert domain_walls(ra) == domain_walls(ea) == 2, (ra, ea)
+    assert len(s["per_repeat"][0]["domain_wall_bonds"]) == 2, s["per_repeat"][0]["domain_wall_bonds"]
     clear = (np.abs(ra) > 0.2) & (np.abs(ea) > 0.2)
     assert clear.sum() >= 10 and np.all(np.sign(ra[clear]) == np.sign(ea[clear])), (ra, ea)
     assert np.max(np.abs(ra - ea)) < 0.25, ra - ea
