@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -334,7 +335,7 @@ def _wall_bonds(final_alpha: np.ndarray, present: np.ndarray, obs: dict) -> list
 
 def _most_common(lists: list) -> list[float] | None:
     """The wall positions most repeats agree on (the first such in repeat order); None without a repeat."""
-    known = [tuple(v) for v in lists if v is not None]
+    known = Counter(tuple(v) for v in lists if v is not None)  # equal counts: in the order first met
     if not known:
         return None
-    return list(max(known, key=known.count))
+    return list(known.most_common(1)[0][0])
