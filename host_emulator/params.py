@@ -7,6 +7,7 @@ instance is immutable; use ``dataclasses.replace`` or ``Params.with_overrides``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -15,6 +16,8 @@ import numpy as np
 
 from metacell_common.reaction import REACTION_DEFAULTS, REACTION_KEYS
 from protocol import definition as _wire_units
+
+from .topology import Topology, TopologyError
 
 FloatArray = float | np.ndarray  # a number, or a numpy array of them elementwise
 PerCell = float | tuple[float, ...]  # one value for every cell, or one value per cell (cell 1 first)
@@ -92,6 +95,10 @@ class Params:
     """
 
     cells: int = 16
+    # topology (host_emulator/topology.py): shape () is a chain of `cells`; (rows, cols) a sheet of rows*cols cells
+    shape: tuple[int, ...] = ()
+    lattice: str = "chain"  # "chain" | "square" | "hex"
+    boundary: str = "open"  # "open" | "periodic" (a ring, or a sheet wrapped both ways)
     # reaction law, N m / rad (alpha_star in rad): one value, or a tuple of one value per cell (REACTION_KEYS)
     k_ab: PerCell = REACTION_DEFAULTS["k_ab"]
     k1: PerCell = REACTION_DEFAULTS["k1"]
@@ -117,6 +124,11 @@ class Params:
     pwm_top: int = 2400
     bemf_comp: bool = False
     actuator_limit: bool = True
+
+    @property
+    def topology(self) -> Topology:
+        """The lattice these parameters describe (cells and bonds); TopologyError when shape and cells disagree."""
+        return _topology(self.cells, self.shape, self.lattice, self.boundary)
 
     @property
     def eta_alpha(self) -> float:
@@ -214,3 +226,12 @@ class Params:
     def psi_prime(self, alpha):
         """Tri-linear psi'(alpha) of docs/physics.md#reaction-torques (float or numpy array): physics.psi_prime."""
         return psi_prime(self, alpha)
+
+
+@functools.lru_cache(maxsize=64)
+def _topology(cells: int, shape: tuple[int, ...], lattice: str, boundary: str) -> Topology:
+    spec = list(shape) if shape else cells
+    t = Topology.from_spec(spec, None if lattice == "chain" and not shape else lattice, boundary)
+    if t.n != cells:
+        raise TopologyError(f"cells = {cells} but shape {list(shape)} holds {t.n}")
+    return t
