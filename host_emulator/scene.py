@@ -296,6 +296,11 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         raise ConfigError(f"model = {model!r}: expected one of {', '.join(model_names())} or auto")
     topo = parse_topology(d)
     cells = topo.n
+    if model == "image" and not topo.is_open_chain:
+        raise ConfigError(
+            f"model = 'image' with cells = {topo.cells_spec!r}: the image tier runs the rig's open chain of boards "
+            f"(a {topo.describe()} runs on lattice or hil)"
+        )
     t_end = d["t_end_s"]
     if isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"t_end_s = {t_end!r}: expected a positive number")
