@@ -44,6 +44,8 @@ def cell_weight(scene: Scene) -> float:
     cell) and 2.9x on a hexagonal one (3): 0.5 + 0.8 x bonds per cell."""
     t = scene.topology
     return 1.0 if t.is_open_chain else 0.5 + 0.8 * t.nbond / t.n
+
+
 # the image tier's cost is the boards', not the plant's: about 1.6 s of one core per board second on the default
 # scene (docs/image-tier.md), so half an hour of board time is about the hour the other limits allow
 IMAGE_MAX_T_END_S = 1800.0

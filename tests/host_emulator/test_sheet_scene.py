@@ -149,9 +149,9 @@ def test_the_chains_per_cell_values_and_pushes_are_as_before():
 def test_a_sheets_cell_steps_weigh_its_bonds():
     """The run limit counts a sheet's cell steps at what they cost (the plant's edge list: about twice the open
     chain's per cell on a square sheet): a step the 4096-cell chain may take for 15 s is refused on a 64 x 64 sheet."""
-    from host_emulator.limits import check_run, cell_weight
+    from host_emulator.limits import cell_weight, check_run
 
-    over = ["t_end_s=15", "model_options.dt=1e-5", "model_options.stepper=\"symplectic_euler\""]
+    over = ["t_end_s=15", "model_options.dt=1e-5", 'model_options.stepper="symplectic_euler"']
     chain = load_scene("exp3_single_sigma9", [*over, "cells=4096"])
     sheet = load_scene("exp3_single_sigma9", [*over, "cells=[64,64]"])
     assert cell_weight(chain) == 1.0 and cell_weight(sheet) == pytest.approx(0.5 + 0.8 * 8064 / 4096)
