@@ -89,7 +89,8 @@ void he_hil_sync_encoders(he_hil_t *h, const double *x)
  * The hil default runs one symplectic-Euler step per control tick on the cubic small-angle bands with no
  * floating-point reaction. he_advance recomputes per step what a tick holds fixed (Kt V, and
  * 1 + h C / I with C = eta + m/S_L: three divisions per cylinder) and makes five passes over the state
- * (forces, bonds, update, flush, checks). plant_step_fast does the same arithmetic, in the same order on
+ * (forces, bonds, update, flush, checks) (the open chain; an edge list, ring or sheet, takes he_advance's
+ * general path). plant_step_fast does the same arithmetic, in the same order on
  * the same operands, in two passes over the state (update and checks; then the next step's bond torques and
  * the stretch test) with the per-tick terms cached. Any other configuration, and every step during which a
  * perturbation is on, goes through he_advance. */
@@ -101,7 +102,7 @@ static int fast_ok(const he_plant_t *p, int stepper)
 {
     return stepper == HE_STEP_SYMPLECTIC && p->inertia && p->bands == HE_BANDS_CUBIC
         && p->beta_geometry == HE_BETA_SMALL && p->reaction == HE_REACT_NONE && p->n >= 1
-        && p->n <= HE_MAX_CELLS;
+        && p->n <= HE_MAX_CELLS && !p->bonds;   /* the open chain's bonds (j, j+1) only */
 }
 
 static int pert_active(const he_plant_t *p, double t)
