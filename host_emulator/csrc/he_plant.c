@@ -426,6 +426,34 @@ void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
     }
 }
 
+void he_plant_band_torques(const he_plant_t *p, const double *x, double *F)
+{
+    int n = p->n;
+    for (int ch = 0; ch < 2; ch++) {
+        const double *xc = x + ch * n;
+        double *Fc = F + ch * n;
+        if (p->bonds) {
+            if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL))
+                cubic_edges(p, ch, xc, Fc);
+            else
+                other_edges(p, ch, xc, Fc);
+        } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+            cubic_bonds(p, ch, xc, Fc);
+        } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+            for (int j = 0; j + 1 < n; j++) {
+                double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+                Fc[j] -= T;
+                Fc[j + 1] += T;
+            }
+        } else {
+            for (int j = 0; j + 1 < n; j++) {
+                Fc[j] -= he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+                Fc[j + 1] -= he_band_torque(p, ch, j, xc[j + 1], xc[j]);
+            }
+        }
+    }
+}
+
 int he_plant_nswitch(const he_plant_t *p)
 {
     int n = p->n, m = 0;

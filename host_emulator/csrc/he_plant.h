@@ -106,6 +106,9 @@ int he_plant_check(const he_plant_t *p);
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C);
 /* F alone (the same values he_plant_forces writes), for steppers that hold C fixed over a call. */
 void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F);
+/* Add the band torques of both chains at x to F (2n): what he_plant_torques adds after F = m V, in the same order
+ * (so F = m V, then this, gives he_plant_torques' bits without reaction and perturbations). */
+void he_plant_band_torques(const he_plant_t *p, const double *x, double *F);
 /* Bonds of the plant: n - 1 for the open chain (bonds NULL), else nbond. */
 int he_plant_nbond(const he_plant_t *p);
 /* Band torque on cylinder x_self from the bond to x_other (chain 0/1, bond index

@@ -205,3 +205,55 @@ def test_a_push_spreads_over_the_sheet_not_along_the_cell_numbers(model):
     assert np.isfinite(a).all() and abs(alpha[12]) > 0.05
     assert np.abs(nb - nb.mean()).max() < 0.05 * abs(nb.mean()) + 0.02  # hil: encoder counts of 2 pi / 400
     assert abs(nb.mean()) > 1.5 * max(abs(alpha[10]), abs(alpha[0]), abs(alpha[24]))
+
+
+def _always_on_zero_push(m) -> None:
+    """A perturbation of 0 N*m that is always on: every hil plant step then goes through he_advance."""
+    k = m.plant.npert
+    m.plant.npert = k + 1
+    m.plant.pert[k].cell, m.plant.pert[k].chain, m.plant.pert[k].torque = 0, 0, 0.0
+    m.plant.pert[k].t0, m.plant.pert[k].t1 = -1.0, 1e9
+
+
+@pytest.mark.parametrize("name", ["square 5x6 periodic", "hex 3x4 open", "ring of 7"])
+def test_fast_hil_edge_step_is_bit_identical_to_the_generic_step(name):
+    """The hil loop's fast plant step on an edge list (plant_step_edges) against he_advance, over pushes that
+    drive the cells' reaction through the firmware, with band and viscosity spreads."""
+    p = params_of(SHEETS[name], bemf_comp=False)
+    push = [Perturbation(cell=2, chain="alpha", torque_Nm=0.03, start_s=0.0, duration_s=0.03)]
+    o = ModelOptions(dt_out=0.01, noise=NoiseOptions(seed=2, band_spread=0.05, eta_spread=0.05))
+    out = []
+    for generic in (False, True):
+        m = HilModel(p, push, o)
+        if generic:
+            _always_on_zero_push(m)
+        _, a, b = m.solver().advance_many(20)
+        out.append((a, b))
+    assert np.abs(out[0][0]).max() > 1e-2
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+
+
+@pytest.mark.parametrize("where", [0, 13, 30 + 7, 59])
+def test_fast_hil_edge_step_reports_what_the_generic_step_reports(where):
+    """Diverged, non-finite and over-stretched states: the same code and time from the fast edge step as from
+    he_advance, wherever the bad entry sits on a 5 x 6 periodic sheet."""
+    p = params_of(SHEETS["square 5x6 periodic"], bemf_comp=False)
+    cases = {"DIVERGED": (2000.0, None), "NONFINITE": (float("nan"), None), "BAND": (3.0, -3.0)}
+    for code, (val, nb) in cases.items():
+        got = []
+        for generic in (False, True):
+            m = HilModel(p, [], ModelOptions())
+            if generic:
+                _always_on_zero_push(m)
+            s = m.solver()
+            lib = m.lib
+            s.x[where] = val
+            if nb is not None:  # the cell to the right on the sheet (a bond of the edge list)
+                ch, j = divmod(where, 30)
+                r, c = divmod(j, 6)
+                s.x[ch * 30 + r * 6 + (c + 1) % 6] = nb
+            s._pt[0] = 0.0
+            rc = lib.he_hil_run(s.h, 3, s._pt, s._px, s._pv)
+            got.append((rc, s._pt[0]))
+        assert got[0] == got[1], code
+        assert got[0][0] == getattr(lib, f"HE_ERR_{code}")
