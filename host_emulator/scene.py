@@ -76,7 +76,8 @@ class Scene:
 
     def topology_record(self) -> dict:
         """`cells` as the scene gave it (n, or [rows, cols]) and, unless the scene is the open chain every older
-        scene is, `lattice` and `boundary` (an older scene's record stays as it was)."""
+        scene is, `lattice` and `boundary` (an older scene's record stays as it was; so do its params, while any
+        other lattice's params also carry shape, lattice and boundary: summary.json's params name the lattice)."""
         t = self.topology
         if t.is_open_chain:
             return {"cells": self.cells}
@@ -86,13 +87,15 @@ class Scene:
         """JSON-ready record of everything the run used."""
         opts = dataclasses.asdict(self.options)
         params = dataclasses.asdict(self.params)
+        if self.topology.is_open_chain:  # an open chain's record as before Params knew its lattice
+            params = {k: v for k, v in params.items() if k not in TOPOLOGY_KEYS}
         return {
             "name": self.name,
             "description": self.description,
             "model": self.model,
             **self.topology_record(),
             "t_end_s": self.t_end_s,
-            "params": {k: list(v) if isinstance(v, tuple) else v for k, v in params.items() if k not in TOPOLOGY_KEYS},
+            "params": {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()},
             "model_options": opts,
             "perturbation": [p.as_dict() for p in self.perturbations],
             "fault": [f.as_dict() for f in self.faults],
@@ -239,7 +242,7 @@ def scene_table(scene: Scene) -> dict:
     """A Scene back as the table scene_from_dict reads (what a TOML file holds): every parameter, the model options
     the scene set itself (the others stay free for its accuracy preset), the perturbations. JSON-ready."""
     d = scene.as_dict()
-    params = {k: v for k, v in d["params"].items() if k != "cells"}
+    params = {k: v for k, v in d["params"].items() if k not in ("cells", *TOPOLOGY_KEYS)}
     opts = {k: d["model_options"][k] for k in scene.explicit_options}
     return {
         "name": scene.name,

@@ -41,6 +41,8 @@ def test_the_record_keeps_cells_as_given_and_an_old_chains_record_is_unchanged()
     assert not {"shape", "lattice", "boundary"} & set(old["params"]) and old["params"]["cells"] == 16
     d = load_scene("exp3_single_sigma9", ["cells=[4,6]", 'lattice="hex"']).as_dict()
     assert (d["cells"], d["lattice"], d["boundary"]) == ([4, 6], "hex", "open") and d["params"]["cells"] == 24
+    # a sheet's params name its lattice too (summary.json records the params): what Params holds
+    assert (d["params"]["shape"], d["params"]["lattice"], d["params"]["boundary"]) == ([4, 6], "hex", "open")
     ring = load_scene("exp3_single_sigma9", ['boundary="periodic"']).as_dict()
     assert (ring["cells"], ring["lattice"], ring["boundary"]) == (16, "chain", "periodic")
     json.dumps(d)  # JSON-ready
