@@ -1,4 +1,4 @@
-"""Measures of a 2-D pattern on a sheet (docs/patterns2d.md): wavelength, orientation, kind, domain boundary, defects.
+"""2-D pattern measures of a sheet (docs/patterns2d.md#definitions): wavelength, orientation, kind, boundary, defects.
 
 Every measure reads one frame of alpha on a sheet (`host_emulator.topology.Topology`, square or hexagonal, open or
 periodic); `measures(t, alpha, topology)` picks the frame and returns them all. Definitions (the docs' section
