@@ -1,5 +1,6 @@
 """2-D pattern measures on hand-made fields: stripes, hexagonal and square spots, labyrinths, rest and oscillation."""
 
+import json
 import math
 
 import numpy as np
@@ -9,42 +10,11 @@ from hypothesis import strategies as st
 
 from host_emulator.analysis import pattern2d as p2
 from host_emulator.analysis.observables import domain_walls
+from host_emulator.benchmarks.pattern2d import dislocated, hex_spots, labyrinth, main, square_spots, stripes
 from host_emulator.topology import Topology
 
 OPEN16 = [Topology((16, 16), "square"), Topology((16, 16), "hex")]
 PER32 = [Topology((32, 32), "square", True), Topology((32, 32), "hex", True)]
-
-
-def plane(t: Topology, lam: float, deg: float, phase: float = 0.0) -> np.ndarray:
-    """cos(k.x + phase) at the cells' positions, k of length 2 pi / lam at deg from the x axis."""
-    x = t.positions()
-    a = math.radians(deg)
-    return np.cos(2 * math.pi / lam * (x[:, 0] * math.cos(a) + x[:, 1] * math.sin(a)) + phase)
-
-
-def stripes(t, lam, deg, sat=False):
-    u = 0.6 * plane(t, lam, deg, 0.3)
-    return 0.6 * np.tanh(4 * u) if sat else u
-
-
-def hex_spots(t, lam, sat=False):
-    u = 0.25 * sum(plane(t, lam, d) for d in (0, 120, 240))
-    return 0.6 * np.sign(u) if sat else u
-
-
-def square_spots(t, lam, sat=False):
-    u = 0.3 * (plane(t, lam, 0) + plane(t, lam, 90))
-    return 0.6 * np.sign(u) if sat else u
-
-
-def labyrinth(t, lam, seed):
-    """A random field band-passed around |k| = 2 pi / lam (Gaussian of width 0.15 |k|), sign taken."""
-    g = np.random.default_rng(seed).standard_normal(t.shape)
-    qr, qc = np.meshgrid(2 * np.pi * np.fft.fftfreq(t.rows), 2 * np.pi * np.fft.fftfreq(t.cols), indexing="ij")
-    k = np.hypot(*p2._cartesian(*p2._reduce(qr, qc, t.kind), t.kind))
-    k0 = 2 * math.pi / lam
-    u = np.real(np.fft.ifft2(np.fft.fft2(g) * np.exp(-((k - k0) ** 2) / (2 * (0.15 * k0) ** 2)))).ravel()
-    return 0.6 * np.sign(u)
 
 
 def still(u, samples=5):
@@ -185,20 +155,12 @@ def test_on_one_row_the_boundary_length_is_the_chains_domain_walls(profile, thre
     assert p2.boundary_length(u, t, threshold) == domain_walls(u, threshold_rad=threshold)
 
 
-def dislocated(t, cores, sat=False):
-    """Stripes of wavelength 6 along x whose phase winds by +-2 pi around each core (x0, y0, +-1)."""
-    x = t.positions()
-    ph = 2 * math.pi / 6 * x[:, 0] + sum(s * np.arctan2(x[:, 1] - y0, x[:, 0] - x0) for x0, y0, s in cores)
-    u = 0.6 * np.cos(ph)
-    return 0.6 * np.sign(u) if sat else u
-
-
 @pytest.mark.parametrize("t", [Topology((32, 32), "square"), Topology((32, 32), "hex")], ids=lambda t: t.kind)
 @pytest.mark.parametrize("sat", [False, True])
 def test_dislocations(t, sat):
     cx, cy = t.positions().mean(axis=0)
-    one = measure(t, dislocated(t, [(cx + 0.3, cy + 0.4, 1)], sat))
-    two = measure(t, dislocated(t, [(cx - 4.3, cy + 0.4, 1), (cx + 4.2, cy - 0.3, -1)], sat))
+    one = measure(t, dislocated(t, [(cx + 0.3, cy + 0.4, 1)], sat=sat))
+    two = measure(t, dislocated(t, [(cx - 4.3, cy + 0.4, 1), (cx + 4.2, cy - 0.3, -1)], sat=sat))
     assert (one["defects"], two["defects"]) == (1, 2)
     assert one["pattern_kind"] == two["pattern_kind"] == "stripes"
 
@@ -256,3 +218,37 @@ def test_bad_input_is_refused():
         p2.measures(*still(np.zeros(100)), t)
     with pytest.raises(ValueError, match="non-finite"):
         p2.measures(*still(np.full(256, np.nan)), t)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.sampled_from(["square", "hex"]),
+    st.booleans(),
+    st.integers(1, 12),
+    st.integers(1, 12),
+    st.integers(2, 12),
+    st.sampled_from([0.01, 0.3, 1.0]),
+    st.integers(0, 2**32 - 1),
+)
+def test_any_field_gets_sane_measures(kind, periodic, rows, cols, samples, scale, seed):
+    """Whatever the sheet (down to one row) and field: JSON-ready, a known kind, an orientation in [0, 180) and a
+    wavelength no shorter than the lattice holds (sqrt(2) square, 1.5 hexagonal)."""
+    if periodic:
+        rows, cols = rows + 2, cols + 2
+    t = Topology((rows, cols), kind, periodic)
+    a = scale * np.random.default_rng(seed).standard_normal((samples, t.n))
+    m = p2.measures(np.linspace(0, 1, samples), a, t)
+    json.dumps(m, allow_nan=False)
+    assert m["pattern_kind"] in p2.KINDS
+    if m["dominant_wavelength_cells"] is not None:
+        assert 0 <= m["orientation_deg"] < 180
+        assert m["dominant_wavelength_cells"] >= (1.5 if kind == "hex" else math.sqrt(2)) - 1e-9
+    assert m == p2.measures(np.linspace(0, 1, samples), -a, t)
+
+
+def test_the_kind_table_runs_and_refuses_no_draws(capsys):
+    assert main(["--draws", "1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 7 and out[2].startswith("| stripes | 1/1, 0.0 % |")
+    assert main(["--draws", "0"]) == 2
+    assert capsys.readouterr().out == ""
