@@ -21,9 +21,14 @@ def test_run_a_sheet_prints_its_lattice_and_writes_its_files(tmp_path, capsys):
     assert "final alpha (rad): " in printed and " over 256 cells" in printed
     s = json.loads((out / "summary.json").read_text())
     assert s["perturbation"][0]["row"] == 3 and s["perturbation"][0]["col"] == 10
+    # the summary's 2-D measures (analysis.pattern2d) in the printout, and on the dataset as observable.*
+    assert f"  pattern: {s['pattern_kind']}   dominant wavelength: " in printed
+    assert s["pattern_kind"] in ("stripes", "spots", "labyrinth", "rest", "oscillation")
     assert {"snapshots.png", "final_pattern.png"} <= set(s["files"]) and (out / "snapshots.png").exists()
     ds = load(out)
     assert ds["alpha"].dims == ("time", "row", "col") and ds.sizes["row"] == ds.sizes["col"] == 16
+    assert ds.attrs["observable.pattern_kind"] == s["pattern_kind"]
+    assert list(ds.attrs["topology.cells"]) == [16, 16] and ds.attrs["topology.lattice"] == "square"
     # just after the push (0.1-0.2 s) the pushed cylinder, at row 3 col 10, leads every other
     a = ds["alpha"].sel(time=0.2, method="nearest")
     peak = a.where(abs(a) == abs(a).max(), drop=True)
