@@ -160,3 +160,19 @@ def test_a_sheets_cell_steps_weigh_its_bonds():
     assert check_run(chain) is None
     problem = check_run(sheet)
     assert problem is not None and "model_options.dt = 1e-05 s" in problem and "cell steps" in problem
+
+
+def test_a_faults_cell_on_a_sheet_may_be_row_and_col():
+    """parse_fault takes a sheet's (row, col) as parse_perturbation does (the image tier, the one that injects faults,
+    refuses a sheet today: this is the parser alone)."""
+    from host_emulator.models.options import parse_fault
+
+    topo = Topology((4, 4), "square")
+    assert parse_fault({"kind": "tick_dead", "start_s": 0.1, "row": 2, "col": 3}, topo, "fault[1]").board == "cell7"
+    assert parse_fault({"kind": "hardfault", "start_s": 0.1, "cell": 16}, topo, "fault[1]").board == "cell16"
+    with pytest.raises(ConfigError, match=r"fault\[1\]: give cell or row and col, not both"):
+        parse_fault({"kind": "tick_dead", "start_s": 0.1, "cell": 2, "row": 1, "col": 1}, topo, "fault[1]")
+    with pytest.raises(ConfigError, match=r"fault\[1\]\.row"):
+        parse_fault({"kind": "tick_dead", "start_s": 0.1, "row": 1, "col": 1}, 16, "fault[1]")
+    with pytest.raises(ConfigError, match=r"model = 'image' with cells = \[4, 4\]"):
+        load_scene("sheet_4x4_rig", ["model=image"])
