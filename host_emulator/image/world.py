@@ -87,7 +87,7 @@ class WorldConfig:
 MOTOR_R_OHM = 12.0 / 4.3
 MOTOR_L_H = 100e-6
 MOTOR_TAU_S = MOTOR_L_H / MOTOR_R_OHM
-PWM_PATHS = ("mean", "waveform")
+PWM_PATHS = ("mean", "waveform")  # models/options.py PWM_PATHS
 
 
 def set_pwm(c, pwm: str, motor_tau_s: float) -> None:
