@@ -291,7 +291,7 @@ uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, i
 /* WO[wo] over [t0, t1) as constant pieces in time order: fn(ctx, level, duration in tu) */
 typedef void (*sam_tcc_piece_fn)(void *ctx, int level, uint64_t dt);
 void sam_tcc_pieces(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, sam_tcc_piece_fn fn, void *ctx);
-int sam_tcc_state(sam_mcu_t *m, int tcc, sam_tcc_info_t *out);   /* the counter now; -1: no such TCC */
+int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out);   /* the counter at t; -1: none */
 
 /* A step to another board takes effect at t: this board stops before t + SAM_BUS_TMIN, when the other may answer. */
 static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)

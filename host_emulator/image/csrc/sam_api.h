@@ -168,7 +168,8 @@ const uint64_t *sam_world_profile(sam_world_t *w, int mcu);
 int sam_world_bus_info(const sam_world_t *w, sam_bus_info_t *out);
 /* Motor drive of a cell as the plant last saw it: mean voltage and awake fraction of the last window. */
 int sam_world_motor(const sam_world_t *w, int cell, int chain, double *volt, double *awake);
-/* A TCC of a board as it counts now (sam_world_tcc_info; tcc 0..2): the PWM frequency is 1 / period_tu. */
+/* A TCC of a board as it counts at the board's time (sam_world_tcc_info; tcc 0..2): the PWM frequency is
+ * 1 / period_tu. */
 typedef struct {
     int32_t running;
     uint32_t prescaler;        /* CTRLA.PRESCALER as a divisor: 1 .. 1024 */

@@ -265,7 +265,7 @@ void sam_tcc_pieces(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, sam
     walk(s, tcc_lupd(m, pi), wo % s->nch, t0, t1, piece_seg, &p);
 }
 
-int sam_tcc_state(sam_mcu_t *m, int tcc, sam_tcc_info_t *out)
+int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out)
 {
     int pi;
     tcc_t *s = tcc_state(m, tcc, &pi);
@@ -273,7 +273,7 @@ int sam_tcc_state(sam_mcu_t *m, int tcc, sam_tcc_info_t *out)
     if (!s)
         return -1;
     tcc_t st = *s;   /* a copy: the state moves on only where the plant has integrated up to */
-    advance(&st, tcc_lupd(m, pi), sam_now(m));
+    advance(&st, tcc_lupd(m, pi), t);
     s = &st;
     out->running = s->running;
     out->prescaler = (uint32_t)TCC_PRESC[(tcc_reg(m, pi, TCC_CTRLA_OFFSET) >> TCC_CTRLA_PRESCALER_Pos) & 7u];

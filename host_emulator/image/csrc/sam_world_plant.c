@@ -300,7 +300,8 @@ int sam_world_tcc_info(const sam_world_t *w, int mcu, int tcc, sam_tcc_info_t *o
 {
     if (mcu < 0 || mcu >= w->nmcu || !w->mcu[mcu])
         return -1;
-    return sam_tcc_state(w->mcu[mcu], tcc, out);
+    const sam_mcu_t *m = w->mcu[mcu];   /* the board's time, as sam_harness_now gives it */
+    return sam_tcc_state(w->mcu[mcu], tcc, m->ff.parked && m->t < w->t ? w->t : m->t, out);
 }
 
 uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1)

@@ -186,6 +186,35 @@ def mean_current(h: Harness) -> float:
     return volt * awake / h.params.supply_v
 
 
+@pytest.mark.parametrize("lupd", [False, True])
+def test_the_high_time_across_a_buffered_period_and_compare_change(lupd):
+    """DS40001882 31.6.2.6 Double Buffering: PERB and CCB written in one cycle take over together at the next UPDATE
+    (with LUPD set meanwhile: at the first UPDATE after it clears); the high time over an interval holding that
+    UPDATE is the old waveform's up to it and the new one's from it, each count by count."""
+    tick = TU_PER_US_AT_1MHZ
+    h, _ = pwm(199, 50)
+    h.advance(10e-6)
+    t_start = int(h.tcc_info().cycle_start_tu)
+    h.advance(1.03e-3)
+    if lupd:
+        h.write("TCC0.CTRLBSET", CTRLB_LUPD)
+    h.write("TCC0.PERB", 299)
+    h.write("TCC0.CCB[2]", 260)
+    if lupd:
+        h.advance(0.5e-3)  # two UPDATEs pass
+        assert h.tcc_info().per == 199
+        h.write("TCC0.CTRLBCLR", CTRLB_LUPD)
+    c = h.read("TCC0.COUNT")
+    t_upd = h.t_access + (200 - c) * tick
+    assert (t_upd - t_start) % (200 * tick) == 0
+    t0, t1 = t_upd - 137 * tick - 555, t_upd + 1000 * tick + 77
+    h.advance_to(t1 + 1)
+    info = h.tcc_info()
+    assert (info.per, info.cc[2]) == (299, 260)
+    want = reference_high(t_start, tick, 199, 50, t0, t_upd) + reference_high(t_upd, tick, 299, 260, t_upd, t1)
+    assert h.tcc_high(2, t0, t1) == want
+
+
 def test_the_motor_current_follows_each_pulse_with_the_electrical_time_constant():
     """With tau_e = L / R the plant sees R times the window's mean current (the motor at rest: no back-EMF). At DIV64
     the current rises through the first windows of a pulse: from 0 at the rising edge, Vs (1 - exp(-t/tau)),
