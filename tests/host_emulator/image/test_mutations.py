@@ -389,6 +389,40 @@ MUTANTS = {
 }
 
 
+def _per_while_counting_and_lupd(s):
+    # correct on silicon (DS40001882 31.6.2.6): PER written again while TCC0 counts, the compare buffers written under
+    # Lock Update (CTRLB.LUPD set, then cleared: the copy waits for the next UPDATE, as without it)
+    s.replace(
+        HW,
+        "    tcc0_sync(TCC_SYNCBUSY_ENABLE);\n\n    /* PA10/PA11",
+        "    tcc0_sync(TCC_SYNCBUSY_ENABLE);\n    TCC0->PER.reg = (uint32_t)top - 1u;\n    tcc0_sync(TCC_SYNCBUSY_PER);"
+        "\n\n    /* PA10/PA11",
+    )
+    s.replace(
+        HW,
+        "    TCC0->CCB[PWM_CC_A].reg = da;\n    TCC0->CCB[PWM_CC_B].reg = db;\n",
+        "    TCC0->CTRLBSET.reg = TCC_CTRLBSET_LUPD;\n    TCC0->CCB[PWM_CC_A].reg = da;\n"
+        "    TCC0->CCB[PWM_CC_B].reg = db;\n    TCC0->CTRLBCLR.reg = TCC_CTRLBCLR_LUPD;\n",
+    )
+
+
+#: Images silicon accepts that use what the shipped ones do not: the tier must refuse none of them (issue 29), and
+#: each passes the checks named beside it.
+CORRECT_VARIANTS = {
+    "tcc0-per-written-while-counting-and-lupd": (_per_while_counting_and_lupd, ("drive", "pwm-frequency", "tick")),
+}
+
+
+@pytest.mark.parametrize("name", CORRECT_VARIANTS)
+def test_a_correct_variant_runs_and_passes_its_checks(scratch, name):
+    """One build of the varied project: the boards run it (no model error) and every check named beside it passes."""
+    vary, checks = CORRECT_VARIANTS[name]
+    vary(scratch)
+    images = scratch.images(1, primary=any(c in NEEDS_PRIMARY for c in checks))
+    for check in checks:
+        assert CHECKS[check](images) == [], f"{name}: the {check} check"
+
+
 @pytest.mark.parametrize("name", MUTANTS)
 def test_each_planted_defect_is_caught(scratch, name):
     """Every check named beside the defect catches it (one build of the mutated project)."""

@@ -53,7 +53,7 @@ def test_a_push_moves_the_lattice_alike_on_both_paths(images):
     change's effect moves by less than one 50 us PWM period, and the moves do not add up (the high time over whole
     cycles is the same on both). So the angles may differ by the effect of shifting every duty step by under a tenth
     of a tick: less than a tenth of the motion, and less than a quarter of an encoder count, the firmware's own
-    resolution (measured: 2.4 % of the motion, 0.07 count; 0.5 %, 0.015 count with the electrical model)."""
+    resolution (measured: 2.4 % of the motion, 0.07 count; 0.5 %, 0.014 count with the electrical model)."""
     _, x_mean, _ = _run_traced(images, WorldConfig())
     _, x_wave, _ = _run_traced(images, WorldConfig(pwm="waveform"))
     _, x_tau, _ = _run_traced(images, WorldConfig(pwm="waveform", motor_tau_s=MOTOR_TAU_S))
