@@ -115,6 +115,31 @@ def test_the_plant_sees_the_waveform_path_high_time_and_the_mean_path_the_mean()
             assert volt / h.params.supply_v == pytest.approx(want, abs=1e-12), (path, k)
 
 
+def test_register_reads_inside_a_window_change_nothing_the_plant_sees():
+    """COUNT, STATUS and CC reads move the model's idea of the current cycle on; the windows' high times (the waveform
+    path, with a buffered change in flight) are the same with them as without, to the bit."""
+    runs = []
+    for reads in (False, True):
+        h, _ = pwm(99, 30, 2, window_s=270e-6, pwm="waveform")
+        h.advance(20e-6)
+        w = h.tu(270e-6)
+        seen = []
+        for k in range(2, 14):
+            if k == 6:
+                h.write("TCC0.CCB[2]", 70)
+            if reads:
+                for frac in (0.13, 0.58, 0.91):
+                    h.advance_to(k * w + int(frac * w))
+                    h.read("TCC0.COUNT")
+                    h.read("TCC0.STATUS")
+                    h.read("TCC0.CC[2]")
+            h.advance_to((k + 1) * w + 1)
+            seen.append(h.motor(0))
+        runs.append(seen)
+    assert runs[0] == runs[1]
+    assert len({v for v, _ in runs[0]}) > 2  # the windows saw different parts of the waveform
+
+
 def window_duties(presc: int, path: str, n: int = 80) -> list[float]:
     h, _ = pwm(49, 20, presc, window_s=50e-6, pwm=path)  # 50 us periods at DIV1 (the cell's 20 kHz), 40 % duty
     h.advance(100e-6)
