@@ -90,3 +90,15 @@ def test_a_scene_asks_for_the_waveform_and_the_electrical_model(images, monkeypa
         load_scene("default", ["model=image", "model_options.image.motor_inductance=true"])
     with pytest.raises(ConfigError, match=r"model_options.image.pwm = 'edges': expected one of mean, waveform"):
         load_scene("default", ["model=image", "model_options.image.pwm=edges"])
+
+
+def test_the_waveform_and_electrical_paths_do_not_depend_on_the_schedule(images):
+    """As on the mean path (test_world.py): fast-forwarding off, and two threads in rounds of 20 us, give every board
+    the same trace and the plant the same state, to the bit (the motors' pieces are merged per window, so where the
+    integration was split does not show)."""
+    base = dict(pwm="waveform", motor_tau_s=MOTOR_TAU_S)
+    ref_traces, ref_x, _ = _run_traced(images, WorldConfig(**base))
+    for cfg in (WorldConfig(ff=False, **base), WorldConfig(threads=2, round_s=20e-6, **base)):
+        traces, x, _ = _run_traced(images, cfg)
+        assert traces == ref_traces
+        assert np.array_equal(x, ref_x)
