@@ -81,8 +81,8 @@ void sam_world_plant_init(void)
 }
 
 /* high time of an EN input over [t0, t1): a TCC waveform output through the pin mux (the mean path: numerator in tu,
- * *den its period in counts; the waveform path: tu, *den = 1), or a GPIO level (*den = 1) */
-
+ * *den its period in counts, *other a part after a period change; the waveform path: tu, *den = 1), or a GPIO
+ * level (*den = 1) */
 static uint64_t enable_high(sam_mcu_t *m, int pin, uint64_t t0, uint64_t t1, uint64_t *den, double *other)
 {
     *den = 1;
