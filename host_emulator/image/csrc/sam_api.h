@@ -67,6 +67,11 @@ typedef struct {
     int32_t pin_enc[2][2];     /* encoder [alpha|beta][A|B] */
     int32_t pin_sda, pin_scl;  /* I2C bus */
     int32_t bus_sercom;        /* n of the SERCOMn whose PAD0, PAD1 carry SDA, SCL: the bus (image/board.py) */
+    /* what the motors see of a PWM output (0 in both: the mean-duty path, every result before these existed) */
+    int32_t pwm_waveform;      /* 0: a window sees the mean duty CC / (PER + 1) over its time; 1: the waveform's
+                                  own high time, edge by edge (the counter's phase, prescaler and period) */
+    double motor_tau_s;        /* pwm_waveform only: the motors' electrical time constant L / R (s; 0: none): the
+                                  plant sees R times the window's mean current plus the back-EMF */
 } sam_world_cfg_t;
 
 typedef struct {
@@ -163,6 +168,21 @@ const uint64_t *sam_world_profile(sam_world_t *w, int mcu);
 int sam_world_bus_info(const sam_world_t *w, sam_bus_info_t *out);
 /* Motor drive of a cell as the plant last saw it: mean voltage and awake fraction of the last window. */
 int sam_world_motor(const sam_world_t *w, int cell, int chain, double *volt, double *awake);
+/* A TCC of a board as it counts at the board's time (sam_world_tcc_info; tcc 0..2): the PWM frequency is
+ * 1 / period_tu. */
+typedef struct {
+    int32_t running;
+    uint32_t prescaler;        /* CTRLA.PRESCALER as a divisor: 1 .. 1024 */
+    uint32_t per, top;         /* PER, and the current cycle's last count (MAX after PER was written below COUNT) */
+    uint32_t cc[4];
+    uint64_t tick_tu;          /* one count */
+    uint64_t period_tu;        /* one PWM period, (PER + 1) counts; 0 while stopped */
+    uint64_t cycle_start_tu;   /* when the current cycle began (COUNT was 0) */
+} sam_tcc_info_t;
+int sam_world_tcc_info(const sam_world_t *w, int mcu, int tcc, sam_tcc_info_t *out);
+/* High time (tu) of TCCn/WO[wo] of a board over [t0, t1), edge by edge (the waveform path's figure); [t0, t1) within
+ * the board's past since the counter's parameters last changed by a register write. */
+uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1);
 /* Log lines (resets, faults, USB errors) since the last call, '\n'-separated; returns bytes written. */
 uint32_t sam_world_notes(sam_world_t *w, char *buf, uint32_t cap);
 /* Change what is traced into the notes (sam_world_cfg_t.trace, .trace_boards) from now on. */

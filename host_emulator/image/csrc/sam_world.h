@@ -19,6 +19,8 @@ typedef struct {
     int slot;             /* its event source on the board */
 } sam_pinq_t;
 
+#define SAM_MOTOR_PIECES 64
+#define SAM_MOTOR_OFF 2
 /* one DRV8874 + motor: the mean of V(t) and of "awake" over the current window, from the board's pins. The
  * integrals are exact integers (EN's high time in tu/top, tu awake), so where they are split cannot change a bit. */
 typedef struct {
@@ -28,6 +30,16 @@ typedef struct {
     uint64_t awake_tu;    /* time awake */
     uint64_t t_last;      /* integrated up to here (tu) */
     double volt, awake;   /* means of the last window (what the plant used) */
+    /* the electrical model (cfg.motor_tau_s > 0): the window's drive as pieces of constant terminal voltage (+1, -1
+     * supply, 0 braked, SAM_MOTOR_OFF asleep), adjacent equal pieces merged, so where the integration was split
+     * cannot change a bit; at the window's end the current follows them */
+    struct {
+        int8_t v;
+        uint64_t dt;      /* tu */
+    } piece[SAM_MOTOR_PIECES];
+    int npiece;
+    double j;             /* R times the current (V) at the last window's end */
+    double jint;          /* its integral over the window's awake time (V tu) */
 } sam_motor_t;
 
 /* ---- the I2C bus between the boards (link_i2c_bus.c) ----
