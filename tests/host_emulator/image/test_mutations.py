@@ -6,12 +6,12 @@ wrong pin-mux letter for the PWM outputs, on-demand sampling of the encoder pins
 execution-only defects reverted from this repository's history: the cell's USB interrupt at the encoders'
 priority (a5a8df8) and the watchdog fed while the control tick is dead (6318086); and the classes of issue 29:
 the EIC's and TC3's priorities swapped where the table is applied, the watchdog enabled before it is configured
-(its period then enable-protected), a wrong watchdog key, a fault handler that leaves the drivers awake. Each
-mutant names the check(s) that catch it and, beside it, the observable.
+(its period then enable-protected), a wrong watchdog key, a fault handler that leaves the drivers awake, the
+primary's 400 kHz SCL split out of Fast-mode's limits. Each mutant names the check(s) that catch it and, beside it,
+the observable.
 
-Not in the catalogue, with the reason: the primary's SCL split (T_LOW/T_HIGH are not modelled: issue 29 item 2),
-the PWM prescaler and period as waveforms (only the mean duty is: item 4); an unaligned access (Unicorn's
-Cortex-M0 does not trap it: peripherals/test_core_faults.py).
+Not in the catalogue, with the reason: the PWM prescaler and period as waveforms (only the mean duty is: item 4);
+an unaligned access (Unicorn's Cortex-M0 does not trap it: peripherals/test_core_faults.py).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import pytest
 
 from host_emulator.image import board as wiring
 from host_emulator.image.cli import image_main
+from host_emulator.image.model import bring_up
 from host_emulator.image.world import World, WorldConfig
 from host_emulator.params import Params
 from metacell_tools.fwcheck import irqmap
@@ -236,6 +237,23 @@ def check_encoders_while_usb_talks(images) -> list[str]:
     return problems
 
 
+def check_i2c_timing(images) -> list[str]:
+    """The primary brings one cell up and polls it for 20 ms: no command refused, samples arrive, no bus error
+    (STATUS.BUSERR, counted by the bus) and no note of an SCL timing outside the I2C-bus specification's limits."""
+    p = Params(cells=1)
+    w = World(p, images)
+    lap, up = bring_up(w, p)
+    lap.pump(0.02)
+    problems = [n for n in w.notes() if "SCL timing outside" in n]
+    if up["refused"]:
+        problems.append(f"refused: {up['refused']}")
+    if not lap.rx.samples:
+        problems.append("no samples from the cell")
+    if w.bus_info().buserr:
+        problems.append(f"{w.bus_info().buserr} bus errors on the primary")
+    return problems
+
+
 CHECKS = {
     "tick": check_tick,
     "watchdog-from-loop": check_watchdog_from_loop,
@@ -246,6 +264,7 @@ CHECKS = {
     "nvic-priorities": check_nvic_priorities,
     "encoder-stress": check_encoder_stress,
     "fault-sleeps-drivers": check_fault_puts_the_drivers_to_sleep,
+    "i2c-timing": check_i2c_timing,
 }
 NEEDS_PRIMARY = {
     "drive",
@@ -254,6 +273,7 @@ NEEDS_PRIMARY = {
     "nvic-priorities",
     "encoder-stress",
     "fault-sleeps-drivers",
+    "i2c-timing",
 }
 
 
@@ -273,6 +293,7 @@ def test_fwcheck_irq_passes_on_every_built_image(images):
 HW = "src/cell/samd21_hw.cpp"
 MAIN = "src/cell/main.cpp"
 SYS = "src/common/samd21_sys.cpp"
+PRIMARY_HW = "src/primary/primary_hw.cpp"
 
 
 def _flag_clear_removed(s):
@@ -327,6 +348,11 @@ def _fault_leaves_drivers_awake(s):
     )
 
 
+def _scl_split(s):
+    # the same SCL period (110 counts + the rise), split T_LOW 15 / 48 MHz = 0.31 us, T_HIGH 105 / 48 MHz = 2.19 us
+    s.replace(PRIMARY_HW, "{400000, 48, 62}", "{400000, 100, 10}")
+
+
 def _usb_priority_reverted(s):
     s.revert("a5a8df8")
 
@@ -352,6 +378,10 @@ MUTANTS = {
     # observable: the first feed resets the cell (a wrong key in WDT.CLEAR is a system reset): resets, no steady tick
     "watchdog-wrong-key": (_watchdog_wrong_key, "tick"),
     "watchdog-fed-while-tick-dead (revert 6318086)": (_wdt_tick_fix_reverted, "watchdog-dead-tick"),
+    # observables: the note "SCL timing outside Fast-mode's limits ... T_LOW 0.312 us < 1.30 us, data setup -0.413 us
+    # < 0.100 us", a bus error on every transaction (SDA changes while SCL is high: false START/STOP), the cell refuses
+    # its setup (TIMEOUT) and sends no samples
+    "primary-scl-split-100-10": (_scl_split, "i2c-timing"),
 }
 
 
