@@ -166,6 +166,23 @@ int sam_world_reg_value(const sam_world_t *w, int mcu, uint32_t ri, uint32_t *va
  * NULL if out of memory. */
 const uint64_t *sam_world_profile(sam_world_t *w, int mcu);
 int sam_world_bus_info(const sam_world_t *w, sam_bus_info_t *out);
+/* The SCL timing a board's bus SERCOM (I2C master) sets now, from BAUD, BAUDLOW, CTRLA.SDAHOLD, its GCLK and the
+ * bus's rise time (cfg.i2c_rise_ns), against the I2C-bus specification's limits for its mode
+ * (sam_sercom_i2c_timing.c); -1 when there is no such board or bus, or its SERCOM has no clock. */
+enum { SAM_I2C_STANDARD = 0, SAM_I2C_FAST = 1, SAM_I2C_FAST_PLUS = 2 };
+enum { SAM_I2C_VIOL_LOW = 1, SAM_I2C_VIOL_HIGH = 2, SAM_I2C_VIOL_SETUP = 4, SAM_I2C_VIOL_SDA_IN_HIGH = 8 };
+typedef struct {
+    int32_t mode;              /* SAM_I2C_*: CTRLA.SPEED 1 Fast-mode Plus; SPEED 0 Standard up to 100 kHz, Fast above */
+    uint32_t baud, baudlow, sdahold;   /* the register fields */
+    double f_gclk_hz, f_scl_hz;
+    double t_low_s, t_high_s, t_rise_s;
+    double t_hold_min_s, t_hold_max_s;  /* SDA hold after SCL falls: CTRLA.SDAHOLD's range */
+    double t_setup_s;          /* data setup before SCL rises: t_low - t_hold_max - t_rise */
+    double min_low_s, min_high_s, min_setup_s;   /* the mode's limits */
+    int32_t violations;        /* SAM_I2C_VIOL_* bits: T_LOW, T_HIGH, t_SU;DAT below the limit; SDA changing while
+                                  SCL is released (t_hold_max >= t_low: false START/STOP conditions) */
+} sam_i2c_timing_t;
+int sam_world_i2c_timing(sam_world_t *w, int mcu, sam_i2c_timing_t *out);
 /* Motor drive of a cell as the plant last saw it: mean voltage and awake fraction of the last window. */
 int sam_world_motor(const sam_world_t *w, int cell, int chain, double *volt, double *awake);
 /* A TCC of a board as it counts at the board's time (sam_world_tcc_info; tcc 0..2): the PWM frequency is

@@ -7,11 +7,11 @@ execution-only defects reverted from this repository's history: the cell's USB i
 priority (a5a8df8) and the watchdog fed while the control tick is dead (6318086); and the classes of issue 29:
 the EIC's and TC3's priorities swapped where the table is applied, the watchdog enabled before it is configured
 (its period then enable-protected), a wrong watchdog key, a fault handler that leaves the drivers awake, TCC0's
-prescaler at DIV64 and its period off by one. Each
+prescaler at DIV64 and its period off by one, the primary's 400 kHz SCL split out of Fast-mode's limits. Each
 mutant names the check(s) that catch it and, beside it, the observable.
 
-Not in the catalogue, with the reason: the primary's SCL split (T_LOW/T_HIGH are not modelled: issue 29 item 2); an
-unaligned access (Unicorn's Cortex-M0 does not trap it: peripherals/test_core_faults.py).
+Not in the catalogue, with the reason: an unaligned access (Unicorn's Cortex-M0 does not trap it:
+peripherals/test_core_faults.py).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import pytest
 
 from host_emulator.image import board as wiring
 from host_emulator.image.cli import image_main
+from host_emulator.image.model import bring_up
 from host_emulator.image.world import World, WorldConfig
 from host_emulator.params import Params
 from metacell_tools.fwcheck import irqmap
@@ -256,6 +257,23 @@ def check_encoders_while_usb_talks(images) -> list[str]:
     return problems
 
 
+def check_i2c_timing(images) -> list[str]:
+    """The primary brings one cell up and polls it for 20 ms: no command refused, samples arrive, no bus error
+    (STATUS.BUSERR, counted by the bus) and no note of an SCL timing outside the I2C-bus specification's limits."""
+    p = Params(cells=1)
+    w = World(p, images)
+    lap, up = bring_up(w, p)
+    lap.pump(0.02)
+    problems = [n for n in w.notes() if "SCL timing outside" in n]
+    if up["refused"]:
+        problems.append(f"refused: {up['refused']}")
+    if not lap.rx.samples:
+        problems.append("no samples from the cell")
+    if w.bus_info().buserr:
+        problems.append(f"{w.bus_info().buserr} bus errors on the primary")
+    return problems
+
+
 CHECKS = {
     "tick": check_tick,
     "watchdog-from-loop": check_watchdog_from_loop,
@@ -267,6 +285,7 @@ CHECKS = {
     "encoder-stress": check_encoder_stress,
     "fault-sleeps-drivers": check_fault_puts_the_drivers_to_sleep,
     "pwm-frequency": check_pwm_frequency,
+    "i2c-timing": check_i2c_timing,
 }
 NEEDS_PRIMARY = {
     "drive",
@@ -275,6 +294,7 @@ NEEDS_PRIMARY = {
     "nvic-priorities",
     "encoder-stress",
     "fault-sleeps-drivers",
+    "i2c-timing",
 }
 
 
@@ -294,6 +314,7 @@ def test_fwcheck_irq_passes_on_every_built_image(images):
 HW = "src/cell/samd21_hw.cpp"
 MAIN = "src/cell/main.cpp"
 SYS = "src/common/samd21_sys.cpp"
+PRIMARY_HW = "src/primary/primary_hw.cpp"
 
 
 def _flag_clear_removed(s):
@@ -356,6 +377,11 @@ def _pwm_period_off_by_one(s):
     s.replace(HW, "TCC0->PER.reg = (uint32_t)top - 1u;", "TCC0->PER.reg = (uint32_t)top;")
 
 
+def _scl_split(s):
+    # the same SCL period (110 counts + the rise), split T_LOW 15 / 48 MHz = 0.31 us, T_HIGH 105 / 48 MHz = 2.19 us
+    s.replace(PRIMARY_HW, "{400000, 48, 62}", "{400000, 100, 10}")
+
+
 def _usb_priority_reverted(s):
     s.revert("a5a8df8")
 
@@ -386,6 +412,10 @@ MUTANTS = {
     "pwm-prescaler-div64": (_pwm_prescaler_div64, "pwm-frequency"),
     # observable: the same, 19,991.7 Hz (PER + 1 = 2401 counts): every duty 2400/2401 of the library's
     "pwm-period-off-by-one": (_pwm_period_off_by_one, "pwm-frequency"),
+    # observables: the note "SCL timing outside Fast-mode's limits ... T_LOW 0.312 us < 1.30 us, data setup -0.413 us
+    # < 0.100 us", a bus error on every transaction (SDA changes while SCL is high: false START/STOP), the cell refuses
+    # its setup (TIMEOUT) and sends no samples
+    "primary-scl-split-100-10": (_scl_split, "i2c-timing"),
 }
 
 
