@@ -20,6 +20,9 @@ the continuum, a rounded square (hexagon) on the lattice. The q-intervals are th
 
 from __future__ import annotations
 
+import copy
+import dataclasses
+import functools
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -112,9 +115,14 @@ def unstable_q(params: Params, theory: Theory | None = None) -> dict:
     Returns {"intervals": [{"q": [lo, hi], "kind", "fastest_q", "fastest_growth_per_s", "period_s"}] (shortest
     waves first), "fastest_q", "fastest_growth_per_s" (the largest Re s over every q >= 0; negative when nothing
     grows), "oscillation_period_s", "regime" (analysis.stability.REGIMES), "theory" (its label)}."""
-    th = _theory(theory)
+    law = dataclasses.replace(params.uniform(), cells=1, shape=(), lattice="chain", boundary="open")  # q only
+    return copy.deepcopy(_unstable_q(law, _theory(theory)))
+
+
+@functools.lru_cache(maxsize=64)
+def _unstable_q(params: Params, th: Theory) -> dict:
     d = dispersion(
-        params.uniform(), theory=Theory(th.model, th.inertia, False, th.motor_damping), n_kappa=4000
+        params, theory=Theory(th.model, th.inertia, False, th.motor_damping), n_kappa=4000
     )  # continuum: q = kappa^2
     ivs = []
     for iv in d["unstable_intervals"]:
@@ -345,7 +353,8 @@ def allowed_wavevectors(topology: Topology) -> list[dict]:
 
 
 def finite_sheet(params: Params, theory: Theory | None = None, topology: Topology | None = None) -> dict:
-    """Which of a finite sheet's modes grow (allowed_wavevectors with the growth rate at their q), fastest first,
+    """Which of a finite sheet's modes grow (allowed_wavevectors with the growth rate at their q; a continuum
+    theory takes the continuum's symbol at the same wavevectors), fastest first,
     and how the fastest allowed mode compares with the unbounded lattice's fastest wavelength.
 
     Returns {"topology", "modes" (each with growth_per_s, imag_per_s, unstable), "unstable" (the growing modes'
@@ -356,6 +365,10 @@ def finite_sheet(params: Params, theory: Theory | None = None, topology: Topolog
     th = _theory(theory)
     topo = topology or params.topology
     modes = allowed_wavevectors(topo)
+    if not th.discrete:  # the continuum's symbol at the same wavevectors (an open hexagonal sheet keeps its q)
+        for m in modes:
+            if m["k"] is not None:
+                m["q"] = float(symbol(topo.kind, m["k"][0], m["k"][1], discrete=False))
     s = growth_rates_at_q(
         params.uniform(), [m["q"] for m in modes], inertia=th.inertia, motor_damping=th.motor_damping
     )[:, 0]
