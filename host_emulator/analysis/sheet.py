@@ -44,6 +44,7 @@ __all__ = [
     "allowed_wavevectors",
     "finite_sheet",
     "theory_of_sheet",
+    "zone_edge",
     "CONTINUUM_FACTOR",
     "DIRECTIONS",
 ]

@@ -254,3 +254,35 @@ def test_bad_input_is_refused():
         sheet_modes.sheet_modes(p, method="fast")
     with pytest.raises(ValueError, match="chain"):
         sheet.annulus(Params(sigma=9 / 125))
+
+
+@pytest.mark.parametrize("bands", ["cubic", "linear"])
+@pytest.mark.parametrize("geometry", ["small", "geometric"])
+def test_the_lattice_forces_are_odd(bands, geometry):
+    """docs/sheets.md#stripes-or-spots: F(-x) = -F(x) exactly (psi' odd, the band pairs and the actuator clip
+    symmetric), even with per-cell laws and k1 != k2: no quadratic term, whatever the parameters."""
+    from host_emulator.models import ModelOptions, make_model
+
+    rng = np.random.default_rng(11)
+    n = 6
+    p = Params(cells=n, sigma=tuple(rng.uniform(0.04, 0.12, n)), k1=0.11, alpha_star=tuple(rng.uniform(0.5, 1.5, n)))
+    m = make_model("lattice", p, [], ModelOptions(bands=bands, beta_geometry=geometry))
+    for _ in range(20):
+        x = rng.normal(0.0, 1.2, 2 * n)
+        fp, _ = m.forces(0.0, x)
+        fm, _ = m.forces(0.0, -x)
+        assert np.array_equal(fm, -fp)
+
+
+def test_brillouin_zone_edges_and_their_symbols():
+    """The zone's edge along the reported directions: square X (pi, symbol 4) and M (pi sqrt 2, 8); hexagonal K
+    along a bond (4 pi / 3, symbol 9, its largest) and M between two (2 pi / sqrt 3, 8)."""
+    for kind, deg, edge, q in (
+        ("square", 0.0, math.pi, 4.0),
+        ("square", 45.0, math.pi * math.sqrt(2), 8.0),
+        ("hex", 0.0, 4 * math.pi / 3, 9.0),
+        ("hex", 30.0, 2 * math.pi / SQ3, 8.0),
+    ):
+        assert sheet.zone_edge(kind, deg) == pytest.approx(edge, rel=1e-12)
+        u = (math.sin(math.radians(deg)), math.cos(math.radians(deg)))
+        assert float(sheet.symbol(kind, edge * u[0], edge * u[1])) == pytest.approx(q, rel=1e-12)
