@@ -286,3 +286,18 @@ def test_brillouin_zone_edges_and_their_symbols():
         assert sheet.zone_edge(kind, deg) == pytest.approx(edge, rel=1e-12)
         u = (math.sin(math.radians(deg)), math.cos(math.radians(deg)))
         assert float(sheet.symbol(kind, edge * u[0], edge * u[1])) == pytest.approx(q, rel=1e-12)
+
+
+def test_theory_of_sheet_is_the_annulus_and_the_fastest_modes():
+    """The keys a sheet's summary may carry (analysis.summary), JSON-ready and equal to what annulus, fastest and
+    finite_sheet say."""
+    import json
+
+    p = Params(sigma=9 / 125, cells=256, shape=(16, 16), lattice="hex", boundary="periodic")
+    d = sheet.theory_of_sheet(p, LAT)
+    json.dumps(d, allow_nan=False)
+    assert d["regime"] == "stationary_pattern"
+    assert d["unstable_lambda_cells"] == sheet.annulus(p, LAT)["lambda_cells"]
+    assert d["fastest_lambda_cells"] == sheet.fastest(p, LAT)["lambda_cells"]
+    top = sheet.finite_sheet(p, LAT)["fastest_mode"]
+    assert d["sheet_fastest_lambda_cells"] == top["lambda_cells"] and d["sheet_unstable_modes"] == 12
