@@ -6,9 +6,9 @@
 Each size runs the compiled loop alone (one he_advance / he_hil_run call, no Python in it) for a few steps after a
 warm-up call, best of 3 on the process's CPU clock (benchmarks.common.clock), pinned to one core. The lattice
 model's figure is CPU ns per cell and plant step (the scene exp3_single_sigma9's model options as it writes
-them, no accuracy preset: symplectic Euler); the hil model's is CPU ns per cell and control tick (the default scene: the firmware tick of every
-cell, then its plant steps; the open chain takes the fast plant step of he_hil.c, a sheet the general
-he_advance path over the edge list). A flat column means the cost per cell does not grow with the sheet.
+them, no accuracy preset: symplectic Euler); the hil model's is CPU ns per cell and control tick (the default
+scene: the firmware tick of every cell, then its plant steps; the open chain takes he_hil.c's fast plant step,
+a sheet its edge-list twin). A flat column means the cost per cell does not grow with the sheet.
 """
 
 from __future__ import annotations
