@@ -377,6 +377,9 @@ static int plant_step_fast(const he_plant_t *p, hil_ws_t *w, double *restrict x,
  * v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 with the tick's cached 1 + h C/I, he_flush_tiny, the bounds of
  * he_state_check (NaN fails them), he_plant_range_check, and (quiet) the encoders that left their count window,
  * as plant_step_fast does. w->bond serves as F. */
+#if defined(__GNUC__)
+__attribute__((noinline))   /* out of the tick loop: the open chain's loop keeps its registers */
+#endif
 static int plant_step_edges(const he_plant_t *p, hil_ws_t *w, double *restrict x, double *restrict v, const int quiet)
 {
     const int n = w->n, n2 = 2 * n;
@@ -453,13 +456,17 @@ static double untabled_mv(const he_hil_t *h, int32_t top, int32_t duty)
 static void sync_volts(he_hil_t *h, hil_ws_t *w)
 {
     he_plant_t *p = h->plant;
-    for (int j = 0; j < w->n; j++)
-        for (int ch = 0; ch < 2; ch++) {
-            const mc_cell_t *c = &h->cells[j];
+    const double kt = h->kt;
+    for (int ch = 0; ch < 2; ch++) {
+        /* the rows' addresses once (a store through them could alias the plant's pointer members otherwise) */
+        double *const volt = p->volt[ch], *const mg = p->mgain[ch];
+        const mc_cell_t *c = h->cells;
+        for (int j = 0; j < w->n; j++, c++) {
             const mc_drive_out_t o = c->out[ch];
-            p->volt[ch][j] = o.enable ? drive_volt(h, c->drive.pwm_top, o) : 0.0;
-            p->mgain[ch][j] = o.enable ? h->kt : 0.0;
+            volt[j] = o.enable ? drive_volt(h, c->drive.pwm_top, o) : 0.0;
+            mg[j] = o.enable ? kt : 0.0;
         }
+    }
     w->volts_stale = 0;
 }
 

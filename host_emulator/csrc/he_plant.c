@@ -101,25 +101,37 @@ double he_band_torque(const he_plant_t *p, int ch, int bond, double xs, double x
     return ks * p->band_scale * L * (fp - fm);
 }
 
-int he_plant_range_check(const he_plant_t *p, const double *x, int *where)
+/* he_plant_range_check on an edge list (out of line: the open chain's check keeps its size) */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static int edges_range_check(const he_plant_t *p, const double *x, int *where)
 {
-    if (p->bands != HE_BANDS_CUBIC)
-        return HE_OK;
     const int32_t *bd = p->bonds;
     for (int ch = 0; ch < 2; ch++) {
         double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
         const double *xc = x + ch * p->n;
-        if (bd) {
-            for (int b = 0; b < p->nbond; b++) {
-                /* the longer band of the pair: delta0 + L*|x_i - x_k| (small-angle measure), as below */
-                if (p->delta0[ch] + p->lever[ch] * fabs(xc[bd[2 * b]] - xc[bd[2 * b + 1]]) > lim) {
-                    if (where)
-                        *where = b + ch * p->nbond;
-                    return HE_ERR_BAND;
-                }
+        for (int b = 0; b < p->nbond; b++) {
+            /* the longer band of the pair: delta0 + L*|x_i - x_k| (small-angle measure), as on the chain */
+            if (p->delta0[ch] + p->lever[ch] * fabs(xc[bd[2 * b]] - xc[bd[2 * b + 1]]) > lim) {
+                if (where)
+                    *where = b + ch * p->nbond;
+                return HE_ERR_BAND;
             }
-            continue;
         }
+    }
+    return HE_OK;
+}
+
+int he_plant_range_check(const he_plant_t *p, const double *x, int *where)
+{
+    if (p->bands != HE_BANDS_CUBIC)
+        return HE_OK;
+    if (p->bonds)
+        return edges_range_check(p, x, where);
+    for (int ch = 0; ch < 2; ch++) {
+        double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
+        const double *xc = x + ch * p->n;
         for (int j = 0; j + 1 < p->n; j++) {
             /* the longer band of the pair: delta0 + L*|x_j - x_j+1| (small-angle measure) */
             if (p->delta0[ch] + p->lever[ch] * fabs(xc[j] - xc[j + 1]) > lim) {
@@ -210,9 +222,15 @@ double he_react_stiffness(const he_plant_t *p, int ch)
 
 void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, double *C)
 {
-    for (int ch = 0; ch < 2; ch++)
-        for (int j = 0; j < p->n; j++)
-            C[ch * p->n + j] = he_damping(p, ch, j);              /* eta + Kt/S_L */
+    const int n = p->n;
+    const double S = p->speed_const;
+    for (int ch = 0; ch < 2; ch++) {
+        /* he_damping's eta + m / S_L, the rows' addresses read once (a store to C could alias them otherwise) */
+        const double *eta = p->eta[ch], *mg = p->mgain[ch];
+        double *Cc = C + ch * n;
+        for (int j = 0; j < n; j++)
+            Cc[j] = eta[j] + mg[j] / S;                           /* eta + Kt/S_L */
+    }
     he_plant_torques(p, t, x, F);
 }
 
@@ -221,7 +239,10 @@ void he_plant_forces(const he_plant_t *p, double t, const double *x, double *F, 
  * then Fc[j] -= T_j, Fc[j+1] += T_j in bond order, as the general loop below does. The torques of a block of
  * bonds first, two per SSE2 instruction where there is SSE2 (each lane the scalar IEEE operations), so the
  * forces keep every bit. */
-static void cubic_bonds(const he_plant_t *p, int ch, const double *restrict xc, double *restrict Fc)
+#if defined(__GNUC__)
+__attribute__((always_inline))   /* the open chain's kernel stays inlined where it was (he_plant_torques) */
+#endif
+static inline void cubic_bonds(const he_plant_t *p, int ch, const double *restrict xc, double *restrict Fc)
 {
     enum { BLK = 64 };
     double T[BLK];
@@ -335,6 +356,18 @@ static void other_edges(const he_plant_t *p, int ch, const double *xc, double *F
     }
 }
 
+/* The band torques of an edge list on chain ch (out of line: the open chain's callers keep their size). */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static void edges_band(const he_plant_t *p, int ch, const double *xc, double *Fc)
+{
+    if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL))
+        cubic_edges(p, ch, xc, Fc);
+    else
+        other_edges(p, ch, xc, Fc);
+}
+
 /* R of every cell, clipped to +-react_limit, added to F (he_reaction and the clip of he_plant_torques, the same
  * operations; two cells per SSE2 instruction where there is SSE2). */
 static void add_reaction(const he_plant_t *p, const double *restrict x, double *restrict F)
@@ -394,13 +427,11 @@ void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
     for (int ch = 0; ch < 2; ch++) {
         const double *xc = x + ch * n;
         double *Fc = F + ch * n;
+        const double *mg = p->mgain[ch], *vo = p->volt[ch];
         for (int j = 0; j < n; j++)
-            Fc[j] = p->mgain[ch][j] * p->volt[ch][j];            /* Kt*V */
+            Fc[j] = mg[j] * vo[j];                                /* Kt*V */
         if (p->bonds) {
-            if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL))
-                cubic_edges(p, ch, xc, Fc);
-            else
-                other_edges(p, ch, xc, Fc);
+            edges_band(p, ch, xc, Fc);                            /* an edge list: ring, sheet */
         } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
             cubic_bonds(p, ch, xc, Fc);                           /* the loop below, unrolled for this law */
         } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
@@ -433,10 +464,7 @@ void he_plant_band_torques(const he_plant_t *p, const double *x, double *F)
         const double *xc = x + ch * n;
         double *Fc = F + ch * n;
         if (p->bonds) {
-            if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL))
-                cubic_edges(p, ch, xc, Fc);
-            else
-                other_edges(p, ch, xc, Fc);
+            edges_band(p, ch, xc, Fc);
         } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
             cubic_bonds(p, ch, xc, Fc);
         } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {

@@ -139,11 +139,11 @@ double he_damping(const he_plant_t *p, int chain, int j);
  * + nbond on the beta chain for an edge list (its cells: bonds[2b], bonds[2b + 1]). */
 int he_plant_range_check(const he_plant_t *p, const double *x, int *where);
 /* The force law is smooth except where a branch of it switches: a band going slack (cubic bands; two per
- * bond and chain, bonds in he_plant_nbond order), psi' changing piece (|alpha_j| = b*, ideal reaction) and the actuator clip (ideal reaction
- * with a finite react_limit: R_a and R_b against +-react_limit). he_plant_switches writes the side of every
- * such switch at positions x (1 or 0 per switch, the branch condition itself) and returns their number,
- * he_plant_nswitch(p) (<= 4 nbond + 5n <= 17n). An adaptive stepper compares the sides at the two ends of a step to find the
- * steps that cross one (he_dop853.h). */
+ * bond and chain, bonds in he_plant_nbond order), psi' changing piece (|alpha_j| = b*, ideal reaction) and
+ * the actuator clip (ideal reaction with a finite react_limit: R_a and R_b against +-react_limit).
+ * he_plant_switches writes the side of every such switch at positions x (1 or 0 per switch, the branch
+ * condition itself) and returns their number, he_plant_nswitch(p) (<= 4 nbond + 5n <= 17n). An adaptive
+ * stepper compares the sides at the two ends of a step to find the steps that cross one (he_dop853.h). */
 int he_plant_nswitch(const he_plant_t *p);
 int he_plant_switches(const he_plant_t *p, const double *x, unsigned char *side);
 /* Upper bounds used for the stable step limit: per chain the largest

@@ -134,9 +134,8 @@ class HilModel(LatticeModel):
         """The smaller of the limits with every motor driving (back-EMF damping Kt/S_L on) and coasting."""
         lims = []
         for g in (0.0, self.params.kt):
-            for ch in range(2):
-                for j in range(self.n):
-                    self.plant.mgain[ch][j] = g
+            for ch in range(2):  # the plant's row of n motor gains, written in place (a 256 x 256 sheet: 65,536)
+                np.frombuffer(self.ffi.buffer(self.plant.mgain[ch], 8 * self.n), dtype=float)[:] = g
             lims.append(super().step_limit(stepper))
         return min(lims)
 

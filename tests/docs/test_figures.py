@@ -168,11 +168,21 @@ def test_instructions_per_cell_tick_quoted_in_readme_and_docs():
     (callgrind: it does not depend on the machine's speed or load, only on the compiled code)."""
     from host_emulator.benchmarks.instructions import measure
 
-    n = round(measure().per_cell_tick)
-    assert f"**{n} x86 instructions per cell and control tick**" in README
-    acc = (ROOT / "docs" / "accuracy.md").read_text()
-    assert f"-> {n} instructions per cell-tick**" in acc
-    assert f"**{n} x86 instructions per cell and control tick**" in (ROOT / "docs" / "emulator.md").read_text()
+    got = measure().per_cell_tick
+    # the quoted figure is a whole number; the whole-process count moves by a few tenths between runs (the Python
+    # and libc share, e.g. 358.50 and 358.68 of the same build), so a figure within one instruction is today's
+    pages = {
+        "README.md": (README, r"\*\*(\d+) x86 instructions per cell and control tick\*\*"),
+        "docs/accuracy.md": ((ROOT / "docs" / "accuracy.md").read_text(), r"-> (\d+) instructions per cell-tick\*\*"),
+        "docs/emulator.md": (
+            (ROOT / "docs" / "emulator.md").read_text(),
+            r"\*\*(\d+) x86 instructions per cell and control tick\*\*",
+        ),
+    }
+    for page, (text, pattern) in pages.items():
+        quoted = [int(x) for x in re.findall(pattern, text)]
+        assert quoted, f"{page}: the instruction figure moved"
+        assert abs(quoted[-1] - got) < 1.0, (page, quoted[-1], got)
 
 
 def test_design_page_lambda_10_row_is_what_design_prints(tmp_path):
