@@ -192,12 +192,13 @@ def reassemble_blocks(chunks: Iterable[bytes]) -> dict:
     return out
 
 
-def frame_kind(arbitration_id: int) -> tuple[str, int | None]:
-    """(frame name, cell number or None) of a CAN id, ('UNKNOWN', None) otherwise."""
+def frame_kind(arbitration_id: int, cells: int = N_CELLS) -> tuple[str, int | None]:
+    """(frame name, cell number or None) of a CAN id of a rig of `cells` cells (the rig as built's 16 unless told:
+    a bigger sheet's frames are foreign to it), ('UNKNOWN', None) otherwise."""
     for name, f in FRAMES.items():
         if f["per_cell"]:
             j = arbitration_id - f["base"]
-            if 1 <= j <= MAX_CELLS:
+            if 1 <= j <= cells:
                 return name, j
         elif arbitration_id == f["base"]:
             return name, None

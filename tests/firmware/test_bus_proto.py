@@ -84,10 +84,12 @@ def test_per_cell_can_ids_of_64_cells_never_collide():
     ids = proto.per_cell_ids()
     every = [i for r in ids.values() for i in r] + [f["base"] for f in D.FRAMES.values() if not f["per_cell"]]
     assert len(every) == len(set(every)) == 6 * 64 + 3 and max(every) <= 0x7FF
-    assert [proto.frame_kind(ids["CELL_SAMPLE"][j - 1]) for j in (1, 16, 17, 64)] == [
+    sample = D.FRAMES["CELL_SAMPLE"]["base"]
+    assert [proto.frame_kind(sample + j, D.MAX_CELLS) for j in (1, 16, 17, 64)] == [
         ("CELL_SAMPLE", j) for j in (1, 16, 17, 64)
     ]
-    assert proto.frame_kind(D.FRAMES["CELL_SAMPLE"]["base"] + 65) == ("UNKNOWN", None)
+    assert proto.frame_kind(sample + 65, D.MAX_CELLS) == ("UNKNOWN", None)
+    assert proto.frame_kind(sample + 17) == ("UNKNOWN", None)  # the rig as built: a bigger sheet's cell is foreign
     tight = types.SimpleNamespace(
         MAX_CELLS=D.MAX_CELLS, FRAMES=dict(D.FRAMES, CELL_LINK=dict(D.FRAMES["CELL_LINK"], base=0x230))
     )

@@ -36,7 +36,7 @@ def test_n_cells_polled_in_order_and_commands_beyond_n_refused(fw, n):
             assert (t.kind, t.cell, t.addr, t.len) == (pv.READ, i, proto.cell_address(i + 1), pv.SNAP_LEN), cycle
             pr.finish(pv.DURATION_US, lib.MC_I2C_OK, pv.snapshot_block(t.addr))
             frames += pr.frames()  # popped after each transaction, as the glue sends them out
-    samples = [f - D.FRAMES["CELL_SAMPLE"]["base"] for f, _ in frames if proto.frame_kind(f)[0] == "CELL_SAMPLE"]
+    samples = [f - D.FRAMES["CELL_SAMPLE"]["base"] for f, _ in frames if proto.frame_kind(f, 64)[0] == "CELL_SAMPLE"]
     assert samples == 2 * list(range(1, n + 1)) and pr.p.tx_drop == 0
     assert pr.start().addr == 0x10 and pr.p.cycles == 2  # the third cycle starts at cell 1 again
     f = ffi.new("mc_can_frame_t *")
@@ -61,9 +61,9 @@ def test_every_cell_of_a_64_cell_sheet_gets_its_status_in_rotation(fw):
         for _ in range(64):
             t = pr.start()
             pr.finish(pv.DURATION_US, lib.MC_I2C_OK, pv.snapshot_block(t.addr))
-            status |= {proto.frame_kind(f)[1] for f, _ in pr.frames() if proto.frame_kind(f)[0] == "CELL_LINK"}
+            status |= {proto.frame_kind(f, 64)[1] for f, _ in pr.frames() if proto.frame_kind(f, 64)[0] == "CELL_LINK"}
     pr.start()  # the 64th cycle ends (and sends its status) when the next one starts
-    status |= {proto.frame_kind(f)[1] for f, _ in pr.frames() if proto.frame_kind(f)[0] == "CELL_LINK"}
+    status |= {proto.frame_kind(f, 64)[1] for f, _ in pr.frames() if proto.frame_kind(f, 64)[0] == "CELL_LINK"}
     assert status == set(range(1, 65))
 
 
@@ -95,7 +95,7 @@ def test_hil_bus_reaches_the_i2c_bound_for_n_cells(n):
     for _ in range(250):  # 0.5 s
         rig.advance_to(rig.t_us + step)
         for fid, _ in rig.frames():
-            kind, j = proto.frame_kind(fid)
+            kind, j = proto.frame_kind(fid, n)
             if kind == "CELL_SAMPLE":
                 per_cell[j] += 1
     rate = (rig.p.cycles - c0) / 0.5
