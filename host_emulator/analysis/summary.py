@@ -2,6 +2,12 @@
 
 Analysis, not command-line code: ``python -m host_emulator run``, ``host_emulator.run``, sweeps and the rig's
 experiment runner all build their summaries here.
+
+A sheet (``params.topology.is_sheet``) adds the 2-D pattern measures (analysis.pattern2d, SHEET_KEYS); the chain's
+keys that read the final profile as a chain (CHAIN_ONLY_KEYS: its walls' bond positions, free-end modes, the
+least-squares and 2(N-1)/Z wavelengths) are null there, and domain_walls is the boundary length in bonds (the
+number of bonds across which the sign field changes: on a chain, the same Z); its "dispersion" is null (the chain's
+linear theory does not describe a sheet). A chain's summary is unchanged.
 """
 
 from __future__ import annotations
@@ -24,7 +30,25 @@ if TYPE_CHECKING:
     from ..scene import Scene
     from .stability import Theory
 
-__all__ = ["summarize", "dispersion_summary", "theory_for", "clean", "DISPERSION_KEYS"]
+__all__ = ["summarize", "dispersion_summary", "theory_for", "clean", "DISPERSION_KEYS", "SHEET_KEYS", "CHAIN_ONLY_KEYS"]
+
+# the pattern measures a sheet's summary adds (analysis.pattern2d.measures; docs/patterns2d.md)
+SHEET_KEYS = (
+    "dominant_wavelength_cells",
+    "dominant_wavevector",
+    "orientation_deg",
+    "pattern_kind",
+    "boundary_length_cells",
+    "defects",
+)
+# observables that read the final profile as a chain's: null on a sheet (the keys stay, so every reader finds them)
+CHAIN_ONLY_KEYS = (
+    "domain_wall_bonds",
+    "pattern_wavelength_cells",
+    "dominant_mode",
+    "dominant_mode_lambda_cells",
+    "pattern_period_cells",
+)
 
 
 def clean(v: Any) -> Any:
@@ -84,10 +108,18 @@ def summarize(scene: Scene, res: RunResult, *, source: str | None = None) -> dic
     """summary.json content: run figures, observables of the trajectories, the linear theory of the model that ran,
     parameters and provenance. source: "emulator:<model>" (default), "rehearsal:<model>" or "rig"."""
     obs = observables(res.t, res.alpha, res.beta)
-    try:
-        disp: dict | None = dispersion_summary(scene.params, theory_for(scene), scene.cells)
-    except ImportError:
-        disp = None
+    topo = scene.params.topology
+    if topo.is_sheet:
+        from .pattern2d import measures
+
+        pat = measures(res.t, res.alpha, topo)
+        obs.update(dict.fromkeys(CHAIN_ONLY_KEYS), domain_walls=pat["boundary_length_cells"], **pat)
+    disp: dict | None = None
+    if not topo.is_sheet:  # the chain's linear theory; a sheet's is not wired in here yet (docs/patterns2d.md)
+        try:
+            disp = dispersion_summary(scene.params, theory_for(scene), scene.cells)
+        except ImportError:
+            disp = None
     d = scene.as_dict()
     ran, acc = _as_run(scene, res, source)
     out = {

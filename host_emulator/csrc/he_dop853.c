@@ -69,7 +69,8 @@ static const double BHH1 = 0.244094488188976377952755905512, BHH2 = 0.7338466882
 
 /* ---- scratch layout (N = state entries: 4n with inertia, 2n overdamped; n2 = 2n) ----
  * y, y1, ys [N each], k[13 N] (stage 13 = f at y1: the next step's stage 1), F, C, cI = C/I, iI = 1/I [n2 each],
- * then the switch sides at y and at a probe state [nsw bytes each, nsw <= 9n: within 2 n2 doubles] */
+ * then the switch sides at y and at a probe state [nsw bytes each, nsw <= 17n (he_plant_nswitch): within the
+ * 3 n2 doubles left] */
 typedef struct {
     int n2, N, inertia, nsw;
     double *y, *y1, *ys, *k, *F, *C, *cI, *iI;
@@ -93,6 +94,8 @@ static int ws_bind(const he_plant_t *p, double *work, int64_t len, ws_t *w)
     w->cI = w->C + n2;
     w->iI = w->cI + n2;
     w->nsw = he_plant_nswitch(p);
+    if ((int64_t)2 * w->nsw > (len - (int64_t)(16 * N + 4 * n2)) * (int64_t)sizeof(double))
+        return HE_ERR_NOMEM;
     w->s0 = (unsigned char *)(void *)(w->iI + n2);
     w->s1 = w->s0 + w->nsw;
     /* C = eta + m / S_L is fixed while the driver runs (the hil changes m only between its calls) */

@@ -51,7 +51,7 @@ enum { HE_DOP853_LIMIT_X1000 = 5200 };   /* 5.2: 87 % of the half-disc radius, a
 
 /* Scratch of the fixed-step path (per state entry; he_step.h HE_WORK_PER_STATE covers it) and of the
  * adaptive driver (he_dop853_t.work). */
-#define HE_DOP853_WORK_PER_STATE 38
+#define HE_DOP853_WORK_PER_STATE 39
 
 /*
  * Adaptive driver state: set the tolerances and the scratch with he_dop853_init, then call he_dop853_run /

@@ -89,9 +89,10 @@ void he_hil_sync_encoders(he_hil_t *h, const double *x)
  * The hil default runs one symplectic-Euler step per control tick on the cubic small-angle bands with no
  * floating-point reaction. he_advance recomputes per step what a tick holds fixed (Kt V, and
  * 1 + h C / I with C = eta + m/S_L: three divisions per cylinder) and makes five passes over the state
- * (forces, bonds, update, flush, checks). plant_step_fast does the same arithmetic, in the same order on
+ * (forces, bonds, update, flush, checks). On the open chain plant_step_fast does the same arithmetic, in the same order on
  * the same operands, in two passes over the state (update and checks; then the next step's bond torques and
- * the stretch test) with the per-tick terms cached. Any other configuration, and every step during which a
+ * the stretch test) with the per-tick terms cached; on an edge list (ring, sheet) plant_step_edges does it in
+ * three (the bond torques, the update and checks, the stretch test). Any other configuration, and every step during which a
  * perturbation is on, goes through he_advance. */
 /* MAINTENANCE: plant_step_fast re-does he_plant_forces + he_advance for this configuration only. A new term
  * in he_plant_forces (a torque or voltage limit, another force) must either be added to plant_step_fast in
@@ -101,7 +102,7 @@ static int fast_ok(const he_plant_t *p, int stepper)
 {
     return stepper == HE_STEP_SYMPLECTIC && p->inertia && p->bands == HE_BANDS_CUBIC
         && p->beta_geometry == HE_BETA_SMALL && p->reaction == HE_REACT_NONE && p->n >= 1
-        && p->n <= HE_MAX_CELLS;
+        && p->n <= HE_MAX_CELLS;   /* the open chain (plant_step_fast) or an edge list (plant_step_edges) */
 }
 
 static int pert_active(const he_plant_t *p, double t)
@@ -117,6 +118,7 @@ static int pert_active(const he_plant_t *p, double t)
 struct he_hil_ws {
     he_hil_t *h;
     int n, fast;
+    int edges;         /* the plant has an edge list: the fast step is plant_step_edges */
     int bonds_ok;      /* bond[] holds the bond torques of the current x (fast path) */
     double dt;         /* tick_s / substeps */
     double *mv;        /* [2n] Kt V per cylinder, held over the tick */
@@ -154,6 +156,7 @@ int he_hil_ws_open(he_hil_t *h, he_hil_ws_t **out)
     w->n = n;
     w->dt = h->tick_s / h->substeps;
     w->fast = fast_ok(p, h->stepper);
+    w->edges = p->bonds != NULL;
     w->bonds_ok = 0;
     w->mv = b;
     w->den = b + n2;
@@ -177,8 +180,8 @@ int he_hil_ws_open(he_hil_t *h, he_hil_ws_t **out)
             for (int j = 0; j < n; j++) {
                 w->den_sel[n2 + ch * n + j] = 1.0 + dt * (p->eta[ch][j] + h->kt / p->speed_const) / p->I[ch];
                 w->den_sel[ch * n + j] = 1.0 + dt * (p->eta[ch][j] + 0.0 / p->speed_const) / p->I[ch];
-                /* he_band_torque's ks * band_scale * L * (g+ - g-), evaluated left to right */
-                w->kbl[ch * n + j] = j + 1 < n ? p->kscale[ch][j] * p->band_scale * p->lever[ch] : 0.0;
+                /* he_band_torque's ks * band_scale * L * (g+ - g-), evaluated left to right (the open chain) */
+                w->kbl[ch * n + j] = j + 1 < n && !w->edges ? p->kscale[ch][j] * p->band_scale * p->lever[ch] : 0.0;
             }
     }
     *out = w;
@@ -368,6 +371,41 @@ static int plant_step_fast(const he_plant_t *p, hil_ws_t *w, double *restrict x,
     return HE_OK;
 }
 
+/* ---- fast plant step on an edge list (bit-identical to he_advance for the configuration fast_ok accepts) ----
+ * F = Kt V (w->mv, the products he_plant_forces forms), then he_plant_band_torques' bonds in bond order (the
+ * general path's he_plant_torques without reaction or an active perturbation); then per cylinder
+ * v1 = (v0 + h F/I) / (1 + h C/I), x1 = x0 + h v1 with the tick's cached 1 + h C/I, he_flush_tiny, the bounds of
+ * he_state_check (NaN fails them), he_plant_range_check, and (quiet) the encoders that left their count window,
+ * as plant_step_fast does. w->bond serves as F. */
+static int plant_step_edges(const he_plant_t *p, hil_ws_t *w, double *restrict x, double *restrict v, const int quiet)
+{
+    const int n = w->n, n2 = 2 * n;
+    const double dt = w->dt, cpr = w->h->counts_per_rad;
+    const double *restrict lo = w->enc_lo;
+    int32_t *restrict moved = w->moved;
+    double *restrict F = w->bond;
+    int bad = 0, nm = 0;
+    for (int i = 0; i < n2; i++)
+        F[i] = w->mv[i];
+    he_plant_band_torques(p, x, F);
+    for (int ch = 0; ch < 2; ch++) {
+        const double I = p->I[ch];
+        for (int i = ch * n; i < (ch + 1) * n; i++) {
+            sympl_update(F[i], dt, I, w->den[i], x + i, v + i);
+            bad |= out_of_bounds(x[i], v[i]);
+            if (quiet && !in_window(lo[i], x[i] * cpr))
+                moved[nm++] = i;
+        }
+    }
+    if (bad)
+        return he_state_check(n2, x, v);    /* the first bad entry decides NONFINITE or DIVERGED */
+    if (he_plant_range_check(p, x, NULL) != HE_OK)
+        return HE_ERR_BAND;
+    for (int k = 0; k < nm; k++)
+        encoder_move(w->h, w, moved[k], x[moved[k]]);
+    return HE_OK;
+}
+
 /* Noise off: every encoder whose floor(theta cpr) left its count moves there (after a general plant step; the
  * fast step does this in its update pass). A quiet encoder costs two compares and no conversion (in_window);
  * NaN fails the compares and takes encoder_move's path, as before. */
@@ -514,9 +552,13 @@ int he_hil_run_ws(he_hil_ws_t *w, int64_t n_ticks, double *t, double *x, double 
             double ts = tk + (double)s * dt;
             int rc, stepped_fast = 0;
             if (fast && !pert_active(p, ts + HE_STAGE_EDGE * dt)) {
-                if (!w->bonds_ok)
-                    fast_bonds(p, w, x);       /* torques only: the state's checks come after the step */
-                rc = plant_step_fast(p, w, x, v, !noisy);
+                if (w->edges) {
+                    rc = plant_step_edges(p, w, x, v, !noisy);
+                } else {
+                    if (!w->bonds_ok)
+                        fast_bonds(p, w, x);   /* torques only: the state's checks come after the step */
+                    rc = plant_step_fast(p, w, x, v, !noisy);
+                }
                 stepped_fast = 1;
                 ts = ts + (double)1 * dt;
             } else {

@@ -19,6 +19,18 @@
  *   k_react = Gershgorin bound of the reaction Jacobian (he_react_stiffness in he_plant.c); INFINITY without
  *   reaction (hil: the firmware's torque is held per tick).
  */
+/*
+ * Topologies (he_plant_t.bonds): the open chain's W is tridiagonal per chain (Thomas, above). On an edge list
+ * (ring, sheet) W = D + w K per chain, K the bond Laplacian with the tangent slopes (symmetric; positive definite
+ * while every slope is >= 0, the taut or slack cubic band's and the linear band's), solved by conjugate
+ * gradients with W's diagonal as preconditioner, from the Jacobi guess, to the relative residual
+ * |r - W u|_2 <= HE_IMEX_CG_RTOL |r|_2 in at most HE_IMEX_CG_MAXIT(n) iterations; HE_ERR_SOLVE when it does not
+ * get there (or meets a non-positive curvature). W = I + h C + h^2 K is close to its diagonal for the steps
+ * the run takes, so it converges in a few iterations.
+ */
+#define HE_IMEX_CG_RTOL 1e-13
+#define HE_IMEX_CG_MAXIT(n) (2 * (n) + 100)
+
 /* Entry points: he_imex_advance, he_imex_limit (declared in he_step.h). */
 
 #endif /* HE_IMEX_H */

@@ -1,5 +1,6 @@
 /* Plant physics of the emulated lattice: torques, their slopes and bounds (equations beside the code; steppers in he_step.c). */
 #include <math.h>
+#include <stdlib.h>
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
@@ -19,6 +20,8 @@ static double band_force(const he_plant_t *p, int ch, double d)
     return p->slack_f0 ? p->coef[ch][0] : 0.0;
 }
 
+int he_plant_nbond(const he_plant_t *p) { return p->bonds ? p->nbond : p->n - 1; }
+
 int he_plant_check(const he_plant_t *p)
 {
     if (!p || p->n < 1 || p->n > HE_MAX_CELLS || p->npert < 0 || p->npert > HE_MAX_PERT)
@@ -29,6 +32,19 @@ int he_plant_check(const he_plant_t *p)
         return HE_ERR_ARG;
     if (p->reaction != HE_REACT_NONE && p->reaction != HE_REACT_IDEAL)
         return HE_ERR_ARG;
+    if (!p->eta[0] || !p->eta[1] || !p->kscale[0] || !p->kscale[1] || !p->mgain[0] || !p->mgain[1] ||
+        !p->volt[0] || !p->volt[1])
+        return HE_ERR_ARG;
+    if (p->bonds) {
+        if (p->nbond < 0 || p->nbond > HE_MAX_BONDS_PER_CELL * p->n)
+            return HE_ERR_ARG;
+        for (int b = 0; b < p->nbond; b++) {
+            int32_t i = p->bonds[2 * b], k = p->bonds[2 * b + 1];
+            if (i < 0 || i >= p->n || k < 0 || k >= p->n || i == k)
+                return HE_ERR_ARG;
+        }
+    }
+    int nks = p->bonds ? p->nbond : p->n;   /* the open chain's rows hold n factors, the last unused */
     for (int ch = 0; ch < 2; ch++) {
         if (p->inertia && !(p->I[ch] > 0.0 && isfinite(p->I[ch])))
             return HE_ERR_ARG;
@@ -36,12 +52,15 @@ int he_plant_check(const he_plant_t *p)
             return HE_ERR_ARG;
         for (int j = 0; j < p->n; j++) {
             double c = he_damping(p, ch, j);
-            if (!isfinite(p->eta[ch][j]) || p->eta[ch][j] < 0.0 || !isfinite(p->kscale[ch][j]) ||
-                !isfinite(p->mgain[ch][j]) || !isfinite(p->volt[ch][j]))
+            if (!isfinite(p->eta[ch][j]) || p->eta[ch][j] < 0.0 || !isfinite(p->mgain[ch][j]) ||
+                !isfinite(p->volt[ch][j]))
                 return HE_ERR_ARG;
             if (!p->inertia && !(c > 0.0))
                 return HE_ERR_ARG;   /* overdamped needs damping on every cylinder */
         }
+        for (int b = 0; b < nks; b++)
+            if (!isfinite(p->kscale[ch][b]))
+                return HE_ERR_ARG;
     }
     if (!(p->lattice_m > 0.0) || !(p->speed_const > 0.0) || !isfinite(p->band_scale) || !(p->react_limit > 0.0))
         return HE_ERR_ARG;
@@ -86,9 +105,21 @@ int he_plant_range_check(const he_plant_t *p, const double *x, int *where)
 {
     if (p->bands != HE_BANDS_CUBIC)
         return HE_OK;
+    const int32_t *bd = p->bonds;
     for (int ch = 0; ch < 2; ch++) {
         double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
         const double *xc = x + ch * p->n;
+        if (bd) {
+            for (int b = 0; b < p->nbond; b++) {
+                /* the longer band of the pair: delta0 + L*|x_i - x_k| (small-angle measure), as below */
+                if (p->delta0[ch] + p->lever[ch] * fabs(xc[bd[2 * b]] - xc[bd[2 * b + 1]]) > lim) {
+                    if (where)
+                        *where = b + ch * p->nbond;
+                    return HE_ERR_BAND;
+                }
+            }
+            continue;
+        }
         for (int j = 0; j + 1 < p->n; j++) {
             /* the longer band of the pair: delta0 + L*|x_j - x_j+1| (small-angle measure) */
             if (p->delta0[ch] + p->lever[ch] * fabs(xc[j] - xc[j + 1]) > lim) {
@@ -101,7 +132,7 @@ int he_plant_range_check(const he_plant_t *p, const double *x, int *where)
     return HE_OK;
 }
 
-/* tangent stiffness of bond j of chain ch: d tau / d(x_j - x_{j+1}) (small-angle form) */
+/* tangent stiffness of bond j of chain ch: d tau / d(x_i - x_k) over its cells i, k (small-angle form) */
 double he_bond_slope(const he_plant_t *p, int ch, int j, double dx)
 {
     double ks = p->kscale[ch][j];
@@ -232,6 +263,78 @@ static void cubic_bonds(const he_plant_t *p, int ch, const double *restrict xc, 
     }
 }
 
+/* The bonds of an edge list with cubic small-angle bands: cubic_bonds' operations on each bond b = (i, k),
+ *   T_b = ((ks_b * band_scale) * L) * (g(d0 + u) - g(d0 - u)),  u = L (x_i - x_k),
+ * then Fc[i] -= T_b, Fc[k] += T_b in bond order (he_band_torque's law; the open chain's order when the list is
+ * the chain's). A block of bonds at a time: their differences gathered first, then the torques two per SSE2
+ * instruction where there is SSE2, then scattered; no call per bond. */
+static void cubic_edges(const he_plant_t *p, int ch, const double *restrict xc, double *restrict Fc)
+{
+    enum { BLK = 64 };
+    double T[BLK];
+    const int nb = p->nbond;
+    const int32_t *restrict bd = p->bonds;
+    const double *c = p->coef[ch];
+    const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale;
+    const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3], slack = p->slack_f0 ? c[0] : 0.0;
+    const double *ks = p->kscale[ch];
+    for (int b0 = 0; b0 < nb; b0 += BLK) {
+        int m = nb - b0 < BLK ? nb - b0 : BLK, i = 0;
+        const int32_t *ib = bd + 2 * b0;
+        const double *kb = ks + b0;
+        for (int q = 0; q < m; q++)
+            T[q] = xc[ib[2 * q]] - xc[ib[2 * q + 1]];
+#ifdef __SSE2__
+        const __m128d Lv = _mm_set1_pd(L), d0v = _mm_set1_pd(d0), bsv = _mm_set1_pd(bs), zero = _mm_setzero_pd();
+        const __m128d c0v = _mm_set1_pd(c0), c1v = _mm_set1_pd(c1), c2v = _mm_set1_pd(c2), c3v = _mm_set1_pd(c3);
+        const __m128d slk = _mm_set1_pd(slack);
+        for (; i + 2 <= m; i += 2) {
+            __m128d u = _mm_mul_pd(Lv, _mm_loadu_pd(T + i));
+            __m128d dp = _mm_add_pd(d0v, u), dm = _mm_sub_pd(d0v, u);
+            __m128d gp = _mm_add_pd(c0v, _mm_mul_pd(dp, _mm_add_pd(c1v, _mm_mul_pd(dp, _mm_add_pd(c2v, _mm_mul_pd(dp, c3v))))));
+            __m128d gm = _mm_add_pd(c0v, _mm_mul_pd(dm, _mm_add_pd(c1v, _mm_mul_pd(dm, _mm_add_pd(c2v, _mm_mul_pd(dm, c3v))))));
+            __m128d mp = _mm_cmpgt_pd(dp, zero), mm = _mm_cmpgt_pd(dm, zero);
+            gp = _mm_or_pd(_mm_and_pd(mp, gp), _mm_andnot_pd(mp, slk));
+            gm = _mm_or_pd(_mm_and_pd(mm, gm), _mm_andnot_pd(mm, slk));
+            __m128d kbl = _mm_mul_pd(_mm_mul_pd(_mm_loadu_pd(kb + i), bsv), Lv);
+            _mm_storeu_pd(T + i, _mm_mul_pd(kbl, _mm_sub_pd(gp, gm)));
+        }
+#endif
+        for (; i < m; i++) {
+            double u = L * T[i];
+            double dp = d0 + u, dm = d0 - u;
+            double gp = dp > 0.0 ? c0 + dp * (c1 + dp * (c2 + dp * c3)) : slack;
+            double gm = dm > 0.0 ? c0 + dm * (c1 + dm * (c2 + dm * c3)) : slack;
+            T[i] = kb[i] * bs * L * (gp - gm);
+        }
+        for (i = 0; i < m; i++) {
+            Fc[ib[2 * i]] -= T[i];
+            Fc[ib[2 * i + 1]] += T[i];
+        }
+    }
+}
+
+/* Band torques of an edge list for the other laws (linear bands, the geometric beta form): he_band_torque on
+ * each bond, reciprocal (-T on i, +T on k) except the geometric form, which is evaluated from each end. */
+static void other_edges(const he_plant_t *p, int ch, const double *xc, double *Fc)
+{
+    const int32_t *bd = p->bonds;
+    if (p->bands == HE_BANDS_LINEAR || ch == 0 || p->beta_geometry == HE_BETA_SMALL) {
+        for (int b = 0; b < p->nbond; b++) {
+            int i = bd[2 * b], k = bd[2 * b + 1];
+            double T = he_band_torque(p, ch, b, xc[i], xc[k]);
+            Fc[i] -= T;
+            Fc[k] += T;
+        }
+        return;
+    }
+    for (int b = 0; b < p->nbond; b++) {
+        int i = bd[2 * b], k = bd[2 * b + 1];
+        Fc[i] -= he_band_torque(p, ch, b, xc[i], xc[k]);
+        Fc[k] -= he_band_torque(p, ch, b, xc[k], xc[i]);
+    }
+}
+
 /* R of every cell, clipped to +-react_limit, added to F (he_reaction and the clip of he_plant_torques, the same
  * operations; two cells per SSE2 instruction where there is SSE2). */
 static void add_reaction(const he_plant_t *p, const double *restrict x, double *restrict F)
@@ -293,7 +396,12 @@ void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
         double *Fc = F + ch * n;
         for (int j = 0; j < n; j++)
             Fc[j] = p->mgain[ch][j] * p->volt[ch][j];            /* Kt*V */
-        if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+        if (p->bonds) {
+            if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL))
+                cubic_edges(p, ch, xc, Fc);
+            else
+                other_edges(p, ch, xc, Fc);
+        } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
             cubic_bonds(p, ch, xc, Fc);                           /* the loop below, unrolled for this law */
         } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
             /* reciprocal bond: torque -T on j and +T on j+1 */
@@ -318,11 +426,39 @@ void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
     }
 }
 
+void he_plant_band_torques(const he_plant_t *p, const double *x, double *F)
+{
+    int n = p->n;
+    for (int ch = 0; ch < 2; ch++) {
+        const double *xc = x + ch * n;
+        double *Fc = F + ch * n;
+        if (p->bonds) {
+            if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL))
+                cubic_edges(p, ch, xc, Fc);
+            else
+                other_edges(p, ch, xc, Fc);
+        } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+            cubic_bonds(p, ch, xc, Fc);
+        } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+            for (int j = 0; j + 1 < n; j++) {
+                double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+                Fc[j] -= T;
+                Fc[j + 1] += T;
+            }
+        } else {
+            for (int j = 0; j + 1 < n; j++) {
+                Fc[j] -= he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+                Fc[j + 1] -= he_band_torque(p, ch, j, xc[j + 1], xc[j]);
+            }
+        }
+    }
+}
+
 int he_plant_nswitch(const he_plant_t *p)
 {
     int n = p->n, m = 0;
     if (p->bands == HE_BANDS_CUBIC)
-        m += 4 * (n - 1);
+        m += 4 * he_plant_nbond(p);
     if (p->reaction == HE_REACT_IDEAL)
         m += isfinite(p->react_limit) ? 5 * n : n;
     return m;
@@ -334,18 +470,21 @@ int he_plant_switches(const he_plant_t *p, const double *x, unsigned char *side)
 {
     int n = p->n, m = 0;
     if (p->bands == HE_BANDS_CUBIC) {
+        const int nb = he_plant_nbond(p);
         for (int ch = 0; ch < 2; ch++) {
             const double *xc = x + ch * n;
             double L = p->lever[ch], d0 = p->delta0[ch];
-            for (int j = 0; j + 1 < n; j++) {
+            for (int j = 0; j < nb; j++) {
+                /* bond j's cells: (j, j+1) on the open chain, else the edge list's pair */
+                int i0 = p->bonds ? p->bonds[2 * j] : j, i1 = p->bonds ? p->bonds[2 * j + 1] : j + 1;
                 if (ch == 0 || p->beta_geometry == HE_BETA_SMALL) {
-                    double u = L * (xc[j] - xc[j + 1]);
+                    double u = L * (xc[i0] - xc[i1]);
                     side[m++] = d0 + u > 0.0;
                     side[m++] = d0 - u > 0.0;
                 } else {
-                    /* he_band_torque's geometric stretches (the bond seen from j+1 swaps them, bit for bit) */
+                    /* he_band_torque's geometric stretches (the bond seen from i1 swaps them, bit for bit) */
                     double a = p->lattice_m;
-                    double ds = sin(xc[j]) - sin(xc[j + 1]), dc = cos(xc[j]) - cos(xc[j + 1]);
+                    double ds = sin(xc[i0]) - sin(xc[i1]), dc = cos(xc[i0]) - cos(xc[i1]);
                     double xp = a + L * ds, xm = a - L * ds, yy = L * dc;
                     double lp = sqrt(xp * xp + yy * yy), lm = sqrt(xm * xm + yy * yy);
                     side[m++] = d0 + (lp - a) > 0.0;
@@ -375,16 +514,40 @@ int he_plant_switches(const he_plant_t *p, const double *x, unsigned char *side)
     return m;
 }
 
+/* The largest sum over a cell of |kscale| of its bonds (an edge list's Gershgorin row, in units of kb), in a
+ * scratch array of n doubles; without memory for it, nbond * max|kscale| (no cell has more bonds than that). */
+static double edge_row_max(const he_plant_t *p, int ch)
+{
+    const double *ks = p->kscale[ch];
+    double *row = calloc((size_t)p->n, sizeof(double)), m = 0.0;
+    if (!row) {
+        for (int b = 0; b < p->nbond; b++)
+            m = fabs(ks[b]) > m ? fabs(ks[b]) : m;
+        return (double)p->nbond * m;
+    }
+    for (int b = 0; b < p->nbond; b++) {
+        row[p->bonds[2 * b]] += fabs(ks[b]);
+        row[p->bonds[2 * b + 1]] += fabs(ks[b]);
+    }
+    for (int j = 0; j < p->n; j++)
+        m = row[j] > m ? row[j] : m;
+    free(row);
+    return m;
+}
+
 void he_plant_bounds(const he_plant_t *p, double w2[2], double cmin[2], double cmax[2], double rate[2])
 {
     /* Gershgorin bound of the linearised stiffness rows:
      *   alpha: 4*kband + max|k_ab + psi''| + |k_ab - sigma|
      *   beta : 4*kband + 2|k_ab|
+     * (the open chain; an edge list's 4 is 2 x the most bonds at a cell, weighted by their factors)
      * kband: linear k*max(kscale); cubic s*2*L^2*max f' over [0, delta_max]
      * (f' is convex, so its maximum is at an end), plus the geometric tension term. */
     for (int ch = 0; ch < 2; ch++) {
-        double ksmax = 0.0;
-        for (int j = 0; j + 1 < p->n; j++)
+        /* ksmax: the open chain's largest factor, the row's bonds counted by the 4 (two bonds, each kb on the
+         * diagonal and kb off it); an edge list's rows: the largest sum of |factor| over a cell's bonds, times 2 */
+        double ksmax = p->bonds ? 0.5 * edge_row_max(p, ch) : 0.0;
+        for (int j = 0; !p->bonds && j + 1 < p->n; j++)
             ksmax = fabs(p->kscale[ch][j]) > ksmax ? fabs(p->kscale[ch][j]) : ksmax;
         if (p->n < 2)
             ksmax = 0.0;

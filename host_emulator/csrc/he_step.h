@@ -29,7 +29,7 @@ enum { HE_STEP_EULER = 0, HE_STEP_SYMPLECTIC = 1, HE_STEP_RK4 = 2, HE_STEP_NOH_B
  * 13 stages of x and v, the state, a stage state and the new state, F, C, C/I, 1/I and the switch sides). Taken from he_plant_t.work when it is large
  * enough, else malloc'd per he_advance call (HE_ERR_NOMEM if that fails). No stepper keeps a stack array sized
  * by the cell count. */
-#define HE_WORK_PER_STATE 38
+#define HE_WORK_PER_STATE 39
 
 /* Largest stable step (s) for this plant and stepper, from he_plant_bounds (the formula of each method is
  * in its header). Returns a negative value for an unknown stepper, INFINITY when nothing limits. */

@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import params as P
 from ..params import Params
+from ..topology import Topology
 from .options import ModelOptions, Perturbation
 
 # he_plant_t -> its scratch buffer: cffi frees the buffer when the plant goes (weak keys)
@@ -24,20 +25,35 @@ class NumericalInstability(RuntimeError):
 
 
 def spreads(params: Params, options: ModelOptions, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-bond band-stiffness factors (2, n) and per-cell eta factors (2, n) from the seeded noise options.
+    """Per-bond band-stiffness factors (2, nb) and per-cell eta factors (2, n) from the seeded noise options.
 
     Factor = max(0.2, 1 + s * N(0, 1)) (distribution "normal"), or uniform in [1 - s, 1 + s] ("uniform"). Honey
-    (eta_spread) is on the alpha chain only.
+    (eta_spread) is on the alpha chain only. The open chain of n cells: nb = n, bond j = (j, j + 1) in column j,
+    the last column 1 (no bond); any other topology (params.topology, a ring or a sheet of n cells): nb = its
+    number of bonds, column b = bond b of Topology.bonds. One draw of (2, bonds) then one of n, from the seed.
     """
     nz = options.noise
     rng = np.random.default_rng(nz.seed)
-    band = np.ones((2, n))
+    topo = plant_topology(params, n)
+    nbond = n - 1 if topo is None else topo.nbond
+    band = np.ones((2, n if topo is None else nbond))
     eta = np.ones((2, n))
     if nz.band_spread > 0:
-        band[:, : n - 1] = factors(rng, nz.band_spread, (2, n - 1), nz.distribution)
+        band[:, :nbond] = factors(rng, nz.band_spread, (2, nbond), nz.distribution)
     if nz.eta_spread > 0:
         eta[0] = factors(rng, nz.eta_spread, n, nz.distribution)
     return band, eta
+
+
+def plant_topology(params: Params, n: int) -> Topology | None:
+    """The topology whose bonds the plant gets: None for the open chain (the compiled plant's own chain
+    kernels, bonds (j, j + 1)), else params.topology (a ring or a sheet); n must be its number of cells."""
+    topo = params.topology
+    if topo.is_open_chain:
+        return None
+    if topo.n != n:
+        raise ValueError(f"{topo.describe()}: the plant was asked for {n} cells")
+    return topo
 
 
 def factors(rng: np.random.Generator, s: float, shape, distribution: str = "normal") -> np.ndarray:
@@ -85,7 +101,8 @@ def build_plant(
     *,
     ideal_reaction: bool,
 ) -> Any:  # cffi FFI/lib in, the he_plant_t cdata out
-    """A new he_plant_t (cffi owned) for n cells. Raises ValueError if the C side rejects it."""
+    """A new he_plant_t (cffi owned) for n cells, the bonds of params.topology (the open chain: bonds NULL, its own
+    compiled kernels). Raises ValueError if the C side rejects it."""
     if not 1 <= n <= lib.HE_MAX_CELLS:
         raise ValueError(f"cells = {n}: must be in 1..{lib.HE_MAX_CELLS}")
     if len(perturbations) > lib.HE_MAX_PERT:
@@ -121,11 +138,28 @@ def build_plant(
     p.speed_const = params.speed_const
     p.react_limit = params.torque_limit_nm  # inf: no actuator limit
     band, eta = spreads(params, options, n)
-    for j in range(n):
-        p.eta[0][j] = params.eta_alpha * eta[0, j]
-        p.eta[1][j] = params.eta_beta * eta[1, j]
-        p.kscale[0][j] = band[0, j]
-        p.kscale[1][j] = band[1, j]
+    topo = plant_topology(params, n)
+    nb = band.shape[1]
+    # the per-cylinder rows eta, mgain, volt (n each) and the per-bond kscale rows (nb each), one owned block
+    arrays = np.zeros(6 * n + 2 * nb)
+    arrays[:n] = params.eta_alpha * eta[0]
+    arrays[n : 2 * n] = params.eta_beta * eta[1]
+    arrays[6 * n :] = band.ravel()
+    mem = ffi.new("double[]", len(arrays))
+    ffi.memmove(mem, ffi.from_buffer("double[]", arrays), arrays.nbytes)
+    p.eta = [mem, mem + n]
+    p.mgain = [mem + 2 * n, mem + 3 * n]
+    p.volt = [mem + 4 * n, mem + 5 * n]
+    p.kscale = [mem + 6 * n, mem + 6 * n + nb]
+    if topo is None:
+        bonds = ffi.NULL  # the open chain: bonds (j, j + 1), the compiled chain kernels
+        p.nbond = 0
+    else:
+        pairs = np.ascontiguousarray(topo.bonds, dtype=np.int32)
+        bonds = ffi.new("int32_t[]", max(1, pairs.size))
+        ffi.memmove(bonds, ffi.from_buffer("int32_t[]", pairs), pairs.nbytes)
+        p.nbond = len(pairs)
+    p.bonds = bonds
     p.npert = len(perturbations)
     for i, q in enumerate(perturbations):
         e = p.pert[i]
@@ -138,7 +172,7 @@ def build_plant(
     work = ffi.new("double[]", lib.HE_WORK_PER_STATE * 2 * n)
     p.work = work
     p.work_len = lib.HE_WORK_PER_STATE * 2 * n
-    _keepalive[p] = (work, rc)
+    _keepalive[p] = (work, rc, mem, bonds)
     if lib.he_plant_check(p) != lib.HE_OK:
         raise ValueError(
             "plant parameters rejected (non-positive inertia/damping or non-finite value); "
@@ -167,6 +201,10 @@ def error_text(lib: Any, rc: int) -> str:
         lib.HE_ERR_ARG: "invalid plant configuration",
         lib.HE_ERR_STEPPER: "unknown stepper id",
         lib.HE_ERR_NOMEM: "out of memory for the run's scratch arrays",
+        lib.HE_ERR_SOLVE: (
+            "the IMEX stepper's sparse solve (conjugate gradients on the bonds) did not converge: the implicit "
+            "matrix lost its positive definiteness (a band law with a negative slope) or the step is far too large"
+        ),
         lib.HE_ERR_TOL: (
             "the adaptive step control needed a step below its smallest step (1e-12 s): the error tolerance "
             "cannot be met there (a discontinuity or a stiff stretch); loosen model_options.tol"

@@ -39,7 +39,11 @@ class ReferencePlant:
         self.perts = list(perturbations)
         self.ideal = ideal_reaction
         band, eta = spreads(params, self.o, self.n)
-        self.band = band[:, : self.n - 1]
+        topo = params.topology
+        # bonds (i, k), 0-based: None for the open chain (its (j, j+1) bonds, written out below), else the
+        # topology's edge list (a ring, a sheet), one band factor per bond
+        self.bonds = None if topo.is_open_chain else np.asarray(topo.bonds, dtype=np.intp)
+        self.band = band[:, : self.n - 1] if self.bonds is None else band
         self.eta = np.concatenate([params.eta_alpha * eta[0], params.eta_beta * eta[1]])
         self.I = np.concatenate([np.full(self.n, params.I_a), np.full(self.n, params.I_b)])
 
@@ -74,9 +78,19 @@ class ReferencePlant:
         return self.p.band_scale * L * total
 
     def band_torques(self, x: np.ndarray) -> np.ndarray:
-        """Net band torque on every cylinder: -tau(x_j, x_{j-1}) - tau(x_j, x_{j+1}), free ends."""
+        """Net band torque on every cylinder: -tau(x_j, x_{j-1}) - tau(x_j, x_{j+1}), free ends (the open chain);
+        on any other topology -sum over the bonds (i, k) at a cell of tau(x_self, x_other), each bond seen from
+        both of its cells (np.add.at sums the bonds at a cell)."""
         n = self.n
         out = np.zeros(2 * n)
+        if self.bonds is not None:
+            i, k = self.bonds[:, 0], self.bonds[:, 1]
+            for ch in range(2):
+                xc = x[ch * n : (ch + 1) * n]
+                o = out[ch * n : (ch + 1) * n]
+                np.add.at(o, i, -self.band[ch] * self.bond_torque(ch, xc[i], xc[k]))  # on i from k
+                np.add.at(o, k, -self.band[ch] * self.bond_torque(ch, xc[k], xc[i]))  # on k from i
+            return out
         for ch in range(2):
             xc = x[ch * n : (ch + 1) * n]
             right = self.band[ch] * self.bond_torque(ch, xc[:-1], xc[1:])  # on j from j+1

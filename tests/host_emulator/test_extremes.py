@@ -270,7 +270,8 @@ def test_single_cell_matches_reaction_theory():
 @pytest.mark.parametrize("model", ["lattice", "hil"])
 def test_4096_cells_runs_and_does_not_depend_on_size(model):
     """4096 cells: runs finite; 0.3 s after a push on cell 8 the first 64 cells are exactly those of a 256-cell
-    lattice (the signal has not reached either far end: nothing depends on the array size). 4097 is refused."""
+    lattice (the signal has not reached either far end: nothing depends on the array size). The compiled plant
+    refuses more than HE_MAX_CELLS = 65536 (a 256 x 256 sheet)."""
 
     def run(n):
         cls = LatticeModel if model == "lattice" else HilModel
@@ -283,8 +284,8 @@ def test_4096_cells_runs_and_does_not_depend_on_size(model):
     assert np.all(np.isfinite(big)) and np.abs(big[:16]).max() > 0.2
     assert np.abs(big[:64] - small[:64]).max() < 1e-12
     assert np.abs(big[4096 : 4096 + 64] - small[256 : 256 + 64]).max() < 1e-12
-    with pytest.raises(ValueError, match="4096"):
-        LatticeModel(Params(cells=4097), [], ModelOptions())
+    with pytest.raises(ValueError, match="65536"):
+        LatticeModel(Params(cells=65537), [], ModelOptions())
 
 
 def test_scene_accepts_4096_cells_and_refuses_more():

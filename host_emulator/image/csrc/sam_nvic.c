@@ -1,4 +1,5 @@
 /* Exceptions (ARMv6-M, a software NVIC): priorities, pending and active bits, entry, return and tail-chaining. */
+#include <stdio.h>
 #include "sam_core.h"
 
 static int exc_prio(const sam_mcu_t *m, int e)
@@ -81,6 +82,66 @@ void sam_irq_pend_sys(sam_mcu_t *m, int exc)
     m->irq_check = 1;
 }
 
+/* Mark exception e pending (on = 1) or not, and active (on = 1) or not: the NVIC's bits for IRQs, SCB's for the
+ * system exceptions. */
+static void set_pending(sam_mcu_t *m, int e, int on)
+{
+    uint32_t *bits = e >= 16 ? &m->nvic.pending : &m->nvic.sys_pending;
+    uint32_t bit = 1u << (e >= 16 ? e - 16 : e);
+    *bits = on ? *bits | bit : *bits & ~bit;
+}
+
+static void set_active(sam_mcu_t *m, int e, int on)
+{
+    uint32_t *bits = e >= 16 ? &m->nvic.active : &m->nvic.sys_active;
+    uint32_t bit = 1u << (e >= 16 ? e - 16 : e);
+    *bits = on ? *bits | bit : *bits & ~bit;
+}
+
+/* Take exception e's vector: read it from the table at VTOR (lockup, 0, when unreadable or not Thumb), then e
+ * leaves pending and becomes active. The first step of every entry: a fresh one, a late arrival, a tail-chain. */
+static int take_vector(sam_mcu_t *m, int e, uint32_t *vec)
+{
+    int ok = 0;
+    *vec = sam_mem_read32(m, m->nvic.vtor + 4u * (uint32_t)e, &ok);
+    if (!ok || !(*vec & 1u)) {
+        sam_cpu_lockup(m, "exception vector unreadable or not Thumb");
+        return 0;
+    }
+    set_pending(m, e, 0);
+    set_active(m, e, 1);
+    if (e == 3)
+        m->hardfaults++;
+    return 1;
+}
+
+/* The last step of every entry: IPSR = e, the handler's first instruction next, e recorded as being entered. */
+static void run_handler(sam_mcu_t *m, int e, uint32_t vec)
+{
+    sam_cpu_set(m, UC_ARM_REG_IPSR, (uint32_t)e);
+    sam_cpu_rebuild_hflags(m);
+    sam_cpu_set(m, UC_ARM_REG_PC, vec);
+    m->nvic.entering = (uint8_t)e;
+    m->irq_check = 1;
+}
+
+/* Trace line of an entry into e from context `from` at address ret (late = the exception left pending by a late
+ * arrival, 0 for none): trace bit 3 in microseconds, bit 5 in time units. */
+static void trace_enter(sam_mcu_t *m, int e, uint32_t from, uint32_t ret, int late)
+{
+    if (!(m->w->cfg.trace_boards >> m->id & 1))
+        return;
+    char tail[48] = "";
+    if (late)
+        snprintf(tail, sizeof tail, " (late arrival: %d pending)", late);
+    if (m->w->cfg.trace & 8)
+        sam_note(m, "exc %.3f us %s enter %d from %u at 0x%05x%s", (double)m->t * 1e6 / (double)SAM_TU_HZ, m->name,
+                 e, from, ret, tail);
+    else if (m->w->cfg.trace & 32)
+        sam_note(m, "chg %llu %s enter %d from %u at 0x%05x%s", (unsigned long long)m->t, m->name, e, from, ret,
+                 tail);
+}
+
 /* Stack the caller-saved frame and enter exception e; ret = address of the next instruction. 1 on success. */
 int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret)
 {
@@ -103,37 +164,16 @@ int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret)
             sam_cpu_lockup(m, "exception stack frame outside SRAM");
             return 0;
         }
-    int ok = 0;
-    uint32_t vec = sam_mem_read32(m, m->nvic.vtor + 4u * (uint32_t)e, &ok);
-    if (!ok || !(vec & 1u)) {
-        sam_cpu_lockup(m, "exception vector unreadable or not Thumb");
+    uint32_t vec;
+    if (!take_vector(m, e, &vec))
         return 0;
-    }
-    if (e >= 16) {
-        m->nvic.pending &= ~(1u << (e - 16));
-        m->nvic.active |= 1u << (e - 16);
-    } else {
-        m->nvic.sys_pending &= ~(1u << e);
-        m->nvic.sys_active |= 1u << e;
-    }
-    if ((m->w->cfg.trace & 8) && (m->w->cfg.trace_boards >> m->id & 1))
-        sam_note(m, "exc %.3f us %s enter %d from %u at 0x%05x", (double)m->t * 1e6 / (double)SAM_TU_HZ,
-                       m->name, e, ipsr, ret);
-    else if ((m->w->cfg.trace & 32) && (m->w->cfg.trace_boards >> m->id & 1))
-        sam_note(m, "chg %llu %s enter %d from %u at 0x%05x", (unsigned long long)m->t, m->name, e, ipsr,
-                       ret);
+    trace_enter(m, e, ipsr, ret, 0);
     sam_cpu_set(m, UC_ARM_REG_SP, frame);
     sam_cpu_set(m, UC_ARM_REG_LR, ipsr ? EXC_RETURN_HANDLER : EXC_RETURN_THREAD);
-    sam_cpu_set(m, UC_ARM_REG_IPSR, (uint32_t)e);
-    sam_cpu_rebuild_hflags(m);
-    sam_cpu_set(m, UC_ARM_REG_PC, vec);
+    run_handler(m, e, vec);
     m->t += (uint64_t)EXC_ENTRY_CYCLES * m->cyc_tu;
     m->cycles += EXC_ENTRY_CYCLES;
     m->act++;
-    m->irq_check = 1;
-    m->nvic.entering = (uint8_t)e;
-    if (e == 3)
-        m->hardfaults++;
     return 1;
 }
 
@@ -143,42 +183,16 @@ int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret)
  * cost; the first stays pending, its handler runs after (tail-chained) unless it is pre-empted again. */
 static void late_arrival(sam_mcu_t *m, int e0, int e)
 {
-    int ok = 0;
-    uint32_t vec = sam_mem_read32(m, m->nvic.vtor + 4u * (uint32_t)e, &ok);
-    if (!ok || !(vec & 1u)) {
-        sam_cpu_lockup(m, "exception vector unreadable or not Thumb");
+    uint32_t vec;
+    if (!take_vector(m, e, &vec))
         return;
-    }
-    if (e0 >= 16) {
-        m->nvic.active &= ~(1u << (e0 - 16));
-        m->nvic.pending |= 1u << (e0 - 16);
-    } else {
-        m->nvic.sys_active &= ~(1u << e0);
-        m->nvic.sys_pending |= 1u << e0;
-    }
-    if (e >= 16) {
-        m->nvic.pending &= ~(1u << (e - 16));
-        m->nvic.active |= 1u << (e - 16);
-    } else {
-        m->nvic.sys_pending &= ~(1u << e);
-        m->nvic.sys_active |= 1u << e;
-    }
-    if (e == 3)
-        m->hardfaults++;
+    set_active(m, e0, 0);
+    set_pending(m, e0, 1);
     uint32_t sp = sam_cpu_reg(m, UC_ARM_REG_SP);
     uint32_t ret = sam_mem_read32(m, sp + 24u, NULL), from = sam_mem_read32(m, sp + 28u, NULL) & 0x3Fu;
-    if ((m->w->cfg.trace & 8) && (m->w->cfg.trace_boards >> m->id & 1))
-        sam_note(m, "exc %.3f us %s enter %d from %u at 0x%05x (late arrival: %d pending)",
-                 (double)m->t * 1e6 / (double)SAM_TU_HZ, m->name, e, from, ret, e0);
-    else if ((m->w->cfg.trace & 32) && (m->w->cfg.trace_boards >> m->id & 1))
-        sam_note(m, "chg %llu %s enter %d from %u at 0x%05x (late arrival: %d pending)", (unsigned long long)m->t,
-                 m->name, e, from, ret, e0);
-    sam_cpu_set(m, UC_ARM_REG_IPSR, (uint32_t)e);
-    sam_cpu_rebuild_hflags(m);
-    sam_cpu_set(m, UC_ARM_REG_PC, vec);
-    m->nvic.entering = (uint8_t)e;
+    trace_enter(m, e, from, ret, e0);
+    run_handler(m, e, vec);
     m->act++;
-    m->irq_check = 1;
 }
 
 /* Take the best pending exception if it may pre-empt now; ret = where the interrupted code resumes. */
@@ -215,14 +229,10 @@ void sam_nvic_return(sam_mcu_t *m)
         sam_fail(m, "exception return 0x%08x (only the main stack is modelled)", excret);
         return;
     }
-    /* deactivate e */
-    if (e >= 16) {
-        m->nvic.active &= ~(1u << (e - 16));
-        if (m->nvic.level & (1u << (e - 16)))
-            m->nvic.pending |= 1u << (e - 16);   /* still requested: pending again */
-    } else {
-        m->nvic.sys_active &= ~(1u << e);
-    }
+    /* deactivate e; an interrupt still requested is pending again */
+    set_active(m, e, 0);
+    if (e >= 16 && m->nvic.level & (1u << (e - 16)))
+        set_pending(m, e, 1);
     uint32_t sp = sam_cpu_reg(m, UC_ARM_REG_SP);
     int ok = 1;
     uint32_t f[8];
@@ -247,29 +257,13 @@ void sam_nvic_return(sam_mcu_t *m)
     int bp;
     int e2 = sam_nvic_best_pending(m, &bp);
     if (e2 && bp < sam_nvic_exec_prio(m) && !(bp >= 0 && (sam_cpu_reg(m, UC_ARM_REG_PRIMASK) & 1u))) {
-        int ok2 = 0;
-        uint32_t vec = sam_mem_read32(m, m->nvic.vtor + 4u * (uint32_t)e2, &ok2);
-        if (!ok2 || !(vec & 1u)) {
-            sam_cpu_lockup(m, "exception vector unreadable or not Thumb");
+        uint32_t vec;
+        if (!take_vector(m, e2, &vec))
             return;
-        }
-        if (e2 >= 16) {
-            m->nvic.pending &= ~(1u << (e2 - 16));
-            m->nvic.active |= 1u << (e2 - 16);
-        } else {
-            m->nvic.sys_pending &= ~(1u << e2);
-            m->nvic.sys_active |= 1u << e2;
-        }
-        if (e2 == 3)
-            m->hardfaults++;
         sam_cpu_set(m, UC_ARM_REG_LR, excret);
-        sam_cpu_set(m, UC_ARM_REG_IPSR, (uint32_t)e2);
-        sam_cpu_rebuild_hflags(m);
-        sam_cpu_set(m, UC_ARM_REG_PC, vec);
+        run_handler(m, e2, vec);
         m->t += (uint64_t)TAIL_CHAIN_CYCLES * m->cyc_tu;
         m->cycles += TAIL_CHAIN_CYCLES;
-        m->irq_check = 1;
-        m->nvic.entering = (uint8_t)e2;
         return;
     }
     int ids[6] = {UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12, UC_ARM_REG_LR};
