@@ -159,3 +159,19 @@ def test_a_decoder_takes_the_cells_of_its_rig_only():
             dec.feed(can.Message(arbitration_id=0x100 + j, data=data, is_extended_id=False, timestamp=1.0))
         dec.flush()
         assert [r[2] for r in dec.rows] == want
+
+
+def test_the_shipped_sheet_scenes_run_on_a_rig_banded_as_they_are(tmp_path, monkeypatch):
+    """sheet_4x4_rig needs a 4 x 4 rig config (the chain as built refuses it); sheet_8x8 a 64-cell one."""
+    monkeypatch.chdir(tmp_path)
+    args = ecli.parser().parse_args(["run", "sheet_4x4_rig", "--channel", "x"])
+    with pytest.raises(PlanError, match=r"the scene is a 4 x 4 square sheet .*; the rig is a chain of 16 cells"):
+        ecli._prepare(args)
+    args.rig = str(_toml(tmp_path, "cells = [4, 4]\n"))
+    scene, plan = ecli._prepare(args)
+    assert scene == load_scene("sheet_4x4_rig") and plan.cells == list(range(1, 17))
+    args = ecli.parser().parse_args(
+        ["run", "sheet_8x8", "--channel", "x", "--rig", str(_toml(tmp_path, "cells = [8, 8]\n", "r64.toml"))]
+    )
+    scene, plan = ecli._prepare(args)
+    assert scene.params.shape == (8, 8) and plan.cells == list(range(1, 65))
