@@ -112,7 +112,7 @@ class SampleDecoder:
         self._reset()
 
     def feed(self, msg: can.Message) -> None:
-        kind, j = wire.frame_kind(msg.arbitration_id)
+        kind, j = wire.frame_kind(msg.arbitration_id, max(self.n, wire.N_CELLS))  # 16 cells, or a bigger sheet's
         if kind == "UNKNOWN" or msg.is_extended_id or msg.is_remote_frame:
             return
         if kind == "CELL_SAMPLE" and j is not None:  # a per-cell frame

@@ -48,9 +48,13 @@ class Frame(TypedDict):
 PROTO_VERSION = 1
 
 # ---------------------------------------------------------------------------
-# Addressing: cell j (1..16) answers at 7-bit address ADDR_BASE + j - 1.
-# 0x10..0x1F avoids the reserved ranges 0x00-0x07 and 0x78-0x7F.
+# Addressing: cell j answers at 7-bit address ADDR_BASE + j - 1. The rig as built has N_CELLS cells (0x10..0x1F);
+# a sheet may have up to MAX_CELLS (0x10..0x4F), still clear of the reserved ranges 0x00-0x07 and 0x78-0x7F. The
+# primary polls the cells its build names (N_CELLS unless told otherwise); every per-cell CAN id below exists for
+# 1..MAX_CELLS (the per-cell bases are 0x80 apart, so up to 127 cells never collide). MAX_CELLS is not in the map
+# id: no layout depends on it, and a 16-cell rig speaks exactly the frames it spoke before sheets.
 N_CELLS = 16
+MAX_CELLS = 64
 ADDR_BASE = 0x10
 
 # ---------------------------------------------------------------------------
@@ -254,13 +258,13 @@ RESULTS = {
     "NACK": 0x10,  # cell did not acknowledge the write (after retries)
     "TIMEOUT": 0x11,  # no acknowledgement in the cell's snapshot in time
     "BUSY": 0x12,  # a command to this cell is still in flight
-    "NO_CELL": 0x13,  # cell number outside 1..N_CELLS
+    "NO_CELL": 0x13,  # cell number outside the cells the primary polls (1..N_CELLS unless built for more)
     "BAD_FRAME": 0x14,  # CAN command frame malformed (dlc, reg)
     "NO_ROOM": 0x15,  # the primary's outgoing queue had no room to take the command (resend later)
 }
 
 # ---------------------------------------------------------------------------
-# CAN frames on the SLCAN link (11-bit ids). "{j}" frames exist per cell j=1..16
+# CAN frames on the SLCAN link (11-bit ids). "{j}" frames exist per cell j=1..MAX_CELLS
 # at base + j. Signals: (name, type, scale, offset, unit, comment).
 # Signals are packed little-endian in order, starting at byte 0.
 FRAMES: dict[str, Frame] = {

@@ -15,7 +15,8 @@ from . import definition as D
 PROTOCOL_DIR = Path(__file__).resolve().parent
 DBC_PATH = PROTOCOL_DIR / "metacell.dbc"
 
-N_CELLS = D.N_CELLS
+N_CELLS = D.N_CELLS  # the rig as built (16)
+MAX_CELLS = D.MAX_CELLS  # the most cells a sheet's data path addresses (64)
 ADDR_BASE = D.ADDR_BASE
 REGISTERS = D.REGISTERS
 RESULTS = D.RESULTS
@@ -29,11 +30,11 @@ TYPE_RANGES = {"u8": (0, 0xFF), "i8": (-0x80, 0x7F), "u16": (0, 0xFFFF), "i16": 
 TYPE_RANGES |= {"u32": (0, 0xFFFFFFFF), "i32": (-0x80000000, 0x7FFFFFFF)}
 
 
-# ---- cell addresses: cell j (1..N_CELLS) answers at ADDR_BASE + j - 1 ---------------------------------------
+# ---- cell addresses: cell j (1..MAX_CELLS) answers at ADDR_BASE + j - 1 -------------------------------------
 def cell_address(cell: int) -> int:
-    """7-bit I2C address of cell 1..N_CELLS (ValueError otherwise)."""
-    if isinstance(cell, bool) or not isinstance(cell, int) or not 1 <= cell <= N_CELLS:
-        raise ValueError(f"cell number must be an integer 1..{N_CELLS}, got {cell!r}")
+    """7-bit I2C address of cell 1..MAX_CELLS (ValueError otherwise); the rig as built uses 1..N_CELLS."""
+    if isinstance(cell, bool) or not isinstance(cell, int) or not 1 <= cell <= MAX_CELLS:
+        raise ValueError(f"cell number must be an integer 1..{MAX_CELLS}, got {cell!r}")
     return ADDR_BASE + cell - 1
 
 
@@ -42,11 +43,27 @@ def cell_of_address(addr: int) -> int:
     if isinstance(addr, bool) or not isinstance(addr, int):
         raise ValueError(f"address must be an integer, got {addr!r}")
     cell = addr - ADDR_BASE + 1
-    if not 1 <= cell <= N_CELLS:
+    if not 1 <= cell <= MAX_CELLS:
         raise ValueError(
-            f"address 0x{addr:02x} belongs to no cell (cells use 0x{ADDR_BASE:02x}..0x{ADDR_BASE + N_CELLS - 1:02x})"
+            f"address 0x{addr:02x} belongs to no cell (cells use 0x{ADDR_BASE:02x}..0x{ADDR_BASE + MAX_CELLS - 1:02x})"
         )
     return cell
+
+
+def per_cell_ids(d=D) -> dict[str, range]:
+    """Every per-cell frame's CAN ids (base + 1 .. base + MAX_CELLS); ValueError when two frames' ids overlap, one
+    collides with a single frame's id or leaves the 11-bit range."""
+    ids = {name: range(f["base"] + 1, f["base"] + d.MAX_CELLS + 1) for name, f in d.FRAMES.items() if f["per_cell"]}
+    single = {f["base"]: name for name, f in d.FRAMES.items() if not f["per_cell"]}
+    seen: dict[int, str] = dict(single)
+    for name, r in ids.items():
+        if r[-1] > 0x7FF:
+            raise ValueError(f"{name}: cell {d.MAX_CELLS}'s id 0x{r[-1]:03X} is not an 11-bit id")
+        for i in r:
+            if i in seen:
+                raise ValueError(f"CAN id 0x{i:03X} is both {seen[i]} and {name} (cell {i - r[0] + 1})")
+            seen[i] = name
+    return ids
 
 
 # ---- checksums and the map id ------------------------------------------------------------------------------
@@ -175,12 +192,13 @@ def reassemble_blocks(chunks: Iterable[bytes]) -> dict:
     return out
 
 
-def frame_kind(arbitration_id: int) -> tuple[str, int | None]:
-    """(frame name, cell number or None) of a CAN id, ('UNKNOWN', None) otherwise."""
+def frame_kind(arbitration_id: int, cells: int = N_CELLS) -> tuple[str, int | None]:
+    """(frame name, cell number or None) of a CAN id of a rig of `cells` cells (the rig as built's 16 unless told:
+    a bigger sheet's frames are foreign to it), ('UNKNOWN', None) otherwise."""
     for name, f in FRAMES.items():
         if f["per_cell"]:
             j = arbitration_id - f["base"]
-            if 1 <= j <= N_CELLS:
+            if 1 <= j <= cells:
                 return name, j
         elif arbitration_id == f["base"]:
             return name, None

@@ -59,8 +59,8 @@ class EmulatedRig:
         ffi, lib = self.ffi, self.lib
         self.solver = solver
         self.n = solver.model.n
-        if self.n > lib.MC_N_CELLS:
-            raise ValueError(f"the bus addresses {lib.MC_N_CELLS} cells, the scene has {self.n}")
+        if self.n > lib.MC_MAX_CELLS:
+            raise ValueError(f"the bus addresses at most {lib.MC_MAX_CELLS} cells, the scene has {self.n}")
         self.timing = I2CTiming(opts.i2c_hz)
         rate = solver.model.rate_hz
         if 1_000_000 % rate:
@@ -77,6 +77,11 @@ class EmulatedRig:
                 raise ValueError("register handler refused its address")
         self.link = ffi.new("mc_link_t *")
         lib.mc_link_init(self.link, 0)
+        # the primary polls the rig as built (16 cells; a smaller scene leaves the rest absent) or a bigger sheet's
+        # every cell, as its firmware built with -DMC_RIG_CELLS=n does
+        self.polled = max(self.n, lib.MC_N_CELLS)
+        if self.polled != lib.MC_N_CELLS and lib.mc_primary_set_cells(ffi.addressof(self.link, "p"), self.polled):
+            raise ValueError(f"the primary refused to poll {self.polled} cells")
         longest = max(lib.MC_BLK_SNAPSHOT_LEN, lib.MC_BLK_PARAMS_LEN, lib.MC_BLK_IDENT_LEN, lib.MC_WRITE_MAX_LEN)
         tmo = opts.txn_timeout_us or int(2e6 * self.timing.transaction_s(longest)) + 200
         if (

@@ -56,6 +56,13 @@ def _common(p: argparse.ArgumentParser):
     p.add_argument(
         "--t-end", type=float, default=None, metavar="S", help="time limit per repeat (default: the scene's t_end_s)"
     )
+    p.add_argument(
+        "--rig",
+        default=None,
+        metavar="TOML",
+        help="the rig config: how its cells are banded, e.g. cells = [4, 4] for a 4 x 4 sheet (default: rig/rig.toml "
+        "when it exists, else the rig as built, a chain of 16); a sheet's scene runs and is analysed as that sheet",
+    )
     p.add_argument("--repeats", type=int, default=1, help="repeats, re-zeroed in between (default 1)")
     p.add_argument(
         "--out", default=None, help="output directory (default out/rig/<scene>; a rehearsal: out/rehearsal/<scene>)"
@@ -271,6 +278,7 @@ def _prepare(args):
     from host_emulator.scene import load_scene
 
     from .plan import PlanError, make_plan
+    from .rig import AS_BUILT, on_rig, rig_topology
 
     if args.repeats < 1:
         raise PlanError(f"--repeats {args.repeats}: expected >= 1")
@@ -285,7 +293,10 @@ def _prepare(args):
     bad = [f for f in args.formats.split(",") if f.strip().lstrip(".") not in LOG_FORMATS]
     if bad:
         raise PlanError(f"--formats: unknown {', '.join(bad)}; python-can writes {', '.join(LOG_FORMATS)}")
-    return scene, make_plan(scene, t_end_s=args.t_end, pwm_limit=args.pwm_limit)
+    rig = rig_topology(args.rig)
+    scene = on_rig(scene, rig)  # a sheet rig: the scene takes its shape, and is analysed as a sheet
+    topology = None if rig == AS_BUILT else rig.as_dict()
+    return scene, make_plan(scene, t_end_s=args.t_end, pwm_limit=args.pwm_limit, rig_cells=rig.n, topology=topology)
 
 
 def _options(args):

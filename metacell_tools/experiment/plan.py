@@ -57,6 +57,7 @@ class ExperimentPlan:
     ctrl_rate_hz: int
     last_perturbation_end_s: float
     not_settable: dict = field(default_factory=dict)  # param -> scene value differing from the rig build's default
+    topology: dict | None = None  # the rig's topology (Topology.as_dict) when not the rig as built (a chain of 16)
 
     def as_dict(self) -> dict:
         return {
@@ -71,6 +72,7 @@ class ExperimentPlan:
                 {"start_s": p.start_s, "cell": p.cell, **p.values, "label": p.label} for p in self.perturbations
             ],
             "not_settable": self.not_settable,
+            **({"topology": self.topology} if self.topology is not None else {}),
         }
 
 
@@ -135,10 +137,13 @@ def make_plan(
     ctrl_rate_hz: int = CTRL_RATE_HZ,
     pwm_top: int = RIG_PWM_TOP,
     pwm_limit: int | None = None,
+    rig_cells: int = proto.N_CELLS,
+    topology: dict | None = None,
 ) -> ExperimentPlan:
-    """The commands that run `scene` on the rig (PlanError if the scene cannot be expressed)."""
-    if not 1 <= scene.cells <= proto.N_CELLS:
-        raise PlanError(f"cells = {scene.cells}: the rig has {proto.N_CELLS} cells")
+    """The commands that run `scene` on the rig of `rig_cells` cells (PlanError if the scene cannot be expressed);
+    topology: the rig's (Topology.as_dict()) when it is not the rig as built, recorded in the plan."""
+    if not 1 <= scene.cells <= rig_cells:
+        raise PlanError(f"cells = {scene.cells}: the rig has {rig_cells} cells")
     t_end = scene.t_end_s if t_end_s is None else float(t_end_s)
     if not (math.isfinite(t_end) and t_end > 0):
         raise PlanError(f"--t-end {t_end_s!r}: expected a positive number of seconds")
@@ -168,7 +173,7 @@ def make_plan(
     perts.sort(key=lambda c: (c.start_s, c.cell))
     last = max([q.start_s + q.duration_s for q in scene.perturbations], default=0.0)
     base = Params(cells=scene.cells)
-    skip = {n for n, _ in FIRMWARE_PARAMS} | set(CONTROL_PARAMS) | {"cells"}
+    skip = {n for n, _ in FIRMWARE_PARAMS} | set(CONTROL_PARAMS) | {"cells", "shape", "lattice", "boundary"}
     not_settable = {
         f.name: getattr(p, f.name)
         for f in dataclasses.fields(Params)
@@ -178,4 +183,6 @@ def make_plan(
         not_settable["control_rate_hz"] = p.control_rate_hz
     if p.pwm_top != pwm_top:
         not_settable["pwm_top"] = p.pwm_top
-    return ExperimentPlan(list(range(1, scene.cells + 1)), setup, perts, t_end, ctrl_rate_hz, float(last), not_settable)
+    return ExperimentPlan(
+        list(range(1, scene.cells + 1)), setup, perts, t_end, ctrl_rate_hz, float(last), not_settable, topology
+    )

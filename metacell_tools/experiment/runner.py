@@ -36,7 +36,7 @@ from metacell_tools.rigtools.logger import RAD_PER_COUNT, SampleDecoder
 from .plan import Command, ExperimentPlan
 
 _RESULT_BASE = proto.FRAMES["CMD_RESULT"]["base"]
-_RESULT_IDS = frozenset(_RESULT_BASE + j for j in range(1, proto.N_CELLS + 1))  # CMD_RESULT of every cell
+_RESULT_IDS = frozenset(_RESULT_BASE + j for j in range(1, proto.MAX_CELLS + 1))  # CMD_RESULT of every cell
 _PERTURB_ID = proto.REGISTERS["PERTURB"]["id"]
 
 
@@ -98,7 +98,8 @@ class Experiment:
         self.log_files = [self.out / f"{stem}.{f}" for f in self.opts.formats]
         self.writers = [can.Logger(str(p)) for p in self.log_files]
         self.client = RigClient(bus, self.opts.cmd_timeout_s, on_message=self._take)
-        self.idle = SampleDecoder(report=lambda text: None)  # frames outside a repeat (rest checks)
+        self.n_decode = max(proto.N_CELLS, len(plan.cells))  # the rig as built's 16, or a bigger sheet's every cell
+        self.idle = SampleDecoder(self.n_decode, report=lambda text: None)  # frames outside a repeat (rest checks)
         self.decoder = self.idle
         self.frames = 0
         self.corrupt = 0  # SLCAN lines python-can could not parse
@@ -297,7 +298,7 @@ class Experiment:
     # ---- rest, zero ------------------------------------------------------------
     def _wait_still(self, repeat: Repeat, window_s: float = 0.5):
         """Log until every cell moved < 2 counts over `window_s` (bounded by rest_timeout_s); keep the angles."""
-        dec = SampleDecoder(report=lambda text: None)
+        dec = SampleDecoder(self.n_decode, report=lambda text: None)
         self.decoder = dec
         t_start = time.time()
         still = False
@@ -328,7 +329,7 @@ class Experiment:
 
     # ---- one repeat ------------------------------------------------------------
     def run_repeat(self, index: int) -> Repeat:
-        rep = Repeat(index, SampleDecoder(report=self.report))
+        rep = Repeat(index, SampleDecoder(self.n_decode, report=self.report))
         self.repeats.append(rep)
         phase = f"repeat {index}"
         if index > 1:
@@ -438,6 +439,7 @@ class Experiment:
             "repeat": rep.index,
             "capture": "experiment repeat (setup, run and drive-off)",
             "t_enable_primary_s": rep.t0,
+            **({"topology": self.plan.topology} if self.plan.topology is not None else {}),
         }
 
     def run(self) -> None:

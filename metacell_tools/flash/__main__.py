@@ -12,6 +12,7 @@ from pathlib import Path
 
 from . import emulated
 from . import inventory as inv
+from .addresses import CELL_COUNT, MAX_CELL_COUNT, cell_address
 from .boards import Port, PortListError, port_lister, xiao_ports
 from .identity import IdentityError, QueryResult, expected_fw_version, query_identity
 from .plan import ROOT, PlanError, describe, make_plan, parse_only, with_prebuilt, with_toolchain
@@ -71,9 +72,17 @@ def _parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  python -m metacell_tools.flash inventory\n"
         "  python -m metacell_tools.flash inventory --assign primary --serial 8A1B2C3D\n"
-        "  python -m metacell_tools.flash inventory --assign 5 --replace       # a new board in slot 5",
+        "  python -m metacell_tools.flash inventory --assign 5 --replace       # a new board in slot 5\n"
+        "  python -m metacell_tools.flash inventory --cells 64                # a sheet of 64 cells + primary",
     )
     p.add_argument("--assign", metavar="N|primary", help="record a board as cell N or the primary")
+    p.add_argument(
+        "--cells",
+        type=int,
+        metavar="N",
+        help=f"the rig's cell count, 1..{MAX_CELL_COUNT} (default {CELL_COUNT}, the rig as built): cells "
+        "1..N answer at 0x10..0x10+N-1 and the primary is built to poll N",
+    )
     p.add_argument("--serial", help="which board to assign (default: the only unassigned one connected)")
     p.add_argument("--replace", action="store_true", help="take the slot from the board holding it")
 
@@ -217,9 +226,18 @@ def _parser() -> argparse.ArgumentParser:
 
 def cmd_inventory(args: argparse.Namespace, lister: Lister, out: Out) -> int:
     path = Path(args.inventory)
-    boards = inv.load(path) if path.exists() else []
+    boards, cells = inv.read(path) if path.exists() else ([], CELL_COUNT)
     ports = xiao_ports(lister())
     by_serial = {b.serial: b for b in boards}
+    if args.cells is not None and args.cells != cells:
+        cells = inv.check_cells(args.cells)
+        beyond = [b.name for b in boards if b.role == "cell" and b.cell is not None and b.cell > cells]
+        if beyond:
+            raise inv.InventoryError(f"--cells {cells}: the inventory still has {', '.join(beyond)} (reassign them)")
+        if not args.assign:
+            inv.save(path, boards, cells)
+            span = f"0x{cell_address(1):02x}..0x{cell_address(cells):02x}"
+            out(f"{path}: the rig has {cells} cells (addresses {span}) + primary")
     if args.assign:
         if args.serial:
             serial = args.serial
@@ -233,8 +251,8 @@ def cmd_inventory(args: argparse.Namespace, lister: Lister, out: Out) -> int:
                 )
                 return EXIT_USAGE
             serial = free[0].serial_number
-        boards = inv.assign(boards, serial, args.assign, replace=args.replace)
-        inv.save(path, boards)
+        boards = inv.assign(boards, serial, args.assign, replace=args.replace, cells=cells)
+        inv.save(path, boards, cells)
         out(f"{path}: serial {serial} is now {next(b for b in boards if b.serial == serial).name}")
         by_serial = {b.serial: b for b in boards}
     out(f"connected XIAO boards ({len(ports)}):")
@@ -259,11 +277,17 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         raise PreflightError(f"--jobs must be at least 1, got {args.jobs}")
     if getattr(args, "emulated", False):
         return _flash_emulated(args, out)
-    boards = inv.load(args.inventory)
+    boards, cells = inv.read(args.inventory)
     pio = args.pio or default_pio()
     project = Path(args.project)
     plan = make_plan(
-        boards, lister(), pio=pio, project=project, only=parse_only(args.only), skip_missing=args.skip_missing
+        boards,
+        lister(),
+        pio=pio,
+        project=project,
+        only=parse_only(args.only, cells),
+        skip_missing=args.skip_missing,
+        cells=cells,
     )
     prebuilt = getattr(args, "prebuilt", None)
     if prebuilt:

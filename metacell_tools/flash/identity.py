@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import serial
 
-from .addresses import CELL_COUNT, RESERVED
+from .addresses import MAX_CELL_COUNT, RESERVED
 
 ROOT = Path(__file__).resolve().parents[2]
 REQUEST = b"ID?\r\n"
@@ -28,7 +28,7 @@ class IdentityError(ValueError):
 class Identity:
     role: str  # "cell" or "primary"
     fw: str  # "major.minor"
-    cell: int | None = None  # 0 (unaddressed image) or 1..16 for a cell
+    cell: int | None = None  # 0 (unaddressed image) or 1..64 for a cell (1..16 on the rig as built)
     addr: int | None = None  # 7-bit I2C address, None when unaddressed / primary
     extra: tuple = field(default=(), compare=False)  # unknown key=value pairs, kept
 
@@ -76,8 +76,8 @@ def parse_identity(line: str) -> Identity:
                 raise IdentityError(f"primary reply carries {key}= in {line!r}")
         return Identity("primary", fw, extra=tuple(sorted(kv.items())))
     addr_s, cell_s = kv.pop("addr", None), kv.pop("cell", None)
-    if cell_s is None or not _DEC_RE.match(cell_s) or int(cell_s) > CELL_COUNT:
-        raise IdentityError(f"cell must be 0..{CELL_COUNT}, got {cell_s!r} in {line!r}")
+    if cell_s is None or not _DEC_RE.match(cell_s) or int(cell_s) > MAX_CELL_COUNT:
+        raise IdentityError(f"cell must be 0..{MAX_CELL_COUNT}, got {cell_s!r} in {line!r}")
     cell = int(cell_s)
     if addr_s == "none":
         addr = None

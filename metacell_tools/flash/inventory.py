@@ -1,4 +1,5 @@
-"""The board inventory: which USB serial number is which cell (1..16) or the primary."""
+"""The board inventory: which USB serial number is which cell (1..N: 16 on the rig as built, a sheet up to 64) or the
+primary, and how many cells the rig has (the JSON's "cells", written only when not 16)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from .addresses import CELL_COUNT, cell_address
+from .addresses import CELL_COUNT, MAX_CELL_COUNT, cell_address
 
 FORMAT = "metacell-boards-1"
 DEFAULT_PATH = Path("rig") / "boards.json"
@@ -33,8 +34,16 @@ class Board:
         return f"cell {self.cell} (0x{self.addr:02x})"
 
 
-def validate(boards: list[Board]) -> list[Board]:
-    """Check roles, cell numbers and uniqueness; return boards sorted cells 1..16, primary."""
+def check_cells(cells: object) -> int:
+    """The rig's cell count, 1..MAX_CELL_COUNT (InventoryError otherwise)."""
+    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= MAX_CELL_COUNT:
+        raise InventoryError(f"cells must be 1..{MAX_CELL_COUNT} (a sheet's most), got {cells!r}")
+    return cells
+
+
+def validate(boards: list[Board], cells: int = CELL_COUNT) -> list[Board]:
+    """Check roles, cell numbers (1..cells) and uniqueness; return boards sorted cells 1..cells, primary."""
+    cells = check_cells(cells)
     errors = []
     by_serial: dict[str, Board] = {}
     by_cell: dict[int, list[Board]] = {}
@@ -51,8 +60,8 @@ def validate(boards: list[Board]) -> list[Board]:
                 errors.append(f"primary {b.serial} must not carry a cell number")
             primaries.append(b)
         elif b.role == "cell":
-            if isinstance(b.cell, bool) or not isinstance(b.cell, int) or not 1 <= b.cell <= CELL_COUNT:
-                errors.append(f"board {b.serial}: cell must be 1..{CELL_COUNT}, got {b.cell!r}")
+            if isinstance(b.cell, bool) or not isinstance(b.cell, int) or not 1 <= b.cell <= cells:
+                errors.append(f"board {b.serial}: cell must be 1..{cells}, got {b.cell!r}")
             else:
                 by_cell.setdefault(b.cell, []).append(b)
         else:
@@ -71,6 +80,17 @@ def validate(boards: list[Board]) -> list[Board]:
 
 
 def load(path: str | Path) -> list[Board]:
+    """The boards of the inventory at path (validated against its cell count)."""
+    return read(path)[0]
+
+
+def load_cells(path: str | Path) -> int:
+    """The rig's cell count the inventory at path records (16 when it says nothing)."""
+    return read(path)[1]
+
+
+def read(path: str | Path) -> tuple[list[Board], int]:
+    """(boards, the rig's cell count) of the inventory at path; InventoryError when it is missing or malformed."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
@@ -85,17 +105,22 @@ def load(path: str | Path) -> list[Board]:
     raw = data.get("boards")
     if not isinstance(raw, list):
         raise InventoryError(f"{path}: 'boards' must be a list")
+    try:
+        cells = check_cells(data.get("cells", CELL_COUNT))
+    except InventoryError as exc:
+        raise InventoryError(f"{path}: {exc}") from None
     boards = []
     for i, e in enumerate(raw):
         if not isinstance(e, dict) or set(e) - {"serial", "role", "cell", "note"}:
             raise InventoryError(f"{path}: boards[{i}] must be an object with serial, role[, cell, note]")
         boards.append(Board(e.get("serial", ""), e.get("role", ""), e.get("cell")))
-    return validate(boards)
+    return validate(boards, cells), cells
 
 
-def save(path: str | Path, boards: list[Board]) -> None:
-    """Write atomically (validated first, so a bad set never reaches the disk)."""
-    boards = validate(boards)
+def save(path: str | Path, boards: list[Board], cells: int = CELL_COUNT) -> None:
+    """Write atomically (validated first, so a bad set never reaches the disk); "cells" only for a rig other than the
+    16 cells as built (so the rig's own inventory reads as before)."""
+    boards = validate(boards, cells)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     entries = []
@@ -105,12 +130,17 @@ def save(path: str | Path, boards: list[Board]) -> None:
             e["cell"] = b.cell
         entries.append(e)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps({"format": FORMAT, "boards": entries}, indent=2) + "\n")
+    doc: dict[str, object] = {"format": FORMAT, "boards": entries}
+    if cells != CELL_COUNT:
+        doc = {"format": FORMAT, "cells": cells, "boards": entries}
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
     tmp.replace(path)
 
 
-def assign(boards: list[Board], serial: str, target: str, replace: bool = False) -> list[Board]:
-    """New inventory with `serial` as cell N ("1".."16") or "primary".
+def assign(
+    boards: list[Board], serial: str, target: str, replace: bool = False, cells: int = CELL_COUNT
+) -> list[Board]:
+    """New inventory with `serial` as cell N ("1".."cells") or "primary".
 
     Refuses to take a slot another board holds unless replace=True (board swap); the
     serial's previous slot, if any, is released.
@@ -121,9 +151,9 @@ def assign(boards: list[Board], serial: str, target: str, replace: bool = False)
         try:
             cell = int(target)
         except ValueError:
-            raise InventoryError(f"target must be 1..{CELL_COUNT} or 'primary', got {target!r}") from None
-        if not 1 <= cell <= CELL_COUNT:
-            raise InventoryError(f"cell must be 1..{CELL_COUNT}, got {cell}")
+            raise InventoryError(f"target must be 1..{cells} or 'primary', got {target!r}") from None
+        if not 1 <= cell <= cells:
+            raise InventoryError(f"cell must be 1..{cells}, got {cell}")
         new = Board(serial, "cell", cell)
     holders = [
         b
@@ -137,4 +167,4 @@ def assign(boards: list[Board], serial: str, target: str, replace: bool = False)
     if holders and not replace:
         raise InventoryError(f"{new.name} is already board {holders[0].serial}; use --replace to swap it out")
     kept = [b for b in boards if b.serial != serial and b not in holders]
-    return validate(kept + [new])
+    return validate(kept + [new], cells)

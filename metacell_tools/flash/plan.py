@@ -43,10 +43,11 @@ class Plan:
     missing: list[Board] = field(default_factory=list)  # skipped: not connected
     unselected: list[Board] = field(default_factory=list)  # skipped: not in --only
     unknown: list[Port] = field(default_factory=list)  # XIAO boards not in the inventory
+    cells: int = CELL_COUNT  # the rig's cells (the inventory's; 16 as built, a sheet up to 64)
 
 
-def parse_only(text: str | None) -> set | None:
-    """'1-4,7,primary' -> {1, 2, 3, 4, 7, 'primary'}; None means every board."""
+def parse_only(text: str | None, cells: int = CELL_COUNT) -> set | None:
+    """'1-4,7,primary' -> {1, 2, 3, 4, 7, 'primary'} of a rig of `cells` cells; None means every board."""
     if text is None:
         return None
     sel: set = set()
@@ -61,8 +62,8 @@ def parse_only(text: str | None) -> set | None:
             a, b = (int(lo), int(hi)) if sep else (int(lo), int(lo))
         except ValueError:
             raise PlanError(f"--only: {part!r} is not a cell number, range or 'primary'") from None
-        if not (1 <= a <= b <= CELL_COUNT):
-            raise PlanError(f"--only: {part!r} is outside cells 1..{CELL_COUNT}")
+        if not (1 <= a <= b <= cells):
+            raise PlanError(f"--only: {part!r} is outside cells 1..{cells}")
         sel.update(range(a, b + 1))
     if not sel:
         raise PlanError("--only selects nothing")
@@ -70,12 +71,18 @@ def parse_only(text: str | None) -> set | None:
 
 
 def upload_step(
-    board: Board, port: Port, pio: str = "pio", project: Path = ROOT, tools: Toolchain | None = None
+    board: Board,
+    port: Port,
+    pio: str = "pio",
+    project: Path = ROOT,
+    tools: Toolchain | None = None,
+    cells: int = CELL_COUNT,
 ) -> Step:
-    """One build+upload of the board's image (board_build_env): with PlatformIO's uploader (tools None: `pio` as
-    given) or, when tools.uploader is "bossac", a build followed by bossac's upload of its firmware.bin."""
+    """One build+upload of the board's image (board_build_env, for a rig of `cells` cells): with PlatformIO's
+    uploader (tools None: `pio` as given) or, when tools.uploader is "bossac", a build followed by bossac's upload
+    of its firmware.bin."""
     project = Path(project)
-    env_name, env_vars = board_build_env(board.role, board.cell, project)
+    env_name, env_vars = board_build_env(board.role, board.cell, project, cells=cells)
     if tools is None:
         run: tuple[str, ...] = (pio, "run", "-d", str(project))
     else:
@@ -94,12 +101,20 @@ def upload_step(
 
 def with_toolchain(plan: Plan, tools: Toolchain, project: Path = ROOT) -> Plan:
     """The same boards, each step built and uploaded as tools says."""
-    return replace(plan, steps=[upload_step(s.board, s.port, project=project, tools=tools) for s in plan.steps])
+    return replace(
+        plan, steps=[upload_step(s.board, s.port, project=project, tools=tools, cells=plan.cells) for s in plan.steps]
+    )
 
 
 def with_prebuilt(plan: Plan, tools: Toolchain, images: Path) -> Plan:
     """The same boards, nothing built: bossac uploads images/cellNN/firmware.bin (or primary/), made from the
-    firmware.elf beside it when missing."""
+    firmware.elf beside it when missing. Those are the rig as built's images: a rig of other than 16 cells needs its
+    primary built for its cells, so it is refused (PlanError)."""
+    if plan.cells != CELL_COUNT:
+        raise PlanError(
+            f"--prebuilt: the images are the {CELL_COUNT}-cell rig's; this rig has {plan.cells} cells (its primary "
+            "must be built for them: flash without --prebuilt)"
+        )
     assert tools.bossac is not None
     steps = []
     for s in plan.steps:
@@ -116,7 +131,9 @@ def make_plan(
     project: Path = ROOT,
     only: set | None = None,
     skip_missing: bool = False,
+    cells: int = CELL_COUNT,
 ) -> Plan:
+    """The steps of flashing the inventory's boards (a rig of `cells` cells + primary) on the connected ports."""
     xiao = xiao_ports(ports)
     by_serial: dict[str, Port] = {}
     clash = []
@@ -128,7 +145,7 @@ def make_plan(
     if clash:
         raise PlanError("; ".join(clash))
     known = {b.serial for b in boards}
-    plan = Plan(steps=[], unknown=[p for p in xiao if p.serial_number not in known])
+    plan = Plan(steps=[], unknown=[p for p in xiao if p.serial_number not in known], cells=cells)
     for b in boards:
         key = "primary" if b.role == "primary" else b.cell
         if only is not None and key not in only:
@@ -138,7 +155,7 @@ def make_plan(
         if port is None:
             plan.missing.append(b)
             continue
-        plan.steps.append(upload_step(b, port, pio, project))
+        plan.steps.append(upload_step(b, port, pio, project, cells=cells))
     if only is not None:
         listed = {"primary" if b.role == "primary" else b.cell for b in boards}
         absent = sorted(only - listed, key=str)
@@ -157,7 +174,8 @@ def make_plan(
 
 def describe(plan: Plan) -> str:
     """Human-readable plan: one line per board, then the exact commands."""
-    lines = [f"{len(plan.steps)} board(s) to flash:"]
+    rig = "" if plan.cells == CELL_COUNT else f" (a rig of {plan.cells} cells + primary)"
+    lines = [f"{len(plan.steps)} board(s) to flash{rig}:"]
     for s in plan.steps:
         mode = " [bootloader]" if s.port.in_bootloader else ""
         addr = f"addr 0x{s.board.addr:02x}" if s.board.addr is not None else "no bus address"

@@ -31,7 +31,7 @@ from metacell_common.cli import unexpected
 from metacell_common.reaction import REACTION_DEFAULTS, REACTION_REGISTERS
 from protocol import codec
 
-from . import proto
+from . import proto, rigconfig
 from .slcanbus import open_bus
 
 PARAM_REGS = {"k_ab": "K_AB", "sigma": "SIGMA", "k1": "K1", "k2": "K2", "alpha_star": "ASTAR", "astar": "ASTAR"}
@@ -87,7 +87,7 @@ class RigClient:
                 continue
             if self.on_message:
                 self.on_message(msg)
-            kind, cell = proto.frame_kind(msg.arbitration_id)
+            kind, cell = proto.frame_kind(msg.arbitration_id, proto.MAX_CELLS)  # answers of any cell it asked
             if kind == "BLOCK_DATA" and cell is not None:  # a per-cell frame
                 self.chunks.setdefault(cell, []).append(bytes(msg.data))
             elif (
@@ -146,10 +146,13 @@ def design_registers(path: str) -> dict[int, dict[str, int]]:
         else:
             doc = json.loads(f.read_text())
             params, cells = doc["params"], doc.get("cells", proto.N_CELLS)
+        rig_n = rig_cells()
     except (OSError, ValueError, KeyError) as e:
         raise ApplyError(f"{path}: not a readable design.json or scene .toml ({type(e).__name__}: {e})") from None
-    if not isinstance(cells, int) or not 1 <= cells <= proto.N_CELLS:
-        raise ApplyError(f"{path}: cells = {cells!r}; the rig has {proto.N_CELLS}")
+    if isinstance(cells, list) and len(cells) == 2 and all(isinstance(d, int) and d >= 1 for d in cells):
+        cells = cells[0] * cells[1]  # a sheet [rows, cols]: its cells row by row
+    if not isinstance(cells, int) or not 1 <= cells <= rig_n:
+        raise ApplyError(f"{path}: cells = {cells!r}; the rig has {rig_n}")
     out: dict[int, dict[str, int]] = {j: {} for j in range(1, cells + 1)}
     for name, reg in REACTION_REGISTERS.items():
         v = params.get(name, REACTION_DEFAULTS[name])
@@ -336,9 +339,18 @@ def apply_design(
     return not wrong
 
 
+def rig_cells() -> int:
+    """The rig's cell count: its config's (rig/rig.toml, rigconfig), else the rig as built's 16."""
+    return rigconfig.n_cells(rigconfig.read())
+
+
 def _cells(text: str) -> list[int]:
+    try:
+        n = rig_cells()
+    except rigconfig.RigConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
     if text == "all":
-        return list(range(1, proto.N_CELLS + 1))
+        return list(range(1, n + 1))
     try:
         cells = []
         for part in (p.strip() for p in text.split(",")):
@@ -349,6 +361,8 @@ def _cells(text: str) -> list[int]:
             cells += [j for j in range(a, b + 1) if j not in cells]
         for j in cells:
             proto.cell_address(j)
+            if j > n:
+                raise ValueError(f"cell {j}: the rig has {n} cells (its config: {rigconfig.DEFAULT_PATH})")
     except ValueError as e:
         raise argparse.ArgumentTypeError(f"cells: {e}") from None
     return cells

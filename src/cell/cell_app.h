@@ -23,7 +23,7 @@ void cell_app_unlock(void);
 void cell_app_positions(int32_t *pos_a, int32_t *pos_b);
 /* Re-zero both angles at their current positions (takes the lock itself). */
 void cell_app_zero(void);
-/* Identity baked in at build time: cell 1..16 and its I2C address, or 0 / 0. */
+/* Identity baked in at build time: cell 1..64 (16 on the rig as built) and its I2C address, or 0 / 0. */
 uint8_t cell_app_index(void);
 uint8_t cell_app_addr(void);
 /* Control ticks run since start-up (wraps mod 2^32). */

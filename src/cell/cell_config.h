@@ -19,8 +19,8 @@
 #if MC_CELL_ADDR != 0
 #error "MC_CELL_ADDR given without MC_CELL_INDEX"
 #endif
-#elif MC_CELL_INDEX < 1 || MC_CELL_INDEX > 16
-#error "MC_CELL_INDEX must be 1..16"
+#elif MC_CELL_INDEX < 1 || MC_CELL_INDEX > 64   /* MC_MAX_CELLS: a sheet of up to 64 cells (protocol/definition.py) */
+#error "MC_CELL_INDEX must be 1..64"
 #elif MC_CELL_ADDR < 0x08 || MC_CELL_ADDR > 0x77
 #error "MC_CELL_ADDR must be a non-reserved 7-bit I2C address (0x08..0x77)"
 #endif

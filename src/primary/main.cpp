@@ -24,6 +24,12 @@ extern "C" {
 #ifndef MC_I2C_HZ
 #define MC_I2C_HZ 400000
 #endif
+#ifndef MC_RIG_CELLS
+#define MC_RIG_CELLS MC_N_CELLS   /* cells polled; a sheet's primary is built with -DMC_RIG_CELLS=N (flash tool) */
+#endif
+#if MC_RIG_CELLS < 1 || MC_RIG_CELLS > MC_MAX_CELLS
+#error "MC_RIG_CELLS must be 1..MC_MAX_CELLS (cell addresses 0x10..0x4F)"
+#endif
 #ifndef MC_POLL_PERIOD_US
 #define MC_POLL_PERIOD_US 0   /* 0: as fast as the bus allows */
 #endif
@@ -54,6 +60,9 @@ void setup()
     Serial.begin(115200);   /* USB CDC: the rate is ignored, never 1200 */
     mc_ident_rx_init(&g_rx);
     mc_link_init(&g_link, primary_hw_micros());
+#if MC_RIG_CELLS != MC_N_CELLS
+    mc_primary_set_cells(&g_link.p, MC_RIG_CELLS);   /* before configure: status_every >= the cells polled */
+#endif
     mc_primary_configure(&g_link.p, MC_POLL_PERIOD_US, MC_TXN_TIMEOUT_US, MC_SCHED_ACK_TIMEOUT_US,
                          MC_SCHED_STATUS_EVERY);
     mc_primary_set_reset_cause(&g_link.p, cause);

@@ -198,12 +198,56 @@ static void test_commands(void)
         run_command(&pv_cmd[c]);
 }
 
+/* A sheet's primary (mc_primary_set_cells): cells 1..n in order at 0x10.., every sample out, a command beyond n
+ * answered NO_CELL in a PRIMARY_REJECT; counts outside 1..MC_MAX_CELLS refused (the same as tests/firmware). */
+static void test_a_sheet_of_n_cells(void)
+{
+    static const uint32_t counts[] = {4, 32, MC_MAX_CELLS};
+    uint8_t b[MC_BLK_SNAPSHOT_LEN];
+    mc_can_frame_t f;
+    for (uint32_t k = 0; k < sizeof(counts) / sizeof(counts[0]); k++) {
+        uint32_t n = counts[k], samples = 0;
+        fresh();
+        TEST_ASSERT_EQUAL_UINT8(MC_N_CELLS, p.n_cells);
+        TEST_ASSERT_EQUAL_INT(-1, mc_primary_set_cells(&p, 0));
+        TEST_ASSERT_EQUAL_INT(-1, mc_primary_set_cells(&p, MC_MAX_CELLS + 1));
+        TEST_ASSERT_EQUAL_INT(0, mc_primary_set_cells(&p, n));
+        for (uint32_t i = 0; i < n; i++) {
+            start_next();
+            TEST_ASSERT_EQUAL_UINT8(i, t.cell);
+            TEST_ASSERT_EQUAL_HEX8(MC_ADDR_BASE + i, t.addr);
+            snapshot(b, i, 0, 0);
+            finish(500, MC_I2C_OK, b, MC_BLK_SNAPSHOT_LEN);
+            while (mc_primary_pop(&p, &f))
+                if (f.id == MC_CAN_CELL_SAMPLE + i + 1)
+                    samples++;
+        }
+        TEST_ASSERT_EQUAL_UINT32(n, samples);
+        start_next();
+        TEST_ASSERT_EQUAL_HEX8(MC_ADDR_BASE, t.addr); /* the next cycle starts at cell 1 again */
+        TEST_ASSERT_EQUAL_INT(-1, mc_primary_set_cells(&p, 16)); /* not once polling has started */
+        while (mc_primary_pop(&p, &f)) {
+        }
+        memset(&f, 0, sizeof(f));
+        f.id = MC_CAN_CMD + n + 1;
+        f.dlc = 3;
+        f.data[0] = MC_REG_ENABLE;
+        f.data[1] = 7;
+        f.data[2] = 1;
+        mc_primary_can_rx(&p, now, &f);
+        TEST_ASSERT_TRUE(mc_primary_pop(&p, &f));
+        TEST_ASSERT_EQUAL_HEX32(MC_CAN_PRIMARY_REJECT, f.id);
+        TEST_ASSERT_EQUAL_HEX8(MC_RES_NO_CELL, f.data[MC_CAN_PRIMARY_REJECT_REASON]);
+    }
+}
+
 static int run_all(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_one_poll_cycle);
     RUN_TEST(test_timeouts_back_off);
     RUN_TEST(test_commands);
+    RUN_TEST(test_a_sheet_of_n_cells);
     return UNITY_END();
 }
 

@@ -3,6 +3,7 @@
 import struct
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -35,7 +36,7 @@ def test_check_notices_a_stale_file(tmp_path, monkeypatch):
 def test_c_constants_follow_definition(fw):
     _, lib = fw
     assert lib.MC_PROTO_VERSION == D.PROTO_VERSION
-    assert lib.MC_ADDR_BASE == D.ADDR_BASE and lib.MC_N_CELLS == D.N_CELLS
+    assert lib.MC_ADDR_BASE == D.ADDR_BASE and lib.MC_N_CELLS == D.N_CELLS and lib.MC_MAX_CELLS == D.MAX_CELLS
     for name, b in D.BLOCKS.items():
         off = 0
         for fname, ftype, _ in b["fields"]:
@@ -61,13 +62,44 @@ def test_definition_uses_the_flash_tool_address_mapping(fw):
 
 
 def test_addresses_avoid_reserved_ranges_and_are_one_to_one():
-    addrs = [proto.cell_address(j) for j in range(1, D.N_CELLS + 1)]
-    assert len(set(addrs)) == D.N_CELLS
+    """Cells 1..16 (the rig as built) at 0x10..0x1F, a sheet's cells up to 64 at 0x10..0x4F, all clear of the reserved
+    I2C addresses 0x00-0x07 and 0x78-0x7F; cell 65 and the addresses around the range belong to no cell."""
+    assert (D.N_CELLS, D.MAX_CELLS) == (16, 64)
+    addrs = [proto.cell_address(j) for j in range(1, D.MAX_CELLS + 1)]
+    assert len(set(addrs)) == D.MAX_CELLS
     assert all(0x08 <= a <= 0x77 for a in addrs)
-    assert [proto.cell_of_address(a) for a in addrs] == list(range(1, D.N_CELLS + 1))
-    for bad in (0, 17, -1):
+    assert (addrs[0], addrs[D.N_CELLS - 1], addrs[-1]) == (0x10, 0x1F, 0x4F)
+    assert [proto.cell_of_address(a) for a in addrs] == list(range(1, D.MAX_CELLS + 1))
+    for bad in (0, D.MAX_CELLS + 1, -1, True, 2.0):
         with pytest.raises(ValueError):
             proto.cell_address(bad)
+    for bad_addr in (0x0F, 0x50, 0x78):
+        with pytest.raises(ValueError):
+            proto.cell_of_address(bad_addr)
+
+
+def test_per_cell_can_ids_of_64_cells_never_collide():
+    """Every CAN id of a 64-cell sheet (6 per-cell frames x 64, the 3 primary frames) is one 11-bit id of one frame;
+    the check refuses a definition whose per-cell ranges would overlap."""
+    ids = proto.per_cell_ids()
+    every = [i for r in ids.values() for i in r] + [f["base"] for f in D.FRAMES.values() if not f["per_cell"]]
+    assert len(every) == len(set(every)) == 6 * 64 + 3 and max(every) <= 0x7FF
+    sample = D.FRAMES["CELL_SAMPLE"]["base"]
+    assert [proto.frame_kind(sample + j, D.MAX_CELLS) for j in (1, 16, 17, 64)] == [
+        ("CELL_SAMPLE", j) for j in (1, 16, 17, 64)
+    ]
+    assert proto.frame_kind(sample + 65, D.MAX_CELLS) == ("UNKNOWN", None)
+    assert proto.frame_kind(sample + 17) == ("UNKNOWN", None)  # the rig as built: a bigger sheet's cell is foreign
+    tight = types.SimpleNamespace(
+        MAX_CELLS=D.MAX_CELLS, FRAMES=dict(D.FRAMES, CELL_LINK=dict(D.FRAMES["CELL_LINK"], base=0x230))
+    )
+    with pytest.raises(ValueError, match="both CELL_STATUS and CELL_LINK"):
+        proto.per_cell_ids(tight)
+    wide = types.SimpleNamespace(
+        MAX_CELLS=D.MAX_CELLS, FRAMES=dict(D.FRAMES, BLOCK_DATA=dict(D.FRAMES["BLOCK_DATA"], base=0x7E0))
+    )
+    with pytest.raises(ValueError, match="not an 11-bit id"):
+        proto.per_cell_ids(wide)
 
 
 def test_crc8_check_value(fw):
@@ -87,7 +119,7 @@ def test_crc8_matches_bitwise_reference(fw, data, init):
 def test_dbc_has_every_frame_with_the_defined_layout():
     db = proto.database()
     for name, f in D.FRAMES.items():
-        cells = range(1, D.N_CELLS + 1) if f["per_cell"] else [None]
+        cells = range(1, D.MAX_CELLS + 1) if f["per_cell"] else [None]
         for j in cells:
             m = db.get_message_by_frame_id(f["base"] + (j or 0))
             assert m.name == (f"{name}_{j:02d}" if j else name)

@@ -21,8 +21,9 @@ def fake_ports(n=17, pid=XIAO_PID_APP):
 
 
 def fake_inventory(n_cells=16):
+    """Cells 1..n_cells on serials SN00.., the primary on the next serial (SN16 for the rig as built)."""
     boards = [inv.Board(f"SN{j - 1:02d}", "cell", j) for j in range(1, n_cells + 1)]
-    return inv.validate(boards + [inv.Board("SN16", "primary")])
+    return inv.validate(boards + [inv.Board(f"SN{max(n_cells, 16):02d}", "primary")], max(n_cells, 16))
 
 
 def write_ports_json(path, ports):

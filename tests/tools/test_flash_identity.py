@@ -71,11 +71,15 @@ def test_address_map_is_one_to_one_and_unreserved():
     assert all(0x08 <= a <= 0x77 for a in addrs)
     assert cell_address(1) == 0x10 and cell_address(16) == 0x1F
     assert all(address_cell(cell_address(j)) == j for j in range(1, 17))
-    for bad in (0, 17, -1, True, "3", 2.0):
+    # a sheet's cells 17..64 continue the map to 0x4F, clear of the reserved 0x78..0x7F; cell 65 has no address
+    assert [cell_address(j) for j in (17, 64)] == [0x20, 0x4F]
+    assert all(address_cell(cell_address(j)) == j for j in range(1, 65))
+    assert not {cell_address(j) for j in range(1, 65)} & RESERVED
+    for bad in (0, 65, -1, True, "3", 2.0):
         with pytest.raises(ValueError):
             cell_address(bad)
     with pytest.raises(ValueError, match="belongs to no cell"):
-        address_cell(0x20)
+        address_cell(0x50)
 
 
 def test_prompt_example_line_parses():
@@ -89,7 +93,7 @@ def test_prompt_example_line_parses():
     "line, why",
     [
         ("MC role=cell addr=0x10 fw=1.0", "cell must be"),
-        ("MC role=cell addr=0x10 cell=17 fw=1.0", "cell must be"),
+        ("MC role=cell addr=0x10 cell=65 fw=1.0", "cell must be"),
         ("MC role=cell addr=0x05 cell=1 fw=1.0", "reserved"),
         ("MC role=cell addr=0x7c cell=1 fw=1.0", "reserved"),
         ("MC role=cell addr=none cell=3 fw=1.0", "inconsistent"),

@@ -283,8 +283,12 @@ def test_planned_cell_flags_pass_cell_config_and_bad_ones_do_not():
         res = _cell_config(flags)
         assert res.returncode == 0, (flags, res.stderr)
     assert _cell_config([]).returncode == 0  # unaddressed image
+    sheet = make_plan(fake_inventory(64), fake_ports(65), cells=64)  # a sheet's last cell builds too
+    for step in sheet.steps[16:64:47]:  # cells 17 and 64
+        flags = dict(step.env_vars)["PLATFORMIO_BUILD_SRC_FLAGS"].split()
+        assert _cell_config(flags).returncode == 0, flags
     for bad, why in (
-        (["-DMC_CELL_INDEX=17", "-DMC_CELL_ADDR=0x20"], "MC_CELL_INDEX must be"),
+        (["-DMC_CELL_INDEX=65", "-DMC_CELL_ADDR=0x50"], "MC_CELL_INDEX must be"),
         (["-DMC_CELL_INDEX=3", "-DMC_CELL_ADDR=0x05"], "non-reserved"),
         (["-DMC_CELL_INDEX=3", "-DMC_CELL_ADDR=0x78"], "non-reserved"),
         (["-DMC_CELL_ADDR=0x12"], "without MC_CELL_INDEX"),

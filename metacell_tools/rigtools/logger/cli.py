@@ -18,7 +18,9 @@ import numpy as np
 
 from metacell_common.cli import unexpected
 from metacell_common.outpaths import check_out_dir, check_out_file, created_mark, remove_created_since, show
+from protocol.wire import N_CELLS
 
+from .. import rigconfig
 from ..command import build, parser
 from .files import RunFailed, repair
 from .live import RigLogger
@@ -130,6 +132,14 @@ def _main(argv: list[str] | None = None) -> int:
         "the label of the rebuilt NPZ, default unknown)",
     )
     ap.add_argument(
+        "--rig",
+        default=None,
+        metavar="TOML",
+        help="the rig config (cells = [4, 4] for a 4 x 4 sheet; default rig/rig.toml when it exists, else the rig as "
+        "built, a chain of 16): its cells are decoded and its topology written into the NPZ, so the capture is "
+        "analysed as that sheet",
+    )
+    ap.add_argument(
         "--do",
         action="append",
         default=[],
@@ -147,9 +157,15 @@ def _main(argv: list[str] | None = None) -> int:
         args.source in ("rig", "unknown") or args.source.split(":")[0] in ("emulator", "rehearsal")
     ):
         return bad(f"--source {args.source!r}: expected rig, emulator:<model>, rehearsal:<model> or unknown")
+    try:
+        rig = rigconfig.read(args.rig)
+    except rigconfig.RigConfigError as e:
+        return bad(str(e))
+    n_cells = max(N_CELLS, rigconfig.n_cells(rig))  # the rig as built's 16, or a bigger sheet's every cell
+    topology = None if rig == rigconfig.AS_BUILT else rig
     if args.repair is not None:
         try:
-            arr = repair(Path(args.repair), source=args.source)
+            arr = repair(Path(args.repair), n_cells, source=args.source, topology=topology)
         except RunFailed as e:
             return bad(str(e))
         except OSError as e:
@@ -217,6 +233,8 @@ def _main(argv: list[str] | None = None) -> int:
         first_frame_s=args.first_frame,
         wait_open_s=args.wait_open,
         source=args.source,
+        n_cells=n_cells,
+        topology=topology,
     )
     log.commands = sorted(commands)
     try:

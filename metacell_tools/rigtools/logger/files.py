@@ -183,11 +183,13 @@ def repair(
     n_cells: int = N_CELLS,
     report: Callable[[str], None] | None = None,
     source: str | None = None,
+    topology: dict | None = None,
 ) -> dict:
     """After a crash, a kill or a full disk: cut the text logs (and the CSV) after their last complete line, cut the
     BLF after its last complete object, and rebuild <prefix>.npz from the CSV (gaps from the cycle counters) in the
     one run layout (write_capture), labelled source (default unknown: the CSV does not say what sent the frames).
-    Returns the logger's cycle x cell arrays the NPZ was made from."""
+    topology: the rig config's (a sheet), written into the NPZ's attrs. Returns the logger's cycle x cell arrays the
+    NPZ was made from."""
     report = report or (lambda text: print(text, file=sys.stderr, flush=True))
     prefix = Path(prefix)
     csv = prefix.with_suffix(".csv")
@@ -201,13 +203,18 @@ def repair(
     if blf:
         report(f"{prefix.with_suffix('.blf')}: cut from {blf[0]} to {blf[1]} bytes (last complete object)")
     try:
-        rows = read_rows(csv)
+        rows = read_rows(csv, n_cells)
     except ValueError as e:
         raise RunFailed(f"--repair {prefix}: {csv} is not the logger's CSV: {e}") from None
     arrays = rows_to_arrays(rows, n_cells, gaps_from_rows(rows))
-    attrs = {"source": source or "unknown", "capture": "rigtools logger, rebuilt from the CSV by --repair"}
+    attrs: dict[str, object] = {
+        "source": source or "unknown",
+        "capture": "rigtools logger, rebuilt from the CSV by --repair",
+    }
     if not source:
         attrs["source_note"] = "the CSV does not say whether a rig or an emulator sent it (--source LABEL)"
+    if topology is not None:
+        attrs["topology"] = topology
     write_capture(prefix.with_suffix(".npz"), arrays, attrs)
     stale = prefix.with_name(prefix.name + ".npz.tmp")
     if stale.exists():

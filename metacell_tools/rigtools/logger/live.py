@@ -13,6 +13,7 @@ from pathlib import Path
 import can
 
 from protocol.capture import read_rows, rows_to_arrays
+from protocol.wire import N_CELLS
 
 from ..command import RigClient, build, parser
 from ..portlock import device_of, holders
@@ -48,6 +49,8 @@ class RigLogger:
         first_frame_s: float = 30.0,
         wait_open_s: float = 0.0,
         source: str | None = None,
+        n_cells: int = N_CELLS,
+        topology: dict | None = None,
     ) -> None:
         self.interface, self.channel, self.bitrate = interface, channel, bitrate
         self.source = source or channel_source(interface, channel)  # written into the NPZ: rig, emulator or unknown
@@ -57,7 +60,8 @@ class RigLogger:
         self.first_frame_s, self.wait_open_s = first_frame_s, wait_open_s
         self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self.csv: CsvChunks | None = None
-        self.decoder = SampleDecoder(report=self.report, hold=True)
+        self.decoder = SampleDecoder(n_cells, report=self.report, hold=True)
+        self.topology = topology  # the rig config's, when not the rig as built: written into the NPZ
         self.open_bus = open_bus or self._open
         self.frames = 0
         self.reconnects = 0
@@ -254,7 +258,12 @@ class RigLogger:
             write_capture(
                 self.prefix.with_suffix(".npz"),
                 self.arrays,
-                {"source": self.source, "capture": "rigtools logger", "channel": f"{self.interface}:{self.channel}"},
+                {
+                    "source": self.source,
+                    "capture": "rigtools logger",
+                    "channel": f"{self.interface}:{self.channel}",
+                    **({"topology": self.topology} if self.topology is not None else {}),
+                },
             )
         except OSError as e:
             why = f"write failed: {e.strerror or e} (the CSV is complete: --repair rebuilds the NPZ)"

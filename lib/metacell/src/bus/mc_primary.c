@@ -18,7 +18,16 @@ void mc_primary_init(mc_primary_t *p, uint32_t now_us)
     p->txn_timeout_us = MC_SCHED_TXN_TIMEOUT_US;
     p->ack_timeout_us = MC_SCHED_ACK_TIMEOUT_US;
     p->status_every = MC_SCHED_STATUS_EVERY;
+    p->n_cells = MC_N_CELLS;
     p->last_us = now_us;
+}
+
+int mc_primary_set_cells(mc_primary_t *p, uint32_t n)
+{
+    if (n < 1u || n > MC_MAX_CELLS || n > p->status_every || p->started || p->busy)
+        return -1;
+    p->n_cells = (uint8_t)n;
+    return 0;
 }
 
 int mc_primary_configure(mc_primary_t *p, uint32_t period_us, uint32_t txn_timeout_us,
@@ -26,7 +35,7 @@ int mc_primary_configure(mc_primary_t *p, uint32_t period_us, uint32_t txn_timeo
 {
     if (period_us > 10000000u || txn_timeout_us < 100u || txn_timeout_us > 100000u ||
         ack_timeout_us < 1000u || ack_timeout_us > 10000000u || status_every < 16u ||
-        status_every > 65535u)
+        status_every > 65535u || status_every < p->n_cells)
         return -1;
     p->period_us = period_us;
     p->txn_timeout_us = txn_timeout_us;
@@ -73,7 +82,7 @@ static void put(mc_primary_t *p, uint32_t id, uint8_t dlc, const uint8_t *d)
 /* A data frame (sample, status, link, heartbeat, block): only above the reserve. */
 static void push(mc_primary_t *p, uint32_t id, uint8_t dlc, const uint8_t *d)
 {
-    if (mc_primary_qfree(p) <= MC_PRIMARY_QRESERVE) {
+    if (mc_primary_qfree(p) <= (uint32_t)p->n_cells + 2u) {   /* the reserve: MC_PRIMARY_QRESERVE at 16 cells */
         wide_inc(&p->tx_drop);
         return;
     }
@@ -184,7 +193,7 @@ void mc_primary_can_rx(mc_primary_t *p, uint32_t now_us, const mc_can_frame_t *f
         return;
     }
     uint32_t j = id - MC_CAN_CMD;
-    if (j < 1 || j > MC_N_CELLS) {
+    if (j < 1 || j > p->n_cells) {
         reject(p, MC_RES_NO_CELL, f);
         return;
     }
@@ -333,7 +342,7 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
         return 0;
     heartbeat(p);
     /* command deadlines */
-    for (uint32_t i = 0; i < MC_N_CELLS; i++) {
+    for (uint32_t i = 0; i < p->n_cells; i++) {
         mc_pcell_t *c = &p->cell[i];
         if (c->cmd_state != MC_CMD_IDLE && due(now, c->cmd_deadline)) {
             uint8_t r = (c->cmd_state == MC_CMD_PENDING && c->nack_streak) ? MC_RES_NACK
@@ -343,7 +352,7 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
         }
     }
     /* a block read right after its POINTER write (nothing may move the pointer between) */
-    for (uint32_t i = 0; i < MC_N_CELLS; i++) {
+    for (uint32_t i = 0; i < p->n_cells; i++) {
         mc_pcell_t *c = &p->cell[i];
         if (c->cmd_state != MC_CMD_READBLK)
             continue;
@@ -356,7 +365,7 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
         return 1;
     }
     /* pending writes next: S addr+W reg seq payload crc P */
-    for (uint32_t i = 0; i < MC_N_CELLS; i++) {
+    for (uint32_t i = 0; i < p->n_cells; i++) {
         mc_pcell_t *c = &p->cell[i];
         if (c->cmd_state != MC_CMD_PENDING || !c->seen)
             continue;
@@ -392,7 +401,7 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
         p->in_cycle = 1;
         p->next = 0;
     }
-    while (p->next < MC_N_CELLS) {
+    while (p->next < p->n_cells) {
         uint32_t i = p->next++;
         mc_pcell_t *c = &p->cell[i];
         c->seq++;
@@ -413,7 +422,7 @@ int mc_primary_next(mc_primary_t *p, uint32_t now, mc_txn_t *t)
     p->cycles++;
     p->progress++;
     p->cycles_window++;
-    if (p->status_ctr < MC_N_CELLS) {
+    if (p->status_ctr < p->n_cells) {
         emit_status(p, p->status_ctr);
         emit_link(p, p->status_ctr);
     }

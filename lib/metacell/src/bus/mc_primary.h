@@ -14,7 +14,9 @@
  * abort a transaction at txn.timeout_us; the library also treats a completion
  * reported later than that as a timeout (the data may be stale).
  *
- * Schedule: a cycle polls cells 1..16 in order with one SNAPSHOT read each;
+ * Schedule: a cycle polls cells 1..n_cells in order with one SNAPSHOT read each
+ * (n_cells = MC_N_CELLS, the rig as built, unless mc_primary_set_cells names up to
+ * MC_MAX_CELLS for a sheet: the poll order of cells 1..16 is the same either way);
  * cycles start every period_us (0: back to back). Pending command writes go
  * first. A cell that times out is skipped for a back-off of 1, 2, 4 .. BACKOFF_MAX
  * cycles (reset by its next good read); a NACK costs one address byte and is
@@ -32,8 +34,8 @@
 #define MC_PRIMARY_QLEN 128       /* outgoing CAN frames (power of two, <= 128) */
 /*
  * Queue room: sample, status, link, heartbeat and block frames are queued only
- * while more than MC_PRIMARY_QRESERVE slots are free; the reserve belongs to
- * command answers. A command is accepted (or answered BUSY/RANGE/...) only if the
+ * while more than n_cells + 2 slots are free (MC_PRIMARY_QRESERVE for the rig as
+ * built); the reserve belongs to command answers. A command is accepted (or answered BUSY/RANGE/...) only if the
  * queue keeps a slot for every result still owed plus this answer; otherwise it
  * is answered NO_ROOM; and only when not even that fits is the answer dropped,
  * counted in ans_drop. So the result of an accepted command is never dropped.
@@ -47,7 +49,7 @@
  * host opens or closes the port (USB DTR edge), the emulator when its pty's
  * client comes or goes, so a client that died without C leaves nothing behind.
  */
-#define MC_PRIMARY_QRESERVE (MC_N_CELLS + 2)
+#define MC_PRIMARY_QRESERVE (MC_N_CELLS + 2)   /* of the rig as built; n_cells + 2 in general */
 
 enum { MC_TXN_READ = 0, MC_TXN_WRITE = 1 };
 enum {
@@ -62,7 +64,7 @@ enum { MC_CMD_IDLE = 0, MC_CMD_PENDING = 1, MC_CMD_AWAIT = 2, MC_CMD_READBLK = 3
 typedef struct {
     uint8_t kind;          /* MC_TXN_READ / MC_TXN_WRITE */
     uint8_t addr;          /* 7-bit */
-    uint8_t cell;          /* index 0..15 */
+    uint8_t cell;          /* index 0..n_cells-1 */
     uint8_t len;           /* bytes to read / write */
     uint8_t buf[MC_WRITE_MAX_LEN];   /* write bytes */
     uint32_t timeout_us;
@@ -90,7 +92,8 @@ typedef struct {
 } mc_pcell_t;
 
 typedef struct {
-    mc_pcell_t cell[MC_N_CELLS];
+    mc_pcell_t cell[MC_MAX_CELLS];
+    uint8_t n_cells;          /* cells polled: 1..n_cells (MC_N_CELLS after init) */
     uint32_t period_us, txn_timeout_us, ack_timeout_us;
     uint32_t status_every, status_ctr;
     /* schedule */
@@ -124,9 +127,13 @@ typedef struct {
 
 void mc_primary_init(mc_primary_t *p, uint32_t now_us);
 /* period_us: cycle period (0 = as fast as the bus allows, <= 10 s);
- * txn_timeout_us 100..100000; ack_timeout_us 1000..10000000; status_every 16..65535. */
+ * txn_timeout_us 100..100000; ack_timeout_us 1000..10000000; status_every 16..65535 and >= n_cells. */
 int mc_primary_configure(mc_primary_t *p, uint32_t period_us, uint32_t txn_timeout_us,
                          uint32_t ack_timeout_us, uint32_t status_every);
+/* Poll cells 1..n (1 <= n <= MC_MAX_CELLS, n <= status_every so every cell's status comes round):
+ * before the first mc_primary_next only. Returns 0, or -1 (nothing changed) otherwise. Commands to
+ * a cell above n are answered NO_CELL. */
+int mc_primary_set_cells(mc_primary_t *p, uint32_t n);
 /* The transaction to start now, if any (returns 1 and fills *t). */
 int mc_primary_next(mc_primary_t *p, uint32_t now_us, mc_txn_t *t);
 /* Report the end of the transaction started by mc_primary_next. */

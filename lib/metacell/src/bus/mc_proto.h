@@ -7,7 +7,8 @@
 /* All multi-byte fields little-endian. See docs/datapath.md. */
 #define MC_PROTO_VERSION 1
 #define MC_PROTO_MAP_ID 0x9286
-#define MC_N_CELLS 16
+#define MC_N_CELLS 16   /* the rig as built: the cells the primary polls unless built for more */
+#define MC_MAX_CELLS 64   /* the most cells a sheet's data path addresses */
 #define MC_ADDR_BASE 0x10   /* cell j at MC_ADDR_BASE + j - 1 */
 #define MC_CRC8_POLY 0x07
 #define MC_CRC8_INIT 0x00
@@ -153,7 +154,7 @@
 #define MC_RES_BAD_FRAME 0x14
 #define MC_RES_NO_ROOM 0x15
 
-/* ---- CAN frames (11-bit ids; per-cell frames at base + j, j = 1..16) ---- */
+/* ---- CAN frames (11-bit ids; per-cell frames at base + j, j = 1..64) ---- */
 /* CELL_SAMPLE: one snapshot of cell j, sent for every successful poll */
 #define MC_CAN_CELL_SAMPLE 0x100
 #define MC_CAN_CELL_SAMPLE_DLC 8
