@@ -132,6 +132,10 @@ def _sheet_main(args: argparse.Namespace, out: str) -> int:
     """`design --sheet ROWSxCOLS`: design_sheet and its report."""
     from .sheet_driver import design_sheet
 
+    for flag, given in (("--scheduler", args.scheduler), ("--per-cell", args.per_cell)):
+        if given is not None:  # a sheet's ensembles run in this process; every varied parameter is per region
+            print(f"design: error: {flag} is for a chain's design, not with --sheet", file=sys.stderr)
+            return 2
     try:
         doc = design_sheet(
             args.target,
