@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..topology import Topology
+from .sheet_modes import dense_eig, sheet_matrices
 from .stability import Theory, classify_regime
 
 if TYPE_CHECKING:
@@ -36,18 +38,6 @@ if TYPE_CHECKING:
 __all__ = ["chain_matrices", "chain_modes", "chain_summary", "mode_walls", "WALL_FRACTION"]
 
 WALL_FRACTION = 0.1  # cells whose |alpha| is below this share of the largest take no part in a mode's wall count
-
-
-def _laplacian(n: int, bond: np.ndarray) -> np.ndarray:
-    """Free-end path Laplacian of n nodes, bond j (between j and j+1, 0-based) weighted bond[j]."""
-    lap = np.zeros((n, n))
-    for j in range(n - 1):
-        w = bond[j]
-        lap[j, j] += w
-        lap[j + 1, j + 1] += w
-        lap[j, j + 1] -= w
-        lap[j + 1, j] -= w
-    return lap
 
 
 def chain_matrices(
@@ -60,23 +50,15 @@ def chain_matrices(
     """(A, E, I) of the module docstring, each (2n, 2n) (E and I diagonal), in N m/rad, N m s, kg m^2.
 
     band_factors, eta_factors: (2, n) stiffness factors of each bond (the last column unused) and viscosity
-    factors of each cylinder, as models.plant.spreads draws them for the noise model (default: all 1)."""
-    theory = theory or Theory("lattice", True, True, 0.0)
+    factors of each cylinder, as models.plant.spreads draws them for the noise model (default: all 1).
+    The general lattice's sheet_modes.sheet_matrices on the free-end chain (bond j = (j, j+1))."""
     n = params.cells
-    kab, sig, k2 = params.per_cell("k_ab"), params.per_cell("sigma"), params.per_cell("k2")
     band = np.ones((2, n)) if band_factors is None else np.asarray(band_factors, dtype=float)
     eta = np.ones((2, n)) if eta_factors is None else np.asarray(eta_factors, dtype=float)
     if band.shape != (2, n) or eta.shape != (2, n):
         raise ValueError(f"band_factors and eta_factors must have shape (2, {n})")
-    a = np.zeros((2 * n, 2 * n))
-    a[:n, :n] = -params.ka_eff * _laplacian(n, band[0]) + np.diag(-kab - k2)
-    a[:n, n:] = np.diag(kab - sig)
-    a[n:, :n] = np.diag(kab)
-    a[n:, n:] = -params.kb_eff * _laplacian(n, band[1]) + np.diag(-kab)
-    damp = float(theory.motor_damping)
-    e = np.diag(np.concatenate([params.eta_alpha * eta[0] + damp, params.eta_beta * eta[1] + damp]))
-    i = np.diag(np.concatenate([np.full(n, params.I_a), np.full(n, params.I_b)]))
-    return a, e, i
+    a, e, i = sheet_matrices(params, theory, band_factors=band[:, : n - 1], eta_factors=eta, topology=Topology.chain(n))
+    return a, np.diag(e), np.diag(i)
 
 
 def mode_walls(profile: np.ndarray, fraction: float = WALL_FRACTION) -> list[float]:
@@ -113,17 +95,7 @@ def chain_modes(params: Params, theory: Theory | None = None, *, count: int | No
     theory = theory or Theory("lattice", True, True, 0.0)
     a, e, i = chain_matrices(params, theory, **factors)
     n = params.cells
-    ed, idg = np.diag(e), np.diag(i)
-    if theory.inertia:
-        m = np.zeros((4 * n, 4 * n))
-        m[: 2 * n, 2 * n :] = np.eye(2 * n)
-        m[2 * n :, : 2 * n] = a / idg[:, None]
-        m[2 * n :, 2 * n :] = -np.diag(ed / idg)
-    else:
-        m = a / ed[:, None]
-    w, v = np.linalg.eig(m)
-    order = np.lexsort((-w.imag, -w.real))
-    w, v = w[order], v[:, order]
+    w, v = dense_eig(a, np.diag(e), np.diag(i), theory.inertia)
     modes = []
     for k, s in enumerate(w):
         if s.imag < -1e-9 * max(1.0, abs(s)):

@@ -1,4 +1,5 @@
-"""`python -m host_emulator dispersion`: linear stability of the rest state for given parameters, as JSON or a table."""
+"""`python -m host_emulator dispersion`: linear stability of the rest state for given parameters (a chain, or a sheet's
+annulus with --sheet or a sheet scene), as JSON or a table."""
 
 from __future__ import annotations
 
@@ -76,13 +77,31 @@ def dispersion_main(argv: list[str] | None) -> int:
         "  python -m host_emulator dispersion --sigma 12/125 --band-scale 0.5 --json   # two unstable intervals\n"
         "  python -m host_emulator dispersion --sigma 14/125 --model hil                # the hil model: rest\n"
         "  python -m host_emulator dispersion --sigma 9/125 --no-inertia --cells 16    # the source's theory\n"
-        "  python -m host_emulator dispersion --band-scale 0.5 --plot out/dispersion.png",
+        "  python -m host_emulator dispersion --band-scale 0.5 --plot out/dispersion.png\n"
+        "  python -m host_emulator dispersion --sigma 9/125 --sheet 16x16 --boundary periodic  # the 2-D annulus\n"
+        "  python -m host_emulator dispersion --scene default                                # a scene's theory",
     )
     ap.add_argument("--sigma", type=str, default=None, help="feedback gain sigma, N m/rad (e.g. 0.072 or 9/125)")
     ap.add_argument(
+        "--scene",
+        default=None,
+        metavar="SCENE",
+        help="start from a scene's parameters, lattice and model (shipped name or .toml); a sheet scene prints "
+        "its annulus (docs/sheets.md)",
+    )
+    ap.add_argument(
+        "--sheet",
+        default=None,
+        metavar="ROWSxCOLS",
+        help="the 2-D theory of a sheet of ROWS x COLS cells (e.g. 16x16): its unstable annulus, fastest "
+        "wavevectors and which of the finite sheet's modes grow (docs/sheets.md)",
+    )
+    ap.add_argument("--lattice", choices=("square", "hex"), default=None, help="the sheet's lattice (default square)")
+    ap.add_argument("--boundary", choices=("open", "periodic"), default=None, help="the sheet's edges (default open)")
+    ap.add_argument(
         "--model",
         choices=("lattice", "hil", "continuum"),
-        default="lattice",
+        default=None,
         help="whose linear theory: lattice (default; with inertia), hil (the lattice plus the motors' back-EMF "
         "damping, 15/16 of it removed with --set bemf_comp=true) or continuum (kappa^2, no inertia), as the "
         "run summaries of those models",
@@ -137,7 +156,15 @@ def dispersion_main(argv: list[str] | None) -> int:
             print(f"dispersion: error: {problem}", file=sys.stderr)
             return 2
     try:
-        p = Params()
+        p, model, inertia = Params(), "lattice", True
+        if args.scene is not None:
+            from ..scene import load_scene
+
+            scene = load_scene(args.scene)
+            p, model, inertia = scene.params, scene.model, scene.options.inertia
+        if args.model is not None:
+            model = args.model
+        p = _sheet_params(p, args)
         if args.sigma is not None:
             p = p.with_overrides(sigma=_number(args.sigma, "--sigma"))
         if args.eta_scale is not None:
@@ -150,14 +177,15 @@ def dispersion_main(argv: list[str] | None) -> int:
         p = parse_set(p, args.set)
         if args.cells is not None and args.cells < 1:
             raise ValueError("--cells must be >= 1")
-        theory = theory_of(args.model, p)
-        if args.model == "continuum":
+        theory = theory_of(model, p, inertia)
+        if model == "continuum":
             theory = dataclasses.replace(theory, inertia=False)
         if args.inertia is not None:
             theory = dataclasses.replace(theory, inertia=args.inertia)
         if args.discrete is not None:
             theory = dataclasses.replace(theory, discrete=args.discrete)
-        res = dispersion(p, theory=theory, n_cells=args.cells)
+        sheet = _sheet_result(p, theory) if p.topology.is_sheet else None
+        res = dispersion(p.uniform(), theory=theory, n_cells=args.cells)
     except (ValueError, KeyError, FloatingPointError) as e:
         print(f"dispersion: error: {e.args[0] if e.args else e}", file=sys.stderr)
         return 2
@@ -168,6 +196,8 @@ def dispersion_main(argv: list[str] | None) -> int:
         print(f"wrote {args.plot}", file=sys.stderr)
     if not args.curve:
         res.pop("curve")
+    if sheet is not None:
+        res["sheet"] = sheet
     if args.json:
         print(json.dumps(res, indent=2, allow_nan=False))
         return 0
@@ -216,10 +246,102 @@ def dispersion_main(argv: list[str] | None) -> int:
                 f"growth={m['growth_per_s']:.4g} 1/s",
             )
         )
+    if sheet is not None:
+        rows += _sheet_rows(sheet)
     w = max(len(r[0]) for r in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")
     return 0
+
+
+def _sheet_params(p: Params, args) -> Params:
+    """The parameters with --sheet/--lattice/--boundary applied (ValueError on a bad ROWSxCOLS)."""
+    if args.sheet is None:
+        if args.lattice or args.boundary:
+            if not p.topology.is_sheet:
+                raise ValueError("--lattice and --boundary need --sheet ROWSxCOLS (or a sheet scene)")
+            return p.with_overrides(lattice=args.lattice or p.lattice, boundary=args.boundary or p.boundary)
+        return p
+    parts = args.sheet.lower().split("x")
+    if len(parts) != 2 or not all(t.strip().isdigit() and int(t) >= 1 for t in parts):
+        raise ValueError(f"--sheet {args.sheet!r}: expected ROWSxCOLS, e.g. 16x16")
+    rows, cols = (int(t) for t in parts)
+    if p.per_cell_keys:
+        raise ValueError("--sheet: the parameters give one value per cell; set them without per-cell values")
+    q = p.with_overrides(
+        cells=rows * cols,
+        shape=(rows, cols),
+        lattice=args.lattice or (p.lattice if p.lattice != "chain" else "square"),
+        boundary=args.boundary or "open",
+    )
+    q.topology  # noqa: B018 - raises TopologyError (a ValueError) on a sheet that cannot be built
+    return q
+
+
+def _sheet_result(p: Params, theory) -> dict:
+    """The sheet's 2-D theory for the JSON: annulus, fastest wavevectors, the finite sheet's growing modes."""
+    from .sheet import annulus, fastest, finite_sheet
+
+    fs = finite_sheet(p, theory)
+    grow = [{k: v for k, v in m.items() if k != "unstable"} for m in fs["modes"] if m["unstable"]]
+    return {
+        "topology": fs["topology"],
+        "annulus": annulus(p, theory),
+        "fastest": fastest(p, theory),
+        "finite_sheet": {
+            "unstable_modes": grow,
+            "fastest_mode": {k: v for k, v in fs["fastest_mode"].items() if k != "unstable"},
+            "relative_to_fastest": fs["relative_to_fastest"],
+            "in_annulus": fs["in_annulus"],
+        },
+    }
+
+
+def _pair(v, unit=" cells") -> str:
+    if v is None:
+        return "-"
+    lo, hi = v
+    return f"{lo:.3f}-{'inf' if hi is None else format(hi, '.3f')}{unit}"
+
+
+def _sheet_rows(sheet: dict) -> list[tuple[str, str]]:
+    """The table rows of the sheet's 2-D theory."""
+    an, fa, fs = sheet["annulus"], sheet["fastest"], sheet["finite_sheet"]
+    rows = [("sheet", f"{sheet['topology']}: the 2-D theory (docs/sheets.md)")]
+    for iv in an["intervals"]:
+        rows.append((f"  annulus ({iv['kind']})", f"continuum {_pair(iv['continuum']['lambda_cells'])}"))
+        for name, ext in iv["discrete"].items():
+            edge = " (to the zone edge)" if ext["to_zone_edge"] else ""
+            rows.append((f"    lattice, {name}", _pair(ext["lambda_cells"]) + edge))
+    if not an["intervals"]:
+        rows.append(("  annulus", "none (no wavevector grows)"))
+    if fa["q"] > 0:
+        disc = ", ".join(
+            f"{name} {_fmt(d['lambda_cells'], ' cells')}" for name, d in fa["discrete"].items() if name != "corner"
+        )
+        rows.append(
+            (
+                "  fastest wavelength",
+                f"continuum {_fmt(fa['continuum']['lambda_cells'], ' cells')}; lattice {disc} "
+                f"at {fa['growth_per_s']:.4g} 1/s",
+            )
+        )
+    else:
+        rows.append(("  fastest wavelength", f"uniform (inf) at {fa['growth_per_s']:.4g} 1/s"))
+    m = fs["fastest_mode"]
+    rel = fs["relative_to_fastest"]
+    k = "-" if m["k"] is None else f"[{m['k'][0]:.4f}, {m['k'][1]:.4f}] rad/cell"
+    rows.append(
+        (
+            "  fastest sheet mode",
+            f"k={k} lambda={_fmt(m['lambda_cells'], ' cells') if m['lambda_cells'] else 'inf (uniform)'} "
+            f"growth={m['growth_per_s']:.4g} 1/s"
+            + (f", {100 * rel:+.1f}% of the fastest wavelength" if rel is not None else "")
+            + ("" if fs["in_annulus"] else " (decays: nothing on this sheet grows)"),
+        )
+    )
+    rows.append(("  growing sheet modes", str(len(fs["unstable_modes"]))))
+    return rows
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -42,6 +42,7 @@ __all__ = [
     "reaction_jacobian",
     "jacobian",
     "growth_rates",
+    "growth_rates_at_q",
     "turing_conditions",
     "dispersion",
     "plot_dispersion",
@@ -130,19 +131,30 @@ def growth_rates(
     k = np.atleast_1d(np.asarray(kappa, dtype=float))
     if k.ndim != 1 or not np.all(np.isfinite(k)):
         raise ValueError("kappa must be a finite scalar or 1-D array")
-    q = q_of_kappa(k, discrete)
+    return growth_rates_at_q(params, q_of_kappa(k, discrete), inertia=inertia, motor_damping=motor_damping)
+
+
+def growth_rates_at_q(params: Params, q: ArrayLike, *, inertia: bool = False, motor_damping: float = 0.0) -> np.ndarray:
+    """Growth rates s (1/s, complex) of the modes whose Laplacian eigenvalue is q (>= 0), shape (len(q), 2 or 4).
+
+    The Laplacian enters the linear problem only through its eigenvalue, so this is the growth rate of any lattice
+    (a chain, a square or hexagonal sheet: analysis.sheet) at a wavevector whose symbol is q."""
+    _check(params, inertia)
+    q = np.atleast_1d(np.asarray(q, dtype=float))
+    if q.ndim != 1 or not np.all(np.isfinite(q)):
+        raise ValueError("q must be a finite scalar or 1-D array")
     jr = reaction_jacobian(params)
     kd = np.array([params.ka_eff, params.kb_eff])
     eta = np.array([params.eta_alpha, params.eta_beta]) + float(motor_damping)
-    # A(q) = Jr - q K, one 2x2 per kappa
-    a = np.broadcast_to(jr, (k.size, 2, 2)).copy()
+    # A(q) = Jr - q K, one 2x2 per q
+    a = np.broadcast_to(jr, (q.size, 2, 2)).copy()
     a[:, 0, 0] -= q * kd[0]
     a[:, 1, 1] -= q * kd[1]
     if not inertia:
         m = a / eta[None, :, None]  # E^-1 A(q)
     else:
         inert = np.array([params.I_a, params.I_b])
-        m = np.zeros((k.size, 4, 4))
+        m = np.zeros((q.size, 4, 4))
         m[:, 0, 2] = m[:, 1, 3] = 1.0  # x' = v
         m[:, 2:, :2] = a / inert[None, :, None]  # I v' = A x - E v
         m[:, 2, 2] = -eta[0] / inert[0]

@@ -36,6 +36,7 @@ from ..params import Params
 from . import board as wiring
 from . import cycles, regsnapshot, runtime
 from .elfimage import APP_BASE
+from .world import set_pwm
 
 SRAM_TOP = 0x2000_8000
 N_VECTORS = 16 + 32
@@ -230,6 +231,8 @@ class Harness:
         window_s: float = 100e-6,
         ff: bool = True,
         built: tuple[Any, Any] | None = None,
+        pwm: str = "mean",
+        motor_tau_s: float = 0.0,
     ) -> None:
         """`built`: the (ffi, lib) of a runtime from runtime.load (default: the one of image/csrc)."""
         self.ffi, self.lib = ffi, lib = built or runtime.load()
@@ -255,6 +258,7 @@ class Harness:
         cm = cycles.CycleModel()
         c.cyc_exc_entry, c.cyc_exc_exit, c.cyc_apb = cm.exc_entry, cm.exc_exit, cm.apb_extra
         c.plant = self.plant
+        set_pwm(c, pwm, motor_tau_s)
         self._px, self._pv = ffi.from_buffer("double[]", self.x), ffi.from_buffer("double[]", self.v)
         c.x, c.v = self._px, self._pv
         wiring.wire(c)
@@ -398,6 +402,18 @@ class Harness:
         if self.lib.sam_world_motor(self._w, cell, chain, v, a):
             raise HarnessError(f"cell {cell} chain {chain}: no such motor")
         return float(v[0]), float(a[0])
+
+    def tcc_info(self, tcc: int = 0, *, board: int = 0):
+        """A TCC as it counts now (csrc/sam_api.h sam_tcc_info_t): prescaler, PER, the current cycle's start and
+        top, the PWM period in tu."""
+        out = self.ffi.new("sam_tcc_info_t *")
+        if self.lib.sam_world_tcc_info(self._w, board, tcc, out):
+            raise HarnessError(f"board {board} TCC{tcc}: no such timer")
+        return out
+
+    def tcc_high(self, wo: int, t0: int, t1: int, *, tcc: int = 0, board: int = 0) -> int:
+        """High time (tu) of TCCn/WO[wo] over [t0, t1) from the counter's edges (the waveform path's figure)."""
+        return int(self.lib.sam_world_tcc_high(self._w, board, tcc, wo, t0, t1))
 
     # ---- the core ----------------------------------------------------------------------------------------
     def nvic(self, *, board: int = 0):

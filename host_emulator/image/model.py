@@ -29,7 +29,7 @@ from ..progress import bar
 from . import ImageTierUnavailable
 from .build import build_images
 from .laptop import Laptop, LaptopError
-from .world import World, WorldConfig, WorldError
+from .world import MOTOR_TAU_S, World, WorldConfig, WorldError
 
 # the flashed build's control rate and PWM period (platformio.ini: MC_CTRL_RATE_HZ, MC_PWM_TOP)
 BUILD_CTRL_RATE_HZ = 2000
@@ -158,6 +158,8 @@ class ImageSolver(Solver):
             ff=io.fast_forward,
             round_s=io.round_s,
             boot=io.boot,
+            pwm=io.pwm,
+            motor_tau_s=MOTOR_TAU_S if io.motor_inductance else 0.0,
         )
         if opt.substeps is not None:
             cfg.substeps = opt.substeps

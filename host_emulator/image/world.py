@@ -73,6 +73,33 @@ class WorldConfig:
     # BOOTPROT of the boards' NVM user row: 7 (nothing protected) is assumed, the shipped XIAOs' fuse being unknown;
     # 2 protects the bootloader's 8 KiB (csrc/sam.h SAM_NVM_BOOTPROT_ASSUMED, csrc/sam_nvmctrl.c)
     bootprot: int = 7
+    # what the motors see of a PWM output: "mean" (the duty CC / (PER + 1) over each window's time: every result
+    # before the waveform existed) or "waveform" (each output's edges from the TCC counter's phase, prescaler and
+    # period: a window sees the real high time); docs/image-tier.md "PWM and the motors"
+    pwm: str = "mean"
+    # "waveform" only: the motors' electrical time constant L / R, s (0: none; MOTOR_TAU_S is the estimate)
+    motor_tau_s: float = 0.0
+
+
+#: The coreless motors' terminal resistance and inductance (docs/image-tier.md "PWM and the motors"): R from the
+#: stall figures of docs/physics.md (12 V / 4.3 A); L an estimate (no datasheet value: small coreless DC motors have
+#: tens to hundreds of uH), so tau_e = L / R = 36 us against the 50 us PWM period.
+MOTOR_R_OHM = 12.0 / 4.3
+MOTOR_L_H = 100e-6
+MOTOR_TAU_S = MOTOR_L_H / MOTOR_R_OHM
+PWM_PATHS = ("mean", "waveform")  # models/options.py PWM_PATHS
+
+
+def set_pwm(c, pwm: str, motor_tau_s: float) -> None:
+    """The PWM path and the motors' time constant into a sam_world_cfg_t (ValueError naming the bad value)."""
+    if pwm not in PWM_PATHS:
+        raise ValueError(f"pwm = {pwm!r}: expected one of {', '.join(PWM_PATHS)}")
+    if not (math.isfinite(motor_tau_s) and motor_tau_s >= 0):
+        raise ValueError(f"motor_tau_s = {motor_tau_s!r}: expected a time constant >= 0 s")
+    if motor_tau_s and pwm != "waveform":
+        raise ValueError(f"motor_tau_s = {motor_tau_s!r}: the electrical model needs pwm = 'waveform'")
+    c.pwm_waveform = int(pwm == "waveform")
+    c.motor_tau_s = motor_tau_s
 
 
 @dataclass
@@ -138,6 +165,7 @@ class World:
         c.trace = cfg.trace
         c.trace_boards = cfg.trace_boards
         c.plant = self.plant
+        set_pwm(c, cfg.pwm, cfg.motor_tau_s)
         self._px = ffi.from_buffer("double[]", self.x)
         self._pv = ffi.from_buffer("double[]", self.v)
         c.x = self._px
@@ -375,6 +403,14 @@ class World:
             raise MemoryError("profile")
         n = cycles.FLASH_SIZE // 2
         return np.frombuffer(self.ffi.buffer(p, 8 * n), dtype=np.uint64).copy()
+
+    def tcc_info(self, b: int, tcc: int = 0):
+        """A TCC of board b as it counts now (csrc/sam_api.h sam_tcc_info_t): prescaler, PER, the PWM period in tu
+        (the PWM frequency is tu_hz / period_tu)."""
+        out = self.ffi.new("sam_tcc_info_t *")
+        if self.lib.sam_world_tcc_info(self._w, b, tcc, out) != 0:
+            raise IndexError(f"board {b} TCC{tcc}")
+        return out
 
     def bus_info(self):
         out = self.ffi.new("sam_bus_info_t *")

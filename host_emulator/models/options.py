@@ -46,12 +46,18 @@ class ImageOptions:
     # "direct" (the application starts at once) or "bootloader" (the XIAO's UF2 bootloader, found through
     # MC_BOOTLOADER, runs first and starts it: power-on +6.9 ms, other resets +0.9 s; image/bootloader.py)
     boot: str = "direct"
+    # what the motors see of TCC0's PWM: "mean" (CC / (PER + 1) over each window) or "waveform" (the output's own
+    # edges: the counter's phase, prescaler and period); motor_inductance (waveform only): the motors' electrical
+    # time constant L / R in the plant (image/world.py MOTOR_L_H, MOTOR_R_OHM; docs/image-tier.md)
+    pwm: str = "mean"
+    motor_inductance: bool = False
 
 
 IMAGE_THREADS_MAX = 16
 IMAGE_ROUND_MIN_S = 1e-6  # round_s below this (48 CPU cycles) only multiplies the rounds' cost (limits.image_cost)
 CYCLE_MODELS = ("cache", "worst")
 BOOT_MODES = ("direct", "bootloader")  # image/bootloader.py BOOT_MODES
+PWM_PATHS = ("mean", "waveform")  # image/world.py PWM_PATHS
 
 
 @dataclass(frozen=True)
@@ -159,7 +165,11 @@ def parse_image(d: dict, prefix: str = "model_options.image") -> ImageOptions:
             if v not in CYCLE_MODELS:
                 raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(CYCLE_MODELS)}")
             kw[k] = v
-        elif k == "fast_forward":
+        elif k == "pwm":
+            if v not in PWM_PATHS:
+                raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(PWM_PATHS)}")
+            kw[k] = v
+        elif k in ("fast_forward", "motor_inductance"):
             if not isinstance(v, bool):
                 raise ConfigError(f"{key} = {v!r}: expected true or false")
             kw[k] = v
@@ -174,6 +184,8 @@ def parse_image(d: dict, prefix: str = "model_options.image") -> ImageOptions:
                     f"{key} = {v!r}: expected 0 (the plant window) or {IMAGE_ROUND_MIN_S:g} .. 0.01 s (results do not "
                     "depend on it; shorter rounds only cost time)"
                 )
+    if kw.get("motor_inductance") and kw.get("pwm", "mean") != "waveform":
+        raise ConfigError(f'{prefix}.motor_inductance = true: needs {prefix}.pwm = "waveform"')
     return ImageOptions(**kw)
 
 

@@ -170,7 +170,7 @@ static void bus_fire(sam_mcu_t *m, void *ctx)
         if (w->cfg.trace & 1) {
             static const char *const names[BUS_EV_COUNT] = {
                 "-", "S_ADDRESS", "S_DRDY_RX", "S_DRDY_TX", "S_PREC", "S_RESET", "M_CLAIM", "M_HOLD", "M_RELEASE",
-                "M_MB", "M_SB", "M_NACKCHECK", "M_IDLE", "M_ARBLOST", "M_TIMEOUT"};
+                "M_MB", "M_SB", "M_NACKCHECK", "M_IDLE", "M_ARBLOST", "M_TIMEOUT", "M_BUSERR", "M_SDA"};
             sam_note(m, "bus %.3f us %s <- %s %s arg %u", (double)e.t * 1e6 / (double)SAM_TU_HZ, m->name,
                            w->mcu[e.src]->name, names[e.kind], e.arg);
         }
@@ -238,6 +238,14 @@ void sam_bus_power_lost(sam_mcu_t *m)
 {
     if (bus_sercom(m))
         sam_i2c_restart(m, m->w->bus.pi);
+}
+
+/* The stuck-SDA fault began (stuck 1) or ended, at the primary's time now: its bus monitor learns of it as a bus
+ * step now (SDA falling while SCL is high is a START by someone else, rising a STOP: sam_i2cm_step). */
+void sam_bus_sda_fault(sam_mcu_t *m, int stuck)
+{
+    if (m->role == SAM_ROLE_PRIMARY && m->w->bus.pi >= 0 && !m->halted)
+        sam_bus_push(m, m->id, sam_now(m), BUS_EV_M_SDA, stuck ? 1 : 0, 0, sam_bus_tmin());
 }
 
 /* ---------------------------------------------------------------- the lines, for GPIO bus recovery */

@@ -282,9 +282,16 @@ void sam_eic_lines_update(sam_mcu_t *m);                  /* the pins' mux chang
 
 /* ---- sam_tc.c, sam_tcc.c: timers ---- */
 void sam_tc_stop_clock(sam_mcu_t *m, const char *name);   /* fault injection: the TC's clock is lost */
-/* high time of WO[wo] over [t0, t1) as an exact fraction: returns the numerator in tu (counts high x tu) and
- * sets *top to the denominator (the period in counts) */
-uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *top);
+/* high time of WO[wo] over [t0, t1). waveform 0: the mean duty CC / (PER + 1) over the time, as an exact fraction:
+ * returns the numerator in tu (counts high x tu), *top the denominator (the period in counts), *other the part (tu)
+ * after a period change inside [t0, t1). waveform 1: the waveform's own high time, edge by edge: exact in tu
+ * (*top = 1, *other = 0). */
+uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, int waveform, uint64_t *top,
+                      double *other);
+/* WO[wo] over [t0, t1) as constant pieces in time order: fn(ctx, level, duration in tu) */
+typedef void (*sam_tcc_piece_fn)(void *ctx, int level, uint64_t dt);
+void sam_tcc_pieces(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, sam_tcc_piece_fn fn, void *ctx);
+int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out);   /* the counter at t; -1: none */
 
 /* A step to another board takes effect at t: this board stops before t + SAM_BUS_TMIN, when the other may answer. */
 static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)

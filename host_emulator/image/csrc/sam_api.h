@@ -67,6 +67,11 @@ typedef struct {
     int32_t pin_enc[2][2];     /* encoder [alpha|beta][A|B] */
     int32_t pin_sda, pin_scl;  /* I2C bus */
     int32_t bus_sercom;        /* n of the SERCOMn whose PAD0, PAD1 carry SDA, SCL: the bus (image/board.py) */
+    /* what the motors see of a PWM output (0 in both: the mean-duty path, every result before these existed) */
+    int32_t pwm_waveform;      /* 0: a window sees the mean duty CC / (PER + 1) over its time; 1: the waveform's
+                                  own high time, edge by edge (the counter's phase, prescaler and period) */
+    double motor_tau_s;        /* pwm_waveform only: the motors' electrical time constant L / R (s; 0: none): the
+                                  plant sees R times the window's mean current plus the back-EMF */
 } sam_world_cfg_t;
 
 typedef struct {
@@ -161,8 +166,40 @@ int sam_world_reg_value(const sam_world_t *w, int mcu, uint32_t ri, uint32_t *va
  * NULL if out of memory. */
 const uint64_t *sam_world_profile(sam_world_t *w, int mcu);
 int sam_world_bus_info(const sam_world_t *w, sam_bus_info_t *out);
+/* The SCL timing a board's bus SERCOM (I2C master) sets now, from BAUD, BAUDLOW, CTRLA.SDAHOLD, its GCLK and the
+ * bus's rise time (cfg.i2c_rise_ns), against the I2C-bus specification's limits for its mode
+ * (sam_sercom_i2c_timing.c); -1 when there is no such board or bus, or its SERCOM has no clock. */
+enum { SAM_I2C_STANDARD = 0, SAM_I2C_FAST = 1, SAM_I2C_FAST_PLUS = 2 };
+enum { SAM_I2C_VIOL_LOW = 1, SAM_I2C_VIOL_HIGH = 2, SAM_I2C_VIOL_SETUP = 4, SAM_I2C_VIOL_SDA_IN_HIGH = 8 };
+typedef struct {
+    int32_t mode;              /* SAM_I2C_*: CTRLA.SPEED 1 Fast-mode Plus; SPEED 0 Standard up to 100 kHz, Fast above */
+    uint32_t baud, baudlow, sdahold;   /* the register fields */
+    double f_gclk_hz, f_scl_hz;
+    double t_low_s, t_high_s, t_rise_s;
+    double t_hold_min_s, t_hold_max_s;  /* SDA hold after SCL falls: CTRLA.SDAHOLD's range */
+    double t_setup_s;          /* data setup before SCL rises: t_low - t_hold_max - t_rise */
+    double min_low_s, min_high_s, min_setup_s;   /* the mode's limits */
+    int32_t violations;        /* SAM_I2C_VIOL_* bits: T_LOW, T_HIGH, t_SU;DAT below the limit; SDA changing while
+                                  SCL is released (t_hold_max >= t_low: false START/STOP conditions) */
+} sam_i2c_timing_t;
+int sam_world_i2c_timing(sam_world_t *w, int mcu, sam_i2c_timing_t *out);
 /* Motor drive of a cell as the plant last saw it: mean voltage and awake fraction of the last window. */
 int sam_world_motor(const sam_world_t *w, int cell, int chain, double *volt, double *awake);
+/* A TCC of a board as it counts at the board's time (sam_world_tcc_info; tcc 0..2): the PWM frequency is
+ * 1 / period_tu. */
+typedef struct {
+    int32_t running;
+    uint32_t prescaler;        /* CTRLA.PRESCALER as a divisor: 1 .. 1024 */
+    uint32_t per, top;         /* PER, and the current cycle's last count (MAX after PER was written below COUNT) */
+    uint32_t cc[4];
+    uint64_t tick_tu;          /* one count */
+    uint64_t period_tu;        /* one PWM period, (PER + 1) counts; 0 while stopped */
+    uint64_t cycle_start_tu;   /* when the current cycle began (COUNT was 0) */
+} sam_tcc_info_t;
+int sam_world_tcc_info(const sam_world_t *w, int mcu, int tcc, sam_tcc_info_t *out);
+/* High time (tu) of TCCn/WO[wo] of a board over [t0, t1), edge by edge (the waveform path's figure); [t0, t1) within
+ * the board's past since the counter's parameters last changed by a register write. */
+uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1);
 /* Log lines (resets, faults, USB errors) since the last call, '\n'-separated; returns bytes written. */
 uint32_t sam_world_notes(sam_world_t *w, char *buf, uint32_t cap);
 /* Change what is traced into the notes (sam_world_cfg_t.trace, .trace_boards) from now on. */

@@ -9,6 +9,8 @@ enum { S_IDLE = 0, S_AMATCH, S_RX, S_RX_HOLD, S_TX_NEED, S_TX, S_TX_DONE, S_WAIT
 #define M_MB 0x01u
 #define M_SB 0x02u
 #define F_ERROR 0x80u
+#define ST_BUSERR 0x01u
+#define ST_ARBLOST 0x02u
 #define S_PREC 0x01u
 #define S_AMATCHF 0x02u
 #define S_DRDY 0x04u
@@ -72,6 +74,11 @@ void sam_i2cm_data(sam_mcu_t *m, int pi, uint8_t b);
 void sam_i2cm_cmd(sam_mcu_t *m, int pi, uint32_t cmd, int nack);
 void sam_i2cm_end(sam_sercom_t *s);                         /* the transaction is over */
 void sam_i2cm_step(sam_mcu_t *m, int pi, sam_sercom_t *s, const sam_busev_t *e);   /* a bus step to the master */
+void sam_i2cm_bus_idle(sam_mcu_t *m, int pi, sam_sercom_t *s);   /* the bus state becomes IDLE: a waiting START goes */
+
+/* ---- sam_sercom_i2c_timing.c: the master's SCL timing against the I2C-bus specification ---- */
+int sam_i2cm_timing(sam_mcu_t *m, int pi, sam_i2c_timing_t *t);   /* from its registers now; -1: no clock */
+int sam_i2cm_timing_check(sam_mcu_t *m, int pi);            /* SAM_I2C_VIOL_* of a START now; the first noted */
 
 /* ---- sam_sercom_i2cs.c: the slave ---- */
 void sam_i2cs_cmd(sam_mcu_t *m, int pi, uint32_t cmd, int nack);

@@ -151,8 +151,8 @@ static int i2c_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         if (s->mode == 5) {
             s->m_status &= (uint16_t)~(v & 0x43u);   /* BUSERR, ARBLOST, LOWTOUT: write 1 to clear */
             if (((v >> 4) & 3u) == BUSSTATE_IDLE && s->busstate == BUSSTATE_UNKNOWN) {
-                s->busstate = BUSSTATE_IDLE;
-                sam_sercom_sync(m, pi, 4u);
+                sam_sercom_sync(m, pi, 4u);   /* forced IDLE: only from UNKNOWN (28.10.8) */
+                sam_i2cm_bus_idle(m, pi, s);
             }
         } else {
             s->s_status &= (uint16_t)~(v & 0x43u);

@@ -59,6 +59,27 @@ void sam_i2cm_end(sam_sercom_t *s)
     s->awaiting = 0;
 }
 
+void sam_i2cm_bus_idle(sam_mcu_t *m, int pi, sam_sercom_t *s)
+{
+    s->busstate = BUSSTATE_IDLE;
+    if (s->pending_start && s->enabled && s->mode == 5 && !sam_bus_view(m)->held) {
+        s->pending_start = 0;   /* the START written while the bus was not idle goes out now */
+        s->sysop_stuck = 0;
+        sam_i2cm_addr(m, pi, s->pending_addr);
+    }
+}
+
+/* The master, owner of the bus, detects a misplaced START or STOP (28.10.8 STATUS.BUSERR): BUSERR with ARBLOST and
+ * MB, as arbitration lost; the bus state BUSY until a STOP is seen (Figure 28-4). */
+static void bus_error(sam_mcu_t *m, sam_sercom_t *s)
+{
+    s->m_status |= ST_BUSERR | ST_ARBLOST;
+    s->m_flags |= M_MB | F_ERROR;
+    s->busstate = BUSSTATE_BUSY;
+    sam_bus_counts(m)->buserr++;
+    sam_i2cm_end(s);
+}
+
 /* A step to the master (from a slave, or one of its own); s: the state of the bus SERCOM pi (or NULL). */
 void sam_i2cm_step(sam_mcu_t *m, int pi, sam_sercom_t *s, const sam_busev_t *e)
 {
@@ -119,11 +140,32 @@ void sam_i2cm_step(sam_mcu_t *m, int pi, sam_sercom_t *s, const sam_busev_t *e)
     case BUS_EV_M_ARBLOST:
         if (!own)
             break;
-        s->m_status |= 0x02u;   /* ARBLOST */
+        s->m_status |= ST_ARBLOST;
         s->m_flags |= M_MB | F_ERROR;
-        s->busstate = BUSSTATE_IDLE;
+        s->busstate = BUSSTATE_BUSY;   /* Figure 28-4: arbitration lost, BUSY until a STOP is seen */
         sam_bus_counts(m)->arblost++;
         sam_i2cm_end(s);
+        break;
+    case BUS_EV_M_BUSERR:
+        if (own)
+            bus_error(m, s);
+        break;
+    case BUS_EV_M_SDA:
+        /* SDA pulled low or let go by a fault, as the master's bus monitor sees it: only with SCL high (no slave
+         * holds it) and the pins on the SERCOM */
+        if (!s || !s->enabled || s->mode != 5 || sam_bus_view(m)->held || !sam_bus_pins_connected(m))
+            break;
+        if (e->arg) {   /* SDA falls while SCL is high: a START by someone else */
+            if (s->busstate == BUSSTATE_IDLE)
+                s->busstate = BUSSTATE_BUSY;
+            else if (own)   /* SDA no longer follows the master: it loses arbitration at its next high bit */
+                sam_bus_push(m, m->id, now + s->tbit, BUS_EV_M_ARBLOST, 0, 0, s->tbit);
+        } else {        /* SDA rises while SCL is high: a STOP */
+            if (own)
+                bus_error(m, s);   /* in the middle of its transaction */
+            if (s->busstate != BUSSTATE_IDLE)
+                sam_i2cm_bus_idle(m, pi, s);
+        }
         break;
     case BUS_EV_M_TIMEOUT:
         if (!own || !sam_bus_view(m)->held)
@@ -177,7 +219,7 @@ void sam_i2cm_addr(sam_mcu_t *m, int pi, uint32_t v)
     sam_sercom_t *s = sam_sercom_st(m, pi);
     uint64_t t = sam_now(m);
     s->m_flags &= (uint8_t)~(M_MB | M_SB | F_ERROR);
-    s->m_status &= (uint16_t)~(0x02u | 0x04u | 0x40u | 0x80u);
+    s->m_status &= (uint16_t)~(ST_BUSERR | ST_ARBLOST | 0x04u | 0x40u | 0x80u);   /* ADDR clears them (28.10.8) */
     s->sysop_stuck = 0;
     if (v & SERCOM_I2CM_ADDR_TENBITEN) {
         sam_fail(m, "I2C 10-bit addressing is not modelled");
@@ -186,6 +228,8 @@ void sam_i2cm_addr(sam_mcu_t *m, int pi, uint32_t v)
     if (s->busstate == BUSSTATE_UNKNOWN || s->busstate == BUSSTATE_BUSY) {
         sam_note(m, "%s: I2C START with the bus state %s: it waits", m->name,
                        s->busstate == BUSSTATE_UNKNOWN ? "UNKNOWN" : "BUSY");
+        s->pending_start = 1;   /* until the bus state becomes IDLE (sam_i2cm_bus_idle) */
+        s->pending_addr = v;
         return;
     }
     if (sam_bus_view(m)->held) {   /* SCL held low by a slave: no START can be made until it lets go */
@@ -197,6 +241,7 @@ void sam_i2cm_addr(sam_mcu_t *m, int pi, uint32_t v)
     uint64_t T = scl_period(m, pi);
     if (!T)
         return;
+    int viol = sam_i2cm_timing_check(m, pi);
     int repeated = s->busstate == BUSSTATE_OWNER;
     s->tbit = T;
     s->busstate = BUSSTATE_OWNER;
@@ -210,11 +255,32 @@ void sam_i2cm_addr(sam_mcu_t *m, int pi, uint32_t v)
         sam_bus_push(m, m->id, t + T, BUS_EV_M_ARBLOST, 0, 0, T);
         return;
     }
+    if (viol & SAM_I2C_VIOL_SDA_IN_HIGH) {
+        /* SDA changes while SCL is high (sam_sercom_i2c_timing.c): at the first address bit that changes it (SDA is
+         * low after the START) a false START or STOP; every secondary restarts, the master sees a bus error */
+        uint64_t k = 1;
+        while (k < 9 && !((v >> (8 - k)) & 1u))
+            k++;
+        s->awaiting = 0;
+        for (int i = 0; i < w->nmcu; i++)
+            if (w->mcu[i] && i != m->id)
+                sam_bus_push(m, i, t + k * T, BUS_EV_S_RESET, 0, 0, T);
+        sam_bus_push(m, m->id, t + k * T, BUS_EV_M_BUSERR, 0, 0, T);
+        return;
+    }
+    s->awaiting = 1;
+    s->claims = 0;
+    if (viol) {   /* the secondaries cannot sample the bits: none sees its address (a START for another, to each),
+                   * the NACK check finds no claim */
+        for (int i = 0; i < w->nmcu; i++)
+            if (w->mcu[i] && i != m->id)
+                sam_bus_push(m, i, t + 9 * T, BUS_EV_S_RESET, 0, 0, T);
+        sam_bus_push(m, m->id, t + 10 * T, BUS_EV_M_NACKCHECK, 0, 0, T);
+        return;
+    }
     for (int i = 0; i < w->nmcu; i++)
         if (w->mcu[i] && i != m->id)
             sam_bus_push(m, i, t + 9 * T, BUS_EV_S_ADDRESS, (int)(v & 0xFFu), repeated, T);
-    s->awaiting = 1;
-    s->claims = 0;
     sam_bus_push(m, m->id, t + 10 * T, BUS_EV_M_NACKCHECK, 0, 0, T);
 }
 
@@ -229,6 +295,10 @@ void sam_i2cm_data(sam_mcu_t *m, int pi, uint8_t b)
     s->m_flags &= (uint8_t)~(M_MB | M_SB);
     s->m_status &= (uint16_t)~0x80u;
     sam_bus_counts(m)->busy_tu += 9 * T;
+    if (m->w->bus.sda_stuck) {   /* SDA does not follow the master: arbitration lost on its first high bit */
+        sam_bus_push(m, m->id, t + T, BUS_EV_M_ARBLOST, 0, 0, T);
+        return;
+    }
     if (s->slave >= 0)
         sam_bus_push(m, s->slave, t + 8 * T, BUS_EV_S_DRDY_RX, b, 0, T);
     else

@@ -19,6 +19,8 @@ typedef struct {
     int slot;             /* its event source on the board */
 } sam_pinq_t;
 
+#define SAM_MOTOR_PIECES 64
+#define SAM_MOTOR_OFF 2
 /* one DRV8874 + motor: the mean of V(t) and of "awake" over the current window, from the board's pins. The
  * integrals are exact integers (EN's high time in tu/top, tu awake), so where they are split cannot change a bit. */
 typedef struct {
@@ -28,6 +30,16 @@ typedef struct {
     uint64_t awake_tu;    /* time awake */
     uint64_t t_last;      /* integrated up to here (tu) */
     double volt, awake;   /* means of the last window (what the plant used) */
+    /* the electrical model (cfg.motor_tau_s > 0): the window's drive as pieces of constant terminal voltage (+1, -1
+     * supply, 0 braked, SAM_MOTOR_OFF asleep), adjacent equal pieces merged, so where the integration was split
+     * cannot change a bit; at the window's end the current follows them */
+    struct {
+        int8_t v;
+        uint64_t dt;      /* tu */
+    } piece[SAM_MOTOR_PIECES];
+    int npiece;
+    double j;             /* R times the current (V) at the last window's end */
+    double jint;          /* its integral over the window's awake time (V tu) */
 } sam_motor_t;
 
 /* ---- the I2C bus between the boards (link_i2c_bus.c) ----
@@ -41,6 +53,8 @@ enum { BUS_EV_NONE = 0,
        BUS_EV_M_CLAIM, BUS_EV_M_HOLD, BUS_EV_M_RELEASE, BUS_EV_M_MB, BUS_EV_M_SB,
        /* to the master: its own steps */
        BUS_EV_M_NACKCHECK, BUS_EV_M_IDLE, BUS_EV_M_ARBLOST, BUS_EV_M_TIMEOUT,
+       /* to the master: a misplaced START/STOP it detects (a timing violation), SDA changed by a fault (arg: 1 low) */
+       BUS_EV_M_BUSERR, BUS_EV_M_SDA,
        BUS_EV_COUNT };
 typedef struct {
     uint64_t t;
@@ -64,6 +78,7 @@ typedef struct {
     int pi;               /* the SERCOM on the bus (the board's wiring: cfg.bus_sercom), -1 none */
     int slot[SAM_MAX_MCU];   /* its event source on each board */
     int sda_stuck;        /* fault (world level, changed only at a round boundary) */
+    int timing_noted;     /* the master's SCL timing violation has been noted (once per bus) */
     sam_lineview_t view[SAM_MAX_MCU];
     sam_busq_t q[SAM_MAX_MCU];
     sam_bus_info_t info[SAM_MAX_MCU];   /* each board counts its own part; the sum is the bus's */
@@ -180,6 +195,7 @@ uint64_t sam_bus_eot_slave(sam_mcu_t *m);                 /* earliest effect of 
 uint64_t sam_bus_eot_master(sam_mcu_t *m);                /* earliest effect of this master on a slave, SAM_NEVER */
 void sam_bus_power_lost(sam_mcu_t *m);                    /* it lets go of the bus */
 void sam_bus_lines_changed(sam_mcu_t *m);                 /* the primary's SDA/SCL pins or the SDA fault changed */
+void sam_bus_sda_fault(sam_mcu_t *m, int stuck);          /* the SDA fault began or ended: the primary's monitor */
 /* for the SERCOM's I2C mode */
 int sam_bus_sercom(sam_mcu_t *m);                         /* peripheral index of the SERCOM on the bus, -1 */
 int sam_bus_pins_connected(sam_mcu_t *m);                 /* SDA, SCL muxed to that SERCOM's PAD0, PAD1 */

@@ -113,7 +113,7 @@ uint64_t sam_world_next_fault(const sam_world_t *w)
     return t;
 }
 
-static void lines_changed(sam_world_t *w)
+static void lines_changed(sam_world_t *w, int sda_fault)
 {
     if (w->primary_mcu < 0)
         return;
@@ -121,6 +121,8 @@ static void lines_changed(sam_world_t *w)
     uint64_t saved = p->t_blk;
     p->t_blk = w->t;
     sam_bus_lines_changed(p);
+    if (sda_fault >= 0)
+        sam_bus_sda_fault(p, sda_fault);
     p->t_blk = saved;
 }
 
@@ -171,7 +173,7 @@ void sam_world_faults_apply(sam_world_t *w)
             } else if (f->kind == SAM_FAULT_USB_NO_READ) {
                 w->usb[f->mcu].no_read = 1;
             }
-            lines_changed(w);
+            lines_changed(w, f->kind == SAM_FAULT_STUCK_SDA ? 1 : -1);
         }
         if (f->started && w->t >= f->t1) {
             f->ended = 1;
@@ -186,7 +188,7 @@ void sam_world_faults_apply(sam_world_t *w)
             } else if (f->kind == SAM_FAULT_USB_NO_READ) {
                 w->usb[f->mcu].no_read = 0;
             }
-            lines_changed(w);
+            lines_changed(w, f->kind == SAM_FAULT_STUCK_SDA ? 0 : -1);
         }
     }
 }

@@ -59,8 +59,6 @@ static int driver_input(sam_mcu_t *m, int pin)
     return o == 1;
 }
 
-/* high time of an EN input over [t0, t1): a TCC waveform output through the pin mux (numerator in tu, *den its
- * period in counts), or a GPIO level (*den = 1) */
 /* what function f of a pin is, for the drivers: (tcc << 8) | wo of a TCC waveform output, -1 another peripheral's
  * signal (it drives nothing here) or a letter the pin does not have; from the generated pin table, once */
 static int16_t pin_tcc[64][8];
@@ -82,16 +80,89 @@ void sam_world_plant_init(void)
     done = 1;
 }
 
-static uint64_t enable_high(sam_mcu_t *m, int pin, uint64_t t0, uint64_t t1, uint64_t *den)
+/* high time of an EN input over [t0, t1): a TCC waveform output through the pin mux (the mean path: numerator in tu,
+ * *den its period in counts, *other a part after a period change; the waveform path: tu, *den = 1), or a GPIO
+ * level (*den = 1) */
+static uint64_t enable_high(sam_mcu_t *m, int pin, uint64_t t0, uint64_t t1, uint64_t *den, double *other)
 {
     *den = 1;
+    *other = 0.0;
     if (m->halted)
         return 0;
     int f = sam_pin_function(m, pin);
     if (f < 0)
         return driver_input(m, pin) ? t1 - t0 : 0;
     int tw = pin_tcc[pin][f];
-    return tw < 0 ? 0 : sam_tcc_high(m, tw >> 8, tw & 0xFF, t0, t1, den);
+    return tw < 0 ? 0 : sam_tcc_high(m, tw >> 8, tw & 0xFF, t0, t1, m->w->cfg.pwm_waveform != 0, den, other);
+}
+
+/* ---- the motors' electrical model (cfg.motor_tau_s > 0): L di/dt = V(t) - R i - e, in j = R i (volts) ----
+ * tau dj/dt = V - e - j over each piece of constant terminal voltage V (the supply with PH's sign while EN is high,
+ * 0 while it is low: the DRV8874 brakes, low-side slow decay; asleep: outputs off, the current gone). */
+static void current_follow(sam_world_t *w, sam_motor_t *mo, double e)
+{
+    double tau = w->cfg.motor_tau_s * (double)SAM_TU_HZ;   /* tu */
+    for (int k = 0; k < mo->npiece; k++) {
+        double d = (double)mo->piece[k].dt;
+        if (mo->piece[k].v == SAM_MOTOR_OFF) {
+            mo->j = 0.0;
+            continue;
+        }
+        double vinf = (double)mo->piece[k].v * w->cfg.supply_v - e, x = d / tau;
+        mo->jint += vinf * d - (mo->j - vinf) * tau * expm1(-x);
+        mo->j = vinf + (mo->j - vinf) * exp(-x);
+    }
+    mo->npiece = 0;
+}
+
+typedef struct {
+    sam_world_t *w;
+    sam_motor_t *mo;
+    double e;
+    int sign;
+} piece_ctx_t;
+
+static void piece_add(piece_ctx_t *c, int v, uint64_t dt)
+{
+    sam_motor_t *mo = c->mo;
+    if (!dt)
+        return;
+    if (mo->npiece && mo->piece[mo->npiece - 1].v == v) {
+        mo->piece[mo->npiece - 1].dt += dt;
+        return;
+    }
+    if (mo->npiece == SAM_MOTOR_PIECES)   /* more edges in a window than it holds: the current follows them now */
+        current_follow(c->w, mo, c->e);
+    mo->piece[mo->npiece].v = (int8_t)v;
+    mo->piece[mo->npiece].dt = dt;
+    mo->npiece++;
+}
+
+static void piece_level(void *ctx, int level, uint64_t dt)
+{
+    piece_ctx_t *c = ctx;
+    piece_add(c, level ? c->sign : 0, dt);
+}
+
+/* the back-EMF of motor (j, ch) over this window: the plant's speed at the window's start over S_L */
+static double back_emf(sam_world_t *w, int j, int ch)
+{
+    return w->cfg.v[ch * w->cfg.ncells + j] / w->cfg.plant->speed_const;
+}
+
+static void motor_pieces(sam_world_t *w, int j, int ch, int awake, int ph, uint64_t t0, uint64_t t1)
+{
+    sam_mcu_t *m = w->mcu[w->cell_mcu[j]];
+    piece_ctx_t c = {w, &w->motor[j][ch], back_emf(w, j, ch), ph ? 1 : -1};
+    int pin = w->cfg.pin_en[ch], f = m->halted ? -1 : sam_pin_function(m, pin);
+    if (!awake)
+        piece_add(&c, SAM_MOTOR_OFF, t1 - t0);
+    else if (m->halted || (f >= 0 && pin_tcc[pin][f] < 0))
+        piece_add(&c, 0, t1 - t0);
+    else if (f < 0)
+        piece_add(&c, driver_input(m, pin) ? c.sign : 0, t1 - t0);
+    else
+        sam_tcc_pieces(m, pin_tcc[pin][f] >> 8, pin_tcc[pin][f] & 0xFF, t0, t1, piece_level, &c);
 }
 
 static void motor_integrate(sam_world_t *w, int j, uint64_t t)
@@ -105,9 +176,12 @@ static void motor_integrate(sam_world_t *w, int j, uint64_t t)
         sam_motor_t *mo = &w->motor[j][ch];
         if (t <= mo->t_last)
             continue;
+        int ph = driver_input(m, w->cfg.pin_ph[ch]);
+        if (w->cfg.motor_tau_s > 0.0)
+            motor_pieces(w, j, ch, awake, ph, mo->t_last, t);
         if (awake) {
-            int ph = driver_input(m, w->cfg.pin_ph[ch]);
-            uint64_t den, hi = enable_high(m, w->cfg.pin_en[ch], mo->t_last, t, &den);
+            double other;
+            uint64_t den, hi = enable_high(m, w->cfg.pin_en[ch], mo->t_last, t, &den, &other);
             if (!mo->den)
                 mo->den = den;
             if (mo->den == 1 && den > 1) {   /* GPIO time so far, in the PWM's units from now on */
@@ -120,6 +194,8 @@ static void motor_integrate(sam_world_t *w, int j, uint64_t t)
                 mo->hi += (ph ? 1 : -1) * (int64_t)(hi * mo->den);
             else
                 mo->hi_other += (ph ? 1.0 : -1.0) * (double)hi / (double)den;
+            if (other != 0.0)   /* a period change inside the stretch (mean-duty path) */
+                mo->hi_other += (ph ? 1.0 : -1.0) * other;
             mo->awake_tu += t - mo->t_last;
         }
         mo->t_last = t;
@@ -155,6 +231,12 @@ int sam_world_window(sam_world_t *w, uint64_t t0)
             sam_motor_t *mo = &w->motor[j][ch];
             double hi = (double)mo->hi / (double)(mo->den ? mo->den : 1) + mo->hi_other;   /* tu */
             mo->volt = mo->awake_tu ? w->cfg.supply_v * hi / (double)mo->awake_tu : 0.0;
+            if (w->cfg.motor_tau_s > 0.0) {   /* R times the mean current over the time awake, plus the back-EMF */
+                double e = back_emf(w, j, ch);
+                current_follow(w, mo, e);
+                mo->volt = mo->awake_tu ? mo->jint / (double)mo->awake_tu + e : 0.0;
+                mo->jint = 0.0;
+            }
             mo->awake = (double)mo->awake_tu / (double)w->window_tu;
             mo->hi = 0;
             mo->den = 0;
@@ -212,4 +294,21 @@ int sam_world_window(sam_world_t *w, uint64_t t0)
 void sam_world_pins_init(sam_mcu_t *m)
 {
     m->w->pinq[m->id].slot = sam_source_add(m, pin_fire, NULL, NULL, SAM_SRC_UNPOWERED);
+}
+
+int sam_world_tcc_info(const sam_world_t *w, int mcu, int tcc, sam_tcc_info_t *out)
+{
+    if (mcu < 0 || mcu >= w->nmcu || !w->mcu[mcu])
+        return -1;
+    const sam_mcu_t *m = w->mcu[mcu];   /* the board's time, as sam_harness_now gives it */
+    return sam_tcc_state(w->mcu[mcu], tcc, m->ff.parked && m->t < w->t ? w->t : m->t, out);
+}
+
+uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1)
+{
+    uint64_t den;
+    double other;
+    if (mcu < 0 || mcu >= w->nmcu || !w->mcu[mcu])
+        return 0;
+    return sam_tcc_high(w->mcu[mcu], tcc, wo, t0, t1, 1, &den, &other);
 }

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host_emulator.analysis.cli import dispersion_main, parse_set
-from host_emulator.analysis.stability import dispersion
+from host_emulator.analysis.stability import Theory, dispersion
 from host_emulator.params import Params
 
 
@@ -119,3 +119,47 @@ def test_fraction_parser(num, den):
 @given(st.floats(allow_nan=False, allow_infinity=False))
 def test_float_parser_round_trips(x):
     assert parse_set(Params(), [f"sigma={x!r}"]).sigma == x
+
+
+def test_sheet_prints_its_annulus_and_fastest_mode(capsys):
+    """--sheet ROWSxCOLS adds the 2-D theory (analysis.sheet): the acceptance case, a 16 x 16 periodic sheet at
+    9/125, grows a wavelength inside the annulus within 25 % of the fastest one."""
+    from host_emulator.analysis import sheet
+
+    rc, out, _ = run(capsys, "--sigma", "9/125", "--sheet", "16x16", "--boundary", "periodic", "--json")
+    assert rc == 0
+    d = json.loads(out)["sheet"]
+    p = Params(sigma=9 / 125, cells=256, shape=(16, 16), lattice="square", boundary="periodic")
+    th = Theory("lattice", True, True, 0.0)
+    assert d["topology"] == "16 x 16 square sheet (256 cells, periodic edges)"
+    assert d["annulus"]["lambda_cells"] == pytest.approx(sheet.annulus(p, th)["lambda_cells"])
+    assert d["fastest"]["lambda_cells"] == pytest.approx(sheet.fastest(p, th)["lambda_cells"])
+    fs = d["finite_sheet"]
+    assert fs["in_annulus"] and abs(fs["relative_to_fastest"]) <= 0.25
+    assert all(m["growth_per_s"] > 0 for m in fs["unstable_modes"])
+    rc, out, _ = run(capsys, "--sigma", "9/125", "--sheet", "8x10", "--lattice", "hex")
+    assert rc == 0 and "8 x 10 hexagonal sheet (80 cells, open edges)" in out and "fastest sheet mode" in out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("--sheet", "16"),
+        ("--sheet", "0x4"),
+        ("--sheet", "2x2", "--boundary", "periodic"),
+        ("--lattice", "hex"),
+        ("--scene", "no_such_scene"),
+    ],
+)
+def test_sheet_bad_input_is_one_line_exit_2(capsys, argv):
+    rc, out, err = run(capsys, *argv)
+    assert rc == 2 and out == "" and len(err.strip().splitlines()) == 1 and err.startswith("dispersion: error:")
+
+
+def test_scene_gives_its_parameters_and_model(capsys):
+    """--scene: the scene's parameters and model (the default scene runs the hil model)."""
+    rc, out, _ = run(capsys, "--scene", "default", "--json")
+    d = json.loads(out)
+    assert rc == 0 and d["theory"].startswith("hil:") and "sheet" not in d
+    rc, out, _ = run(capsys, "--scene", "default", "--model", "lattice", "--json")
+    assert json.loads(out)["theory"] == "lattice with inertia"

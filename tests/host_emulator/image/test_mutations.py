@@ -6,12 +6,12 @@ wrong pin-mux letter for the PWM outputs, on-demand sampling of the encoder pins
 execution-only defects reverted from this repository's history: the cell's USB interrupt at the encoders'
 priority (a5a8df8) and the watchdog fed while the control tick is dead (6318086); and the classes of issue 29:
 the EIC's and TC3's priorities swapped where the table is applied, the watchdog enabled before it is configured
-(its period then enable-protected), a wrong watchdog key, a fault handler that leaves the drivers awake. Each
+(its period then enable-protected), a wrong watchdog key, a fault handler that leaves the drivers awake, TCC0's
+prescaler at DIV64 and its period off by one, the primary's 400 kHz SCL split out of Fast-mode's limits. Each
 mutant names the check(s) that catch it and, beside it, the observable.
 
-Not in the catalogue, with the reason: the primary's SCL split (T_LOW/T_HIGH are not modelled: issue 29 item 2),
-the PWM prescaler and period as waveforms (only the mean duty is: item 4); an unaligned access (Unicorn's
-Cortex-M0 does not trap it: peripherals/test_core_faults.py).
+Not in the catalogue, with the reason: an unaligned access (Unicorn's Cortex-M0 does not trap it:
+peripherals/test_core_faults.py).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import pytest
 
 from host_emulator.image import board as wiring
 from host_emulator.image.cli import image_main
+from host_emulator.image.model import bring_up
 from host_emulator.image.world import World, WorldConfig
 from host_emulator.params import Params
 from metacell_tools.fwcheck import irqmap
@@ -220,6 +221,26 @@ def check_fault_puts_the_drivers_to_sleep(images) -> list[str]:
     return ["nSLEEP is not taken low between the fault's entry and the reset request"]
 
 
+#: The cell's PWM: TCC0 from the 48 MHz GCLK0 undivided, PER + 1 = MC_PWM_TOP counts (src/cell/cell_config.h: 2400,
+#: "20 kHz"; docs/hardware.md).
+PWM_TOP = Params().pwm_top
+PWM_HZ = CPU_HZ / PWM_TOP
+
+
+def check_pwm_frequency(images) -> list[str]:
+    """TCC0 counts at the documented PWM frequency once the cell is up: the period the tier reports from the counter
+    (prescaler, PER, the clock) is MC_PWM_TOP counts of the 48 MHz clock, 20 kHz."""
+    w, _ = _cell_alone(images, 2.55, trace=False)
+    i = w.tcc_info(0, 0)
+    if not i.running:
+        return ["TCC0 is not counting"]
+    hz = w.tu_hz / i.period_tu
+    problems = [] if hz == PWM_HZ else [f"PWM at {hz:.1f} Hz, documented {PWM_HZ:.0f} Hz"]
+    if i.prescaler != 1 or i.per + 1 != PWM_TOP:
+        problems.append(f"TCC0 prescaler DIV{i.prescaler}, PER + 1 = {i.per + 1} counts, expected DIV1 and {PWM_TOP}")
+    return problems
+
+
 def check_encoders_while_usb_talks(images) -> list[str]:
     """A host enumerates the cell's USB port (control transfers, a slow host: 300 us a packet) while its alpha
     encoder turns at 30,000 counts/s: no decoder error, every count."""
@@ -236,6 +257,23 @@ def check_encoders_while_usb_talks(images) -> list[str]:
     return problems
 
 
+def check_i2c_timing(images) -> list[str]:
+    """The primary brings one cell up and polls it for 20 ms: no command refused, samples arrive, no bus error
+    (STATUS.BUSERR, counted by the bus) and no note of an SCL timing outside the I2C-bus specification's limits."""
+    p = Params(cells=1)
+    w = World(p, images)
+    lap, up = bring_up(w, p)
+    lap.pump(0.02)
+    problems = [n for n in w.notes() if "SCL timing outside" in n]
+    if up["refused"]:
+        problems.append(f"refused: {up['refused']}")
+    if not lap.rx.samples:
+        problems.append("no samples from the cell")
+    if w.bus_info().buserr:
+        problems.append(f"{w.bus_info().buserr} bus errors on the primary")
+    return problems
+
+
 CHECKS = {
     "tick": check_tick,
     "watchdog-from-loop": check_watchdog_from_loop,
@@ -246,6 +284,8 @@ CHECKS = {
     "nvic-priorities": check_nvic_priorities,
     "encoder-stress": check_encoder_stress,
     "fault-sleeps-drivers": check_fault_puts_the_drivers_to_sleep,
+    "pwm-frequency": check_pwm_frequency,
+    "i2c-timing": check_i2c_timing,
 }
 NEEDS_PRIMARY = {
     "drive",
@@ -254,6 +294,7 @@ NEEDS_PRIMARY = {
     "nvic-priorities",
     "encoder-stress",
     "fault-sleeps-drivers",
+    "i2c-timing",
 }
 
 
@@ -273,6 +314,7 @@ def test_fwcheck_irq_passes_on_every_built_image(images):
 HW = "src/cell/samd21_hw.cpp"
 MAIN = "src/cell/main.cpp"
 SYS = "src/common/samd21_sys.cpp"
+PRIMARY_HW = "src/primary/primary_hw.cpp"
 
 
 def _flag_clear_removed(s):
@@ -327,6 +369,19 @@ def _fault_leaves_drivers_awake(s):
     )
 
 
+def _pwm_prescaler_div64(s):
+    s.replace(HW, "TCC0->CTRLA.reg = TCC_CTRLA_PRESCALER_DIV1;", "TCC0->CTRLA.reg = TCC_CTRLA_PRESCALER_DIV64;")
+
+
+def _pwm_period_off_by_one(s):
+    s.replace(HW, "TCC0->PER.reg = (uint32_t)top - 1u;", "TCC0->PER.reg = (uint32_t)top;")
+
+
+def _scl_split(s):
+    # the same SCL period (110 counts + the rise), split T_LOW 15 / 48 MHz = 0.31 us, T_HIGH 105 / 48 MHz = 2.19 us
+    s.replace(PRIMARY_HW, "{400000, 48, 62}", "{400000, 100, 10}")
+
+
 def _usb_priority_reverted(s):
     s.revert("a5a8df8")
 
@@ -352,7 +407,51 @@ MUTANTS = {
     # observable: the first feed resets the cell (a wrong key in WDT.CLEAR is a system reset): resets, no steady tick
     "watchdog-wrong-key": (_watchdog_wrong_key, "tick"),
     "watchdog-fed-while-tick-dead (revert 6318086)": (_wdt_tick_fix_reverted, "watchdog-dead-tick"),
+    # observable: the PWM frequency the tier reports from TCC0's counter, 312.5 Hz against the documented 20 kHz
+    # (the mean duty is the same, so the drive check alone passes it; the waveform path would show the 3.2 ms pulses)
+    "pwm-prescaler-div64": (_pwm_prescaler_div64, "pwm-frequency"),
+    # observable: the same, 19,991.7 Hz (PER + 1 = 2401 counts): every duty 2400/2401 of the library's
+    "pwm-period-off-by-one": (_pwm_period_off_by_one, "pwm-frequency"),
+    # observables: the note "SCL timing outside Fast-mode's limits ... T_LOW 0.312 us < 1.30 us, data setup -0.413 us
+    # < 0.100 us", a bus error on every transaction (SDA changes while SCL is high: false START/STOP), the cell refuses
+    # its setup (TIMEOUT) and sends no samples
+    "primary-scl-split-100-10": (_scl_split, "i2c-timing"),
 }
+
+
+def _per_while_counting_and_lupd(s):
+    # correct on silicon (DS40001882 31.6.2.6): PER written again while TCC0 counts, the compare buffers written under
+    # Lock Update (CTRLB.LUPD set, then cleared: the copy waits for the next UPDATE, as without it)
+    s.replace(
+        HW,
+        "    tcc0_sync(TCC_SYNCBUSY_ENABLE);\n\n    /* PA10/PA11",
+        "    tcc0_sync(TCC_SYNCBUSY_ENABLE);\n    TCC0->PER.reg = (uint32_t)top - 1u;\n    tcc0_sync(TCC_SYNCBUSY_PER);"
+        "\n\n    /* PA10/PA11",
+    )
+    s.replace(
+        HW,
+        "    TCC0->CCB[PWM_CC_A].reg = da;\n    TCC0->CCB[PWM_CC_B].reg = db;\n",
+        "    TCC0->CTRLBSET.reg = TCC_CTRLBSET_LUPD;\n    TCC0->CCB[PWM_CC_A].reg = da;\n"
+        "    TCC0->CCB[PWM_CC_B].reg = db;\n    TCC0->CTRLBCLR.reg = TCC_CTRLBCLR_LUPD;\n",
+    )
+
+
+#: Images silicon accepts that use what the shipped ones do not: the tier must refuse none of them (issue 29), and
+#: each passes the checks named beside it.
+CORRECT_VARIANTS = {
+    # a cell alone (one build, no primary): the tick writes the buffers under LUPD every 500 us whatever the drive
+    "tcc0-per-written-while-counting-and-lupd": (_per_while_counting_and_lupd, ("pwm-frequency", "tick")),
+}
+
+
+@pytest.mark.parametrize("name", CORRECT_VARIANTS)
+def test_a_correct_variant_runs_and_passes_its_checks(scratch, name):
+    """One build of the varied project: the boards run it (no model error) and every check named beside it passes."""
+    vary, checks = CORRECT_VARIANTS[name]
+    vary(scratch)
+    images = scratch.images(1, primary=any(c in NEEDS_PRIMARY for c in checks))
+    for check in checks:
+        assert CHECKS[check](images) == [], f"{name}: the {check} check"
 
 
 @pytest.mark.parametrize("name", MUTANTS)

@@ -135,10 +135,6 @@ def test_clearing_lock_update_copies_the_buffer_at_the_next_boundary():
     assert h.read("TCC0.CC[2]") == 600
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="model limit: PERB (the buffered period) is not modelled; writing it stops the board",
-)
 def test_a_buffered_period_takes_effect_at_the_period_boundary():
     """DS40001882 31.6.2.6 Double Buffering: PERB is copied to PER on the UPDATE condition."""
     h = pwm(250)
