@@ -22,13 +22,11 @@ from ...scene import load_scene, scene_table
 from .constants import CONFIRM_SEED0, CROSS_MODEL, NOMINAL_PUSH, REQUIRE, SEARCH_PUSHES
 from .scenefile import FIRMWARE_KEYS, assumed_options, assumes_doc
 from .sheet_landing import LAMBDA_TOL
-from .sheet_linear import mode_rest_share, sheet_fastest_modes, sheet_first_guess, sheet_linear_score
+from .sheet_linear import REST_SHARE_MAX, mode_rest_share, sheet_fastest_modes, sheet_first_guess, sheet_linear_score
 from .sheet_runs import sheet_scene, sheet_search, sheet_verify
 from .sheet_target import SheetPush, SheetTarget, parse_shape, parse_sheet_pushes, parse_sheet_target
 from .space import Space
 from .target import DesignError
-
-DENSE_CHECK_MAX_CELLS = 100  # the whole sheet's eigenproblem (dense) is checked up to this many cells (10 x 10)
 
 
 def sheet_base(scene: str, shape: tuple[int, int]):
@@ -162,15 +160,13 @@ def design_sheet(
     )
     p = space.params(x)
     lin2, facts = sheet_linear_score(p, tgt)
-    check: dict[str, Any] = {"checked": False}
-    if p.cells <= DENSE_CHECK_MAX_CELLS:
-        modes = sheet_fastest_modes(p, 2)
-        check = {
-            "checked": True,
-            "growth_per_s": [m["growth_per_s"] for m in modes],
-            "kind": modes[0]["kind"],
-            "rest_share": mode_rest_share(modes[0]["alpha"], tgt),
-        }
+    modes = sheet_fastest_modes(p, 2)  # the whole sheet's eigenproblem with the designed per-cell laws
+    check: dict[str, Any] = {
+        "growth_per_s": [m["growth_per_s"] for m in modes],
+        "kind": modes[0]["kind"],
+        "rest_share": mode_rest_share(modes[0]["alpha"], tgt),
+        "rest_share_max": REST_SHARE_MAX,
+    }
     name = f"design_sheet_{shape[0]}x{shape[1]}"
     desc = (
         f"designed for {tgt.text()} on a {shape[0]} x {shape[1]} square sheet with push(es) on "
@@ -215,8 +211,8 @@ def design_sheet(
             "rest": {k: float(p.per_cell(k)[tgt.rest_mask()][0]) for k in REACTION_KEYS},
         },
         "linear_theory": {
-            "theory": "hil: each region's law on the square lattice (inertia + the motors' back-EMF damping); the "
-            "whole sheet's eigenproblem checked up to 100 cells",
+            "theory": "hil: each region's law on the square lattice (inertia + the motors' back-EMF damping); "
+            "whole_sheet: the sheet's eigenproblem with the designed per-cell laws (analysis.sheet_modes)",
             "score": lin2,
             "first_guess_score": lin,
             **facts,

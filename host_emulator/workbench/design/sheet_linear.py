@@ -5,13 +5,12 @@ region."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import Any
 
 import numpy as np
 
-from ...analysis.stability import Theory, theory_of
+from ...analysis.sheet_modes import sheet_modes
+from ...analysis.stability import Theory, growth_rates_at_q, theory_of
 from ...params import Params
 from .constants import MIN_GROWTH_PER_S
 from .sheet_landing import LAMBDA_TOL
@@ -23,25 +22,9 @@ REST_SHARE_MAX = 0.2  # the whole sheet's fastest mode: its largest |alpha| on t
 
 
 def law_growth(p: Params, q: np.ndarray, theory: Theory) -> np.ndarray:
-    """Growth rates (complex, (len(q), 4) with inertia or (len(q), 2), Re descending) of one uniform law (p's cell
-    values, every per-cell value the same) at Laplacian symbols q: the 2-D lattice's dispersion, A(q) = R - q K."""
-    q = np.atleast_1d(np.asarray(q, dtype=float))
-    kab, sig, k2 = (float(p.per_cell(k)[0]) for k in ("k_ab", "sigma", "k2"))
-    a = np.broadcast_to(np.array([[-kab - k2, kab - sig], [kab, -kab]]), (q.size, 2, 2)).copy()
-    a[:, 0, 0] -= q * p.ka_eff
-    a[:, 1, 1] -= q * p.kb_eff
-    eta = np.array([p.eta_alpha, p.eta_beta]) + float(theory.motor_damping)
-    if theory.inertia:
-        inert = np.array([p.I_a, p.I_b])
-        m = np.zeros((q.size, 4, 4))
-        m[:, 0, 2] = m[:, 1, 3] = 1.0
-        m[:, 2:, :2] = a / inert[None, :, None]
-        m[:, 2, 2], m[:, 3, 3] = -eta[0] / inert[0], -eta[1] / inert[1]
-    else:
-        m = a / eta[None, :, None]
-    ev = np.linalg.eigvals(m).astype(complex)
-    order = np.lexsort((-ev.imag, -ev.real), axis=-1)
-    return np.take_along_axis(ev, order, axis=-1)
+    """Growth rates (complex, Re descending) of one uniform law at Laplacian symbols q: the lattice's dispersion at
+    q (analysis.stability.growth_rates_at_q), with the theory's inertia and motor damping."""
+    return growth_rates_at_q(p, q, inertia=theory.inertia, motor_damping=theory.motor_damping)
 
 
 def edge_decay(p: Params) -> float:
@@ -59,9 +42,8 @@ def edge_decay(p: Params) -> float:
 
 
 def _region_law(p: Params, seg: np.ndarray, s: int) -> Params:
-    j = int(np.nonzero(seg == s)[0][0])
-    kw: dict[str, Any] = {k: float(p.per_cell(k)[j]) for k in ("k_ab", "sigma", "k2", "k1", "alpha_star")}
-    return dataclasses.replace(p, shape=(), lattice="chain", cells=1, **kw)
+    """The scalar law of segment s (its first cell's: every cell of a segment holds the same)."""
+    return p.cell(int(np.nonzero(seg == s)[0][0]) + 1)
 
 
 def stripe_wavelength(q: float) -> float | None:
@@ -140,49 +122,9 @@ def sheet_first_guess(space: Space, target: SheetTarget, seed: int = 1, maxiter:
 
 
 def sheet_fastest_modes(p: Params, count: int = 2, theory: Theory | None = None) -> list[dict]:
-    """The whole sheet's fastest linear modes (per-cell laws, free edges; hil theory by default): the eigenproblem
-    of the lattice linearised about rest, I x'' + E x' = A x (docs/design.md), dense. Each {growth_per_s,
-    imag_per_s, kind, alpha (cell order, largest entry +1)}, fastest first, conjugate pairs once."""
-    th = theory or theory_of("hil", p)
-    top = p.topology
-    n = top.n
-    lap = top.laplacian().toarray()
-    kab, sig, k2 = p.per_cell("k_ab"), p.per_cell("sigma"), p.per_cell("k2")
-    a = np.zeros((2 * n, 2 * n))
-    a[:n, :n] = -p.ka_eff * lap + np.diag(-kab - k2)
-    a[:n, n:] = np.diag(kab - sig)
-    a[n:, :n] = np.diag(kab)
-    a[n:, n:] = -p.kb_eff * lap + np.diag(-kab)
-    e = np.concatenate([np.full(n, p.eta_alpha), np.full(n, p.eta_beta)]) + float(th.motor_damping)
-    if th.inertia:
-        inert = np.concatenate([np.full(n, p.I_a), np.full(n, p.I_b)])
-        m = np.zeros((4 * n, 4 * n))
-        m[: 2 * n, 2 * n :] = np.eye(2 * n)
-        m[2 * n :, : 2 * n] = a / inert[:, None]
-        m[2 * n :, 2 * n :] = -np.diag(e / inert)
-    else:
-        m = a / e[:, None]
-    w, v = np.linalg.eig(m)
-    order = np.lexsort((-w.imag, -w.real))
-    out = []
-    for k in order:
-        s = w[k]
-        if s.imag < -1e-9 * max(1.0, abs(s)):
-            continue
-        vec = v[:n, k]
-        ph = vec[int(np.argmax(np.abs(vec)))]
-        osc = bool(abs(s.imag) > 1e-9 * max(1.0, abs(s)))
-        out.append(
-            {
-                "growth_per_s": float(s.real),
-                "imag_per_s": float(abs(s.imag)),
-                "kind": "oscillatory" if osc else "stationary",
-                "alpha": (vec / ph).real,
-            }
-        )
-        if len(out) >= count:
-            break
-    return out
+    """The whole sheet's fastest linear modes with its per-cell laws (analysis.sheet_modes: the lattice linearised
+    about rest, dense up to 100 cells, sparse shift-invert above; hil theory by default), fastest first."""
+    return sheet_modes(p, theory or theory_of("hil", p), count=count)["modes"]
 
 
 def mode_rest_share(alpha: np.ndarray, target: SheetTarget) -> float:
