@@ -18,6 +18,9 @@ from .sheet_target import SheetTarget
 from .space import Space, _shape_ok
 
 Q_MAX = 8.0  # the square lattice's symbol 2 (2 - cos k_row - cos k_col) lies in [0, 8]
+# the symbols scanned: stripes along an axis, q = 2 (1 - cos k) for k in [0, pi] (dense in k, so that every
+# wavelength from 2 cells up has a point within a few per cent), then the rest of [4, 8] (diagonal wavevectors)
+Q_GRID = np.concatenate([2 * (1 - np.cos(np.linspace(0.0, np.pi, 97))), np.linspace(4.0, Q_MAX, 17)[1:]])
 REST_SHARE_MAX = 0.2  # the whole sheet's fastest mode: its largest |alpha| on the rest region over its peak
 
 
@@ -61,35 +64,38 @@ def sheet_linear_score(p: Params, target: SheetTarget) -> tuple[float, dict]:
     pattern's edge it lets into the rest region, the better). Below 1: how far it is."""
     if not _shape_ok(p):
         return -3.0, {"why": "k1 <= max(k2, 0)"}
-    th = theory_of("hil", p)
+    th, lat = theory_of("hil", p), theory_of("lattice", p)  # lattice: the ideal law, no motors' damping
     seg = target.segments()
-    q = np.linspace(0.0, Q_MAX, 41)
-    gp = law_growth(_region_law(p, seg, 0), q, th)[:, 0]
-    gr = law_growth(_region_law(p, seg, 1), q, th)[:, 0]
+    pat, rest = _region_law(p, seg, 0), _region_law(p, seg, 1)
+    q = Q_GRID
+    gp = law_growth(pat, q, th)[:, 0]
     i = int(np.argmax(gp.real))
-    g1, rest_g = float(gp[i].real), float(gr.real.max())
-    # the same laws without the motors' back-EMF damping (the lattice: the ideal law; a rig with compensation on)
-    lat = theory_of("lattice", p)
-    gpl = law_growth(_region_law(p, seg, 0), q, lat)[:, 0]
-    rest_gl = float(law_growth(_region_law(p, seg, 1), q, lat)[:, 0].real.max())
-    il = int(np.argmax(gpl.real))
-    lat_osc = bool(abs(gpl[il].imag) > 1e-9 * max(1.0, abs(gpl[il])))
+    g1 = float(gp[i].real)
     lam = stripe_wavelength(float(q[i]))
-    decay = edge_decay(_region_law(p, seg, 1))
-    facts = {
+    facts: dict = {
         "pattern_growth_per_s": g1,
         "pattern_q": float(q[i]),
         "pattern_stripe_wavelength_cells": lam,
         "pattern_kind": "oscillatory" if abs(gp[i].imag) > 1e-9 * max(1.0, abs(gp[i])) else "stationary",
-        "rest_growth_per_s": rest_g,
-        "rest_edge_decay": decay,
-        "rest_growth_lattice_per_s": rest_gl,
-        "pattern_kind_lattice": "oscillatory" if lat_osc else "stationary",
     }
     if facts["pattern_kind"] != "stationary":
         return -2.0 + 0.1 * math.tanh(-g1 / 50), facts
     if g1 < MIN_GROWTH_PER_S:
         return -1.0 + 0.5 * math.tanh(g1 / 20), facts
+    gpl = law_growth(pat, q, lat)[:, 0]
+    il = int(np.argmax(gpl.real))
+    lat_osc = bool(abs(gpl[il].imag) > 1e-9 * max(1.0, abs(gpl[il])))
+    rest_g = float(law_growth(rest, q, th)[:, 0].real.max())
+    rest_gl = float(law_growth(rest, q, lat)[:, 0].real.max())
+    decay = edge_decay(rest)
+    facts.update(
+        {
+            "rest_growth_per_s": rest_g,
+            "rest_edge_decay": decay,
+            "rest_growth_lattice_per_s": rest_gl,
+            "pattern_kind_lattice": "oscillatory" if lat_osc else "stationary",
+        }
+    )
     miss = max(0.0, rest_g + MIN_GROWTH_PER_S) / MIN_GROWTH_PER_S
     miss += max(0.0, rest_gl + MIN_GROWTH_PER_S) / MIN_GROWTH_PER_S + float(lat_osc)
     if target.lam is not None:
