@@ -29,6 +29,7 @@ from .constants import (
     VERIFY_SEED0,
 )
 from .sheet_landing import region_measures, sheet_closeness, sheet_miss_reason
+from .sheet_linear import sheet_linear_score
 from .sheet_target import SheetPush, SheetTarget
 from .space import Space, _shape_ok
 
@@ -93,7 +94,8 @@ def sheet_search(
     report: Callable[[str], None] = lambda s: None,
 ) -> tuple[np.ndarray, float, list[dict], int]:
     """Step 2 as on a chain: the first guess over `seeds` draws (SEARCH_SEED0..) and the push range's corners; a
-    candidate landing in all of them is run again on as many fresh draws (CHECK_SEED0..) and, landing there too,
+    candidate off the linear theory's constraints (sheet_linear_score < 1) is not run and scores below any that is; one
+    landing in all its runs is run again on as many fresh draws (CHECK_SEED0..) and, landing there too,
     ends the search; else differential evolution (vectorized: one batched ensemble per generation) around it.
     Returns (x, score, history, runs)."""
     from scipy.optimize import differential_evolution
@@ -106,6 +108,10 @@ def sheet_search(
         p = space.params(x)
         if not _shape_ok(p):
             return -1.0
+        lin = sheet_linear_score(p, target)[0]
+        if lin < 1:  # off the linear theory's constraints (e.g. a rest law that rests only thanks to the motors)
+            history.append({"fraction": 0.0, "misses": ["linear theory"]})
+            return lin - 2.0  # below every candidate that runs (those score >= 0)
         sc = [sheet_scene(base, p, pushes, *NOMINAL_PUSH, SEARCH_SEED0 + s) for s in range(seeds)]
         sc += [sheet_scene(base, p, pushes, tq, du, None) for tq, du in SEARCH_PUSHES]
         res = judge(target, p, sc)

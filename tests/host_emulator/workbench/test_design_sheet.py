@@ -151,3 +151,14 @@ def test_docs_sheet_row_quotes_the_shipped_laws():
     for region, cols in (("pattern", "1-8"), ("rest", "9-16")):
         law = SHIPPED[region]
         assert f"cols {cols}: sigma {law['sigma']:g}, k_ab {law['k_ab']:g}, k2 {law['k2']:g}" in row.group(1)
+
+
+def test_search_does_not_run_a_candidate_off_the_linear_constraints(base8):
+    """The uniform source law (its rest region patterns too) scores below 1 in the linear theory: the search
+    ranks it below every candidate it runs, without running it."""
+    from host_emulator.workbench.design.sheet_runs import sheet_search
+
+    t = parse_sheet_target("pattern", (8, 8), "cols=5-8")
+    space = Space(base8.params, ("sigma", "k_ab", "k2"), ("sigma", "k_ab", "k2"), t.segments())
+    x, score, hist, runs = sheet_search(space, t, parse_sheet_pushes("4x2", t), base8, space.x0(), maxiter=0)
+    assert runs == 0 and score < 0 and hist == [{"fraction": 0.0, "misses": ["linear theory"]}]
