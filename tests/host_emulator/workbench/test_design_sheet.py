@@ -125,31 +125,41 @@ SHIPPED = {
 }
 
 
-def test_shipped_sheet_design_lands_on_two_draws():
-    t = parse_sheet_target("pattern", (16, 16), "cols=9-16")
+# docs/design.md's lambda=12 design (its laws quoted there too)
+LAMBDA_12 = {
+    "pattern": {"sigma": 0.096923, "k_ab": 0.020038, "k2": -0.119797},
+    "rest": {"sigma": 0.170036, "k_ab": 0.116219, "k2": 0.025014},
+}
+
+
+@pytest.mark.parametrize("target, laws, t_end", [("pattern", SHIPPED, 5.0), ("lambda=12", LAMBDA_12, 10.0)])
+def test_sheet_designs_land_on_two_draws(target, laws, t_end):
+    """The two 16 x 16 designs of docs/design.md, run briefly on two draws of the rig's uncertainty: both land (the
+    lambda=12 one at its wavelength)."""
+    t = parse_sheet_target(target, (16, 16), "cols=9-16")
     base = sheet_base("default", (16, 16))
     rest = t.rest_mask()
-    kw = {k: tuple(SHIPPED["rest"][k] if r else SHIPPED["pattern"][k] for r in rest) for k in SHIPPED["rest"]}
+    kw = {k: tuple(laws["rest"][k] if r else laws["pattern"][k] for r in rest) for k in laws["rest"]}
     p = dataclasses.replace(base.params, **kw)
-    sc = sheet_scene(dataclasses.replace(base, t_end_s=5.0), p, parse_sheet_pushes("8x4", t), 0.02, 0.1, None)
+    sc = sheet_scene(dataclasses.replace(base, t_end_s=t_end), p, parse_sheet_pushes("8x4", t), 0.02, 0.1, None)
     v = sheet_verify(sc, t, 2, pushes_too=False)
     assert v["fraction_seeds"] == 1.0, [(r["why"], r.get("error")) for r in v["runs"]]
     assert all(r["pattern_kind"] != "rest" and r["torque_fraction"] <= 1 for r in v["runs"])
 
 
-def test_docs_sheet_row_quotes_the_shipped_laws():
-    """docs/design.md's 2-D row names the laws the verification above runs (and 100 % of 20 draws and 12 pushes)."""
+@pytest.mark.parametrize("target, laws", [("pattern", SHIPPED), ("lambda=12", LAMBDA_12)])
+def test_docs_sheet_rows_quote_the_laws(target, laws):
+    """docs/design.md's 2-D rows name these laws (and 100 % of 20 draws and 12 pushes)."""
     import re
     from pathlib import Path
 
     page = (Path(__file__).resolve().parents[3] / "docs" / "design.md").read_text()
-    row = re.search(
-        r"^\| `design --sheet 16x16 --target pattern --rest cols=9-16 --push 8x4` \(2-D\) \| (.*)$", page, re.M
-    )
-    assert row, "docs/design.md: the sheet's row moved"
+    cmd = f"`design --sheet 16x16 --target {target} --rest cols=9-16 --push 8x4` (2-D)"
+    row = re.search(r"^\| " + re.escape(cmd) + r" \| (.*)$", page, re.M)
+    assert row, f"docs/design.md: the row of {cmd} moved"
     assert "100 % of 20 / 100 % of 12" in row.group(1)
     for region, cols in (("pattern", "1-8"), ("rest", "9-16")):
-        law = SHIPPED[region]
+        law = laws[region]
         assert f"cols {cols}: sigma {law['sigma']:g}, k_ab {law['k_ab']:g}, k2 {law['k2']:g}" in row.group(1)
 
 
