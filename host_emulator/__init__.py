@@ -6,7 +6,8 @@ Python API (imports are lazy, so ``import host_emulator`` is cheap)::
     r = he.run("default", overrides={"params.sigma": 0.05})   # RunResult: time, alpha, beta, summary
     r.to_xarray()                                              # xarray.Dataset, dims (time, cell)
     ds = he.load("out/rig1")        # any run or capture, rig or emulated, in the same Dataset layout
-    he.plot_spacetime(r)                                       # a matplotlib Figure
+    he.plot_spacetime(r)                                       # a matplotlib Figure (a sheet: its snapshots)
+    he.plot_snapshots(r, times=[0.1, 0.5])                     # a 2-D sheet's alpha at a few times
     he.sweep("default", {"params.sigma": [0.05, 0.07]}, seeds=2, out="out/sw")   # xarray.Dataset
     d = he.design("lambda=10", push="8", out="out/d")   # parameters for a target pattern (design.json's content)
     he.runs("out")                  # pandas table of every run and capture under a folder
@@ -23,6 +24,7 @@ __all__ = [
     "runs",
     "plot_spacetime",
     "plot_final",
+    "plot_snapshots",
     "plot_dispersion",
     "plot_phase_diagram",
     "plot_regime_map",
@@ -38,6 +40,7 @@ _LAZY = {
     "list_scenes": "workbench.api",
     "plot_spacetime": "workbench.plots",
     "plot_final": "workbench.plots",
+    "plot_snapshots": "workbench.sheet_plots",
     "plot_dispersion": "workbench.plots",
     "sweep": "workbench.sweep",
     "design": "workbench.design",

@@ -74,7 +74,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     files = [] if args.no_plots else plot_run(res, scene, out, fmt=args.format, column=args.column)
     summary["files"] = ["summary.json", "trajectories.npz"] + [f.name for f in files]
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
-    _print_summary(summary, out, files)
+    _print_summary(summary, out, files, scene.topology)
     if plot is not None and plot.interactive:
         from matplotlib import pyplot as plt
 
@@ -114,14 +114,47 @@ def _bonds(bonds) -> str:
     return " at " + ", ".join(f"{b:g}" for b in bonds) if bonds else ""
 
 
-def _print_summary(s, out, files):
+def _print_summary(s, out, files, topology=None):
+    """The run's printout. A lattice other than the open chain says which (Topology.describe()); a 2-D sheet
+    prints its pattern measures where the summary has them (dominant_wavelength_cells, pattern_kind) instead of the
+    chain's walls and profile."""
     d = s.get("dispersion") or {}
+    sheet = topology is not None and topology.is_sheet
     print(
         f"scene {s['scene']} ({s['model']}): {s['t_end_s']:.3g} s simulated in {s['wall_s']:.3g} s "
         f"wall ({s['realtime_factor']:.{0 if s['realtime_factor'] >= 10 else 2}f}x real time)"
     )
+    if topology is not None and not topology.is_open_chain:
+        print(f"  lattice: {topology.describe()}")
     for note in (s.get("solver") or {}).get("adjusted", ()):  # options the model could not take as given
         print(f"  adjusted: {note}")
+    if sheet:
+        _print_sheet(s)
+    else:
+        _print_chain(s)
+    _print_theory(s, d, out, files)
+
+
+def _print_sheet(s) -> None:
+    """A sheet's lines: steady, at rest, amplitude; the 2-D pattern measures the summary holds; alpha's range."""
+    print(
+        f"  steady: {s.get('steady')}   at rest: {s.get('at_rest')}   "
+        f"oscillation period: {_fmt(s.get('oscillation_period_s'), ' s')}   "
+        f"amplitude: {_fmt(s.get('amplitude_rad'), ' rad')}"
+    )
+    parts = []
+    if "pattern_kind" in s:
+        parts.append(f"pattern: {_fmt(s['pattern_kind'])}")
+    if "dominant_wavelength_cells" in s:
+        parts.append(f"dominant wavelength: {_fmt(s['dominant_wavelength_cells'], ' cells')}")
+    if parts:
+        print("  " + "   ".join(parts))
+    fa = [v for v in s.get("final_alpha_rad") or [] if v is not None]
+    if fa:
+        print(f"  final alpha (rad): {min(fa):+.2f} .. {max(fa):+.2f} over {len(s['final_alpha_rad'])} cells")
+
+
+def _print_chain(s) -> None:
     print(
         f"  steady: {s['steady']}   pattern period: {_fmt(s['pattern_period_cells'], ' cells')}   "
         f"oscillation period: {_fmt(s['oscillation_period_s'], ' s')}   amplitude: {_fmt(s['amplitude_rad'], ' rad')}"
@@ -132,6 +165,9 @@ def _print_summary(s, out, files):
         f"dominant mode: {_fmt(s['dominant_mode'])} ({_fmt(s['dominant_mode_lambda_cells'], ' cells')})"
     )
     print("  final alpha (rad): " + " ".join(f"{v:+.2f}" for v in s["final_alpha_rad"]))
+
+
+def _print_theory(s, d, out, files) -> None:
     if d:
         from .analysis.stability import format_set
 

@@ -35,6 +35,17 @@ JITTER_MAX_COUNTS = 400.0  # one revolution of the encoder
 POINTS_MAX = 256
 MAX_BATCH_CELL_STEPS = 24 * MAX_CELL_STEPS  # a sweep, paper or robustness batch: about a day of one core
 REALTIME_CELL_STEPS_PER_S = MAX_CELL_STEPS / 3600  # what one core is held to: serve must keep real time
+
+
+def cell_weight(scene: Scene) -> float:
+    """What one cell step of the scene's lattice costs in cell steps of the open chain (the unit of the limits):
+    1 on the open chain (its own compiled kernels); any other lattice goes through the plant's edge list, measured
+    (2026-11-26, lattice, symplectic Euler, 4096 cells) at 2.1x the chain's per cell on a square sheet (2 bonds per
+    cell) and 2.9x on a hexagonal one (3): 0.5 + 0.8 x bonds per cell."""
+    t = scene.topology
+    return 1.0 if t.is_open_chain else 0.5 + 0.8 * t.nbond / t.n
+
+
 # the image tier's cost is the boards', not the plant's: about 1.6 s of one core per board second on the default
 # scene (docs/image-tier.md), so half an hour of board time is about the hour the other limits allow
 IMAGE_MAX_T_END_S = 1800.0
@@ -111,7 +122,7 @@ def check_run(scene: Scene) -> str | None:
     if o.dt is not None and not o.dt <= o.dt_out:
         return f"model_options.dt = {o.dt} s: must not exceed dt_out = {o.dt_out} s"
     if o.dt is not None:
-        steps = t_end / o.dt * scene.cells
+        steps = t_end / o.dt * scene.cells * cell_weight(scene)
         if steps > MAX_CELL_STEPS:
             return (
                 f"model_options.dt = {o.dt} s over t_end_s = {t_end} s is {steps:.3g} cell steps "
@@ -177,13 +188,14 @@ def _step_cause(scene: Scene, solver) -> str:
 
 
 def cell_steps(scene: Scene, solver) -> float:
-    """Plant steps x cells of the whole run (0 for a solver without a fixed step)."""
+    """Plant steps x cells of the whole run, in the open chain's cell steps (cell_weight; 0 for a solver without a
+    fixed step)."""
     h = solver.plant_step_s()
     if h is None:
         return 0.0
     if not (h > 0 and math.isfinite(h)):
         return math.inf
-    return scene.t_end_s / h * scene.cells
+    return scene.t_end_s / h * scene.cells * cell_weight(scene)
 
 
 def check_solver(scene: Scene, solver) -> str | None:
@@ -203,7 +215,7 @@ def check_realtime(scene: Scene, solver, speed: float = 1.0) -> str | None:
     h = solver.plant_step_s()
     if h is None or not h > 0:
         return None
-    per_s = scene.cells / h * speed
+    per_s = scene.cells * cell_weight(scene) / h * speed
     if per_s > REALTIME_CELL_STEPS_PER_S:
         return (
             f"{_step_cause(scene, solver)}: plant step {h:.3g} s is {per_s:.3g} cell steps per wall second at speed "

@@ -12,7 +12,7 @@ import numpy as np
 @dataclass
 class RunResult:
     t: np.ndarray
-    alpha: np.ndarray  # (T, N) rad
+    alpha: np.ndarray  # (T, N) rad, cells in their numbering (a sheet's row by row: params.topology.grid makes it 2-D)
     beta: np.ndarray  # (T, N) rad
     wall_s: float
     info: dict = field(default_factory=dict)

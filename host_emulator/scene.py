@@ -27,6 +27,7 @@ from .models.options import (
     parse_perturbation,
 )
 from .params import REACTION_KEYS, Params
+from .topology import Topology, TopologyError
 
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 TOP_KEYS = (
@@ -34,6 +35,8 @@ TOP_KEYS = (
     "description",
     "model",
     "cells",
+    "lattice",
+    "boundary",
     "t_end_s",
     "accuracy",
     "question",
@@ -44,6 +47,9 @@ TOP_KEYS = (
 )
 LIST_KEYS = ("perturbation", "fault")  # arrays of tables: --set perturbation.N.field, fault.N.field
 REQUIRED = ("name", "model", "cells", "t_end_s")
+TOPOLOGY_KEYS = ("shape", "lattice", "boundary")  # Params fields a scene sets through cells, lattice, boundary
+CHAIN_MAX = 4096  # cells of a chain
+SHEET_MAX = 65536  # cells of a sheet (256 x 256, the largest shipped sheet)
 
 
 @dataclass(frozen=True)
@@ -51,7 +57,7 @@ class Scene:
     name: str
     description: str
     model: str
-    cells: int
+    cells: int  # the number of cells (rows * cols on a sheet); the lattice itself: .topology
     t_end_s: float
     params: Params
     options: ModelOptions = field(default_factory=ModelOptions)
@@ -63,16 +69,33 @@ class Scene:
     question: str = ""  # what the scene is for (host_emulator/tiers.py QUESTIONS), "" if it does not say
     model_reason: str = ""  # model = "auto": the one line saying which tier was picked and why
 
+    @property
+    def topology(self) -> Topology:
+        """The lattice of the scene (a chain of `cells`, a ring, or a sheet): params.topology."""
+        return self.params.topology
+
+    def topology_record(self) -> dict:
+        """`cells` as the scene gave it (n, or [rows, cols]) and, unless the scene is the open chain every older
+        scene is, `lattice` and `boundary` (an older scene's record stays as it was; so do its params, while any
+        other lattice's params also carry shape, lattice and boundary: summary.json's params name the lattice)."""
+        t = self.topology
+        if t.is_open_chain:
+            return {"cells": self.cells}
+        return {"cells": t.cells_spec, "lattice": t.kind, "boundary": t.boundary}
+
     def as_dict(self) -> dict:
         """JSON-ready record of everything the run used."""
         opts = dataclasses.asdict(self.options)
+        params = dataclasses.asdict(self.params)
+        if self.topology.is_open_chain:  # an open chain's record as before Params knew its lattice
+            params = {k: v for k, v in params.items() if k not in TOPOLOGY_KEYS}
         return {
             "name": self.name,
             "description": self.description,
             "model": self.model,
-            "cells": self.cells,
+            **self.topology_record(),
             "t_end_s": self.t_end_s,
-            "params": {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self.params).items()},
+            "params": {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()},
             "model_options": opts,
             "perturbation": [p.as_dict() for p in self.perturbations],
             "fault": [f.as_dict() for f in self.faults],
@@ -99,16 +122,21 @@ def list_scenes() -> list[tuple[str, str, str]]:
     return out
 
 
-def _parse_params(d, cells) -> Params:
+def _parse_params(d, cells, topology: Topology | None = None) -> Params:
+    """[params] of a scene of `cells` cells on `topology` (None: the open chain of `cells`)."""
     if not isinstance(d, dict):
         raise ConfigError("params: expected a table")
     base = Params()
-    types = {f.name: f.type for f in dataclasses.fields(Params)}
-    kw = {"cells": cells}
+    types = {f.name: f.type for f in dataclasses.fields(Params) if f.name not in TOPOLOGY_KEYS}
+    kw: dict = {"cells": cells}
+    if topology is not None:
+        kw.update(shape=topology.shape if topology.is_sheet else (), lattice=topology.kind)
+        kw["boundary"] = topology.boundary
     for k, v in d.items():
         key = f"params.{k}"
-        if k == "cells":
-            raise ConfigError("params.cells: set the top-level `cells` key instead")
+        if k == "cells" or k in TOPOLOGY_KEYS:
+            top = "cells" if k in ("cells", "shape") else k
+            raise ConfigError(f"params.{k}: set the top-level `{top}` key instead")
         if k not in types:
             raise ConfigError(
                 f"unknown key {key}{did_you_mean(k, types) or key_hint(k)}; "
@@ -116,7 +144,7 @@ def _parse_params(d, cells) -> Params:
             )
         cur = getattr(base, k)
         if k in REACTION_KEYS and isinstance(v, list):
-            kw[k] = _per_cell_list(key, v, cells)
+            kw[k] = _per_cell_list(key, v, cells, topology)
             continue
         if isinstance(cur, bool):
             if not isinstance(v, bool):
@@ -154,8 +182,23 @@ def _parse_params(d, cells) -> Params:
     return p
 
 
-def _per_cell_list(key: str, v: list, cells: int) -> tuple[float, ...]:
-    """A reaction parameter given one value per cell: a list of `cells` finite numbers (cell 1 first)."""
+def _per_cell_list(key: str, v: list, cells: int, topology: Topology | None = None) -> tuple[float, ...]:
+    """A reaction parameter given one value per cell: a list of `cells` finite numbers (cell 1 first, a sheet's row
+    by row), or on a sheet a list of its rows (rows lists of cols numbers)."""
+    if topology is not None and topology.is_sheet and v and all(isinstance(r, list) for r in v):
+        rows, cols = topology.shape
+        if len(v) != rows:
+            raise ConfigError(f"{key}: {len(v)} rows for a sheet of {rows} rows; give one list of {cols} per row")
+        for i, r in enumerate(v):
+            if len(r) != cols:
+                raise ConfigError(f"{key}[{i + 1}] (row {i + 1}): {len(r)} values for {cols} columns")
+        for i, r in enumerate(v):
+            for c, x in enumerate(r):
+                if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+                    raise ConfigError(
+                        f"{key}[{i + 1}][{c + 1}] (row {i + 1}, col {c + 1}) = {x!r}: expected a finite number"
+                    )
+        return tuple(float(x) for r in v for x in r)
     if len(v) != cells:
         raise ConfigError(
             f"{key}: {len(v)} values for {cells} cells; give one number, or one per cell (a list of {cells})"
@@ -171,7 +214,7 @@ def _per_cell_list(key: str, v: list, cells: int) -> tuple[float, ...]:
 def known_keys() -> list[str]:
     """Every dotted key a --set / overrides item can name (perturbation fields as perturbation.N.<field>)."""
     keys = [k for k in TOP_KEYS if k not in ("params", "model_options", *LIST_KEYS)]
-    keys += [f"params.{f.name}" for f in dataclasses.fields(Params) if f.name != "cells"]
+    keys += [f"params.{f.name}" for f in dataclasses.fields(Params) if f.name not in ("cells", *TOPOLOGY_KEYS)]
     for f in dataclasses.fields(ModelOptions):
         if f.name == "noise":
             keys += [f"model_options.noise.{g.name}" for g in dataclasses.fields(NoiseOptions)]
@@ -179,8 +222,8 @@ def known_keys() -> list[str]:
             keys += [f"model_options.image.{g.name}" for g in dataclasses.fields(ImageOptions)]
         else:
             keys.append(f"model_options.{f.name}")
-    keys += [f"perturbation.N.{k}" for k in _PERT_KEYS]
-    fault_keys = {"kind", "start_s", "cell"} | {k for _, takes in FAULT_KINDS.values() for k in takes}
+    keys += [f"perturbation.N.{k}" for k in (*_PERT_KEYS, "row", "col")]
+    fault_keys = {"kind", "start_s", "cell", "row", "col"} | {k for _, takes in FAULT_KINDS.values() for k in takes}
     keys += [f"fault.N.{k}" for k in sorted(fault_keys)]
     return keys
 
@@ -199,13 +242,13 @@ def scene_table(scene: Scene) -> dict:
     """A Scene back as the table scene_from_dict reads (what a TOML file holds): every parameter, the model options
     the scene set itself (the others stay free for its accuracy preset), the perturbations. JSON-ready."""
     d = scene.as_dict()
-    params = {k: v for k, v in d["params"].items() if k != "cells"}
+    params = {k: v for k, v in d["params"].items() if k not in ("cells", *TOPOLOGY_KEYS)}
     opts = {k: d["model_options"][k] for k in scene.explicit_options}
     return {
         "name": scene.name,
         "description": scene.description,
         "model": scene.model,
-        "cells": scene.cells,
+        **scene.topology_record(),
         "t_end_s": scene.t_end_s,
         "accuracy": scene.accuracy,
         **({"question": scene.question} if scene.question else {}),
@@ -254,20 +297,25 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         model, reason = pick(question)
     elif model not in model_names():
         raise ConfigError(f"model = {model!r}: expected one of {', '.join(model_names())} or auto")
-    cells = d["cells"]
-    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= 4096:
-        raise ConfigError(f"cells = {cells!r}: expected an integer in 1..4096")
+    topo = parse_topology(d)
+    cells = topo.n
+    if model == "image" and not topo.is_open_chain:
+        raise ConfigError(
+            f"model = 'image' with cells = {topo.cells_spec!r}: the image tier runs the rig's open chain of boards "
+            f"(a {topo.describe()} runs on lattice or hil)"
+        )
     t_end = d["t_end_s"]
     if isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"t_end_s = {t_end!r}: expected a positive number")
-    params = _parse_params(d.get("params", {}), cells)
+    params = _parse_params(d.get("params", {}), cells, topo)
     options = parse_options(d.get("model_options", {}))
     perts = d.get("perturbation", [])
     if isinstance(perts, dict):
         perts = [perts]
     if not isinstance(perts, list):
         raise ConfigError("perturbation: expected [[perturbation]] tables")
-    perturbations = tuple(parse_perturbation(p, cells, f"perturbation[{i + 1}]") for i, p in enumerate(perts))
+    where = topo if topo.is_sheet else cells  # a sheet's pushes may say row and col
+    perturbations = tuple(parse_perturbation(p, where, f"perturbation[{i + 1}]") for i, p in enumerate(perts))
     if model == "hil" and options.perturb_via == "firmware":
         for i, p in enumerate(perturbations):
             if abs(codec.si_to_raw("uN*m", p.torque_Nm)) > codec.LIMITS["PERTURB_MAX_UNM"]:
@@ -282,7 +330,7 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         raise ConfigError("fault: expected [[fault]] tables")
     if faults_in and model != "image":
         raise ConfigError(f"fault: only the image model injects faults into boards (model = {model!r})")
-    faults = tuple(parse_fault(f, cells, f"fault[{i + 1}]") for i, f in enumerate(faults_in))
+    faults = tuple(parse_fault(f, where, f"fault[{i + 1}]") for i, f in enumerate(faults_in))
     accuracy = check_level(d.get("accuracy", DEFAULT))
     explicit = tuple(d.get("model_options", {}).keys())
     return Scene(
@@ -301,6 +349,33 @@ def scene_from_dict(d: dict, source: str = "") -> Scene:
         question,
         reason,
     )
+
+
+def parse_topology(d: dict) -> Topology:
+    """The lattice of a scene table: `cells` (n for a chain, [rows, cols] for a sheet), `lattice` ("square" or
+    "hex"; a sheet's, default square) and `boundary` ("open" or "periodic": a periodic chain is a ring). A bad value
+    is a ConfigError naming the key (the TopologyError's one line)."""
+    cells, lattice, boundary = d["cells"], d.get("lattice"), d.get("boundary", "open")
+    if lattice is not None and not isinstance(lattice, str):
+        raise ConfigError(f"lattice = {lattice!r}: expected one of square, hex (a sheet's) or chain")
+    if not isinstance(boundary, str):
+        raise ConfigError(f"boundary = {boundary!r}: expected open or periodic")
+    if (
+        isinstance(cells, list)
+        and len(cells) == 2
+        and all(isinstance(c, int) and not isinstance(c, bool) for c in cells)
+    ):
+        if cells[0] * cells[1] > SHEET_MAX:
+            raise ConfigError(f"cells = {cells}: {cells[0] * cells[1]} cells; a sheet holds at most {SHEET_MAX}")
+    elif isinstance(cells, list):
+        raise ConfigError(f"cells = {cells!r}: expected a whole number (a chain) or [rows, cols] (a sheet)")
+    elif isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= CHAIN_MAX:
+        raise ConfigError(f"cells = {cells!r}: expected an integer in 1..{CHAIN_MAX} (a chain) or [rows, cols]")
+    try:
+        t = Topology.from_spec(cells, lattice, boundary)
+    except TopologyError as e:
+        raise ConfigError(str(e)) from None
+    return t
 
 
 def _value(text: str):
@@ -358,20 +433,31 @@ def apply_overrides(d: dict, items: Iterable[str]) -> dict:
                 raise ConfigError(f"--set {key}: {part!r} is not a table")
             node = nxt
         node[parts[-1]] = _value(val)
+        if len(parts) == 3 and parts[0] in LIST_KEYS:  # a push's place given anew replaces the old one
+            for old in ("row", "col") if parts[-1] == "cell" else ("cell",) if parts[-1] in ("row", "col") else ():
+                node.pop(old, None)
     return d
 
 
 def _set_cell_value(d: dict, name: str, j: int, value, key: str) -> None:
     """params.<name>.<j> = value: cell j's own value (a scalar parameter becomes one value per cell first)."""
     cells = d.get("cells")
+    if (
+        isinstance(cells, list)
+        and len(cells) == 2
+        and all(isinstance(c, int) and not isinstance(c, bool) for c in cells)
+    ):
+        cells = cells[0] * cells[1]  # a sheet: cell j of its row-major numbering
     if isinstance(cells, bool) or not isinstance(cells, int) or cells < 1:
-        raise ConfigError(f"--set {key}: the scene needs an integer `cells` first")
+        raise ConfigError(f"--set {key}: the scene needs an integer `cells` (or [rows, cols]) first")
     if not 1 <= j <= cells:
         raise ConfigError(f"--set {key}: cell {j} outside 1..{cells}")
     params = d.setdefault("params", {})
     if not isinstance(params, dict):
         raise ConfigError(f"--set {key}: 'params' is not a table")
     cur = params.get(name, getattr(Params(), name))
+    if isinstance(cur, list) and cur and all(isinstance(r, list) for r in cur):
+        cur = [x for r in cur for x in r]  # a sheet's rows, flattened row by row
     vals = list(cur) if isinstance(cur, (list, tuple)) else [cur] * cells
     if len(vals) != cells:
         raise ConfigError(f"--set {key}: params.{name} holds {len(vals)} values for {cells} cells")

@@ -227,17 +227,22 @@ def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
 
 @dataclass(frozen=True)
 class Perturbation:
-    """External torque on one cylinder: cell is 1-based, torque in N*m, active start_s <= t < start_s + duration_s."""
+    """External torque on one cylinder: cell is 1-based, torque in N*m, active start_s <= t < start_s + duration_s.
+    On a sheet a push may name its place as (row, col) (1-based): cell is then topology.cell_of(row, col), and the
+    record keeps row and col as the scene gave them (row = col = 0: the scene named the cell)."""
 
     cell: int
     chain: str
     torque_Nm: float
     start_s: float
     duration_s: float
+    row: int = 0
+    col: int = 0
 
     def as_dict(self) -> dict:
+        where = {"row": self.row, "col": self.col} if self.row else {"cell": self.cell}
         return {
-            "cell": self.cell,
+            **where,
             "chain": self.chain,
             "torque_Nm": self.torque_Nm,
             "start_s": self.start_s,
@@ -246,20 +251,53 @@ class Perturbation:
 
 
 _PERT_KEYS = ("cell", "chain", "torque_Nm", "start_s", "duration_s")
+_PLACE_KEYS = ("row", "col")  # a sheet's (row, col) instead of cell
 
 
-def parse_perturbation(d: dict, cells: int, where: str) -> Perturbation:
+def cell_at(d: dict, cells: Any, where: str) -> tuple[int, int, int]:
+    """(cell, row, col) of a table naming its cell as cell = N (1..n), or on a sheet as row = R, col = C (1-based,
+    exclusive with cell; row = col = 0 when the table gave cell). cells: the number of cells, or the Topology."""
+    n = cells if isinstance(cells, int) else cells.n
+    sheet = not isinstance(cells, int) and cells.is_sheet
+    given = [k for k in _PLACE_KEYS if k in d]
+    if given and not sheet:
+        raise ConfigError(f"{where}.{given[0]}: a chain names its cells by cell = 1..{n} (row and col: a sheet's)")
+    if given:
+        if "cell" in d:
+            raise ConfigError(f"{where}: give cell or row and col, not both")
+        if len(given) == 1:
+            other = "col" if given[0] == "row" else "row"
+            raise ConfigError(f"{where}: {given[0]} without {other} (a sheet's cell is row and col, or cell)")
+        r = _num(f"{where}.row", d["row"], integer=True)
+        c = _num(f"{where}.col", d["col"], integer=True)
+        if not 1 <= r <= cells.rows:
+            raise ConfigError(f"{where}.row = {r}: must be in 1..{cells.rows}")
+        if not 1 <= c <= cells.cols:
+            raise ConfigError(f"{where}.col = {c}: must be in 1..{cells.cols}")
+        return cells.cell_of(r, c), r, c
+    if "cell" not in d:
+        raise ConfigError(f"{where}: missing key cell" + (" (or row and col)" if sheet else ""))
+    cell = _num(f"{where}.cell", d["cell"], integer=True)
+    if not 1 <= cell <= n:
+        raise ConfigError(f"{where}.cell = {cell}: must be in 1..{n}")
+    return cell, 0, 0
+
+
+def parse_perturbation(d: dict, cells: Any, where: str) -> Perturbation:
+    """A [[perturbation]] table. cells: the number of cells (a chain), or the scene's Topology (a sheet's pushes may
+    say row and col instead of cell)."""
     if not isinstance(d, dict):
         raise ConfigError(f"{where}: expected a table")
+    sheet = not isinstance(cells, int) and cells.is_sheet
+    known = _PERT_KEYS + (_PLACE_KEYS if sheet else ())
     for k in d:
-        if k not in _PERT_KEYS:
-            raise ConfigError(f"unknown key {where}.{k}; known: {', '.join(_PERT_KEYS)}")
-    missing = [k for k in _PERT_KEYS if k not in d]
+        if k not in known:
+            raise ConfigError(f"unknown key {where}.{k}; known: {', '.join(known)}")
+    placed = any(k in d for k in _PLACE_KEYS)  # row and col stand for cell
+    missing = [k for k in _PERT_KEYS if k not in d and not (k == "cell" and placed)]
     if missing:
         raise ConfigError(f"{where}: missing key(s) {', '.join(missing)}")
-    cell = _num(f"{where}.cell", d["cell"], integer=True)
-    if not 1 <= cell <= cells:
-        raise ConfigError(f"{where}.cell = {cell}: must be in 1..{cells}")
+    cell, row, col = cell_at(d, cells, where)
     if d["chain"] not in CHAINS:
         raise ConfigError(f"{where}.chain = {d['chain']!r}: expected alpha or beta")
     return Perturbation(
@@ -268,6 +306,8 @@ def parse_perturbation(d: dict, cells: int, where: str) -> Perturbation:
         _num(f"{where}.torque_Nm", d["torque_Nm"]),
         _num(f"{where}.start_s", d["start_s"], nonneg=True),
         _num(f"{where}.duration_s", d["duration_s"], nonneg=True),
+        row,
+        col,
     )
 
 
@@ -314,7 +354,7 @@ def _fault_time(key: str, v, **kw) -> float:
     return t
 
 
-def parse_fault(d: dict, cells: int, where: str) -> Fault:
+def parse_fault(d: dict, cells: Any, where: str) -> Fault:
     """A [[fault]] table: kind, start_s, and the keys its kind takes (FAULT_KINDS); cell = N or board = "primary"
     | "cellN" name the board."""
     if not isinstance(d, dict):
@@ -324,6 +364,9 @@ def parse_fault(d: dict, cells: int, where: str) -> Fault:
         raise ConfigError(f"{where}.kind = {kind!r}: expected one of {', '.join(FAULT_KINDS)}")
     takes = FAULT_KINDS[kind][1]
     allowed = {"kind", "start_s", *takes} | ({"cell"} if "board" in takes else set())
+    if "cell" in allowed and not isinstance(cells, int) and cells.is_sheet:
+        allowed |= set(_PLACE_KEYS)  # a sheet's cell as row and col
+    n = cells if isinstance(cells, int) else cells.n
     for k in d:
         if k not in allowed:
             raise ConfigError(f"{where}.{k}: a {kind} fault takes {', '.join(sorted(allowed))}")
@@ -333,17 +376,14 @@ def parse_fault(d: dict, cells: int, where: str) -> Fault:
     if "cell" in d and "board" in d:
         raise ConfigError(f"{where}: give cell or board, not both")
     if "cell" in takes or "board" in takes:
-        if "cell" in d:
-            j = _num(f"{where}.cell", d["cell"], integer=True)
-            if not 1 <= j <= cells:
-                raise ConfigError(f"{where}.cell = {j}: must be in 1..{cells}")
-            kw["board"] = f"cell{j}"
+        if "cell" in d or any(k in d for k in _PLACE_KEYS):
+            kw["board"] = f"cell{cell_at(d, cells, where)[0]}"
         elif "board" in d:
             b = d["board"]
             ok = b == "primary" or (isinstance(b, str) and re.fullmatch(r"cell[1-9][0-9]{0,5}", b) is not None)
-            ok = ok and (b == "primary" or 1 <= int(b[4:]) <= cells)  # ASCII digits, no leading zero: cell7
+            ok = ok and (b == "primary" or 1 <= int(b[4:]) <= n)  # ASCII digits, no leading zero: cell7
             if not ok or "cell" in takes:
-                want = f"cell1..cell{cells}" + ("" if "cell" in takes else " or primary")
+                want = f"cell1..cell{n}" + ("" if "cell" in takes else " or primary")
                 raise ConfigError(f"{where}.board = {b!r}: expected {want}")
             kw["board"] = b
         else:

@@ -1,7 +1,8 @@
 """Animation of the lattice forming its pattern: `python -m host_emulator animate SCENE --out lattice.gif`.
 
 Each cell is drawn from above as two discs, the tall (alpha) cylinder and the short (beta) one, with a
-pointer at its angle; the strip below shows the alpha profile. GIF through Pillow (a matplotlib
+pointer at its angle; the strip below shows the alpha profile. A 2-D sheet is drawn as its field of alpha (an
+image, or hexagons on a hexagonal sheet; sheet_plots.py) changing in time. GIF through Pillow (a matplotlib
 dependency) or MP4 through the ffmpeg that imageio-ffmpeg ships (``--out lattice.mp4``; the project's
 ``video`` extra, in ``dev`` too). Without a working ffmpeg an MP4 request writes a GIF of the same name
 instead and says why.
@@ -56,6 +57,11 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
     scene = scene if scene is not None else getattr(run, "scene", None)
     k_end = len(t) if t_max is None else int(np.searchsorted(t, t_max, side="right"))
     frames = list(range(0, max(1, k_end), max(1, every or int(np.ceil(k_end / (fps * 10))))))
+    topo = getattr(scene, "topology", None)
+    if topo is not None and topo.is_sheet:
+        sheet_fig, sheet_draw = _sheet_frames(t, a, topo, scene, k_end)
+        anim = FuncAnimation(sheet_fig, sheet_draw, frames=frames, blit=False)
+        return _write(anim, path, frames, fps, exe, why, fallback, report, quiet)
     n = a.shape[1]
     x = np.arange(1, n + 1)
     fig = Figure(figsize=(9, 3.6), constrained_layout=True)
@@ -94,6 +100,33 @@ def animate(run, path, *, fps=20, t_max=None, every=None, scene=None, fallback=T
         return pa, pb, prof, txt
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
+    return _write(anim, path, frames, fps, exe, why, fallback, report, quiet)
+
+
+def _sheet_frames(t, a, topo, scene, k_end):
+    """(Figure, draw(k)) of a sheet's animation: its alpha field at sample k, one colour scale for the whole run."""
+    from matplotlib.figure import Figure
+
+    from .sheet_plots import draw_field, set_field
+
+    w = 5.0 * max(0.6, min(1.6, topo.cols / topo.rows)) + 1.2
+    fig = Figure(figsize=(w, 4.6), constrained_layout=True)
+    ax = fig.add_subplot(111)
+    lim = float(np.abs(a[:k_end]).max()) or 1.0
+    m = draw_field(ax, a[0], topo, lim)
+    fig.colorbar(m, ax=ax, label="alpha (rad)", shrink=0.85)
+    txt = ax.set_title("", fontsize=9)
+
+    def draw(k):
+        set_field(m, a[k], topo)
+        txt.set_text(_title(scene, f"t = {t[k]:.2f} s") if scene is not None else f"t = {t[k]:.2f} s")
+        return m, txt
+
+    return fig, draw
+
+
+def _write(anim, path, frames, fps, exe, why, fallback, report, quiet):
+    """Save the animation with a progress bar over its frames (_save_animation); returns the path written."""
     pbar = bar(len(frames), desc=f"animate {path.rsplit('/', 1)[-1]}", unit="frame", quiet=quiet)
 
     def advance(i: int, total: int) -> None:

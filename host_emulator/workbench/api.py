@@ -102,15 +102,21 @@ class RunResult:
 
     def to_xarray(self) -> xr.Dataset:
         """The run in the one dataset layout of every run, rig or emulated (host_emulator.workbench.datasets):
-        alpha, beta (time x cell, rad) and, for the lattice and continuum models, the commanded reaction torques;
-        coords time (s), cell (1..N); attributes: source, units, every scene parameter (params.*, model_options.*,
+        alpha, beta (time x cell, rad; a sheet's time x row x col, row and col 1-based, cell the 2-D coordinate of
+        the cell numbers) and, for the lattice and continuum models, the commanded reaction torques; coords time
+        (s), cell (1..N); attributes: source, units, every scene parameter (params.*, model_options.*,
         perturbation.*), the scalar observables, the linear theory and provenance."""
         from .datasets import from_run
 
         return from_run(self.scene, self.time, self.alpha, self.beta, self.summary)
 
     def plot(self, ax: Axes | None = None) -> FigureBase:
-        """Space-time map of alpha and beta (a Figure); see plots.plot_spacetime."""
+        """Space-time map of alpha and beta (a Figure; see plots.plot_spacetime), or a sheet's snapshots of alpha
+        (plots.plot_snapshots)."""
+        if self.scene.topology.is_sheet:
+            from .sheet_plots import plot_snapshots
+
+            return plot_snapshots(self, axes=ax)
         return plot_spacetime(self, ax=ax)
 
 
@@ -134,16 +140,48 @@ def _flat(prefix, v, out):
         out[prefix] = str(v)
 
 
+# the summary's observables a dataset carries as attributes observable.<key> (he.run's to_xarray and a run directory
+# loaded back alike), when the summary has them: the chain's, and a sheet's 2-D measures (analysis.pattern2d)
+OBSERVABLE_KEYS = (
+    "steady",
+    "at_rest",
+    "domain_walls",
+    "domain_wall_bonds",
+    "pattern_wavelength_cells",
+    "dominant_mode",
+    "pattern_period_cells",
+    "oscillation_period_s",
+    "amplitude_rad",
+    "growth_rate_per_s",
+    "dominant_wavelength_cells",
+    "dominant_wavevector",
+    "orientation_deg",
+    "pattern_kind",
+    "boundary_length_cells",
+    "defects",
+)
+
+
+def observable_attrs(summary: dict, out: dict) -> None:
+    """The summary's OBSERVABLE_KEYS into out as flat observable.<key> attributes."""
+    for k in OBSERVABLE_KEYS:
+        if k in summary:
+            _flat(f"observable.{k}", summary[k], out)
+
+
 def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
-    """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance."""
+    """Flat NetCDF-safe attributes: the scene (every parameter), scalar observables, provenance; and, for any lattice
+    but the open chain, topology.cells / topology.lattice / topology.boundary (Topology.as_dict())."""
     out: dict = {}
     d = scene.as_dict()
+    topo = scene.topology
     _flat(
         "",
         {
             "scene": d["name"],
             "model": d["model"],
             "cells": d["cells"],
+            **({} if topo.is_open_chain else {"topology": topo.as_dict()}),
             "t_end_s": d["t_end_s"],
             "accuracy": d["accuracy"],
             "params": d["params"],
@@ -153,20 +191,7 @@ def netcdf_attrs(scene: Scene, summary: dict | None = None) -> dict:
         out,
     )
     if summary:
-        for k in (
-            "steady",
-            "at_rest",
-            "domain_walls",
-            "domain_wall_bonds",
-            "pattern_wavelength_cells",
-            "dominant_mode",
-            "pattern_period_cells",
-            "oscillation_period_s",
-            "amplitude_rad",
-            "growth_rate_per_s",
-        ):
-            if k in summary:
-                _flat(f"observable.{k}", summary[k], out)
+        observable_attrs(summary, out)
         if summary.get("dispersion"):
             _flat("theory", {k: v for k, v in summary["dispersion"].items()}, out)
     prov = (summary or {}).get("provenance") or provenance()

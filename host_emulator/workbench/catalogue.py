@@ -131,7 +131,7 @@ def _capture_row(f: Path, root: Path) -> dict:
         git=a.get("provenance.git_describe"),
         date=a.get("provenance.created_utc"),
     )
-    if ds.sizes.get("time", 0):
+    if ds.sizes.get("time", 0) and "row" not in ds.dims:  # a chain's walls (a sheet has no bonds j + 0.5)
         row["pattern"], row["walls"], row["wall_bonds"] = _walls(final_profile(ds))
     return row
 

@@ -15,7 +15,10 @@
 The dataset (format ``metacell-run/1``):
 
 * dims ``time`` (s; emulator: from the run's start; rig and rehearsal runs: from the drive enable; captures: from
-  the first sample) and ``cell`` (1..N);
+  the first sample) and ``cell`` (1..N); a sheet's (attributes ``topology.cells = [rows, cols]``,
+  ``topology.lattice``, ``topology.boundary``: Topology.as_dict(), recorded for any lattice but the open chain)
+  ``time``, ``row`` and ``col`` (1-based), with ``cell`` the 2-D coordinate of the cell numbers
+  ((row - 1) * cols + col); the NPZ keeps every variable as (time, cell) in cell order either way;
 * ``alpha``, ``beta`` (rad, CCW positive; NaN where a cell sent no sample);
 * where known: ``torque_alpha``, ``torque_beta`` (N m, the reaction torque the controller commands: the
   lattice and continuum models' law at the sampled state; the hil model's firmware torque is not recorded),
@@ -58,7 +61,8 @@ from protocol.capture import SampleDecoder, gaps_from_rows, read_rows, rows_to_a
 from protocol.wire import N_CELLS, frame_kind
 
 from ..physics import reaction
-from .api import _flat, netcdf_attrs
+from ..topology import Topology, TopologyError
+from .api import _flat, netcdf_attrs, observable_attrs
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -102,12 +106,22 @@ def make_dataset(
     **extra: np.ndarray,
 ) -> xr.Dataset:
     """The layout above from arrays: time (T,), alpha/beta (T, N); extra (T, N) variables by their VARIABLES name,
-    or (T,) cycle / segment rows, or the (G, 4) gap table."""
+    or (T,) cycle / segment rows, or the (G, 4) gap table. Attributes naming a sheet (topology.*) make the
+    variables (time, row, col)."""
     import xarray as xr
 
     a = np.asarray(alpha, dtype=float)
     n = a.shape[1]
     cells = np.arange(1, n + 1) if cell is None else np.asarray(cell, dtype=int)
+    topo = topology_of_attrs(attrs or {})
+    sheet = topo is not None and topo.is_sheet
+    if topo is not None and (topo.n != n or not np.array_equal(cells, np.arange(1, n + 1))):
+        raise ValueError(f"make_dataset: attributes name a {topo.describe()}, the data hold {n} cells")
+    space: tuple[str, ...] = ("row", "col") if sheet else ("cell",)
+
+    def shaped(arr: np.ndarray) -> np.ndarray:
+        return topo.grid(arr) if sheet and topo is not None else arr
+
     data: dict[str, Any] = {}
     for name, arr in (("alpha", a), ("beta", np.asarray(beta, dtype=float)), *extra.items()):
         if arr is None:
@@ -115,7 +129,7 @@ def make_dataset(
         arr = np.asarray(arr)
         if name in VARIABLES:
             units, long = VARIABLES[name]
-            data[name] = (("time", "cell"), arr, {"units": units, "long_name": long})
+            data[name] = (("time", *space), shaped(arr), {"units": units, "long_name": long})
         elif name in ("cycle", "segment"):
             data[name] = (("time",), arr.astype(np.int64), {"long_name": f"poll {name} of the row"})
         elif name == "partial":
@@ -134,13 +148,14 @@ def make_dataset(
             raise ValueError(
                 f"make_dataset: unknown variable {name!r}; known: {', '.join([*VARIABLES, *EXTRA_ARRAYS])}"
             )
-    ds = xr.Dataset(
-        data,
-        coords={
-            "time": ("time", np.asarray(time, dtype=float), {"units": "s", "long_name": "time"}),
-            "cell": ("cell", cells, {"long_name": "cell index j"}),
-        },
-    )
+    coords: dict[str, Any] = {"time": ("time", np.asarray(time, dtype=float), {"units": "s", "long_name": "time"})}
+    if sheet and topo is not None:
+        coords["row"] = ("row", np.arange(1, topo.rows + 1), {"long_name": "row of the sheet (1-based)"})
+        coords["col"] = ("col", np.arange(1, topo.cols + 1), {"long_name": "column of the sheet (1-based)"})
+        coords["cell"] = (("row", "col"), topo.grid(cells), {"long_name": "cell index j = (row - 1) * cols + col"})
+    else:
+        coords["cell"] = ("cell", cells, {"long_name": "cell index j"})
+    ds = xr.Dataset(data, coords=coords)
     ds.attrs.update({"format": FORMAT, "source": "unknown", **(dict(attrs) if attrs else {})})
     if "gap_field" in ds.dims:
         ds = ds.assign_coords(gap_field=["segment", "cell", "first_missing_cycle", "count"])
@@ -198,10 +213,39 @@ def from_logger_arrays(arr: Mapping[str, np.ndarray], attrs: Mapping[str, Any] |
     )
 
 
+def topology_of_attrs(attrs: Mapping[str, Any]) -> Topology | None:
+    """The Topology a dataset's topology.* attributes record, None without them (an open chain, a capture); a
+    ValueError naming the attribute when they do not make one."""
+    if "topology.lattice" not in attrs:
+        return None
+    cells = np.ravel(np.asarray(attrs.get("topology.cells")))
+    try:
+        if cells.size == 0 or not np.all(np.isfinite(cells.astype(float))) or np.any(cells != np.round(cells)):
+            raise TopologyError(f"topology.cells = {attrs.get('topology.cells')!r}: expected n or [rows, cols]")
+        spec = int(cells[0]) if cells.size == 1 else [int(c) for c in cells]
+        return Topology.from_spec(spec, str(attrs["topology.lattice"]), str(attrs.get("topology.boundary", "open")))
+    except (TopologyError, TypeError, ValueError) as e:
+        raise ValueError(f"attribute {e}") from None
+
+
+def cell_values(ds: xr.Dataset, var: str) -> np.ndarray:
+    """A variable of the layout as (time, cell) in cell order: a sheet's (time, row, col) flattened row by row."""
+    v = ds[var]
+    if "row" in v.dims:
+        return v.transpose("time", "row", "col").values.reshape(v.sizes["time"], -1)
+    return v.values
+
+
 # ---- the NPZ file -------------------------------------------------------------------------------------------
 def to_npz(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write a dataset of this layout as NPZ (compressed); returns the path."""
-    arrays = {k: ds[k].values for k in ("time", "cell", *VARIABLES, *EXTRA_ARRAYS) if k in ds.variables}
+    """Write a dataset of this layout as NPZ (compressed; a sheet's variables as (time, cell) in cell order);
+    returns the path."""
+    arrays = {
+        k: cell_values(ds, k) if k in VARIABLES else ds[k].values
+        for k in ("time", *VARIABLES, *EXTRA_ARRAYS)
+        if k in ds.variables
+    }
+    arrays["cell"] = np.ravel(ds["cell"].values)
     return write_npz(path, arrays, {k: v for k, v in ds.attrs.items() if k != "origin"})
 
 
@@ -365,16 +409,7 @@ def _scene_attrs(s: dict) -> dict:
         },
         out,
     )
-    for k in (
-        "steady",
-        "at_rest",
-        "domain_walls",
-        "domain_wall_bonds",
-        "pattern_wavelength_cells",
-        "oscillation_period_s",
-    ):
-        if k in s:
-            _flat(f"observable.{k}", s[k], out)
+    observable_attrs(s, out)
     if s.get("provenance"):
         _flat("provenance", s["provenance"], out)
     return out
@@ -475,7 +510,8 @@ def _load(p: Path, source: str | None, repeat: int | None) -> xr.Dataset:
                 ds = nc.load()
         except Exception as e:  # noqa: BLE001 - scipy's reader says "not a valid NetCDF 3 file" as a TypeError
             raise LoadError(f"{p}: cannot read as NetCDF ({_why(e)})") from None
-        if not all(k in ds.variables and ds[k].dims == ("time", "cell") for k in ("alpha", "beta")):
+        dims = (("time", "cell"), ("time", "row", "col"))
+        if not all(k in ds.variables and ds[k].dims in dims for k in ("alpha", "beta")):
             raise LoadError(f"{p}: a NetCDF file but not a run dataset (no alpha, beta over time x cell)")
         if source:
             ds.attrs["source"] = source
@@ -491,8 +527,9 @@ def _load(p: Path, source: str | None, repeat: int | None) -> xr.Dataset:
 
 
 def final_profile(ds: xr.Dataset, var: str = "alpha") -> np.ndarray:
-    """Each cell's last sample (N,): the final profile of a run, NaN for a cell that never sent one."""
-    a = ds[var].values
+    """Each cell's last sample (N,) in cell order (a sheet's row by row): the final profile of a run, NaN for a
+    cell that never sent one."""
+    a = cell_values(ds, var)
     out = np.full(a.shape[1], np.nan)
     for j in range(a.shape[1]):
         ok = np.flatnonzero(np.isfinite(a[:, j]))

@@ -14,8 +14,8 @@ from .plots import FORMATS
 def plot_main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m host_emulator plot",
-        description="Figures of a run or capture (anything he.load opens): spacetime, final_pattern and, when the "
-        "run carries its parameters, dispersion.",
+        description="Figures of a run or capture (anything he.load opens): spacetime (a 2-D sheet: snapshots), "
+        "final_pattern and, when the run carries its parameters, dispersion.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
         "  python -m host_emulator plot out/default --format pdf --column      # paper figures beside the run\n"

@@ -15,15 +15,16 @@ if TYPE_CHECKING:
     from ..analysis.stability import Theory
     from ..params import Params
     from ..scene import Scene
+    from ..topology import Topology
 
 __all__ = ["RunView", "as_run", "params_from_attrs"]
 
 
 @dataclass
 class RunView:
-    """One run or capture as plots read it: time (T,), alpha and beta (T, N) (NaN where a cell sent no sample),
-    the Scene when the input carries one (a RunResult), and the dataset's attributes (scene name, source, params.*,
-    model, perturbation.*, provenance.*) otherwise."""
+    """One run or capture as plots read it: time (T,), alpha and beta (T, N) in cell order (a sheet's row by row;
+    NaN where a cell sent no sample), the Scene when the input carries one (a RunResult), and the dataset's
+    attributes (scene name, source, params.*, model, perturbation.*, topology.*, provenance.*) otherwise."""
 
     time: np.ndarray
     alpha: np.ndarray
@@ -46,6 +47,16 @@ class RunView:
         if self.scene is not None:
             return str(self.attrs.get("source") or f"emulator:{self.scene.model}")
         return str(self.attrs.get("source") or "unknown")
+
+    @property
+    def topology(self) -> Topology:
+        """The run's lattice: the scene's, else the topology.* attributes', else the open chain of its N cells."""
+        from ..topology import Topology
+        from .datasets import topology_of_attrs
+
+        if self.scene is not None:
+            return self.scene.topology
+        return topology_of_attrs(self.attrs) or Topology.chain(self.alpha.shape[1])
 
     @property
     def params(self) -> Params | None:
@@ -98,6 +109,8 @@ def params_from_attrs(attrs: dict, cells: int) -> Params | None:
         if key == "cells":
             cells = int(v)
             continue
+        if key in ("shape", "lattice", "boundary"):  # the lattice: the topology.* attributes say it
+            continue
         if isinstance(v, np.ndarray):
             v = [float(x) for x in v.ravel()]
         elif isinstance(v, np.generic):
@@ -107,8 +120,11 @@ def params_from_attrs(attrs: dict, cells: int) -> Params | None:
         d[key] = v
     if not d:
         return None
+    from .datasets import topology_of_attrs
+
     try:
-        return _parse_params(d, cells)
+        topo = topology_of_attrs(attrs)
+        return _parse_params(d, cells if topo is None else topo.n, topo)
     except (ConfigError, ValueError, TypeError):
         return None
 
@@ -116,10 +132,13 @@ def params_from_attrs(attrs: dict, cells: int) -> Params | None:
 def _from_dataset(ds: Any) -> RunView:
     if "alpha" not in ds or "time" not in ds.coords:
         raise TypeError("a Dataset of the run layout (dims time, cell; variables alpha, beta) was expected")
-    beta = ds["beta"].values if "beta" in ds else np.full(ds["alpha"].shape, np.nan)
+    from .datasets import cell_values
+
+    alpha = cell_values(ds, "alpha")
+    beta = cell_values(ds, "beta") if "beta" in ds else np.full(alpha.shape, np.nan)
     return RunView(
         np.asarray(ds["time"].values, float),
-        np.asarray(ds["alpha"].values, float),
+        np.asarray(alpha, float),
         np.asarray(beta, float),
         attrs=dict(ds.attrs),
     )

@@ -1,4 +1,5 @@
-"""Plots of a run: space-time maps of alpha and beta (with a growth-phase panel), the final pattern, the dispersion.
+"""Plots of a run: space-time maps of alpha and beta (with a growth-phase panel), the final pattern, the dispersion;
+a 2-D sheet's snapshots and final field instead of the chain's space-time map and profile (sheet_plots.py).
 
 Every function takes ``ax=`` (or ``axes=``) to draw into the caller's axes and returns the matplotlib Figure.
 Without axes, a figure comes from pyplot when the caller already uses pyplot (a notebook: the figure shows
@@ -81,11 +82,12 @@ def _title_attrs(attrs: dict, title: str = "") -> str:
     head = name + (f" ({src})" if src and not title and src not in name else "")
     sig = attrs.get("params.sigma")
     pushes, k = [], 1
-    while f"perturbation.{k}.cell" in attrs:
-        q = {f: attrs.get(f"perturbation.{k}.{f}") for f in ("chain", "cell", "torque_Nm", "duration_s")}
+    while f"perturbation.{k}.cell" in attrs or f"perturbation.{k}.row" in attrs:
+        q = {f: attrs.get(f"perturbation.{k}.{f}") for f in ("chain", "cell", "row", "col", "torque_Nm", "duration_s")}
+        where = q["cell"] if q["cell"] is not None else f"({q['row']},{q['col']})"
         try:
             tq = float(q["torque_Nm"]) * 1e3  # type: ignore[arg-type]  # a bad value: TypeError, caught
-            pushes.append(f"{tq:+.0f} mN·m on {q['chain']}_{q['cell']} for {q['duration_s']} s")
+            pushes.append(f"{tq:+.0f} mN·m on {q['chain']}_{where} for {q['duration_s']} s")
         except (TypeError, ValueError):
             pass
         k += 1
@@ -112,7 +114,7 @@ def _title(scene=None, title=""):
     p = scene.params
     push = (
         ", ".join(
-            f"{q.torque_Nm * 1e3:+.0f} mN·m on {q.chain}_{q.cell} for {q.duration_s:g} s"
+            f"{q.torque_Nm * 1e3:+.0f} mN·m on {q.chain}_{_where(q)} for {q.duration_s:g} s"
             for q in getattr(scene, "perturbations", ())
         )
         or "no push"
@@ -124,6 +126,18 @@ def _title(scene=None, title=""):
         sig = f"sigma = {p.per_cell('sigma')[0]:.4g}"
     other = [k for k in p.varying_keys if k != "sigma"]
     return (title or scene.name) + f"\n{sig} N·m/rad{'; per cell: ' + ', '.join(other) if other else ''}; push: {push}"
+
+
+def _where(q) -> str:
+    """A push's place as the scene named it: 8, or (8,8) on a sheet."""
+    return f"({q.row},{q.col})" if getattr(q, "row", 0) else str(q.cell)
+
+
+def _sheet(view, scene) -> bool:
+    """True when the run is a 2-D sheet (its scene's or its dataset's topology says so)."""
+    if scene is not None and hasattr(scene, "topology"):
+        return bool(scene.topology.is_sheet)
+    return view is not None and view.topology.is_sheet
 
 
 def plot_spacetime(
@@ -142,8 +156,13 @@ def plot_spacetime(
 
     run: a RunResult (api or controller), an xarray Dataset of the run layout (r.to_xarray(), he.load(...)), a run
     directory or a capture path (anything he.load opens), or t with alpha=, beta= arrays (T, N). ax/axes: one Axes
-    (alpha only) or a sequence of 2 (alpha, beta) or 4 (alpha, beta, alpha zoom, beta zoom). Returns the Figure."""
+    (alpha only) or a sequence of 2 (alpha, beta) or 4 (alpha, beta, alpha zoom, beta zoom). Returns the Figure.
+    A 2-D sheet has no space-time map: its snapshots (sheet_plots.plot_snapshots) are drawn instead."""
     t, a, b, view = _arrays(run, alpha, beta)
+    if alpha is None and _sheet(view, scene):
+        from .sheet_plots import plot_snapshots
+
+        return plot_snapshots(view, axes=axes if axes is not None else ax, scene=scene, title=title)
     if axes is None and ax is not None:
         axes = [ax] if not isinstance(ax, (list, tuple, np.ndarray)) else list(np.ravel(ax))
     if axes is None:
@@ -199,12 +218,17 @@ def plot_final(
     title: str = "",
 ) -> FigureBase:
     """Final alpha and beta profile against cell index (each cell's last sample). run: a RunResult, an xarray
-    Dataset of the run layout, a run directory or a capture path, or final alpha with beta= (N,)."""
+    Dataset of the run layout, a run directory or a capture path, or final alpha with beta= (N,). A 2-D sheet: its
+    final alpha and beta fields (sheet_plots.plot_final_field)."""
     view = None
     if alpha is None:
         from .inputs import as_run
 
         view = as_run(run)
+        if _sheet(view, scene):
+            from .sheet_plots import plot_final_field
+
+            return plot_final_field(view, axes=ax, scene=scene, title=title)
         a, b = view.final("alpha"), view.final("beta")
     else:
         a, b = np.asarray(run, dtype=float), np.asarray(alpha, dtype=float)  # plot_final(alpha, beta)
@@ -354,8 +378,8 @@ def plot_run(
     fmt: str = "png",
     column: bool = False,
 ) -> list[Path]:
-    """The run's figures in outdir: spacetime, final_pattern and dispersion, as fmt (png, pdf or svg). Returns the
-    paths.
+    """The run's figures in outdir: spacetime (a 2-D sheet: snapshots), final_pattern and dispersion, as fmt (png,
+    pdf or svg). Returns the paths.
 
     res: a controller RunResult (t, alpha, beta) with its scene, or anything inputs.as_run reads (scene None: the
     run's own, or the attributes of a loaded run or capture; a capture has no dispersion). source labels the data in
@@ -371,7 +395,8 @@ def plot_run(
     scene = scene if scene is not None else view.scene
     label = source or (f"emulator:{scene.model}" if scene is not None else view.source)
     name = name or (scene.name if scene is not None else view.name)
-    files = [outdir / f"spacetime.{fmt}", outdir / f"final_pattern.{fmt}"]
+    first = "snapshots" if _sheet(view, scene) else "spacetime"
+    files = [outdir / f"{first}.{fmt}", outdir / f"final_pattern.{fmt}"]
     fig = plot_spacetime(view, scene=scene, title=f"{name} ({label})", growth_panel=not column)
     if column:
         _column(fig, 3.6)

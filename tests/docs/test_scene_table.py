@@ -1,6 +1,7 @@
 """Docs that stay true: every figure of docs/emulator.md's table of shipped scenes (model, outcome, pattern period,
-walls and their bonds) is what a fresh run of that scene reports, every shipped scene has its row, and the scene
-format's `cells` range is the one the code accepts."""
+walls and their bonds) is what a fresh run of that scene reports, every shipped scene has its row (a sheet in the
+sheet table, checked against its scene file: model, size, push), and the scene format's `cells` range is the one
+the code accepts."""
 
 import re
 from pathlib import Path
@@ -27,10 +28,30 @@ def _outcome(s: dict) -> str:
     return "moving"
 
 
+SHEET_ROW = re.compile(rf"^\| `(\w+)` \| (\w+) \| {CELL} \| (\d+) x (\d+) \| \((\d+), (\d+)\) \|$", re.M)
+
+
+def _sheet_rows() -> dict[str, tuple[str, ...]]:
+    start = DOC.index("| scene | model | what it is | cells | push at (row, col) |")
+    table = DOC[start : DOC.index("\n\n", start)]
+    return {m.group(1): (m.group(2), *m.groups()[3:]) for m in SHEET_ROW.finditer(table)}
+
+
 def test_every_shipped_scene_has_a_row():
     import host_emulator as he
 
-    assert sorted(_rows()) == sorted(he.list_scenes())
+    assert not set(_rows()) & set(_sheet_rows())
+    assert sorted([*_rows(), *_sheet_rows()]) == sorted(he.list_scenes())
+
+
+@pytest.mark.parametrize("name", sorted(_sheet_rows()))
+def test_the_sheet_tables_rows_are_the_scene_files(name):
+    from host_emulator.scene import load_scene
+
+    model, rows, cols, prow, pcol = _sheet_rows()[name]
+    sc = load_scene(name)
+    assert sc.model == model and sc.topology.shape == (int(rows), int(cols)) and sc.topology.is_sheet
+    assert [(q.row, q.col) for q in sc.perturbations] == [(int(prow), int(pcol))]
 
 
 @pytest.mark.parametrize("name", sorted(_rows()))

@@ -54,7 +54,7 @@ def test_wire_param_refuses_non_finite():
         wire_param("sigma", math.inf)
 
 
-@pytest.mark.parametrize("name", [n for n, _, _ in list_scenes()])
+@pytest.mark.parametrize("name", [n for n, _, _ in list_scenes() if load_scene(n).cells <= proto.N_CELLS])
 def test_every_shipped_scene_has_a_rig_plan(name):
     sc = load_scene(name)
     plan = make_plan(sc)
@@ -73,6 +73,12 @@ def test_plan_names_what_the_rig_cannot_set():
     assert plan.not_settable.get("eta_scale") == 10.0
     assert "sigma" not in plan.not_settable
     assert pwm_limit_ticks(load_scene("default").params) == round(5.86 / 9 * 2400)
+
+
+@pytest.mark.parametrize("name", [n for n, _, _ in list_scenes() if load_scene(n).cells > proto.N_CELLS])
+def test_a_shipped_sheet_larger_than_the_rig_has_no_rig_plan(name):
+    with pytest.raises(PlanError, match="cells"):
+        make_plan(load_scene(name))
 
 
 def test_plan_refuses_too_many_cells():

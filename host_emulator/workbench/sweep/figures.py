@@ -73,7 +73,7 @@ def plot_phase_diagram(
     if ax is None:
         fig = new_figure(figsize=(10, 5), constrained_layout=True)
         ax = fig.add_subplot(111)
-    n = int(ds.attrs.get("cells", 16))
+    n = int(np.max(np.ravel(ds.attrs.get("cells", 16))))  # a sheet's [rows, cols]: its longer side
     ylo, yhi = 1.5, 4.0 * n
     others = [str(d) for d in ds["status"].dims if d not in (sname, "seed")]
     cby = color_by if color_by is not None else (others[0] if others else None)

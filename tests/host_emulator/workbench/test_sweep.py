@@ -246,3 +246,22 @@ def test_coordinate_names():
         "perturbation.2.torque_Nm": "perturbation_2_torque_Nm",
         "model_options.noise.seed": "model_options_noise_seed",
     }
+
+
+def test_a_sweep_over_sigma_on_the_16x16_sheet(tmp_path):
+    """A sweep takes a sheet scene as any other: every point runs, the dataset records the topology, and the phase
+    diagram draws (its wavelength axis from the sheet's longer side: int() of the [rows, cols] attribute failed)."""
+    import host_emulator as he
+
+    ds = he.sweep(
+        "sheet_16x16",
+        {"params.sigma": [0.048, 0.072]},
+        fixed={"t_end_s": 0.3},
+        out=tmp_path / "s",
+        workers=1,
+        progress=False,
+        plots=True,
+    )
+    assert [str(v) for v in ds["status"].values] == ["ok", "ok"]
+    assert list(ds.attrs["topology.cells"]) == [16, 16] and ds.attrs["topology.lattice"] == "square"
+    assert sorted(p.name for p in (tmp_path / "s").glob("*.png"))
