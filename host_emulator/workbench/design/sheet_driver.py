@@ -177,13 +177,9 @@ def design_sheet(
     scene_path = outp / "scene.toml"
     built = sheet_scene(dataclasses.replace(base, name=name, description=desc), p, pushes, *NOMINAL_PUSH, None)
     _write(scene_path, sheet_table(built, tgt, pushes, name, desc), tgt)
-    try:  # the written file as `run` loads it, where this scene parser reads sheets
-        vscene, source = load_scene(str(scene_path)), "scene.toml"
-    except (ValueError, KeyError):
-        vscene, source = built, "the scene built in memory (this scene parser does not read a sheet's scene.toml)"
+    vscene = load_scene(str(scene_path))  # the written file as `run` loads it
     report(f"verifying: {seeds} noise seeds and the push range")
     ver = sheet_verify(vscene, tgt, seeds)
-    ver["scene"] = source
     report(f"cross-check in {CROSS_MODEL}: the same {seeds} draws")
     cross = sheet_verify(vscene, tgt, seeds, pushes_too=False, model=CROSS_MODEL)
     report(f"confirming on {seeds} fresh draws")

@@ -44,7 +44,9 @@ def sheet_scene(base, p: Params, pushes: Sequence[SheetPush], torque: float, dur
     """The base Scene (a sheet's) with the laws p, these pushes (torque N m for duration s from 0.1 s) and, with a
     seed, that draw of the rig's uncertainty (NOISE); seed None: no noise."""
     top = p.topology
-    perts = tuple(Perturbation(top.cell_of(q.row, q.col), "alpha", q.sign * torque, 0.1, duration) for q in pushes)
+    perts = tuple(
+        Perturbation(top.cell_of(q.row, q.col), "alpha", q.sign * torque, 0.1, duration, q.row, q.col) for q in pushes
+    )
     noise = noise_options(seed)
     opts = dataclasses.replace(base.options, noise=noise)
     return dataclasses.replace(base, cells=p.cells, params=p, perturbations=perts, options=opts)

@@ -172,3 +172,23 @@ def test_search_does_not_run_a_candidate_off_the_linear_constraints(base8):
     space = Space(base8.params, ("sigma", "k_ab", "k2"), ("sigma", "k_ab", "k2"), t.segments())
     x, score, hist, runs = sheet_search(space, t, parse_sheet_pushes("4x2", t), base8, space.x0(), maxiter=0)
     assert runs == 0 and score < 0 and hist == [{"fraction": 0.0, "misses": ["linear theory"]}]
+
+
+def test_written_scene_loads_back_as_designed(tmp_path):
+    """scene.toml of a sheet design (cells = [rows, cols], per-cell values row by row, pushes at row and col) is
+    the scene `run` loads: the same per-cell laws, pushes and firmware settings."""
+    from host_emulator.scene import load_scene
+    from host_emulator.workbench.design.sheet_driver import _write, sheet_table
+
+    t = parse_sheet_target("pattern", (3, 4), "cols=3-4")
+    base = sheet_base("default", (3, 4))
+    p = dataclasses.replace(base.params, sigma=tuple(0.17 if r else 0.05 for r in t.rest_mask()), k2=-0.07)
+    pushes = parse_sheet_pushes("2x1,3x2:-", t)
+    sc = sheet_scene(base, p, pushes, 0.02, 0.1, None)
+    path = tmp_path / "scene.toml"
+    _write(path, sheet_table(sc, t, pushes, "d", "a sheet design"), t)
+    back = load_scene(str(path))
+    assert back.params.shape == (3, 4) and back.params.lattice == "square" and back.model == "hil"
+    assert np.array_equal(back.params.per_cell("sigma"), p.per_cell("sigma")) and back.params.k2 == -0.07
+    assert [(q.cell, q.row, q.col, q.torque_Nm) for q in back.perturbations] == [(5, 2, 1, 0.02), (10, 3, 2, -0.02)]
+    assert back.params.bemf_comp is False and back.options.stepper == base.options.stepper
