@@ -45,6 +45,12 @@ The modules, one job each: constants (the numbers above), target (the input: tar
 run land), space (the search vector), linear (step 1), ensembles (batched hil runs, in process or on Dask), search
 (step 2), verification (step 3), nearest (the nearest reachable target), scenefile (scene.toml), plot
 (design.png), driver (``design``, design.json) and cli (``design_main``).
+
+On a square sheet (``design --sheet ROWSxCOLS``, docs/design.md "Sheets"): a region that patterns beside one that
+rests (``--rest cols=9-16``), optionally at a stripe wavelength (``--target lambda=12``), one law per region; the
+modules sheet_target (the input), sheet_landing (does a run land), sheet_linear (step 1: each region's law on the
+square lattice, the whole sheet's eigenproblem as the check), sheet_runs (steps 2 and 3 over batched sheet
+ensembles) and sheet_driver (design.json, scene.toml, design.png).
 """
 
 # every name of the former single module, re-exported: `from host_emulator.workbench.design import X` as before
