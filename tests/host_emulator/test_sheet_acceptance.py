@@ -20,6 +20,7 @@ import pytest
 
 import host_emulator as he
 from host_emulator.analysis import sheet
+from host_emulator.benchmarks.sheet_acceptance import seeded_stripes_toml
 
 EARLY_S = 3.0  # the wavelength is established by 2 s (module docstring); 3 s leaves a margin
 WITHIN = 0.25  # the acceptance's: within 25 % of the fastest-growing wavelength
@@ -63,39 +64,10 @@ def test_a_pushed_16x16_sheet_grows_the_linear_theorys_wavelength(model):
 
 
 # ---- the classifier on simulated regimes (docs/patterns2d.md#simulated-regimes) ---------------------------------
-def stripes_scene(tmp_path) -> str:
-    """A periodic 16 x 16 lattice sheet at 9/125 seeded with one Fourier mode along the rows: pushes of +-10 mN*m on
-    every cell of columns 1, 5, 9, 13 (cos(2 pi (col - 1) / 8) sampled at its extremes; 64 pushes, the plant's
-    most), with a 5 % spread of the band stiffness per cell so that no two rows are the same sheet."""
-    lines = [
-        'name = "stripes_seeded"',
-        'description = "periodic 16 x 16 sheet seeded with one mode along the rows"',
-        'model = "lattice"',
-        "cells = [16, 16]",
-        'boundary = "periodic"',
-        "t_end_s = 3.0",
-        "[params]",
-        "sigma = 0.072",
-        "[model_options]",
-        "inertia = true",
-        'bands = "cubic"',
-        'beta_geometry = "small"',
-        "[model_options.noise]",
-        "seed = 1",
-        "band_spread = 0.05",
-    ]
-    for row in range(1, 17):
-        for col in (1, 5, 9, 13):
-            torque = 0.01 if col in (1, 9) else -0.01
-            lines += ["[[perturbation]]", f"row = {row}", f"col = {col}", 'chain = "alpha"']
-            lines += [f"torque_Nm = {torque}", "start_s = 0.1", "duration_s = 0.1"]
-    path = tmp_path / "stripes_seeded.toml"
-    path.write_text("\n".join(lines) + "\n")
-    return str(path)
-
-
 def test_a_sheet_seeded_with_one_mode_along_the_rows_reads_as_stripes_along_them(tmp_path):
-    r = he.run(stripes_scene(tmp_path), accuracy="fast")
+    path = tmp_path / "stripes_seeded.toml"
+    path.write_text(seeded_stripes_toml())  # 64 pushes on columns 1, 5, 9, 13, a 5 % band spread per cell
+    r = he.run(str(path), accuracy="fast")
     g = r.scene.topology.grid(r.alpha[-1])
     assert np.abs(g).max() > 0.5  # grown and saturated
     assert np.abs(g - g[0]).max() > 1e-6  # the rows differ (the band spread): not a 1-D field by construction
