@@ -5,11 +5,11 @@ Why 3 s of the 16 x 16 scene, not its 25 s: the push grows to saturation (max |a
 pattern2d's dominant wavelength is established by 2 s. Measured with `run sheet_16x16 --set t_end_s=25` read at
 each time (`python -m host_emulator.benchmarks.sheet_acceptance` runs the full 25 s): lattice 9.373 cells at 2 s,
 9.373 at 3 and 4 s (unchanged to 1e-5 cells until 10 s), 9.464 settled at 25 s after the slow transition at
-10-18 s (the early one 1.0 % shorter); hil 9.515 at 2, 3, 4 and 25 s (it keeps the first pattern). Against the fastest-growing
-wavelength along the axis (lattice 9.859, hil 10.256 cells with the motors' back-EMF damping): -4.9 % (3 s) and
--4.0 % (25 s) in the lattice, -7.2 % in the hil, all inside the annulus (5.79-21.56 cells). The lattice's `fast`
-preset gives the same figures to 1e-6 cells as `balanced` at about a third of the CPU; the two runs together
-cost about 0.4 s of CPU."""
+10-18 s (the early one 1.0 % shorter); hil 9.515 at 2, 3, 4 and 25 s (it keeps the first pattern). Against the
+fastest-growing wavelength along the axis (lattice 9.859, hil 10.256 cells with the motors' back-EMF damping):
+-4.9 % (3 s) and -4.0 % (25 s) in the lattice, -7.2 % in the hil, all inside the annulus (5.79-21.56 cells). The
+lattice's `fast` preset gives the same figures to 1e-6 cells as `balanced` at about a third of the CPU; the two
+runs together cost about 0.4 s of CPU."""
 
 from __future__ import annotations
 
