@@ -164,7 +164,7 @@ def test_a_sheets_cell_steps_weigh_its_bonds():
 
 def test_a_faults_cell_on_a_sheet_may_be_row_and_col():
     """parse_fault takes a sheet's (row, col) as parse_perturbation does (the image tier, the one that injects faults,
-    refuses a sheet today: this is the parser alone)."""
+    runs sheets of up to the rig's 16 boards and refuses larger ones: this is the parser alone)."""
     from host_emulator.models.options import parse_fault
 
     topo = Topology((4, 4), "square")
@@ -174,5 +174,5 @@ def test_a_faults_cell_on_a_sheet_may_be_row_and_col():
         parse_fault({"kind": "tick_dead", "start_s": 0.1, "cell": 2, "row": 1, "col": 1}, topo, "fault[1]")
     with pytest.raises(ConfigError, match=r"fault\[1\]\.row"):
         parse_fault({"kind": "tick_dead", "start_s": 0.1, "row": 1, "col": 1}, 16, "fault[1]")
-    with pytest.raises(ConfigError, match=r"model = 'image' with cells = \[4, 4\]"):
-        load_scene("sheet_4x4_rig", ["model=image"])
+    with pytest.raises(ConfigError, match=r"model = 'image' with cells = \[8, 8\]"):
+        load_scene("sheet_8x8", ["model=image"])
