@@ -7,8 +7,10 @@ Each measurement brings a fresh world up (boot, USB, the cells configured: not t
 board time: the wall time (real-time factor = board seconds / wall seconds) and the process CPU time (every
 thread's), medians over `reps`. Machine-independent figures come first: the CPU cycles the boards executed per
 board second (fast-forwarded idle passes excluded; the same on every machine) and how often the emulator
-started and stopped the CPUs. "full-speed": the plant at rest, all 32 encoders turning back and forth at the motors'
-no-load speed at full supply (fwcheck's cpu-budget figure), so every cell takes its worst edge rate.
+started and stopped the CPUs, and how often the fast-forward compared a `loop()` pass with the one before (a board
+whose passes all read the time is never compared). "full-speed": the plant at rest, all 32 encoders turning back
+and forth at the motors' no-load speed at full supply (fwcheck's cpu-budget figure), so every cell takes its worst
+edge rate.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ class Measurement:
     cpu_s: float
     executed_cycles: dict[str, int]  # per board, executed (not fast-forwarded) over the timed interval
     runs: int  # emulation starts, all boards
+    ff_checks: dict[str, int]  # per board, loop() entries the fast-forward compared with the one before
     edges: int  # encoder edges the cells' pins saw (counts)
 
 
@@ -48,13 +51,14 @@ def full_speed_counts_s() -> float:
     return NO_LOAD_RAD_PER_V_S * SUPPLY_V * COUNTS_PER_RAD
 
 
-def _snapshot(world) -> tuple[dict[str, int], int]:
-    out, runs = {}, 0
+def _snapshot(world) -> tuple[dict[str, int], int, dict[str, int]]:
+    out, runs, checks = {}, 0, {}
     for b in world.boards:
         i = world.info(b.index)
         out[b.name] = int(i.cycles) - int(i.ff_cycles_skipped)
         runs += int(i.runs)
-    return out, runs
+        checks[b.name] = int(i.ff_checks)
+    return out, runs, checks
 
 
 def measure(scenario: str, seconds: float, threads: int) -> Measurement:
@@ -77,7 +81,7 @@ def measure(scenario: str, seconds: float, threads: int) -> Measurement:
             for chain in ("alpha", "beta"):  # back and forth inside the firmware's runaway limit (800 counts)
                 w.spin(cell, chain, rate, t0, t0 + seconds + 0.01, back_and_forth=600)
         edges = round(32 * rate * seconds)
-    c0, r0 = _snapshot(w)
+    c0, r0, k0 = _snapshot(w)
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     if scenario == "default":
         t_end = solver.t + seconds
@@ -86,8 +90,8 @@ def measure(scenario: str, seconds: float, threads: int) -> Measurement:
     else:
         lap.pump(seconds)
     wall, cpu = time.perf_counter() - t_wall, time.process_time() - t_cpu
-    c1, r1 = _snapshot(w)
-    return Measurement(wall, cpu, {k: c1[k] - c0[k] for k in c1}, r1 - r0, edges)
+    c1, r1, k1 = _snapshot(w)
+    return Measurement(wall, cpu, {k: c1[k] - c0[k] for k in c1}, r1 - r0, {k: k1[k] - k0[k] for k in k1}, edges)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -128,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
             m = ms[-1]
             cells = sum(v for k, v in m.executed_cycles.items() if k.startswith("cell")) / 16 / args.seconds
             prim = m.executed_cycles.get("primary", 0) / args.seconds
+            cell_checks = sum(v for k, v in m.ff_checks.items() if k.startswith("cell")) / 16 / args.seconds
+            prim_checks = m.ff_checks.get("primary", 0) / args.seconds
             wall = statistics.median(x.wall_s for x in ms)
             cpu = statistics.median(x.cpu_s for x in ms)
             print(f"{scenario}, {threads} thread{'s' if threads > 1 else ''}:")
@@ -135,6 +141,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"  executed per board second: {cells / 1e6:.2f} M cycles per cell, {prim / 1e6:.2f} M the primary "
                 f"(of 48 M); {m.runs / args.seconds:,.0f} emulation starts"
                 + (f"; {m.edges / args.seconds:,.0f} encoder edges" if m.edges else "")
+            )
+            print(
+                f"  idle-pass compares per board second (fast-forward): {cell_checks:,.0f} per cell, "
+                f"{prim_checks:,.0f} the primary"
             )
             print(
                 f"  real-time factor {args.seconds / wall:.2f}x (wall {wall / args.seconds:.2f} s per board second, "
