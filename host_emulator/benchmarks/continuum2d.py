@@ -14,7 +14,8 @@ the time integration differs. py-pde's solvers: explicit Euler (fixed dt, near i
 adaptive Runge-Kutta-Fehlberg 4(5) (max-norm absolute tolerance). The error is max |x - x_ref| over the final
 alpha and beta at the cell centres; the reference is models/continuum.py's ETDRK4 at rtol 1e-8 (its agreement
 with py-pde's tightest run is printed: the two references differ by less than either's error).
-CPU time: process time of one warm call (py-pde's numba compilation excluded: its first call is timed apart).
+CPU time: process time of one warm call (py-pde's numba compilation excluded: its first call is timed apart), both
+single-threaded (py-pde's numba multithreading, on by default from 256^2 grid points, is turned off).
 """
 
 from __future__ import annotations
@@ -77,6 +78,7 @@ def run_ours(n: int, m: int, rtol: float, method: str = "etdrk4") -> np.ndarray:
 def pypde_problem(n: int, m: int) -> tuple[Any, Any]:
     import pde
 
+    pde.config["backend.numba.multithreading"] = "never"  # one core each (ours: scipy.fft with one worker)
     p, a0 = case(n, m)
     ea, eb = p.eta_alpha, p.eta_beta
     ra, rb = pypde_reaction(p)
@@ -110,11 +112,12 @@ def bench(n: int, m: int, quick: bool, log=print) -> list[tuple[str, str, float,
 
     log(f"\n== {n} x {n} cells x {m}x{m} volumes (periodic), {2 * (n * m) ** 2} unknowns, t_end {T_END} s ==")
     ref, w = timed(run_ours, n, m, REF_RTOL)
-    log(f"  reference: ours ETDRK4 rtol {REF_RTOL:g} ({w:.1f} s cpu)")
+    log(f"  reference: ours ETDRK4 rtol {REF_RTOL:g} ({w:.1f} s cpu)", flush=True)
     rows = []
     for rtol in (1e-3, 1e-5) if quick else (1e-3, 1e-4, 1e-5, 1e-6):
         x, w = timed(run_ours, n, m, rtol)
         rows.append(("ours ETDRK4", f"rtol={rtol:g}", w, err(x, ref)))
+        log(f"  ... {rows[-1][0]} {rows[-1][1]}: {w:.2f} s cpu, max error {rows[-1][3]:.2g} rad", flush=True)
     try:
         import pde  # noqa: F401
     except ImportError:
@@ -132,11 +135,15 @@ def bench(n: int, m: int, quick: bool, log=print) -> list[tuple[str, str, float,
     for solver, kw in runs:
         if solver not in warmed:
             _, w = timed(run_pypde, n, m, solver, 1e-4, **(kw | {"dt": 1e-5}))
-            log(f"  py-pde {solver}: first call (numba compilation) {w:.1f} s cpu; the rows below are warm calls")
+            log(
+                f"  py-pde {solver}: first call (numba compilation) {w:.1f} s cpu; the rows below are warm calls",
+                flush=True,
+            )
             warmed.add(solver)
         x, w = timed(run_pypde, n, m, solver, **kw)
         setting = ", ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in kw.items())
         rows.append((f"py-pde {solver}", setting, w, err(x, ref)))
+        log(f"  ... {rows[-1][0]} {rows[-1][1]}: {w:.2f} s cpu, max error {rows[-1][3]:.2g} rad", flush=True)
         if solver == "runge-kutta":
             tight = x
     if tight is not None:
