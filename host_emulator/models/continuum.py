@@ -1,5 +1,5 @@
 """Continuum model: the reaction-diffusion PDE of docs/physics.md#linear-stability (inertia dropped, full non-linear
-psi') on a 1-D grid.
+psi') on a 1-D grid (a chain, or a ring), or on a square sheet (models/continuum_sheet.py).
 
 Equations (x in lattice units, i.e. cells, so k a^2 d^2/dx^2 with x = a * xbar becomes k d^2/dxbar^2)::
 
@@ -18,7 +18,9 @@ so that sum_i h (L u)_i = 0 exactly (a pure-diffusion run conserves sum_i h eta 
 T (N m) on cylinder j is a torque density T per unit x over [j-1, j]; its integral over the cell is T,
 matching the lattice where cylinder j spans one unit of x. Time stepping: scipy's stiff BDF with the
 analytic sparse Jacobian, restarted at every switch-on/off of a perturbation so no pulse is stepped over.
-Output is linearly interpolated to the cell centres.
+Output is linearly interpolated to the cell centres. A ring (Params.boundary "periodic") wraps the grid
+(u_{-1} = u_{n-1}, u_n = u_0). A sheet (Params.topology.is_sheet) is the same PDE with the 2-D Laplacian:
+models/continuum_sheet.py.
 """
 
 from __future__ import annotations
@@ -104,6 +106,59 @@ def _laplacian_weighted(n, h, w):
     return sp.diags([w, main, w], [-1, 0, 1], shape=(n, n), format="csr") / (h * h)
 
 
+def _laplacian_ring(n, h):
+    """Periodic second difference (a ring: point n - 1 next to point 0), sparse n x n."""
+    if n < 3:
+        raise ValueError(f"a ring's continuum needs at least 3 grid points (got {n})")
+    lap = _laplacian(n, h).tolil()
+    lap[0, 0] = lap[n - 1, n - 1] = -2.0 / (h * h)
+    lap[0, n - 1] = lap[n - 1, 0] = 1.0 / (h * h)
+    return lap.tocsr()
+
+
+def _output_times(t_end_s: float, dt_out_s: float, pert: list[dict]) -> tuple[np.ndarray, list[float]]:
+    """Output times (0 to t_end_s every dt_out_s, t_end_s exactly) and segment boundaries (perturbation
+    switch-on/off)."""
+    n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
+    t_out = np.arange(n_out) * dt_out_s
+    t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)  # t_end exactly, never beyond
+    edges = {0.0, t_end_s}
+    for p in pert:
+        for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
+            if 0.0 < tb < t_end_s:
+                edges.add(tb)
+    return t_out, sorted(edges)
+
+
+def _sheet(params, cells, t_end_s, dt_out_s, pert, m, rtol, atol, initial, max_angle_rad, method, spread):
+    """simulate_continuum on a square sheet (models/continuum_sheet.py)."""
+    from .continuum_sheet import simulate_sheet
+
+    topo = params.topology
+    if topo.kind != "square":
+        raise ValueError(
+            f"the continuum model has no {topo.kind} sheet: its Laplacian is isotropic, so it solves square grids only"
+        )
+    if cells != topo.n:
+        raise ValueError(f"cells={cells} but the sheet {list(topo.shape)} has {topo.n} cells")
+    if spread is not None:
+        raise ValueError("the noise model's band and viscosity spreads are not mapped onto a sheet's continuum")
+    t_out, cuts = _output_times(t_end_s, dt_out_s, pert)
+    alpha, beta = simulate_sheet(
+        params,
+        pert,
+        t_out,
+        cuts,
+        points_per_cell=int(m),
+        rtol=rtol,
+        atol=atol,
+        initial=initial,
+        max_angle_rad=max_angle_rad,
+        method=method,
+    )
+    return t_out, alpha, beta
+
+
 def _check_params(params):
     bad = []
     for name in ("eta_alpha", "eta_beta", "ka_eff", "kb_eff"):
@@ -132,9 +187,9 @@ def simulate_continuum(
     points_per_cell: int = 4,
     rtol: float = 1e-6,
     atol: float = 1e-9,
-    initial: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
+    initial: Callable[..., tuple[np.ndarray, np.ndarray]] | None = None,
     max_angle_rad: float = 1e4,
-    method: str = "BDF",
+    method: str = "auto",
     spread: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate the PDE from rest (or ``initial``) and return (t, alpha, beta) sampled at the cell centres.
@@ -143,10 +198,13 @@ def simulate_continuum(
     perturbations: dicts {cell (1-based), chain, torque_Nm, start_s, duration_s} (see module docstring).
     Per-cell reaction parameters (Params.per_cell) hold over each cell's interval [j-1, j] of x (piecewise constant).
     initial: optional callable x -> (alpha0, beta0) evaluated at the grid points x (cells, 0..cells),
-        for linear-theory checks; default: rest.
+        for linear-theory checks; default: rest. On a sheet it is called as initial(x, y) with the volume centres
+        (each (rows M, cols M): x along a row, y down the rows, in cells; cell (r, c) covers [c-1, c] x [r-1, r]).
     spread: (band, eta) factors of plant.spreads (2, cells) each, the noise model's draws: bond b's stiffness
         factor holds on the grid's faces nearest to it (x in [b + 1/2, b + 3/2], the end faces take the end bonds),
         cell j's viscosity factor on its interval; None: none (the uniform equations above, as before).
+    method: "auto" (a chain or ring: scipy "BDF"; a sheet: "etdrk4", continuum_sheet's exponential integrator),
+        or a scipy method name ("BDF", "Radau", "LSODA"; any solve_ivp method on a chain).
     Raises ValueError for bad input, ContinuumError if the solver fails or |angle| exceeds max_angle_rad.
     """
     _check_params(params)
@@ -163,11 +221,21 @@ def simulate_continuum(
     if params.cells != cells and params.per_cell_keys:
         raise ValueError(f"cells={cells} but the per-cell parameters give {params.cells} cells")
 
+    topo = params.topology
+    if topo.is_sheet:
+        return _sheet(
+            params, cells, t_end_s, dt_out_s, pert, points_per_cell, rtol, atol, initial, max_angle_rad, method, spread
+        )
+    if method == "auto":
+        method = "BDF"
+    if topo.periodic and spread is not None:
+        raise ValueError("the noise model's band and viscosity spreads are not mapped onto a ring's continuum")
+
     m = int(points_per_cell)
     n = cells * m
     h = 1.0 / m
     x = (np.arange(n) + 0.5) * h
-    lap = _laplacian(n, h)
+    lap = _laplacian(n, h) if not topo.periodic else _laplacian_ring(n, h)
     ea: float | np.ndarray = params.eta_alpha
     eb: float | np.ndarray = params.eta_beta
     if spread is None:
@@ -229,16 +297,7 @@ def simulate_continuum(
         jaa = da + sp.diags(reaction_jacobian(law, y[:n])[0, 0] / ea)  # dR_a/dalpha = -k_ab - psi''(alpha)
         return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
 
-    # output times and segment boundaries (perturbation switch-on/off)
-    n_out = int(math.floor(t_end_s / dt_out_s + 1e-9)) + 1
-    t_out = np.arange(n_out) * dt_out_s
-    t_out = np.append(t_out[t_out < t_end_s * (1.0 - 1e-9)], t_end_s)  # t_end exactly, never beyond
-    edges = {0.0, t_end_s}
-    for p in pert:
-        for tb in (p["start_s"], p["start_s"] + p["duration_s"]):
-            if 0.0 < tb < t_end_s:
-                edges.add(tb)
-    cuts = sorted(edges)
+    t_out, cuts = _output_times(t_end_s, dt_out_s, pert)
 
     ys = np.full((len(t_out), 2 * n), np.nan)
     ys[0] = y0

@@ -41,7 +41,7 @@ class ContinuumModel:
 
 
 class ContinuumSolver(Solver):
-    """Batch solver: the whole run happens in one call (scipy BDF inside simulate_continuum)."""
+    """Batch solver: the whole run happens in one call (simulate_continuum: scipy BDF on a chain, ETDRK4 on a sheet)."""
 
     model: ContinuumModel
 
@@ -52,8 +52,11 @@ class ContinuumSolver(Solver):
         self.dt_out = model.options.dt_out
 
     def info(self) -> dict:
+        sheet = self.model.params.topology.is_sheet
         return {
-            "stepper": "scipy BDF (continuum)",
+            "stepper": "ETDRK4, adaptive, on the grid's FFT/DCT (continuum sheet)"
+            if sheet
+            else "scipy BDF (continuum)",
             "dt_out_s": self.dt_out,
             "points_per_cell": self.model.options.points_per_cell,
         }
