@@ -274,7 +274,12 @@ def test_regime_matches_the_eigenvalues_of_the_full_lattice(sigma, band_scale, e
     assembled 4n x 4n second-order system of a 96-cell free-end chain. Cases the chain's finite set of modes
     cannot resolve (a different answer at 64 cells: a band narrower than the mode spacing) are skipped."""
     p = Params(sigma=sigma, band_scale=band_scale, eta_scale=eta_scale, gamma=gamma)
-    want, _ = chain_regime(p, 96, inertia, damping)
+    want, w = chain_regime(p, 96, inertia, damping)
+    # a bifurcation point has no regime: sigma = -k2 (the uniform mode's determinant k_ab (k2 + sigma) is 0) or, without
+    # inertia, gamma = k_ab / -(k_ab + k2) = 0.5 (its trace is 0: a Hopf point), both of them values the strategies
+    # reach; there a mode's growth is 0 to rounding (|Re| ~ 1e-16 of the spectrum, against >= 7e-5 elsewhere) and
+    # which side the two computations round to is chance
+    assume(np.abs(w.real).min() > 1e-9 * np.abs(w).max())
     assume(chain_regime(p, 64, inertia, damping)[0] == want)
     got = stab.dispersion(p, inertia=inertia, motor_damping=damping, n_kappa=1000)["regime"]
     assert got == want
