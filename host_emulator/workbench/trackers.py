@@ -54,7 +54,9 @@ class PlotTracker(Tracker):
     (`python -m metacell_tools.experiment run ... --live`, fed with `setup()` and `sample_many()` from the logged
     frames).
     After a draw, `image.get_array()` is the alpha window drawn (rows: time, oldest first; columns: cells) and
-    `window()` returns the (t, alpha, beta) it came from."""
+    `window()` returns the (t, alpha, beta) it came from. On a sheet (setup's `shape` = (rows, cols)) the right
+    panel is the current alpha field instead of the profile: `field.get_array()` is the newest row as
+    (rows, cols), cell (row, col) = alpha of cell (row - 1) * cols + col."""
 
     def __init__(
         self,
@@ -81,11 +83,21 @@ class PlotTracker(Tracker):
 
     # ---- set-up ----------------------------------------------------------------------------------------------
     def start(self, solver: Solver, t_end_s: float, n_samples: int) -> None:
-        self.setup(solver.model.n, t_end_s)
+        params = getattr(solver.model, "params", None)
+        topology = getattr(params, "topology", None)
+        self.setup(solver.model.n, t_end_s, topology.shape if topology is not None and topology.is_sheet else None)
 
-    def setup(self, n_cells: int, t_end_s: float | None = None) -> None:
-        """Empty buffers for n_cells cells and a fresh figure layout (also the entry point for non-solver feeds)."""
+    def setup(self, n_cells: int, t_end_s: float | None = None, shape: tuple[int, int] | None = None) -> None:
+        """Empty buffers for n_cells cells and a fresh figure layout (also the entry point for non-solver feeds);
+        shape (rows, cols) draws a sheet's current field (rows * cols must be n_cells)."""
         self.n = int(n_cells)
+        if shape is not None:
+            rows, cols = (int(v) for v in shape)
+            if rows < 1 or cols < 1 or rows * cols != self.n:
+                raise ValueError(f"PlotTracker: a {rows} x {cols} sheet does not hold {self.n} cells")
+            shape = (rows, cols)
+        self.shape = shape
+        self.field: AxesImage | None = None
         self.t_end_s = t_end_s
         self._t = np.empty(0)
         self._a = np.empty((0, self.n))
@@ -116,15 +128,26 @@ class PlotTracker(Tracker):
         self.ax_map.set_xlabel("cell j")
         cell_ticks(self.ax_map.xaxis, self.n)
         self.ax_map.set_ylabel("t (s)")
-        x = np.arange(1, self.n + 1)
-        (self.line_a,) = self.ax_prof.plot(x, np.zeros(self.n), "o-", color="C0", label="alpha")
-        (self.line_b,) = self.ax_prof.plot(x, np.zeros(self.n), "s--", color="C1", ms=3, label="beta")
-        self.ax_prof.axhline(0, color="0.7", lw=0.8)
-        self.ax_prof.set_xlim(0.5, self.n + 0.5)
-        self.ax_prof.set_xlabel("cell j")
-        cell_ticks(self.ax_prof.xaxis, self.n)
-        self.ax_prof.set_ylabel("angle (rad)")
-        self.ax_prof.legend(loc="upper right", fontsize=8)
+        if self.shape is not None:
+            rows, cols = self.shape
+            self.field = self.ax_prof.imshow(
+                np.zeros(self.shape),
+                cmap="RdBu_r",
+                interpolation="nearest",
+                extent=(0.5, cols + 0.5, rows + 0.5, 0.5),
+            )
+            self.ax_prof.set_xlabel("col")
+            self.ax_prof.set_ylabel("row")
+        else:
+            x = np.arange(1, self.n + 1)
+            (self.line_a,) = self.ax_prof.plot(x, np.zeros(self.n), "o-", color="C0", label="alpha")
+            (self.line_b,) = self.ax_prof.plot(x, np.zeros(self.n), "s--", color="C1", ms=3, label="beta")
+            self.ax_prof.axhline(0, color="0.7", lw=0.8)
+            self.ax_prof.set_xlim(0.5, self.n + 0.5)
+            self.ax_prof.set_xlabel("cell j")
+            cell_ticks(self.ax_prof.xaxis, self.n)
+            self.ax_prof.set_ylabel("angle (rad)")
+            self.ax_prof.legend(loc="upper right", fontsize=8)
         self.interactive = getattr(type(self.fig.canvas), "required_interactive_framework", None) is not None
         if self._pyplot and self.interactive:
             from matplotlib import pyplot as plt
@@ -174,12 +197,17 @@ class PlotTracker(Tracker):
         image.set_extent((0.5, self.n + 0.5, lo, hi if hi > lo else lo + 1e-6))
         lim = float(np.abs(a).max()) or 1e-3
         image.set_clim(-lim, lim)
-        self.line_a.set_ydata(a[-1])
-        self.line_b.set_ydata(b[-1])
-        plim = max(float(np.abs(a[-1]).max()), float(np.abs(b[-1]).max())) or 1e-3
-        self.ax_prof.set_ylim(-1.15 * plim, 1.15 * plim)
+        if self.field is not None:
+            self.field.set_data(a[-1].reshape(self.shape))
+            self.field.set_clim(-lim, lim)
+            self.ax_prof.set_title("current field (alpha)", fontsize=9)
+        else:
+            self.line_a.set_ydata(a[-1])
+            self.line_b.set_ydata(b[-1])
+            plim = max(float(np.abs(a[-1]).max()), float(np.abs(b[-1]).max())) or 1e-3
+            self.ax_prof.set_ylim(-1.15 * plim, 1.15 * plim)
+            self.ax_prof.set_title("current profile", fontsize=9)
         self.ax_map.set_title(f"{self.title}  t = {hi:.2f} s".strip(), fontsize=9)
-        self.ax_prof.set_title("current profile", fontsize=9)
         self.draws += 1
         if self.interactive:
             self.fig.canvas.draw_idle()

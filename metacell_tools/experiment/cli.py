@@ -157,7 +157,9 @@ def make_live(args, scene, out: Path, source: str = "rig"):
     from .liveview import LiveView
 
     view = LiveView(args.live, args.live_window)
-    live = RigLive(view, scene.cells, title=scene.name, source=source)
+    topology = getattr(scene, "topology", None)
+    shape = topology.shape if topology is not None and topology.is_sheet else None
+    live = RigLive(view, scene.cells, title=scene.name, source=source, shape=shape)
     live.begin(0, scene.t_end_s)  # the window opens before the bus does
     if not view.wait_started():
         print(f"live plot unavailable: {view.error}; running without it", file=sys.stderr)

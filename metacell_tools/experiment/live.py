@@ -16,9 +16,10 @@ class RigLive:
     nothing until `interval_s` of primary clock has passed since the last feed, then hands the tracker every
     new row (time series as in the summary: t from the enable, missing samples held, absent cells 0)."""
 
-    def __init__(self, tracker, n_cells: int, title: str = "", source: str = "rig"):
+    def __init__(self, tracker, n_cells: int, title: str = "", source: str = "rig", shape=None):
         self.tracker = tracker
         self.n = int(n_cells)
+        self.shape = None if shape is None else tuple(shape)  # (rows, cols) on a sheet rig: the current field drawn
         self.title = title
         self.source = source  # "rig" or "rehearsal:<model>": what the title says the data is
         self.last_t = -math.inf
@@ -30,7 +31,10 @@ class RigLive:
 
     def begin(self, repeat: int, t_end_s: float) -> None:
         self.tracker.title = f"{self.title} ({self.source}), repeat {repeat}".strip()
-        self.tracker.setup(self.n, t_end_s)
+        if self.shape is None:
+            self.tracker.setup(self.n, t_end_s)
+        else:
+            self.tracker.setup(self.n, t_end_s, self.shape)
         self.last_t = -math.inf
 
     def poll(self, dec, t0: float | None, force: bool = False) -> int:

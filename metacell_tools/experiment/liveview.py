@@ -70,8 +70,8 @@ class LiveView:
         self._writer.start()
 
     # ---- the tracker's interface (what RigLive calls) -------------------------------------------------------------
-    def setup(self, n_cells: int, t_end_s: float | None = None) -> None:
-        self._put(("setup", int(n_cells), t_end_s, self.title))
+    def setup(self, n_cells: int, t_end_s: float | None = None, shape: tuple[int, int] | None = None) -> None:
+        self._put(("setup", int(n_cells), t_end_s, self.title, None if shape is None else tuple(shape)))
 
     def sample_many(self, t, alpha, beta) -> None:
         if len(t) == 0:
@@ -243,7 +243,7 @@ def render(interval_ms: float, window_s: float, stdin=None, stdout=None) -> int:
             kind = op[0]
             if kind == "setup":
                 tracker.title = op[3]
-                tracker.setup(op[1], op[2])
+                tracker.setup(op[1], op[2], op[4] if len(op) > 4 else None)
             elif kind == "samples":
                 tracker.sample_many(op[1], op[2], op[3])
             elif kind == "update":

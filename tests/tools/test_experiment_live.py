@@ -116,3 +116,22 @@ def test_the_renderer_drops_drawings_not_rows(monkeypatch):
     assert view.error is None
     assert view.rows == 300 and view.last_t == pytest.approx(2.99)
     assert 1 <= view.draws < 30 and view.batches < 30
+
+
+def test_a_sheet_rigs_renderer_draws_the_current_field():
+    """The renderer process of a sheet rig (RigLive's shape through LiveView's set-up message) draws the field: its
+    hello line comes after a set-up that names the shape, and a wrong shape is said in one line."""
+    from metacell_tools.experiment.liveview import LiveView
+
+    view = LiveView(10.0, 100.0)
+    try:
+        view.title = "sheet"
+        view.setup(16, 1.0, (4, 4))
+        assert view.wait_started()
+        view.sample_many(np.array([0.0, 0.1]), np.tile(np.arange(16.0), (2, 1)), np.zeros((2, 16)))
+        view.update()
+        view.close()
+        assert view.wait(60) == 0
+    finally:
+        view.terminate()
+    assert view.error is None and view.rows == 2

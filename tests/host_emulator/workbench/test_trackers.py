@@ -112,3 +112,33 @@ def test_cli_live_writes_the_figure_on_a_headless_backend(tmp_path, capsys):
     assert (out / "live.png").stat().st_size > 5000
     with pytest.raises(SystemExit):
         cli.main(["run", "default", "--live", "-5"])
+
+
+def test_plot_tracker_draws_a_sheet_field_in_row_major_order():
+    """On a sheet the right panel is the newest alpha as (rows, cols): cell (row, col) is cell (row - 1) * cols + col,
+    whether the tracker is set up by a solver (the topology's shape) or by a feed (the rig's live view)."""
+    from matplotlib.figure import Figure
+
+    from host_emulator.models.options import Perturbation
+    from host_emulator.workbench.trackers import PlotTracker
+
+    p = Params(cells=12, shape=(3, 4), lattice="square")
+    push = [Perturbation(cell=p.topology.cell_of(2, 3), chain=0, torque_Nm=0.01, start_s=0.0, duration_s=0.05)]
+    tr = PlotTracker(20.0, 1.0, fig=Figure())
+    res = run_solver(make_model("lattice", p, push, ModelOptions(dt_out=0.005)).solver(), 0.01, [tr])
+    assert tr.shape == (3, 4) and tr.field is not None
+    field = np.asarray(tr.field.get_array())
+    np.testing.assert_array_equal(field, res.alpha[-1].reshape(3, 4))
+    # 10 ms into the push the pushed cell (2, 3) has turned most (later the whole small sheet follows it)
+    assert np.unravel_index(np.argmax(np.abs(field)), field.shape) == (1, 2)
+
+    feed = PlotTracker(10.0, 1.0, fig=Figure())
+    feed.setup(6, 1.0, (2, 3))
+    feed.sample_many(np.array([0.0, 0.5]), np.array([np.zeros(6), np.arange(6.0)]), np.zeros((2, 6)))
+    feed.update()
+    np.testing.assert_array_equal(np.asarray(feed.field.get_array()), [[0, 1, 2], [3, 4, 5]])
+    chain = PlotTracker(10.0, 1.0, fig=Figure())
+    chain.setup(6, 1.0)
+    assert chain.field is None and chain.line_a is not None
+    with pytest.raises(ValueError, match="does not hold 6 cells"):
+        PlotTracker(10.0, 1.0, fig=Figure()).setup(6, 1.0, (2, 4))
