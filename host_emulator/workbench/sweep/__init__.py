@@ -19,7 +19,9 @@
   (xarray Dataset, NetCDF 3 through scipy: a coordinate per swept key, named plainly for ``.sel`` (``sigma``,
   ``torque_Nm``; the full key in the coordinate's ``key`` attribute), observables as variables, ``status``
   and ``error`` per point, provenance and every base-scene parameter as attributes), ``phase_diagram.png``
-  (when params.sigma is swept) and ``regime_map.png`` (the first two swept keys, or ``--map KEY KEY``).
+  (when params.sigma is swept) and ``regime_map.png`` (the first two swept keys, or ``--map KEY KEY``); for a
+  sheet scene also ``pattern_kinds.png`` (the same keys: the pattern kind per point, its dominant wavelength, the
+  linear theory's regime boundaries).
 
 Observables per point (NaN where not defined or not produced): domain_walls, pattern_wavelength_cells
 (2(N-1)/Z, cells), dominant_mode, pattern_period_cells, amplitude_rad, oscillation_period_s, growth_rate_per_s,
@@ -27,11 +29,13 @@ at_rest and steady (1/0), outcome (rest / pattern / oscillation / moving / faile
 of the model that runs, at the point's parameters: regime (docs/analysis.md#regimes), theory_fastest_lambda_cells,
 theory_fastest_growth_per_s and, over a dimension ``band`` (one entry per unstable interval, NaN-padded),
 theory_band_lo_cells, theory_band_hi_cells (inf: the interval reaches infinitely long waves) and
-theory_band_kind (stationary / oscillatory). Units are attributes of each variable.
+theory_band_kind (stationary / oscillatory); on a sheet, pattern_kind (stripes / spots / labyrinth / rest /
+oscillation, analysis.pattern2d; "" on a chain) and dominant_wavelength_cells. Units are attributes of each variable.
 
 The modules, one job each: grid (parsing, the point specs), points (the Dask task: ``evaluate_points``), store
-(points.jsonl), cluster (the Dask run), dataset (sweep.nc), figures (the phase diagram, the regime map), schema
-(observables, outcomes, coordinate names), errors, driver (``sweep``) and cli (``sweep_main``).
+(points.jsonl), cluster (the Dask run), dataset (sweep.nc), figures (the phase diagram, the regime map), kinds
+(a sheet's pattern kinds), schema (observables, outcomes, coordinate names), errors, driver (``sweep``) and cli
+(``sweep_main``).
 """
 
 # every name of the former single module, re-exported: `from host_emulator.workbench.sweep import X` as before
@@ -49,6 +53,7 @@ from .figures import (  # noqa: F401
     theory_bands_over,
 )
 from .grid import MAX_POINTS, parse_grid, point_specs  # noqa: F401
+from .kinds import KIND_COLOURS, plot_pattern_kinds  # noqa: F401
 from .points import evaluate_points  # noqa: F401
-from .schema import BANDS, OBSERVABLES, OUTCOMES, STRINGS, coord_names, outcome_of  # noqa: F401
+from .schema import BANDS, OBSERVABLES, OUTCOMES, PATTERN_KINDS, STRINGS, coord_names, outcome_of  # noqa: F401
 from .store import load_done  # noqa: F401

@@ -85,7 +85,11 @@ def sweep_main(argv: list[str] | None = None) -> int:
         metavar=("XKEY", "YKEY"),
         help="the regime map's axes (default: the first two swept keys with more than one value)",
     )
-    ap.add_argument("--no-plots", action="store_true", help="skip phase_diagram.png and regime_map.png")
+    ap.add_argument(
+        "--no-plots",
+        action="store_true",
+        help="skip phase_diagram.png, regime_map.png (and a sheet's pattern_kinds.png)",
+    )
     ap.add_argument("--quiet", action="store_true", help="no progress bar (it shows on a terminal only anyway)")
     args = ap.parse_args(argv)
     try:

@@ -23,6 +23,7 @@ from .dataset import to_dataset
 from .errors import SweepError
 from .figures import _save, plot_phase_diagram, plot_regime_map
 from .grid import MAX_POINTS, _load_spec, point_specs
+from .kinds import plot_pattern_kinds
 from .schema import coord_names
 from .store import load_done
 
@@ -117,6 +118,9 @@ def sweep(
             _save(plot_regime_map(ds, names.get(keys[0], keys[0]), names.get(keys[1], keys[1])), out / "regime_map.png")
         elif len(keys) == 1:
             _save(plot_regime_map(ds, names.get(keys[0], keys[0])), out / "regime_map.png")
+        if base.params.topology.is_sheet and keys:  # a sheet: the phase diagram of its pattern kinds
+            ky = names.get(keys[1], keys[1]) if len(keys) == 2 else None
+            _save(plot_pattern_kinds(ds, names.get(keys[0], keys[0]), ky, base), out / "pattern_kinds.png")
     return ds
 
 

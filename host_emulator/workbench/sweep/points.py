@@ -40,6 +40,7 @@ def evaluate_points(specs: list[dict]) -> list[dict]:
                     r[k] = _num(s[k])
             d = s.get("dispersion") or {}
             r["regime"] = str(d.get("regime") or "")
+            r["pattern_kind"] = str(s.get("pattern_kind") or "")  # a sheet's (analysis.pattern2d); "" on a chain
             r["theory_fastest_lambda_cells"] = _num(d.get("fastest_lambda_cells"))
             r["theory_fastest_growth_per_s"] = _num(d.get("fastest_growth_per_s"))
             r["theory_bands"] = [

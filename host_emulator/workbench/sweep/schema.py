@@ -23,13 +23,17 @@ OBSERVABLES = {  # name -> units (NaN in the dataset when a run does not report 
     "theory_fastest_lambda_cells": "cells",
     "theory_fastest_growth_per_s": "1/s",
     "wall_s": "s",
+    "dominant_wavelength_cells": "cells",  # a sheet's (analysis.pattern2d); NaN on a chain
 }
 
 
 BANDS = {"theory_band_lo_cells": "cells", "theory_band_hi_cells": "cells"}  # per unstable interval (dim band)
 
 
-STRINGS = ("regime", "outcome", "status", "error")
+STRINGS = ("regime", "outcome", "status", "error", "pattern_kind")  # pattern_kind: a sheet's, "" on a chain
+
+
+PATTERN_KINDS = ("stripes", "spots", "labyrinth", "rest", "oscillation")  # analysis.pattern2d's kinds, in figure order
 
 
 OUTCOMES = ("rest", "pattern", "oscillation", "moving", "failed")
