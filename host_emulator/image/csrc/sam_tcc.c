@@ -30,6 +30,10 @@ typedef struct {
     int gclk_id;
 } tcc_t;
 
+/* Enable-protected (sam_protect.c's table, DS40001882 31.8.1 CTRLA): RESOLUTION, PRESCALER, RUNSTDBY, PRESCSYNC,
+ * ALOCK, CPTENn; and the whole of FCTRLA, FCTRLB, WEXCTRL, DRVCTRL, EVCTRL (31.8.8-31.8.12); not WAVE on the SAMD21 */
+#define TCC_EP_CTRLA 0x0F007F60u
+
 static int tcc_index(int pi) { return sam_periphs[pi].name[3] - '0'; }
 
 static uint32_t tcc_reg(sam_mcu_t *m, int pi, uint32_t off) { return sam_rd32(m->regs[pi] + off); }
@@ -414,6 +418,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
             return SAM_DONE;
         }
         uint32_t old = tcc_reg(m, pi, TCC_CTRLA_OFFSET);
+        v = sam_enable_protected(m, ri, v, mask, TCC_EP_CTRLA, (old & TCC_CTRLA_ENABLE) != 0);
         if (v & (0xFu << 24)) {
             sam_fail(m, "%s capture channels (CTRLA.CPTEN) are not modelled", sam_periphs[pi].name);
             return SAM_DONE;
@@ -483,12 +488,21 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         tcc_schedule(m, pi);
         return SAM_DONE;
     }
+    int protect = off == TCC_WEXCTRL_OFFSET || off == TCC_DRVCTRL_OFFSET || off == TCC_EVCTRL_OFFSET ||
+                  off == TCC_FCTRLA_OFFSET || off == TCC_FCTRLB_OFFSET;
+    if (protect)
+        v = sam_enable_protected(m, ri, v, mask, 0xFFFFFFFFu,
+                                 (tcc_reg(m, pi, TCC_CTRLA_OFFSET) & TCC_CTRLA_ENABLE) != 0);
     if ((off == TCC_CTRLBSET_OFFSET && (v & ~TCC_CTRLBSET_LUPD)) ||
         ((off == TCC_WEXCTRL_OFFSET || off == TCC_DRVCTRL_OFFSET || off == TCC_EVCTRL_OFFSET ||
           off == TCC_FCTRLA_OFFSET || off == TCC_FCTRLB_OFFSET || off == TCC_PATT_OFFSET ||
           off == TCC_INTENSET_OFFSET) &&
          v)) {
         sam_fail(m, "%s = 0x%x: not modelled (only normal PWM with buffered compare values)", sam_regs[ri].name, v);
+        return SAM_DONE;
+    }
+    if (protect) {
+        sam_generic_write(m, ri, v, mask);   /* the value as protection left it */
         return SAM_DONE;
     }
     return SAM_GENERIC;

@@ -8,8 +8,9 @@ from __future__ import annotations
 import pytest
 
 from host_emulator.image.harness import Harness
+from tests.host_emulator.image.conftest import configured
 
-from .bench import GCLK_SERCOM2_CORE, GCLK_TCC2_TC3, GCLK_WDT, bus_clock, gclk_channel, pmux
+from .bench import GCLK_SERCOM2_CORE, GCLK_TCC0_TCC1, GCLK_TCC2_TC3, GCLK_WDT, bus_clock, gclk_channel, pmux
 from .test_wdt import CTRL_ENABLE, HZ, TIMEOUT_S
 
 ENABLE = 1 << 1
@@ -87,3 +88,76 @@ def test_the_i2c_master_keeps_its_baud_and_ctrla_fields_while_enabled(reg, value
     h.write(reg, before | value)
     assert h.read(reg) == before
     assert _noted(h, reg)
+
+
+TCC_PRESCALER_DIV64 = 0x5 << 8
+
+
+def _tcc0_enabled() -> Harness:
+    h = Harness()
+    bus_clock(h, "TCC0")
+    gclk_channel(h, GCLK_TCC0_TCC1)
+    h.write("TCC0.WAVE", 0x2)  # NPWM
+    h.write("TCC0.PER", 999)
+    h.write("TCC0.CTRLA", ENABLE)
+    h.advance(20e-6)
+    return h
+
+
+def test_tcc_ctrla_prescaler_written_while_counting_is_kept_and_the_counter_runs_on_at_its_rate():
+    """31.8.1 CTRLA (Enable-Protected: RESOLUTION, PRESCALER, RUNSTDBY, PRESCSYNC, ALOCK, CPTENn; not ENABLE,
+    SWRST): PRESCALER = DIV64 written with ENABLE still set is ignored, the counter still counts at GCLK rate
+    (1 MHz: about 100 counts in 100 us, not 1.5), and the write is noted; disabled, the same write is taken."""
+    h = _tcc0_enabled()
+    h.write("TCC0.CTRLA", ENABLE | TCC_PRESCALER_DIV64)
+    assert h.read("TCC0.CTRLA") & 0x0F007F60 == 0
+    assert _noted(h, "TCC0.CTRLA")
+    c0 = h.read("TCC0.COUNT")
+    h.advance(100e-6)
+    assert 90 <= (h.read("TCC0.COUNT") - c0) % 1000 <= 110
+    h.write("TCC0.CTRLA", 0)
+    h.advance(20e-6)
+    h.write("TCC0.CTRLA", TCC_PRESCALER_DIV64)
+    assert h.read("TCC0.CTRLA") == TCC_PRESCALER_DIV64
+
+
+def test_tcc_ctrla_capture_enable_written_while_counting_is_ignored():
+    """31.8.1 CTRLA.CPTENn (Enable-Protected): a capture channel enabled while the TCC counts stays off (no
+    capture starts: the model, which has no capture channels, runs on) and the write is noted."""
+    h = _tcc0_enabled()
+    h.write("TCC0.CTRLA", ENABLE | 1 << 24)
+    assert h.read("TCC0.CTRLA") == ENABLE
+    assert _noted(h, "TCC0.CTRLA")
+    h.advance(50e-6)
+
+
+@pytest.mark.parametrize("reg", ["TCC0.DRVCTRL", "TCC0.WEXCTRL", "TCC0.EVCTRL", "TCC0.FCTRLA", "TCC0.FCTRLB"])
+def test_tcc_registers_enable_protected_as_a_whole_keep_their_value_while_counting(reg):
+    """31.8 Register Description: FCTRLA, FCTRLB, WEXCTRL, DRVCTRL and EVCTRL are Enable-Protected as a whole; a
+    write while CTRLA.ENABLE reads 1 leaves them at their value (here the reset value 0) and is noted, once per
+    register."""
+    h = _tcc0_enabled()
+    h.write(reg, 0x10)
+    h.write(reg, 0x20)
+    assert h.read(reg) == 0
+    assert sum(f" {reg} " in n and "enable-protected" in n for n in h.notes()) == 1
+    h.advance(50e-6)
+
+
+def test_tcc_wave_is_not_enable_protected_on_the_samd21():
+    """31.8.14 WAVE: Write-Synchronized, not Enable-Protected on the SAMD21 (its WAVEB buffer exists for the
+    running TCC); a write while counting is no protection note."""
+    h = _tcc0_enabled()
+    h.write("TCC0.WAVE", 0x2)
+    assert h.read("TCC0.WAVE") == 0x2
+    assert not _noted(h, "TCC0.WAVE")
+
+
+def test_the_shipped_images_make_no_write_to_an_enable_protected_register_while_enabled(images):
+    """The cell and primary images, brought up and running a push: none of their writes is one the table would
+    ignore (so protection changes none of their results), and no note says so."""
+    w, lap = configured(images, 2)
+    notes = list(w.take_notes())
+    lap.pump(0.05)
+    notes += w.take_notes()
+    assert not [n for n in notes if "enable-protected" in n]
