@@ -11,7 +11,8 @@
  *   SERCOMn.I2CM.CTRLA, I2CS.CTRLA: all but SWRST and ENABLE  28 "SERCOM I2C", the CTRLA of each mode
  *   SERCOMn.I2CM.BAUD                                     28 "SERCOM I2C", master BAUD: the whole register
  *   TCCn.CTRLA: RESOLUTION, PRESCALER, RUNSTDBY, PRESCSYNC, ALOCK, CPTENn   31.8.1 CTRLA (not ENABLE, SWRST)
- *   TCCn.FCTRLA, FCTRLB, WEXCTRL, DRVCTRL, EVCTRL         31.8.8-31.8.12: the whole register (WAVE is not, on SAMD21)
+ *   TCCn.FCTRLA, FCTRLB, WEXCTRL, DRVCTRL, EVCTRL         31.8, each marked Enable-Protected: the whole register
+ *                                                         (WAVE is not, on the SAMD21)
  *
  * Such a write is almost always a defect (an image that enables the watchdog before configuring it gets the
  * fuse's period on a board): each is noted, once per register and board.

@@ -31,7 +31,8 @@ typedef struct {
 } tcc_t;
 
 /* Enable-protected (sam_protect.c's table, DS40001882 31.8.1 CTRLA): RESOLUTION, PRESCALER, RUNSTDBY, PRESCSYNC,
- * ALOCK, CPTENn; and the whole of FCTRLA, FCTRLB, WEXCTRL, DRVCTRL, EVCTRL (31.8.8-31.8.12); not WAVE on the SAMD21 */
+ * ALOCK, CPTENn; and the whole of FCTRLA, FCTRLB, WEXCTRL, DRVCTRL, EVCTRL (31.8, each marked Enable-Protected);
+ * not WAVE on the SAMD21 */
 #define TCC_EP_CTRLA 0x0F007F60u
 
 static int tcc_index(int pi) { return sam_periphs[pi].name[3] - '0'; }
