@@ -22,10 +22,13 @@ gives the reasoning and the limits):
   observables.temporal_period found in the final window); else "rest" when no cell exceeds the threshold or the
   frame is flat within it; else "stripes" when ring_order[2] >= STRIPE_ORDER_MIN (one direction holds the power
   on the ring 0.7..1.3 |k*| of S: one pair of peaks); else "spots" when max(ring_order[4], ring_order[6]) >=
-  SPOT_ORDER_MIN (two pairs at 90 degrees, three at 60) or compact_density >= SPOT_COMPACT_MIN (many sign
-  domains that neither touch an open edge nor wrap around a periodic sheet); else "labyrinth" (power spread
-  round the ring, domains that meander). ring_order[m] = |<exp(i m theta)>|_S on the ring, divided by the same
-  for a plane wave at q* through the same window (so a small open sheet's broad peaks still give 1).
+  SPOT_ORDER_MIN (two pairs at 90 degrees, three at 60) with evidence of spots (the sheet spans more than one
+  wavelength along x and along y, or the frame has a compact sign domain: one that neither touches an open edge
+  nor wraps around a periodic sheet), or when compact_density >= SPOT_COMPACT_MIN (many compact domains); else
+  "labyrinth" (power spread round the ring, domains that meander; also a frame with neither, such as a band on a
+  sheet smaller than one wavelength, whose few domains all touch its edges). ring_order[m] = |<exp(i m theta)>|_S
+  on the ring, divided by the same for a plane wave at q* through the same window (so a small open sheet's broad
+  peaks still give 1).
 * defects: dislocations, the zeros of the demodulated field z = the frame band-passed around +k* (a Gaussian of
   width |k*| / 2 in k; one-sided, so z ~ A exp(i phase) of the stripes): the plaquettes (square: 2 x 2 cells,
   hexagonal: triangles) around which arg z turns by a nonzero multiple of 2 pi. Straight stripes and perfect
@@ -349,10 +352,16 @@ def _frame(u: np.ndarray, topology: Topology, threshold_rad: float):
     order = ring_order(u, topology, q, sp)
     if order[2] >= STRIPE_ORDER_MIN:
         return "stripes", q
-    if max(order[4], order[6]) >= SPOT_ORDER_MIN:
-        return "spots", q
     lam, _ = wavelength_orientation(q, topology)
-    if compact_density(sign_field(u, topology, threshold_rad), topology, lam) >= SPOT_COMPACT_MIN:
+    dens = compact_density(sign_field(u, topology, threshold_rad), topology, lam)
+    # the n-fold order counts only with evidence of spots: a compact domain, or a sheet that spans more than one
+    # wavelength both ways (one smaller than a wavelength, whose few domains all touch its edges, has a ring too
+    # broad to tell spots from one curved band; square spots' domains join at saddles, so the size must do there)
+    height = topology.rows * (_SQ3 / 2 if topology.kind == "hex" else 1.0)
+    holds = min(topology.cols, height) > lam
+    if max(order[4], order[6]) >= SPOT_ORDER_MIN and (holds or dens > 0):
+        return "spots", q
+    if dens >= SPOT_COMPACT_MIN:
         return "spots", q
     return "labyrinth", q
 

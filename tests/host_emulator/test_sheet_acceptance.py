@@ -64,6 +64,15 @@ def test_a_pushed_16x16_sheet_grows_the_linear_theorys_wavelength(model):
 
 
 # ---- the classifier on simulated regimes (docs/patterns2d.md#simulated-regimes) ---------------------------------
+def test_the_8x8_sheet_smaller_than_its_wavelength_does_not_read_as_spots():
+    """sheet_8x8 settles (from 1.6 s) into one curved band on a sheet smaller than its wavelength: three sign
+    domains, all touching an edge; its spectrum's six-fold order is no evidence of spots (docs/patterns2d.md)."""
+    r = he.run("sheet_8x8", {"t_end_s": 3.0}, accuracy="fast")
+    s = r.summary
+    assert s["dominant_wavelength_cells"] > 8
+    assert s["pattern_kind"] == "labyrinth"
+
+
 def test_a_sheet_seeded_with_one_mode_along_the_rows_reads_as_stripes_along_them(tmp_path):
     path = tmp_path / "stripes_seeded.toml"
     path.write_text(seeded_stripes_toml())  # 64 pushes on columns 1, 5, 9, 13, a 5 % band spread per cell

@@ -104,6 +104,35 @@ def test_labyrinth(t, seed, lam):
     assert m["dominant_wavelength_cells"] == pytest.approx(lam, rel=0.2)  # a ring of width 0.15 |k|
 
 
+# sheet_8x8's final alpha (lattice, settled from 1.6 s; `run sheet_8x8`, rounded to 1 mrad): one curved + band
+# between a - corner and the - far edges, on a sheet smaller than its wavelength (9.75 cells)
+SHEET_8X8 = [
+    [-0.723, -0.589, -0.006, 0.534, 0.625, 0.337, -0.254, -0.635],
+    [-0.589, -0.302, 0.216, 0.607, 0.640, 0.363, -0.228, -0.627],
+    [-0.006, 0.216, 0.529, 0.665, 0.655, 0.390, -0.197, -0.615],
+    [0.534, 0.607, 0.665, 0.691, 0.657, 0.374, -0.197, -0.605],
+    [0.625, 0.640, 0.655, 0.657, 0.598, 0.246, -0.272, -0.607],
+    [0.337, 0.363, 0.390, 0.374, 0.246, -0.066, -0.436, -0.623],
+    [-0.254, -0.228, -0.197, -0.197, -0.272, -0.436, -0.598, -0.638],
+    [-0.635, -0.627, -0.615, -0.605, -0.607, -0.623, -0.638, -0.639],
+]
+
+
+def test_a_band_on_a_sheet_smaller_than_its_wavelength_is_not_spots():
+    """Its broad ring gives six-fold order above SPOT_ORDER_MIN but its three sign domains all touch an edge: no
+    spot, and the sheet cannot hold one wavelength, so the order is no evidence of spots (it read "spots")."""
+    t = Topology((8, 8), "square")
+    u = np.asarray(SHEET_8X8).ravel()
+    lab, compact = p2.domains(p2.sign_field(u, t), t)
+    assert len(compact) == 3 and not compact.any()
+    m = measure(t, u)
+    assert m["dominant_wavelength_cells"] > 8
+    q = m["dominant_wavevector"]
+    order = p2.ring_order(u, t, q)
+    assert order[2] < p2.STRIPE_ORDER_MIN and order[6] >= p2.SPOT_ORDER_MIN  # the case the rule must not misread
+    assert m["pattern_kind"] == "labyrinth"
+
+
 def test_rest_and_a_uniform_tilt_have_no_pattern():
     t = OPEN16[0]
     noise = 0.01 * np.random.default_rng(1).standard_normal(t.n)
