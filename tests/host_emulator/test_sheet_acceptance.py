@@ -102,3 +102,22 @@ def test_a_16x16_sheet_at_14_125_rests_in_the_hil_and_oscillates_in_the_lattice(
     hil = he.run("sheet_16x16", {**over, "model": "hil", "t_end_s": 3.0})
     assert hil.summary["pattern_kind"] == "rest"
     assert hil.summary["dominant_wavelength_cells"] is None
+
+
+def test_a_16x16_sheet_at_6_125_grows_a_spot_around_the_push():
+    """sigma = 6/125, where the unstable band reaches the longest waves (broadband): the central push's own round
+    bump grows into one compact + domain in a - sheet (a spot, 13.7 cells across, by 1 s, unchanged to 25 s;
+    the sweep of docs/workbench.md reads spots at 5/125 to 7/125). It is the push's shape that makes it round: the
+    law is odd and favours no spots (docs/sheets.md#stripes-or-spots)."""
+    from host_emulator.analysis import pattern2d
+
+    r = he.run("sheet_16x16", {"params.sigma": 6 / 125, "t_end_s": 2.0}, accuracy="fast")
+    assert r.summary["pattern_kind"] == "spots"
+    topo = r.scene.topology
+    sign = pattern2d.sign_field(r.alpha[-1], topo)
+    labels, compact = pattern2d.domains(sign, topo)
+    centre = topo.cell_of(8, 8) - 1
+    assert compact[labels[centre]]  # the pushed cell sits inside a domain that touches no edge
+    inside = labels == labels[centre]
+    assert 16 <= inside.sum() <= 128  # a spot, not half the sheet
+    assert np.all(sign[inside] == sign[centre]) and np.mean(sign[~inside] == -sign[centre]) > 0.8
