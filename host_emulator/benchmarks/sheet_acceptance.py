@@ -7,7 +7,7 @@ Checks (docs/sheets.md#acceptance): a sheet by `--set cells=[16,16]` and its sum
 dominant wavelength inside the 2-D linear theory's unstable annulus and within 25 % of the fastest-growing
 wavelength (the theory of the model that ran: inertia, the hil motors' back-EMF damping); the annulus and the
 fastest wavelength themselves; pattern2d's kind on hand-made stripes and spots and on simulated regimes (stripes
-seeded along one axis, the acceptance run's labyrinth, rest and oscillation at 14/125); the 1-D results
+seeded along one axis, the acceptance run's labyrinth, a spot at 6/125, rest and oscillation at 14/125); the 1-D results
 unchanged (`paper` 14/14, the golden digests' test). Several minutes on a loaded machine (the paper check is most
 of it): a benchmark, never a test. Exit status 0 when every line passes, 1 otherwise."""
 
@@ -204,6 +204,14 @@ def check_sheets(rep: Report, tmp: Path) -> None:
         "classifier, simulated: the acceptance run from one push (lattice, 25 s)",
         f"{lab['pattern_kind']} (boundary {lab['boundary_length_cells']} bonds, defects {lab['defects']})",
         lab["pattern_kind"] == "labyrinth",
+    )
+    c = _cpu()
+    sp = he.run("sheet_16x16", {"params.sigma": 6 / 125, "t_end_s": 2.0}, accuracy="fast").summary
+    rep.line(
+        "classifier, simulated: 16 x 16 at 6/125, one push (lattice, 2 s): the push grows into one spot",
+        f"{sp['pattern_kind']}, wavelength {sp['dominant_wavelength_cells']:.3f}",
+        sp["pattern_kind"] == "spots",
+        _cpu() - c,
     )
     c = _cpu()
     over = {"params.sigma": 14 / 125, "t_end_s": 2.0}
