@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..analysis.summary import SHEET_KEYS
 from ..provenance import provenance
 from ..scene import apply_overrides, scene_from_dict, scene_table
 from ..scene import list_scenes as _ls
@@ -153,12 +154,7 @@ OBSERVABLE_KEYS = (
     "oscillation_period_s",
     "amplitude_rad",
     "growth_rate_per_s",
-    "dominant_wavelength_cells",
-    "dominant_wavevector",
-    "orientation_deg",
-    "pattern_kind",
-    "boundary_length_cells",
-    "defects",
+    *SHEET_KEYS,
 )
 
 
