@@ -24,6 +24,7 @@ Out = Callable[..., None]  # prints one line for the user (err=True: an error)
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 REAPPEAR_S, BOOTLOADER_S = 20.0, 10.0  # the timeouts' defaults (--emulated: emulated.py's)
+RETRIES = 1  # a failed bossac is run again once (--retries)
 
 
 def default_pio() -> str:
@@ -156,6 +157,14 @@ def _parser() -> argparse.ArgumentParser:
                 help="seconds one board's build and upload may take (default %(default)g)",
             )
             p.add_argument(
+                "--retries",
+                type=int,
+                default=None,
+                metavar="N",
+                help="run a failed bossac again up to N times while its board stays in its bootloader (default "
+                f"{RETRIES})",
+            )
+            p.add_argument(
                 "--reappear-timeout",
                 type=float,
                 default=None,
@@ -191,6 +200,15 @@ def _parser() -> argparse.ArgumentParser:
                 metavar="ARG",
                 help="--emulated: an argument for the boards (python -m host_emulator boards), e.g. "
                 "--emulated-arg=--set=model_options.image.threads=2 or --emulated-arg=--usb-packet-us=50",
+            )
+            p.add_argument(
+                "--bossac-clock-rate",
+                type=float,
+                default=None,
+                metavar="R",
+                help="run bossac with its clock at R of real time (faketime), so that its fixed waits for an answer "
+                "(0.1 s to 5 s) stretch to the pace of boards emulated slower than real time (default 1: its own "
+                f"clock; --emulated: {emulated.BOSSAC_CLOCK_RATE:g})",
             )
             p.add_argument(
                 "--emulated-control",
@@ -275,8 +293,12 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         raise PreflightError(bad_offset)
     if (getattr(args, "jobs", None) or 1) < 1:
         raise PreflightError(f"--jobs must be at least 1, got {args.jobs}")
+    if getattr(args, "retries", None) is not None and not 0 <= args.retries <= 10:
+        raise PreflightError(f"--retries must be 0..10, got {args.retries}")
     if getattr(args, "emulated", False):
         return _flash_emulated(args, out)
+    if not hasattr(args, "bossac_env"):
+        args.bossac_env = bossac_env(args)
     boards, cells = inv.read(args.inventory)
     pio = args.pio or default_pio()
     project = Path(args.project)
@@ -312,6 +334,8 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         upload_timeout=args.upload_timeout,
         reappear_timeout=REAPPEAR_S if args.reappear_timeout is None else args.reappear_timeout,
         bootloader_timeout=BOOTLOADER_S if args.bootloader_timeout is None else args.bootloader_timeout,
+        retries=RETRIES if getattr(args, "retries", None) is None else args.retries,
+        bossac_env=getattr(args, "bossac_env", {}),
         out=out,
     )
     outcomes = flasher.flash(plan, stop_on_error=not args.keep_going, jobs=args.jobs or 1)
@@ -320,6 +344,19 @@ def cmd_plan_or_flash(args: argparse.Namespace, lister: Lister, out: Out) -> int
         out(f"NOT FLASHED (not connected): {b.name} serial {b.serial}")
     out("check the whole bus with: python -m metacell_tools.flash identify")
     return EXIT_OK if all(o.ok for o in outcomes) and not plan.missing else EXIT_FAILED
+
+
+def bossac_env(args: argparse.Namespace) -> dict[str, str]:
+    """What bossac's environment gains (--bossac-clock-rate; --emulated's default), or PreflightError in one line."""
+    rate = getattr(args, "bossac_clock_rate", None)
+    if rate is None:
+        rate = emulated.BOSSAC_CLOCK_RATE if getattr(args, "emulated", False) else 1.0
+    if not 0.001 <= rate <= 1:
+        raise PreflightError(f"--bossac-clock-rate must be 0.001..1, got {rate:g}")
+    try:
+        return emulated.bossac_env(rate)
+    except emulated.EmulationError as exc:
+        raise PreflightError(str(exc)) from None
 
 
 def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
@@ -335,6 +372,7 @@ def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
         raise PreflightError(missing)
     if not 1 <= args.emulated_count <= emulated.N_BOARDS:
         raise PreflightError(f"--emulated-count must be 1..{emulated.N_BOARDS}")
+    clock = bossac_env(args)
     try:
         with emulated.emulated_boards(
             ROOT,
@@ -351,6 +389,7 @@ def _flash_emulated(args: argparse.Namespace, out: Out) -> int:
                 emu.reappear_timeout = emulated.REAPPEAR_TIMEOUT_S
             emu.emulated_query_timeout = emulated.IDENTITY_TIMEOUT_S
             emu.jobs = args.jobs or args.emulated_count
+            emu.bossac_env = clock  # (checked before the boards are brought up)
             return cmd_plan_or_flash(emu, port_lister(listing), out)
     except emulated.EmulationError as exc:
         out(f"error: {exc}", err=True)

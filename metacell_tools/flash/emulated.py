@@ -31,11 +31,40 @@ STOP_TIMEOUT_S = 20.0
 BOOTLOADER_TIMEOUT_S = 120.0  # (defaults: given on the command line, they win)
 REAPPEAR_TIMEOUT_S = 180.0
 IDENTITY_TIMEOUT_S = 60.0
+# bossac's waits for an answer are fixed in wall time (0.1 s for its buffer command, 1 s, 5 s for a flash write);
+# 17 boards in one emulation on a loaded machine run at 0.1-0.3x real time, and a client that the emulation cannot
+# keep up with misses them (bossac then stops mid-upload and the bootloader is left inside a data transfer). So bossac
+# runs under libfaketime (Debian's faketime) with its clock slowed to this rate of real time: its waits are 1/rate
+# times longer. What it prints as durations is on that clock. 1 runs it as it is.
+BOSSAC_CLOCK_RATE = 0.05
+LIBFAKETIME = "libfaketime.so.1"
 TOGETHER_S = 120.0  # the parallel uploads wait this long at most for each other (runner.Gate)
 
 
 class EmulationError(RuntimeError):
     """The emulated boards could not be brought up; the message is one line."""
+
+
+def find_libfaketime() -> str | None:
+    """libfaketime's library (Debian's faketime package: /usr/lib/<multiarch>/faketime/libfaketime.so.1)."""
+    found = sorted(Path("/usr").glob(f"lib*/**/faketime/{LIBFAKETIME}"))
+    return str(found[0]) if found else None
+
+
+def bossac_env(rate: float) -> dict[str, str]:
+    """The environment that runs bossac on a clock at this rate of real time (libfaketime preloaded; nothing at rate
+    1). bossac is preloaded directly, not started by the faketime wrapper, which forks: a bossac stopped by the
+    flash tool (an unplugged board) must be the process it kills."""
+    if rate == 1:
+        return {}
+    lib = find_libfaketime()
+    if lib is None:
+        raise EmulationError(
+            f"a bossac clock rate below 1 needs libfaketime (Debian's faketime: apt-get install faketime; "
+            f"tools/setup.sh installs it) to run bossac at {rate:g} of real time, or --bossac-clock-rate 1"
+        )
+    preload = " ".join(filter(None, [lib, os.environ.get("LD_PRELOAD", "")]))
+    return {"LD_PRELOAD": preload, "FAKETIME": f"+0 x{rate:g}"}
 
 
 def preflight() -> str:
@@ -103,6 +132,7 @@ def emulated_boards(
             elif control is not None:
                 _dump(control, child)
             _stop(child)
+            out(f"emulated boards: {_last_line(log)} ({time.monotonic() - t0:.0f} s of wall time)")
 
 
 def _last_line(log: Path) -> str:

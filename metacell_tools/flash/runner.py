@@ -39,6 +39,7 @@ class Outcome:
     detail: str = ""
     identity: Identity | None = None
     log: Path | None = None
+    retries: int = 0  # bossac runs repeated after a failed one (see Flasher.retries)
 
     @property
     def ok(self) -> bool:
@@ -114,6 +115,8 @@ class Flasher:
         clock: Callable[[], float] = time.monotonic,
         out: Callable[[str], None] = print,
         together_s: float = 0.0,
+        retries: int = 1,
+        bossac_env: dict[str, str] | None = None,
     ) -> None:
         self.list_ports, self.expected_fw, self.run, self.query = list_ports, expected_fw, run, query
         self.touch, self.log_dir, self.upload_timeout = touch, Path(log_dir), upload_timeout
@@ -122,6 +125,12 @@ class Flasher:
         # > 0: parallel bossacs start together (each waits at most this long for the others to be ready)
         self.together_s = together_s
         self._gate: Gate | None = None
+        # a failed bossac is run again this many times while its board is still listed in bootloader mode (what one
+        # does by hand after a USB hiccup: the bootloader holds no half-written state that a new erase does not clear)
+        self.retries = retries
+        self._retried: dict[int, int] = {}
+        # what bossac's environment gains (flash --emulated: libfaketime, so that bossac's clock keeps the boards' pace)
+        self.bossac_env = dict(bossac_env or {})
 
     def _log_path(self, step: Step) -> Path:
         name = "primary" if step.board.role == "primary" else f"cell{step.board.cell:02d}"
@@ -238,19 +247,26 @@ class Flasher:
                 )
         if self._gate is not None:
             self._gate.arrive(id(step))
-        res = self._call(up.argv(boot.device), env, log, "bossac", serial=b.serial)
-        if isinstance(res, str):
-            return Outcome(step, UPLOAD_FAILED, res, log=log)
-        rc, output = res
-        if rc != 0:
-            return Outcome(
-                step,
-                UPLOAD_FAILED,
-                f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)"
-                + overwrote(up.offset),
-                log=log,
-            )
-        return None
+        attempt = 0
+        while True:
+            res = self._call(up.argv(boot.device), {**env, **self.bossac_env}, log, "bossac", serial=b.serial)
+            if isinstance(res, str):  # unplugged, or too slow: not retried
+                return Outcome(step, UPLOAD_FAILED, res, log=log, retries=attempt)
+            rc, output = res
+            if rc == 0:
+                self._retried[id(step)] = attempt
+                return None
+            failed = f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)"
+            again = next((p for p in self.list_ports() if p.serial_number == b.serial and p.in_bootloader), None)
+            if attempt >= self.retries or again is None:
+                tried = f" ({attempt + 1} attempts)" if attempt else ""
+                return Outcome(step, UPLOAD_FAILED, failed + tried + overwrote(up.offset), log=log, retries=attempt)
+            attempt += 1
+            boot = again
+            note = f"bossac failed: {failed}; retry {attempt} of {self.retries} on {boot.device}"
+            self.out(f"      {b.name}: {note}")
+            with log.open("a") as f:
+                f.write(note + "\n")
 
     def _flash_gated(self, step: Step) -> Outcome:
         try:
@@ -302,7 +318,9 @@ class Flasher:
             diff = "; ".join(filter(None, [diff, "board reports start-up error: " + ", ".join(q.errors)]))
         if diff:
             return Outcome(step, MISMATCH, diff, q.identity, log)
-        return Outcome(step, OK, f"{q.identity.describe()} on {port.device}", q.identity, log)
+        n = self._retried.pop(id(step), 0)
+        again = f" (after {n} bossac retr{'y' if n == 1 else 'ies'})" if n else ""
+        return Outcome(step, OK, f"{q.identity.describe()} on {port.device}{again}", q.identity, log, retries=n)
 
     def flash(self, plan: Plan, stop_on_error: bool = False, jobs: int = 1) -> list[Outcome]:
         """Every step in the plan's order; jobs > 1 flashes that many boards at once (each its own port and

@@ -132,13 +132,15 @@ print("=" * 25 + " [SUCCESS] Took 1.00 seconds " + "=" * 25)
 # be a listed bootloader port (else what the real bossac says about a port without SAM-BA behind it); a good upload
 # records the file's content in flashed.json beside it and brings the board back in application mode, on its original
 # device name (an upload below 0x2000 leaves it gone: the bootloader is overwritten); FAKE_BOSSAC_FAIL lists serial
-# numbers whose upload fails as a real one can
+# numbers whose upload fails as a real one can (FAKE_BOSSAC_FAIL_ONCE: only their first upload), leaving the board in
+# its bootloader
 STANDIN_BOSSAC = r"""
 import json, os, pathlib, re, sys
 args = sys.argv[1:]
 here = pathlib.Path(__file__).parent
 with (here / "calls.jsonl").open("a") as f:
-    f.write(json.dumps({"argv": [sys.argv[0]] + args}) + "\n")
+    clock = {k: os.environ[k] for k in ("FAKETIME", "LD_PRELOAD") if k in os.environ}
+    f.write(json.dumps({"argv": [sys.argv[0]] + args, **({"clock": clock} if clock else {})}) + "\n")
 want = ["--usb-port=1", "--info", "--offset=OFFSET", "--erase", "--write", "--verify", "--reset"]
 port = args[0][len("--port="):] if args and args[0].startswith("--port=") else None
 offset = re.fullmatch(r"--offset=0x([0-9a-f]+)", args[3]).group(1) if len(args) == 9 else None
@@ -154,7 +156,11 @@ if me is None:
     sys.exit(1)
 print("Device       : ATSAMD21G18A")
 print("Version      : v1.1 [Arduino:XYZ] Nov 27 2019 16:35:08")
-if me["serial_number"] in os.environ.get("FAKE_BOSSAC_FAIL", "").split(","):
+once = here / f"failed-once-{me['serial_number']}"
+first = me["serial_number"] in os.environ.get("FAKE_BOSSAC_FAIL_ONCE", "").split(",") and not once.exists()
+if first:
+    once.write_text("")
+if first or me["serial_number"] in os.environ.get("FAKE_BOSSAC_FAIL", "").split(","):
     print(f"Erase flash\nDone in 0.7 seconds\nWrite {fw.stat().st_size} bytes to flash (1 pages)")
     print("SAM-BA operation failed", file=sys.stderr)
     sys.exit(1)
@@ -183,7 +189,15 @@ def pio_tools(tmp_path: Path, monkeypatch, uploader: str = "pio", tree: Path | N
     core = core_dir(tmp_path / "core", atmelsam=uploader != "none", tool_bossac=uploader == "pio")
     monkeypatch.setenv("PATH", str(bin_dir))
     monkeypatch.setenv("PLATFORMIO_CORE_DIR", str(core))
-    for var in ("MC_PIO_TREE", "MC_PIO", "MC_BOSSAC", "FAKE_PIO_FAIL", "FAKE_PIO_NO_BIN", "FAKE_BOSSAC_FAIL"):
+    for var in (
+        "MC_PIO_TREE",
+        "MC_PIO",
+        "MC_BOSSAC",
+        "FAKE_PIO_FAIL",
+        "FAKE_PIO_NO_BIN",
+        "FAKE_BOSSAC_FAIL",
+        "FAKE_BOSSAC_FAIL_ONCE",
+    ):
         monkeypatch.delenv(var, raising=False)
     if tree is not None:
         monkeypatch.setenv("MC_PIO_TREE", str(tree))

@@ -11,13 +11,16 @@ import re
 import select
 import shutil
 import subprocess
+import sys
 import termios
 import threading
+import time
 from pathlib import Path
 
 import pytest
 
 from metacell_tools.flash import __main__ as cli
+from metacell_tools.flash import emulated
 from metacell_tools.flash import inventory as inv
 from metacell_tools.flash import runner as rn
 from metacell_tools.flash.boards import XIAO_PID_APP, XIAO_PID_BOOT, XIAO_VID, ports_from_json
@@ -177,8 +180,9 @@ def test_stops_at_the_first_failure_unless_keep_going(tmp_path, monkeypatch, cap
     assert rc == cli.EXIT_FAILED
     why = (
         "upload failed: Done in 0.7 seconds | Write 50 bytes to flash (1 pages) | SAM-BA operation failed (bossac "
-        "exited with 1 on /dev/ttyACM104, the board's bootloader port)"
+        "exited with 1 on /dev/ttyACM104, the board's bootloader port) (2 attempts)"
     )
+    assert "cell 5 (0x14): bossac failed: " in out and "; retry 1 of 1 on /dev/ttyACM104" in out
     assert f"      FAILED: {why} (log {tmp_path / 'logs' / 'cell05.log'})" in out
     assert f"  cell 5 (0x14)      SN04                     FAILED    {why}\n" in out
     builds = [c for c in calls(bin_dir) if c["argv"][0].endswith("pio")]
@@ -190,6 +194,83 @@ def test_stops_at_the_first_failure_unless_keep_going(tmp_path, monkeypatch, cap
             "  cell 6 (0x15)      SN05                     NOT TRIED not run: stopped after an earlier failure" in out
         )
         assert "4 of 17 board(s) flashed and verified; FAILED: cell 5 (0x14); NOT TRIED (stopped at the first " in out
+
+
+@pytest.mark.parametrize("retries", [None, 0, 2])
+def test_a_failed_bossac_is_run_again_while_the_board_stays_in_its_bootloader(tmp_path, monkeypatch, capsys, retries):
+    """cell 5's first upload fails (the board stays in its bootloader): the default --retries 1 runs bossac again on
+    that port and the board is flashed, saying so; --retries 0 gives up at once; nothing else is run twice."""
+    bin_dir = pio_tools(tmp_path, monkeypatch, uploader="bossac")
+    monkeypatch.setenv("FAKE_BOSSAC_FAIL_ONCE", "SN04")
+    rig = StandInRig(tmp_path, bin_dir, monkeypatch)
+    more = [] if retries is None else ["--retries", str(retries)]
+    rc = cli_flash(tmp_path, monkeypatch, rig, "--keep-going", *more)
+    out = capsys.readouterr().out
+    uploads = [c for c in calls(bin_dir) if Path(c["argv"][0]).name == "bossac"]
+    ports = [c["argv"][1] for c in uploads]
+    if retries == 0:
+        assert rc == cli.EXIT_FAILED and len(uploads) == 17 and "retry" not in out
+        assert "16 of 17 board(s) flashed and verified; FAILED: cell 5 (0x14)\n" in out
+        return
+    assert rc == cli.EXIT_OK, out
+    assert len(uploads) == 18 and ports.count("--port=/dev/ttyACM104") == 2
+    assert f"; retry 1 of {retries or 1} on /dev/ttyACM104" in out
+    assert "OK: ok: cell 5 addr=0x14 fw=1.0 on /dev/ttyACM4 (after 1 bossac retry)" in out
+    assert "17 of 17 board(s) flashed and verified" in out
+
+
+@pytest.mark.parametrize("rate", [None, "1", "0.05"])
+def test_bossac_runs_on_a_slowed_clock_when_asked(tmp_path, monkeypatch, capsys, rate):
+    """--bossac-clock-rate R < 1 runs every bossac with libfaketime preloaded at R (its waits 1/R times longer), bossac
+    itself the process the tool started; 1 and the default run it as it is."""
+    bin_dir = pio_tools(tmp_path, monkeypatch, uploader="bossac")
+    lib = tmp_path / "lib" / "libfaketime.so.1"  # (not loadable: ld.so says so on stderr and goes on)
+    monkeypatch.setattr(emulated, "find_libfaketime", lambda: str(lib))
+    monkeypatch.delenv("LD_PRELOAD", raising=False)
+    rig = StandInRig(tmp_path, bin_dir, monkeypatch)
+    rc = cli_flash(
+        tmp_path, monkeypatch, rig, "--only", "2,7", *([] if rate is None else ["--bossac-clock-rate", rate])
+    )
+    assert rc == cli.EXIT_OK, capsys.readouterr().out
+    bossacs = [c for c in calls(bin_dir) if Path(c["argv"][0]).name == "bossac"]
+    assert len(bossacs) == 2
+    if rate == "0.05":
+        assert [c.get("clock") for c in bossacs] == [{"FAKETIME": "+0 x0.05", "LD_PRELOAD": str(lib)}] * 2
+    else:
+        assert [c.get("clock") for c in bossacs] == [None, None]
+
+
+@pytest.mark.parametrize("rate, why", [("0", "must be 0.001..1, got 0"), ("2", "must be 0.001..1, got 2"),
+                                       ("0.1", "needs libfaketime")])  # fmt: skip
+def test_a_bossac_clock_that_cannot_be_is_refused_before_any_board_is_touched(tmp_path, monkeypatch, capsys, rate, why):
+    bin_dir = pio_tools(tmp_path, monkeypatch, uploader="bossac")
+    monkeypatch.setattr(emulated, "find_libfaketime", lambda: None)
+    rig = StandInRig(tmp_path, bin_dir, monkeypatch)
+    rc = cli_flash(tmp_path, monkeypatch, rig, "--bossac-clock-rate", rate)
+    err = capsys.readouterr().err
+    assert rc != cli.EXIT_OK and why in err and len(err.strip().splitlines()) == 1, err
+    assert rig.touched == [] and calls(bin_dir) == []
+
+
+def test_libfaketime_slows_the_clock_bossac_waits_on():
+    """The environment given to bossac does slow a select() wait as bossac's read of an answer is made (when
+    Debian's faketime is installed): 0.1 s at rate 0.1 takes a second."""
+    if emulated.find_libfaketime() is None:
+        pytest.skip("libfaketime (Debian's faketime) is not installed")
+    code = "import select, time; t = time.perf_counter(); select.select([], [], [], 0.1)"
+    env = {**os.environ, **emulated.bossac_env(0.1)}
+    t0 = time.monotonic()
+    subprocess.run([sys.executable, "-c", code], env=env, check=True, timeout=60)
+    assert time.monotonic() - t0 >= 0.9
+
+
+def test_retries_out_of_range_are_refused_before_any_board_is_touched(tmp_path, monkeypatch, capsys):
+    bin_dir = pio_tools(tmp_path, monkeypatch, uploader="bossac")
+    rig = StandInRig(tmp_path, bin_dir, monkeypatch)
+    rc = cli_flash(tmp_path, monkeypatch, rig, "--retries", "-1")
+    err = capsys.readouterr().err
+    assert rc != cli.EXIT_OK and "--retries must be 0..10, got -1" in err
+    assert rig.touched == [] and calls(bin_dir) == []
 
 
 @pytest.mark.parametrize("what", ["build", "bossac", "no bin, no objcopy", "no bin, objcopy", "unplugged"])
@@ -285,7 +366,7 @@ def test_real_bossac_against_nothing_shows_its_words(tmp_path, monkeypatch):
     assert o.status == rn.UPLOAD_FAILED
     assert o.detail == (
         "No device found on /dev/null (nothing answered bossac on that port: not this board's bootloader, or it left "
-        "it) (bossac exited with 1 on /dev/null, the board's bootloader port)"
+        "it) (bossac exited with 1 on /dev/null, the board's bootloader port) (2 attempts)"
     )
 
 
