@@ -41,6 +41,7 @@ class ImageRig:
         self.transactions = 0
         self.held = bytearray()  # the client's bytes the USB host could not take yet (oldest first)
         self.held_most = 0  # the most ever held at once
+        self.line_at = 0  # the control transfers done once the device has the client's line state
 
     def advance_to(self, sim_us: int) -> None:
         try:
@@ -55,6 +56,9 @@ class ImageRig:
         goes with its session (the primary drops a half line at a new session too)."""
         self.open = not self.open
         self.held.clear()
+        # as a laptop's open() returns only once the device took the new line state (cdc_acm's control transfer):
+        # the client's first bytes wait for it (else the primary could read them in the session before)
+        self.line_at = int(self.world.usb_info(self.port).control_transfers) + 1
         self.world.usb_dtr(self.port, self.open)
 
     def feed(self, data: bytes) -> bytes:
@@ -71,7 +75,7 @@ class ImageRig:
         return not self.held
 
     def _offer(self) -> None:
-        if self.held:
+        if self.held and int(self.world.usb_info(self.port).control_transfers) >= self.line_at:
             taken = self.world.usb_write(self.port, bytes(self.held))  # -1: the port is not attached (yet)
             del self.held[: max(0, taken)]
 

@@ -88,12 +88,26 @@ static bool usb_write(const void *buf, uint32_t n)
     return w == n;
 }
 
+/* A laptop opening or closing the port starts a new link session. The core takes the new line
+ * state (DTR) in its USB interrupt before the laptop's first byte can arrive (its open() returns
+ * after that control transfer), so a look right before each byte is read never hands the new
+ * session's bytes to the old one. */
+static void session_check(void)
+{
+    bool dtr = Serial.dtr();
+    if (dtr != g_dtr) {
+        g_dtr = dtr;
+        mc_link_session(&g_link);
+    }
+}
+
 /* At most SYS_USB_RX_PER_PASS bytes per pass: a laptop streaming without pause must not starve
  * the polling and the watchdog feed. */
 static void usb_in(void)
 {
     char out[MC_SLCAN_REPLY_MAX + 1];
     for (uint32_t k = 0; k < SYS_USB_RX_PER_PASS && Serial.available() > 0; k++) {
+        session_check();
         uint8_t b = (uint8_t)Serial.read();
         if (mc_ident_rx_feed(&g_rx, b)) {
             char line[MC_IDENT_LINE_MAX];
@@ -126,12 +140,7 @@ static void usb_out(void)
 
 void loop()
 {
-    /* a laptop opening or closing the port starts a new link session */
-    bool dtr = Serial.dtr();
-    if (dtr != g_dtr) {
-        g_dtr = dtr;
-        mc_link_session(&g_link);
-    }
+    session_check();
     usb_in();
     mc_txn_t t;
     if (mc_primary_next(&g_link.p, primary_hw_micros(), &t)) {

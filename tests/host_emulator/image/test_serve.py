@@ -3,6 +3,7 @@ interface gets all 16 cells and a command acts; `python -m can.logger` records f
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import subprocess
@@ -129,3 +130,34 @@ def test_the_tier_says_in_one_line_when_it_cannot_run(tmp_path):
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "MC_PIO_TREE" in r.stderr, r.stderr
     assert build.how_to_build.__doc__  # the same one-line reasons come from build.how_to_build
+
+
+def test_commands_sent_at_once_on_opening_are_all_answered(server):
+    """A client that opens the port and at once writes the channel open and a command to each cell in one write (as
+    a script does) gets every CMD_RESULT: its bytes reach the primary only after the port's new line state (DTR up)
+    did, as a laptop's open() returns only then, and the primary takes that state before it reads another byte.
+    (Both were wrong: the primary read the first frames in the session before, then closed the channel on the DTR
+    it saw late, answering the rest with BEL and streaming nothing.)"""
+    from .test_serve_flood import Reader, slcan_line
+
+    fd = os.open(server, os.O_RDWR | os.O_NOCTTY)
+    reader = Reader(fd)
+    reader.start()
+    try:
+        sent = b"O\r" + b"".join(
+            slcan_line(proto.cmd_frame_id(j), proto.cmd_data("CLEAR_FAULTS", j)) for j in range(1, 17)
+        )
+        os.write(fd, sent)
+        end = time.monotonic() + WAIT_S
+        while time.monotonic() < end and sum(reader.results.values()) < 16:
+            time.sleep(0.2)
+        samples = reader.samples
+        while time.monotonic() < end and reader.samples < samples + 32:  # and the channel stays open
+            time.sleep(0.2)
+        os.write(fd, b"C\r")
+    finally:
+        reader.stop.set()
+        reader.join()
+        os.close(fd)
+    assert reader.results == {j: 1 for j in range(1, 17)}, reader.results
+    assert reader.samples >= samples + 32

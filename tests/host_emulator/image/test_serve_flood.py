@@ -61,14 +61,6 @@ class Reader(threading.Thread):
                     self.samples += 1
 
 
-@pytest.mark.xfail(
-    reason="regressed on 2026-11-26 (issue 29's note): the serve stays up under the flood but no command is answered "
-    "(18,700 sent, 0 CMD_RESULT frames in the 600 s wait, on a quiet machine); passed on main at 51c7dbe; the "
-    "cause is in one of that day's merges (I2C bus states, TCC model, the primary's n_cells) and is not found yet; "
-    "not run meanwhile: failing, it holds a worker at full load for 10 minutes, and the emulated bootloader of the "
-    "rig-day test beside it then times out under bossac",
-    run=False,
-)
 def test_a_10_khz_command_flood_is_served_and_every_command_answered(images):
     p = subprocess.Popen(
         [sys.executable, "-m", "host_emulator", "serve", "exp5_rest", "--slcan", "--set", "model=image"]
