@@ -4,6 +4,7 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#include "he_band.h"
 #include "he_hil.h"
 #include "he_step.h"
 
@@ -199,17 +200,15 @@ static int fast_bonds(const he_plant_t *p, hil_ws_t *w, const double *restrict x
         const double *restrict c = p->coef[ch];
         const double L = p->lever[ch], d0 = p->delta0[ch];
         const double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
-        const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3];
-        const double slack = p->slack_f0 ? c0 : 0.0;
+        const he_band_law_t law = {d0, c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
         const double *restrict xc = x + ch * n;
         const double *restrict kbl = w->kbl + ch * n;
         double *restrict T = w->bond + ch * n;
         int j = 0;
 #ifdef __SSE2__
         {
-            const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd(), d0v = _mm_set1_pd(d0);
-            const __m128d Lv = _mm_set1_pd(L), limv = _mm_set1_pd(lim), slk = _mm_set1_pd(slack);
-            const __m128d c0v = _mm_set1_pd(c0), c1v = _mm_set1_pd(c1), c2v = _mm_set1_pd(c2), c3v = _mm_set1_pd(c3);
+            const he_band_law2_t law2 = he_band_law2(&law);
+            const __m128d sign = _mm_set1_pd(-0.0), d0v = law2.d0, Lv = _mm_set1_pd(L), limv = _mm_set1_pd(lim);
             __m128d over = _mm_setzero_pd();
             for (;; j += 2) {                      /* bonds (j, j+1), (j+1, j+2) */
                 if (j + 2 >= n) {
@@ -218,13 +217,7 @@ static int fast_bonds(const he_plant_t *p, hil_ws_t *w, const double *restrict x
                     j = n - 3;                 /* one bond left: it and the one before (the same value again) */
                 }
                 __m128d u = _mm_mul_pd(Lv, _mm_sub_pd(_mm_loadu_pd(xc + j), _mm_loadu_pd(xc + j + 1)));
-                __m128d dp = _mm_add_pd(d0v, u), dm = _mm_sub_pd(d0v, u);
-                __m128d gp = _mm_add_pd(c0v, _mm_mul_pd(dp, _mm_add_pd(c1v, _mm_mul_pd(dp, _mm_add_pd(c2v, _mm_mul_pd(dp, c3v))))));
-                __m128d gm = _mm_add_pd(c0v, _mm_mul_pd(dm, _mm_add_pd(c1v, _mm_mul_pd(dm, _mm_add_pd(c2v, _mm_mul_pd(dm, c3v))))));
-                __m128d mp = _mm_cmpgt_pd(dp, zero), mm = _mm_cmpgt_pd(dm, zero);
-                gp = _mm_or_pd(_mm_and_pd(mp, gp), _mm_andnot_pd(mp, slk));
-                gm = _mm_or_pd(_mm_and_pd(mm, gm), _mm_andnot_pd(mm, slk));
-                _mm_storeu_pd(T + j, _mm_mul_pd(_mm_loadu_pd(kbl + j), _mm_sub_pd(gp, gm)));
+                _mm_storeu_pd(T + j, _mm_mul_pd(_mm_loadu_pd(kbl + j), he_band_diff2(&law2, u)));
                 over = _mm_or_pd(over, _mm_cmpgt_pd(_mm_add_pd(d0v, _mm_andnot_pd(sign, u)), limv));
             }
             over_any |= _mm_movemask_pd(over);
@@ -232,12 +225,7 @@ static int fast_bonds(const he_plant_t *p, hil_ws_t *w, const double *restrict x
 #endif
         for (; j + 1 < n; j++) {
             double u = L * (xc[j] - xc[j + 1]);
-            double dp = d0 + u, dm = d0 - u;
-            double gp = c0 + dp * (c1 + dp * (c2 + dp * c3));
-            double gm = c0 + dm * (c1 + dm * (c2 + dm * c3));
-            gp = dp > 0.0 ? gp : slack;
-            gm = dm > 0.0 ? gm : slack;
-            T[j] = kbl[j] * (gp - gm);
+            T[j] = kbl[j] * he_band_diff(&law, u);
             over_any |= d0 + fabs(u) > lim;
         }
     }

@@ -4,6 +4,7 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#include "he_band.h"
 #include "he_plant.h"
 
 /* f(d) and f'(d) of the cubic band law; Python: physics.band_force / physics.band_slope */
@@ -248,35 +249,25 @@ static inline void cubic_bonds(const he_plant_t *p, int ch, const double *restri
     double T[BLK];
     const int n = p->n;
     const double *c = p->coef[ch];
-    const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale;
-    const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3], slack = p->slack_f0 ? c[0] : 0.0;
+    const double L = p->lever[ch], bs = p->band_scale;
+    const he_band_law_t law = {p->delta0[ch], c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
     const double *ks = p->kscale[ch];
+#ifdef __SSE2__
+    const he_band_law2_t law2 = he_band_law2(&law);
+    const __m128d Lv = _mm_set1_pd(L), bsv = _mm_set1_pd(bs);
+#endif
     for (int j0 = 0; j0 + 1 < n; j0 += BLK) {
         int m = n - 1 - j0 < BLK ? n - 1 - j0 : BLK, i = 0;
         const double *xb = xc + j0, *kb = ks + j0;
 #ifdef __SSE2__
-        const __m128d Lv = _mm_set1_pd(L), d0v = _mm_set1_pd(d0), bsv = _mm_set1_pd(bs), zero = _mm_setzero_pd();
-        const __m128d c0v = _mm_set1_pd(c0), c1v = _mm_set1_pd(c1), c2v = _mm_set1_pd(c2), c3v = _mm_set1_pd(c3);
-        const __m128d slk = _mm_set1_pd(slack);
         for (; i + 2 <= m; i += 2) {
             __m128d u = _mm_mul_pd(Lv, _mm_sub_pd(_mm_loadu_pd(xb + i), _mm_loadu_pd(xb + i + 1)));
-            __m128d dp = _mm_add_pd(d0v, u), dm = _mm_sub_pd(d0v, u);
-            __m128d gp = _mm_add_pd(c0v, _mm_mul_pd(dp, _mm_add_pd(c1v, _mm_mul_pd(dp, _mm_add_pd(c2v, _mm_mul_pd(dp, c3v))))));
-            __m128d gm = _mm_add_pd(c0v, _mm_mul_pd(dm, _mm_add_pd(c1v, _mm_mul_pd(dm, _mm_add_pd(c2v, _mm_mul_pd(dm, c3v))))));
-            __m128d mp = _mm_cmpgt_pd(dp, zero), mm = _mm_cmpgt_pd(dm, zero);
-            gp = _mm_or_pd(_mm_and_pd(mp, gp), _mm_andnot_pd(mp, slk));
-            gm = _mm_or_pd(_mm_and_pd(mm, gm), _mm_andnot_pd(mm, slk));
             __m128d kbl = _mm_mul_pd(_mm_mul_pd(_mm_loadu_pd(kb + i), bsv), Lv);
-            _mm_storeu_pd(T + i, _mm_mul_pd(kbl, _mm_sub_pd(gp, gm)));
+            _mm_storeu_pd(T + i, _mm_mul_pd(kbl, he_band_diff2(&law2, u)));
         }
 #endif
-        for (; i < m; i++) {
-            double u = L * (xb[i] - xb[i + 1]);
-            double dp = d0 + u, dm = d0 - u;
-            double gp = dp > 0.0 ? c0 + dp * (c1 + dp * (c2 + dp * c3)) : slack;
-            double gm = dm > 0.0 ? c0 + dm * (c1 + dm * (c2 + dm * c3)) : slack;
-            T[i] = kb[i] * bs * L * (gp - gm);
-        }
+        for (; i < m; i++)
+            T[i] = kb[i] * bs * L * he_band_diff(&law, L * (xb[i] - xb[i + 1]));
         for (i = 0; i < m; i++) {
             Fc[j0 + i] -= T[i];
             Fc[j0 + i + 1] += T[i];
@@ -296,9 +287,13 @@ static void cubic_edges(const he_plant_t *p, int ch, const double *restrict xc, 
     const int nb = p->nbond;
     const int32_t *restrict bd = p->bonds;
     const double *c = p->coef[ch];
-    const double L = p->lever[ch], d0 = p->delta0[ch], bs = p->band_scale;
-    const double c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3], slack = p->slack_f0 ? c[0] : 0.0;
+    const double L = p->lever[ch], bs = p->band_scale;
+    const he_band_law_t law = {p->delta0[ch], c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
     const double *ks = p->kscale[ch];
+#ifdef __SSE2__
+    const he_band_law2_t law2 = he_band_law2(&law);
+    const __m128d Lv = _mm_set1_pd(L), bsv = _mm_set1_pd(bs);
+#endif
     for (int b0 = 0; b0 < nb; b0 += BLK) {
         int m = nb - b0 < BLK ? nb - b0 : BLK, i = 0;
         const int32_t *ib = bd + 2 * b0;
@@ -306,28 +301,14 @@ static void cubic_edges(const he_plant_t *p, int ch, const double *restrict xc, 
         for (int q = 0; q < m; q++)
             T[q] = xc[ib[2 * q]] - xc[ib[2 * q + 1]];
 #ifdef __SSE2__
-        const __m128d Lv = _mm_set1_pd(L), d0v = _mm_set1_pd(d0), bsv = _mm_set1_pd(bs), zero = _mm_setzero_pd();
-        const __m128d c0v = _mm_set1_pd(c0), c1v = _mm_set1_pd(c1), c2v = _mm_set1_pd(c2), c3v = _mm_set1_pd(c3);
-        const __m128d slk = _mm_set1_pd(slack);
         for (; i + 2 <= m; i += 2) {
             __m128d u = _mm_mul_pd(Lv, _mm_loadu_pd(T + i));
-            __m128d dp = _mm_add_pd(d0v, u), dm = _mm_sub_pd(d0v, u);
-            __m128d gp = _mm_add_pd(c0v, _mm_mul_pd(dp, _mm_add_pd(c1v, _mm_mul_pd(dp, _mm_add_pd(c2v, _mm_mul_pd(dp, c3v))))));
-            __m128d gm = _mm_add_pd(c0v, _mm_mul_pd(dm, _mm_add_pd(c1v, _mm_mul_pd(dm, _mm_add_pd(c2v, _mm_mul_pd(dm, c3v))))));
-            __m128d mp = _mm_cmpgt_pd(dp, zero), mm = _mm_cmpgt_pd(dm, zero);
-            gp = _mm_or_pd(_mm_and_pd(mp, gp), _mm_andnot_pd(mp, slk));
-            gm = _mm_or_pd(_mm_and_pd(mm, gm), _mm_andnot_pd(mm, slk));
             __m128d kbl = _mm_mul_pd(_mm_mul_pd(_mm_loadu_pd(kb + i), bsv), Lv);
-            _mm_storeu_pd(T + i, _mm_mul_pd(kbl, _mm_sub_pd(gp, gm)));
+            _mm_storeu_pd(T + i, _mm_mul_pd(kbl, he_band_diff2(&law2, u)));
         }
 #endif
-        for (; i < m; i++) {
-            double u = L * T[i];
-            double dp = d0 + u, dm = d0 - u;
-            double gp = dp > 0.0 ? c0 + dp * (c1 + dp * (c2 + dp * c3)) : slack;
-            double gm = dm > 0.0 ? c0 + dm * (c1 + dm * (c2 + dm * c3)) : slack;
-            T[i] = kb[i] * bs * L * (gp - gm);
-        }
+        for (; i < m; i++)
+            T[i] = kb[i] * bs * L * he_band_diff(&law, L * T[i]);
         for (i = 0; i < m; i++) {
             Fc[ib[2 * i]] -= T[i];
             Fc[ib[2 * i + 1]] += T[i];
