@@ -402,6 +402,32 @@ static void add_reaction(const he_plant_t *p, const double *restrict x, double *
     }
 }
 
+/* The band torques of chain ch added into Fc: an edge list (ring, sheet), else the open chain's bonds (j, j+1) in
+ * order, reciprocal (-T on j, +T on j+1) except the geometric beta form, evaluated from each end. */
+#if defined(__GNUC__)
+__attribute__((always_inline))   /* (he_plant_torques' hot path, as cubic_bonds) */
+#endif
+static inline void band_torques(const he_plant_t *p, int ch, const double *xc, double *Fc)
+{
+    const int n = p->n;
+    if (p->bonds) {
+        edges_band(p, ch, xc, Fc);
+    } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+        cubic_bonds(p, ch, xc, Fc);                               /* the loop below, unrolled for this law */
+    } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
+        for (int j = 0; j + 1 < n; j++) {
+            double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+            Fc[j] -= T;
+            Fc[j + 1] += T;
+        }
+    } else {
+        for (int j = 0; j + 1 < n; j++) {
+            Fc[j] -= he_band_torque(p, ch, j, xc[j], xc[j + 1]);
+            Fc[j + 1] -= he_band_torque(p, ch, j, xc[j + 1], xc[j]);
+        }
+    }
+}
+
 void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
 {
     int n = p->n;
@@ -411,23 +437,7 @@ void he_plant_torques(const he_plant_t *p, double t, const double *x, double *F)
         const double *mg = p->mgain[ch], *vo = p->volt[ch];
         for (int j = 0; j < n; j++)
             Fc[j] = mg[j] * vo[j];                                /* Kt*V */
-        if (p->bonds) {
-            edges_band(p, ch, xc, Fc);                            /* an edge list: ring, sheet */
-        } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
-            cubic_bonds(p, ch, xc, Fc);                           /* the loop below, unrolled for this law */
-        } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
-            /* reciprocal bond: torque -T on j and +T on j+1 */
-            for (int j = 0; j + 1 < n; j++) {
-                double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
-                Fc[j] -= T;
-                Fc[j + 1] += T;
-            }
-        } else {
-            for (int j = 0; j + 1 < n; j++) {
-                Fc[j] -= he_band_torque(p, ch, j, xc[j], xc[j + 1]);
-                Fc[j + 1] -= he_band_torque(p, ch, j, xc[j + 1], xc[j]);
-            }
-        }
+        band_torques(p, ch, xc, Fc);
     }
     if (p->reaction == HE_REACT_IDEAL)
         add_reaction(p, x, F);
@@ -444,22 +454,7 @@ void he_plant_band_torques(const he_plant_t *p, const double *x, double *F)
     for (int ch = 0; ch < 2; ch++) {
         const double *xc = x + ch * n;
         double *Fc = F + ch * n;
-        if (p->bonds) {
-            edges_band(p, ch, xc, Fc);
-        } else if (p->bands == HE_BANDS_CUBIC && (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
-            cubic_bonds(p, ch, xc, Fc);
-        } else if (p->bands == HE_BANDS_LINEAR || (ch == 0 || p->beta_geometry == HE_BETA_SMALL)) {
-            for (int j = 0; j + 1 < n; j++) {
-                double T = he_band_torque(p, ch, j, xc[j], xc[j + 1]);
-                Fc[j] -= T;
-                Fc[j + 1] += T;
-            }
-        } else {
-            for (int j = 0; j + 1 < n; j++) {
-                Fc[j] -= he_band_torque(p, ch, j, xc[j], xc[j + 1]);
-                Fc[j + 1] -= he_band_torque(p, ch, j, xc[j + 1], xc[j]);
-            }
-        }
+        band_torques(p, ch, xc, Fc);
     }
 }
 
