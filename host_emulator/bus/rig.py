@@ -138,8 +138,9 @@ class EmulatedRig:
 
     def _band_stop(self) -> bool:
         """The plant left its physical range (a band stretched past the stop of its fit): on the rig
-        the cylinders hit that range and the cells' runaway check trips. Emulated as such: the pair
-        is put back just inside the range at rest, both cells latch MC_FAULT_RUNAWAY of that chain
+        the cylinders hit that range and the cells' runaway check trips. Emulated as such: the bond's
+        pair (a chain's neighbours, or a sheet's bond from the plant's edge list) is put back just
+        inside the range at rest, both cells latch MC_FAULT_RUNAWAY of that chain
         (drives off until CLEAR_FAULTS), and the rig runs on. False if the cause was something else."""
         lib, sol = self.lib, self.solver
         plant = sol.h.plant
@@ -150,16 +151,21 @@ class EmulatedRig:
         for _ in range(8 * n):  # each pass puts one pair back; neighbours may follow
             if lib.he_plant_range_check(plant, px, where) != lib.HE_ERR_BAND or where[0] < 0:
                 break
-            ch, j = divmod(where[0], n)
+            if plant.bonds != self.ffi.NULL:  # an edge list (ring, sheet): where = bond + chain * nbond
+                ch, e = divmod(where[0], plant.nbond)
+                i, k = int(plant.bonds[2 * e]), int(plant.bonds[2 * e + 1])
+            else:  # the open chain: where = j + chain * n, the bond (j, j + 1)
+                ch, i = divmod(where[0], n)
+                k = i + 1
             lim = (lib.HE_BAND_STOP_FACTOR * plant.delta_max[ch] - plant.delta0[ch]) / plant.lever[ch]
-            a, b = ch * n + j, ch * n + j + 1
+            a, b = ch * n + i, ch * n + k
             mid, half = (sol.x[a] + sol.x[b]) / 2, 0.95 * lim / 2
             d = 1.0 if sol.x[a] >= sol.x[b] else -1.0
             sol.x[a], sol.x[b] = mid + d * half, mid - d * half
             sol.v[a] = sol.v[b] = 0.0
             bit = lib.MC_FAULT_RUNAWAY_A if ch == 0 else lib.MC_FAULT_RUNAWAY_B
-            for k in (j, j + 1):
-                sol.cells[k].faults |= bit
+            for c in (i, k):
+                sol.cells[c].faults |= bit
             hit = True
         if not hit or lib.he_plant_range_check(plant, px, where) == lib.HE_ERR_BAND:
             return False

@@ -108,3 +108,18 @@ def test_a_plant_range_stop_becomes_the_cells_runaway_fault():
     faults = [int(sol.cells[j].faults) for j in range(16)]
     assert any(f & lib.MC_FAULT_RUNAWAY_A for f in faults[3:6])
     assert all(abs(x) < 10 for x in sol.x)
+
+
+def test_a_plant_range_stop_on_a_sheet_faults_the_bond_s_two_cells():
+    """On a 4 x 4 sheet the plant names the stretched bond in its edge list: the cells at its two ends latch the
+    runaway fault (cell 6 and a neighbour: 2, 5, 7 or 10), not the chain's (j, j + 1) read from the bond's index."""
+    rig, _ = make_rig("sheet_4x4_rig")
+    sol, lib = rig.solver, rig.lib
+    assert rig.n == 16 and rig.solver.h.plant.nbond == 24
+    rig.advance_to(10_000)
+    sol.x[5] += 6.0  # cell 6 (row 2, col 2) alpha 6 rad from its four neighbours: past the band stop
+    rig.advance_to(200_000)
+    assert rig.band_stops >= 1
+    hit = {j + 1 for j in range(16) if int(sol.cells[j].faults) & lib.MC_FAULT_RUNAWAY_A}
+    assert 6 in hit and hit - {6} and hit <= {2, 5, 6, 7, 10}, hit
+    assert all(abs(x) < 10 for x in sol.x)
