@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -150,3 +151,18 @@ def evolve_around(
         atol=-1.0,  # never "converged": a population that all misses alike must keep searching (until maxiter)
     )
     return np.asarray(best["x"]), float(best["s"])
+
+
+def search_record(search_seeds: int, score: float, candidates: int, hil_runs: int, t0: float, **more: Any) -> dict:
+    """design.json's "search" entry (a chain's and a sheet's): the optimizer, the search's seeds, pushes and score,
+    the candidates scored, the hil runs, then `more` (a chain's scheduler) and wall_s (time.perf_counter() - t0)."""
+    return {
+        "optimizer": "scipy.optimize.differential_evolution (linear theory, then batched hil ensembles)",
+        "search_seeds": search_seeds,
+        "search_pushes": [list(x) for x in SEARCH_PUSHES],
+        "search_score": score,
+        "candidates_scored": candidates,
+        "hil_runs": hil_runs,
+        **more,
+        "wall_s": time.perf_counter() - t0,
+    }
