@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..topology import Topology
-from .sheet_modes import dense_eig, sheet_matrices
+from .sheet_modes import dense_eig, distinct_modes, mode_rates, sheet_matrices
 from .stability import Theory, classify_regime
 
 if TYPE_CHECKING:
@@ -77,10 +77,6 @@ def mode_walls(profile: np.ndarray, fraction: float = WALL_FRACTION) -> list[flo
     return out
 
 
-def _is_osc(s: complex) -> bool:
-    return bool(abs(s.imag) > 1e-9 * max(1.0, abs(s)))
-
-
 def chain_modes(params: Params, theory: Theory | None = None, *, count: int | None = None, **factors: Any) -> dict:
     """The chain's linear modes, fastest first (complex-conjugate pairs once, +Im first).
 
@@ -97,22 +93,13 @@ def chain_modes(params: Params, theory: Theory | None = None, *, count: int | No
     n = params.cells
     w, v = dense_eig(a, np.diag(e), np.diag(i), theory.inertia)
     modes = []
-    for k, s in enumerate(w):
-        if s.imag < -1e-9 * max(1.0, abs(s)):
-            continue  # the conjugate of a mode already listed
-        vec = v[:n, k]
-        ph = vec[int(np.argmax(np.abs(vec)))]
-        alpha = (vec / ph).real if abs(ph) > 0 else np.zeros(n)
+    for s, alpha in distinct_modes(w, v, n):
         walls = mode_walls(alpha)
         c = dct(alpha, type=2, norm="ortho")
         dm = int(np.argmax(np.abs(c)))
-        osc = _is_osc(s)
         modes.append(
             {
-                "growth_per_s": float(s.real),
-                "imag_per_s": float(abs(s.imag)),
-                "period_s": float(2 * math.pi / abs(s.imag)) if osc else None,
-                "kind": "oscillatory" if osc else "stationary",
+                **mode_rates(s),
                 "alpha": alpha,
                 "walls": walls,
                 "domain_walls": len(walls),

@@ -20,6 +20,7 @@ behind a slower real one: `method="dense"` is exact). A chain gives what analysi
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -30,7 +31,15 @@ if TYPE_CHECKING:
     from ..params import Params
     from ..topology import Topology
 
-__all__ = ["sheet_matrices", "dense_eig", "sheet_modes", "dominant_wavevector", "DENSE_MAX_CELLS"]
+__all__ = [
+    "sheet_matrices",
+    "dense_eig",
+    "sheet_modes",
+    "distinct_modes",
+    "mode_rates",
+    "dominant_wavevector",
+    "DENSE_MAX_CELLS",
+]
 
 DENSE_MAX_CELLS = 100  # method="auto": dense eig up to this many cells (a 10 x 10 sheet), sparse above
 
@@ -174,6 +183,30 @@ def dominant_wavevector(alpha_grid: np.ndarray, topology: Topology) -> tuple[lis
     return [kr, kc], (2 * math.pi / kn if kn > 1e-12 else None)
 
 
+def distinct_modes(w: np.ndarray, v: np.ndarray, n: int) -> Iterator[tuple[complex, np.ndarray]]:
+    """(s, alpha) of each distinct mode of an eigendecomposition (eigenvalues w, Re descending; eigenvectors v's
+    columns), complex-conjugate pairs once (+Im first): alpha is its eigenvector's alpha part (the first n entries)
+    scaled by its largest entry, real (largest entry +1). sheet_modes' and analysis.chain's modes alike."""
+    for k, s in enumerate(w):
+        if s.imag < -1e-9 * max(1.0, abs(s)):
+            continue  # the conjugate of a mode already listed
+        vec = v[:n, k]
+        ph = vec[int(np.argmax(np.abs(vec)))]
+        yield s, ((vec / ph).real if abs(ph) > 0 else np.zeros(n))
+
+
+def mode_rates(s: complex) -> dict:
+    """A mode's first entries from its eigenvalue s: growth_per_s (Re s), imag_per_s (|Im s|), period_s
+    (oscillatory) or None, kind ("stationary" or "oscillatory")."""
+    osc = bool(abs(s.imag) > 1e-9 * max(1.0, abs(s)))
+    return {
+        "growth_per_s": float(s.real),
+        "imag_per_s": float(abs(s.imag)),
+        "period_s": float(2 * math.pi / abs(s.imag)) if osc else None,
+        "kind": "oscillatory" if osc else "stationary",
+    }
+
+
 def sheet_modes(
     params: Params,
     theory: Theory | None = None,
@@ -203,21 +236,12 @@ def sheet_modes(
     else:
         w, v = sparse_eig(params, theory, 2 * count + 4, topology=topo, **factors)
     modes = []
-    for k, s in enumerate(w):
-        if s.imag < -1e-9 * max(1.0, abs(s)):
-            continue  # the conjugate of a mode already listed
-        vec = v[:n, k]
-        ph = vec[int(np.argmax(np.abs(vec)))]
-        alpha = (vec / ph).real if abs(ph) > 0 else np.zeros(n)
+    for s, alpha in distinct_modes(w, v, n):
         grid = topo.grid(alpha)
         kvec, lam = dominant_wavevector(grid, topo)
-        osc = bool(abs(s.imag) > 1e-9 * max(1.0, abs(s)))
         modes.append(
             {
-                "growth_per_s": float(s.real),
-                "imag_per_s": float(abs(s.imag)),
-                "period_s": float(2 * math.pi / abs(s.imag)) if osc else None,
-                "kind": "oscillatory" if osc else "stationary",
+                **mode_rates(s),
                 "alpha": alpha,
                 "alpha_grid": grid,
                 "wavevector": kvec,

@@ -159,6 +159,69 @@ def _sheet(params, cells, t_end_s, dt_out_s, pert, m, rtol, atol, initial, max_a
     return t_out, alpha, beta
 
 
+def _rhs_and_jac(law, n, da, db, ea, eb):
+    """(make_rhs, jac) of the method-of-lines system y = (alpha, beta) on n grid points (a chain's or a sheet's):
+    make_rhs(fa, fb) the right-hand side with the forcing fa, fb (torque density / eta), jac its sparse Jacobian;
+    da, db: the diffusion operators k L / eta; ea, eb: eta (scalars or per point); law: the reaction parameters."""
+
+    def diag(v):
+        return sp.diags(np.broadcast_to(np.asarray(v, dtype=float), (n,)), format="csr")
+
+    j0 = reaction_jacobian(law)  # dR/d(alpha, beta); only dR_a/dalpha depends on the state
+    c_ab = diag(j0[0, 1] / ea)  # d(alpha_t)/d(beta)
+    c_ba = diag(j0[1, 0] / eb)  # d(beta_t)/d(alpha)
+    jbb = db + diag(j0[1, 1] / eb)
+
+    def make_rhs(fa, fb):
+        def rhs(_t, y):
+            a, b = y[:n], y[n:]
+            ra, rb = reaction(law, a, b)  # physics.py: the one Python copy of the law
+            # eta_a a_t = k_a L a + R_a(a, b) + P_a ;  eta_b b_t = k_b L b + R_b(a, b) + P_b
+            at = da @ a + ra / ea + fa
+            bt = db @ b + rb / eb + fb
+            return np.concatenate([at, bt])
+
+        return rhs
+
+    def jac(_t, y):
+        jaa = da + sp.diags(reaction_jacobian(law, y[:n])[0, 0] / ea)  # dR_a/dalpha = -k_ab - psi''(alpha)
+        return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
+
+    return make_rhs, jac
+
+
+def _solve_cut(rhs, jac, y, t0, t1, t_out, method, rtol, atol):
+    """(sel, sol): scipy's solve_ivp from state y over one segment [t0, t1] of the forcing; sel the indices of the
+    output times t_out in (t0, t1], sol.y's columns the states at them (then at t1 if it is none of them).
+    ContinuumError if the solver fails."""
+    sel = np.nonzero((t_out > t0) & (t_out <= t1))[0]
+    sol = solve_ivp(
+        rhs,
+        (t0, t1),
+        y,
+        method=method,
+        jac=jac,
+        rtol=rtol,
+        atol=atol,
+        t_eval=np.append(t_out[sel], t1) if sel.size == 0 or t_out[sel[-1]] != t1 else t_out[sel],
+    )
+    if not sol.success:
+        raise ContinuumError(f"continuum solver failed at t = {sol.t[-1]:.6g} s: {sol.message}")
+    return sel, sol
+
+
+def _check_state(y: np.ndarray, t0: float, t1: float, max_angle_rad: float) -> None:
+    """ContinuumError when the states y of the segment [t0, t1] are not finite or an angle exceeds max_angle_rad."""
+    if not np.all(np.isfinite(y)):
+        raise ContinuumError(f"continuum state became non-finite in [{t0:.6g}, {t1:.6g}] s")
+    peak = float(np.max(np.abs(y)))
+    if peak > max_angle_rad:
+        raise ContinuumError(
+            f"continuum state diverged: |angle| = {peak:.3g} rad > {max_angle_rad:g} rad "
+            f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)"
+        )
+
+
 def _check_params(params):
     bad = []
     for name in ("eta_alpha", "eta_beta", "ka_eff", "kb_eff"):
@@ -253,14 +316,6 @@ def simulate_continuum(
     else:
         law = params
 
-    def diag(v):
-        return sp.diags(np.broadcast_to(np.asarray(v, dtype=float), (n,)), format="csr")
-
-    j0 = reaction_jacobian(law)  # dR/d(alpha, beta); only dR_a/dalpha depends on the state
-    c_ab = diag(j0[0, 1] / ea)  # d(alpha_t)/d(beta)
-    c_ba = diag(j0[1, 0] / eb)  # d(beta_t)/d(alpha)
-    jbb = db + diag(j0[1, 1] / eb)
-
     y0 = np.zeros(2 * n)
     if initial is not None:
         a0, b0 = initial(x.copy())
@@ -282,21 +337,7 @@ def simulate_continuum(
                     fb[sl] += p["torque_Nm"] / (eb[sl] if isinstance(eb, np.ndarray) else eb)
         return fa, fb
 
-    def make_rhs(fa, fb):
-        def rhs(_t, y):
-            a, b = y[:n], y[n:]
-            ra, rb = reaction(law, a, b)  # physics.py: the one Python copy of the law
-            # eta_a a_t = k_a L a + R_a(a, b) + P_a ;  eta_b b_t = k_b L b + R_b(a, b) + P_b
-            at = da @ a + ra / ea + fa
-            bt = db @ b + rb / eb + fb
-            return np.concatenate([at, bt])
-
-        return rhs
-
-    def jac(_t, y):
-        jaa = da + sp.diags(reaction_jacobian(law, y[:n])[0, 0] / ea)  # dR_a/dalpha = -k_ab - psi''(alpha)
-        return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
-
+    make_rhs, jac = _rhs_and_jac(law, n, da, db, ea, eb)
     t_out, cuts = _output_times(t_end_s, dt_out_s, pert)
 
     ys = np.full((len(t_out), 2 * n), np.nan)
@@ -304,27 +345,8 @@ def simulate_continuum(
     y = y0
     for t0, t1 in zip(cuts[:-1], cuts[1:]):
         fa, fb = forcing(0.5 * (t0 + t1))
-        sel = np.nonzero((t_out > t0) & (t_out <= t1))[0]
-        sol = solve_ivp(
-            make_rhs(fa, fb),
-            (t0, t1),
-            y,
-            method=method,
-            jac=jac,
-            rtol=rtol,
-            atol=atol,
-            t_eval=np.append(t_out[sel], t1) if sel.size == 0 or t_out[sel[-1]] != t1 else t_out[sel],
-        )
-        if not sol.success:
-            raise ContinuumError(f"continuum solver failed at t = {sol.t[-1]:.6g} s: {sol.message}")
-        if not np.all(np.isfinite(sol.y)):
-            raise ContinuumError(f"continuum state became non-finite in [{t0:.6g}, {t1:.6g}] s")
-        peak = float(np.max(np.abs(sol.y)))
-        if peak > max_angle_rad:
-            raise ContinuumError(
-                f"continuum state diverged: |angle| = {peak:.3g} rad > {max_angle_rad:g} rad "
-                f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)"
-            )
+        sel, sol = _solve_cut(make_rhs(fa, fb), jac, y, t0, t1, t_out, method, rtol, atol)
+        _check_state(sol.y, t0, t1, max_angle_rad)
         ys[sel] = sol.y[:, : sel.size].T
         y = sol.y[:, -1]
 

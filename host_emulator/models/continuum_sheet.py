@@ -324,7 +324,7 @@ def simulate_sheet(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(alpha, beta), each (len(t_out), n) at the cell centres, of the sheet params.topology (validated input:
     models/continuum.simulate_continuum checks it and computes t_out and the segment cuts)."""
-    from .continuum import ContinuumError
+    from .continuum import ContinuumError, _check_state
 
     topo = params.topology
     grid = SheetGrid(topo, points_per_cell)
@@ -356,14 +356,7 @@ def simulate_sheet(
     alpha[0], beta[0] = sample(y0[0]), sample(y0[1])
 
     def check(y: np.ndarray, t0: float, t1: float) -> None:
-        if not np.all(np.isfinite(y)):
-            raise ContinuumError(f"continuum state became non-finite in [{t0:.6g}, {t1:.6g}] s")
-        peak = float(np.max(np.abs(y)))
-        if peak > max_angle_rad:
-            raise ContinuumError(
-                f"continuum state diverged: |angle| = {peak:.3g} rad > {max_angle_rad:g} rad "
-                f"in [{t0:.6g}, {t1:.6g}] s (parameters unstable without saturation?)"
-            )
+        _check_state(y, t0, t1, max_angle_rad)
 
     if method == "etdrk4":
         _run_etd(params, grid, law, y0, forcing, t_out, cuts, alpha, beta, rtol, atol, check)
@@ -475,53 +468,21 @@ def _run_etd(params, grid, law, y0, forcing, t_out, cuts, alpha, beta, rtol, ato
 
 
 def _run_scipy(params, grid, law, y0, forcing, t_out, cuts, alpha, beta, rtol, atol, check, method) -> None:
-    from scipy.integrate import solve_ivp
-
-    from .continuum import ContinuumError
+    from .continuum import _rhs_and_jac, _solve_cut
 
     n = grid.size
     ea, eb = params.eta_alpha, params.eta_beta
     lap = grid.laplacian()
     da = (params.ka_eff / ea) * lap
     db = (params.kb_eff / eb) * lap
-
-    def diag(vals):
-        return sp.diags(np.broadcast_to(np.asarray(vals, dtype=float), (n,)), format="csr")
-
-    j0 = reaction_jacobian(law)
-    c_ab, c_ba = diag(j0[0, 1] / ea), diag(j0[1, 0] / eb)
-    jbb = db + diag(j0[1, 1] / eb)
+    make_rhs, jac = _rhs_and_jac(law, n, da, db, ea, eb)  # the chain's system, on the sheet's grid
     sample = grid.sampler()
     shape2 = (grid.R, grid.C)
-
-    def make_rhs(fa, fb):
-        def rhs(_t, y):
-            a, b = y[:n], y[n:]
-            ra, rb = reaction(law, a, b)
-            return np.concatenate([da @ a + ra / ea + fa, db @ b + rb / eb + fb])
-
-        return rhs
-
-    def jac(_t, y):
-        jaa = da + sp.diags(reaction_jacobian(law, y[:n])[0, 0] / ea)
-        return sp.bmat([[jaa, c_ab], [c_ba, jbb]], format="csc")
 
     y = y0.reshape(2 * n)
     for t0, t1 in zip(cuts[:-1], cuts[1:]):
         f = forcing(0.5 * (t0 + t1))
-        sel = np.nonzero((t_out > t0) & (t_out <= t1))[0]
-        sol = solve_ivp(
-            make_rhs(f[0].ravel(), f[1].ravel()),
-            (t0, t1),
-            y,
-            method=method,
-            jac=jac,
-            rtol=rtol,
-            atol=atol,
-            t_eval=np.append(t_out[sel], t1) if sel.size == 0 or t_out[sel[-1]] != t1 else t_out[sel],
-        )
-        if not sol.success:
-            raise ContinuumError(f"continuum solver failed at t = {sol.t[-1]:.6g} s: {sol.message}")
+        sel, sol = _solve_cut(make_rhs(f[0].ravel(), f[1].ravel()), jac, y, t0, t1, t_out, method, rtol, atol)
         check(sol.y, t0, t1)
         for k, i in enumerate(sel):
             alpha[i] = sample(sol.y[:n, k].reshape(shape2))

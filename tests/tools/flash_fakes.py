@@ -12,6 +12,8 @@ from types import SimpleNamespace
 from metacell_tools.flash import inventory as inv
 from metacell_tools.flash.boards import XIAO_PID_APP, XIAO_VID, Port
 from metacell_tools.flash.identity import Identity, IdentityError, QueryResult
+from metacell_tools.flash.plan import make_plan
+from metacell_tools.flash.runner import Flasher
 
 
 def fake_ports(n=17, pid=XIAO_PID_APP):
@@ -24,6 +26,24 @@ def fake_inventory(n_cells=16):
     """Cells 1..n_cells on serials SN00.., the primary on the next serial (SN16 for the rig as built)."""
     boards = [inv.Board(f"SN{j - 1:02d}", "cell", j) for j in range(1, n_cells + 1)]
     return inv.validate(boards + [inv.Board(f"SN{max(n_cells, 16):02d}", "primary")], max(n_cells, 16))
+
+
+def run_flash(rig, stop_on_error=False, tmp_path=None, **plan_kw):
+    """(outcomes, lines printed) of flashing the fake rig's inventory on its ports (make_plan(..., **plan_kw)) with
+    no waits; tmp_path: the log dir."""
+    plan = make_plan(rig.boards, rig.ports, pio="pio", **plan_kw)
+    lines = []
+    f = Flasher(
+        rig.list_ports,
+        expected_fw=rig.fw,
+        run=rig.run,
+        query=rig.query,
+        log_dir=tmp_path,
+        sleep=lambda s: None,
+        out=lines.append,
+        reappear_timeout=0.0,
+    )
+    return f.flash(plan, stop_on_error=stop_on_error), lines
 
 
 def write_ports_json(path, ports):

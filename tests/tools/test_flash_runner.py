@@ -12,23 +12,7 @@ from metacell_tools.flash import inventory as inv
 from metacell_tools.flash import runner as rn
 from metacell_tools.flash.boards import XIAO_PID_APP, XIAO_PID_BOOT, XIAO_VID, Port
 from metacell_tools.flash.plan import make_plan
-from tests.tools.flash_fakes import FakeRig, fake_inventory, fake_ports, pio_tools, write_ports_json
-
-
-def run_flash(rig, stop_on_error=False, tmp_path=None):
-    plan = make_plan(rig.boards, rig.ports, pio="pio")
-    lines = []
-    f = rn.Flasher(
-        rig.list_ports,
-        expected_fw=rig.fw,
-        run=rig.run,
-        query=rig.query,
-        log_dir=tmp_path,
-        sleep=lambda s: None,
-        out=lines.append,
-        reappear_timeout=0.0,
-    )
-    return f.flash(plan, stop_on_error=stop_on_error), lines
+from tests.tools.flash_fakes import FakeRig, fake_inventory, fake_ports, pio_tools, run_flash, write_ports_json
 
 
 def test_flash_all_boards_ok(tmp_path):

@@ -11,7 +11,7 @@ from metacell_tools.flash import __main__ as cli
 from metacell_tools.flash import inventory as inv
 from metacell_tools.flash import runner as rn
 from metacell_tools.flash.plan import PlanError, describe, make_plan, parse_only
-from tests.tools.flash_fakes import FakeRig, fake_inventory, fake_ports, write_ports_json
+from tests.tools.flash_fakes import FakeRig, fake_inventory, fake_ports, run_flash, write_ports_json
 
 
 def test_inventory_of_a_sheet_roundtrips_and_the_rig_as_built_keeps_its_file(tmp_path):
@@ -88,18 +88,7 @@ def test_plan_for_32_cells_and_primary(tmp_path, capsys):
 def test_flash_a_fake_32_cell_rig(tmp_path):
     """Every board of a 32-cell rig is built, uploaded and answers with its own cell and address."""
     rig = FakeRig(fake_inventory(32), fake_ports(33))
-    plan = make_plan(rig.boards, rig.ports, pio="pio", cells=32)
-    f = rn.Flasher(
-        rig.list_ports,
-        expected_fw=rig.fw,
-        run=rig.run,
-        query=rig.query,
-        log_dir=tmp_path,
-        sleep=lambda s: None,
-        out=lambda line: None,
-        reappear_timeout=0.0,
-    )
-    outcomes = f.flash(plan, stop_on_error=True)
+    outcomes, _ = run_flash(rig, stop_on_error=True, tmp_path=tmp_path, cells=32)
     assert [o.status for o in outcomes] == [rn.OK] * 33
     assert rig.flashed["SN31"] == ("cell", 32, 0x2F) and rig.flashed["SN32"] == ("primary", None, None)
     primary_env = next(env for argv, env in rig.runs if argv[argv.index("-e") + 1] == "primary")

@@ -23,14 +23,13 @@ from .constants import (
     PUSH_DURATIONS_S,
     PUSH_TORQUES_NM,
     REQUIRE,
-    SEARCH_PUSHES,
 )
 from .ensembles import Runner
 from .linear import first_guess, linear_score
 from .nearest import nearest_reachable
 from .plot import plot_design
 from .scenefile import _params_doc, _write_scene, assumes_doc
-from .search import hil_search
+from .search import hil_search, search_record
 from .space import Space
 from .target import DesignError, Push, parse_pushes, parse_target
 from .verification import verify
@@ -183,16 +182,7 @@ def design(
             "reached": reached,
             "require": require,
             "nearest_reachable": near,
-            "search": {
-                "optimizer": "scipy.optimize.differential_evolution (linear theory, then batched hil ensembles)",
-                "search_seeds": search_seeds,
-                "search_pushes": [list(x) for x in SEARCH_PUSHES],
-                "search_score": score,
-                "candidates_scored": len(hist),
-                "hil_runs": runner.runs,
-                "scheduler": scheduler,
-                "wall_s": time.perf_counter() - t0,
-            },
+            "search": search_record(search_seeds, score, len(hist), runner.runs, t0, scheduler=scheduler),
             "files": ["design.json", "scene.toml", "design.png"] + (["nearest_scene.toml"] if near else []),
             "provenance": provenance(),
         }

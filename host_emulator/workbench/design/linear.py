@@ -4,6 +4,7 @@ differential evolution."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -62,10 +63,19 @@ def linear_score(p: Params, target: Target) -> tuple[float, dict]:
 
 def first_guess(space: Space, target: Target, seed: int = 1, maxiter: int = 60) -> tuple[np.ndarray, float, dict]:
     """Differential evolution on the linear score (scipy.optimize), from the base scene's values too."""
+    return evolve_score(space, lambda p: linear_score(p, target), seed, maxiter)
+
+
+def evolve_score(
+    space: Space, score: Callable[[Params], tuple[float, dict]], seed: int, maxiter: int
+) -> tuple[np.ndarray, float, dict]:
+    """(x, score, facts): differential evolution (scipy.optimize) maximising score(space.params(x))[0] from a random
+    population that holds the base scene's values too; the first guess of a chain (linear_score) and of a sheet
+    (sheet_linear.sheet_linear_score)."""
     from scipy.optimize import differential_evolution
 
     def f(x):
-        return -linear_score(space.params(x), target)[0]
+        return -score(space.params(x))[0]
 
     rng = np.random.default_rng(seed)
     lo = np.array([b[0] for b in space.bounds])
@@ -77,5 +87,5 @@ def first_guess(space: Space, target: Target, seed: int = 1, maxiter: int = 60) 
         f, space.bounds, init=init, seed=seed, maxiter=maxiter, tol=1e-6, polish=False, updating="immediate"
     )
     x = np.asarray(r.x)
-    score, facts = linear_score(space.params(x), target)
-    return x, score, facts
+    best, facts = score(space.params(x))
+    return x, best, facts

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -35,8 +37,6 @@ def hil_search(
     report: Callable[[str], None] = lambda s: None,
 ) -> tuple[np.ndarray, float, list[dict]]:
     """Differential evolution over batched hil ensembles (package docstring, step 2); returns (x, score, history)."""
-    from scipy.optimize import differential_evolution
-
     history: list[dict] = []
     per = seeds + len(SEARCH_PUSHES)
     done = [False]  # some candidate landed in every search and check run
@@ -94,22 +94,48 @@ def hil_search(
     s0 = scores(np.array([x0]))[0]
     if done[0]:
         return x0, float(s0), history
+    x, s = evolve_around(
+        space, x0, s0, scores, lambda: done[0], spread=0.12, popsize=popsize, seed=seed, maxiter=maxiter
+    )
+    return x, s, history
+
+
+def evolve_around(
+    space: Space,
+    x0: np.ndarray,
+    s0: float,
+    scores: Callable[[np.ndarray], np.ndarray],
+    done: Callable[[], bool],
+    *,
+    spread: float,
+    popsize: int,
+    seed: int,
+    maxiter: int,
+    generation: Callable[[float], None] = lambda best: None,
+) -> tuple[np.ndarray, float]:
+    """(x, score) of the best candidate seen (x0 scoring s0 to begin with): differential evolution (scipy.optimize,
+    vectorized: scores(xs) scores the candidates xs (one per row) at once) from x0 and popsize - 1 normal draws
+    around it (spread x each bound's width, clipped to the bounds), until done() or maxiter generations;
+    generation(best score so far) after each. A chain's hil_search and a sheet's sheet_runs.sheet_search."""
+    from scipy.optimize import differential_evolution
+
     lo = np.array([b[0] for b in space.bounds])
     hi = np.array([b[1] for b in space.bounds])
     rng = np.random.default_rng(seed)
-    init = np.clip(x0 + 0.12 * (hi - lo) * rng.standard_normal((popsize, len(lo))), lo, hi)
+    init = np.clip(x0 + spread * (hi - lo) * rng.standard_normal((popsize, len(lo))), lo, hi)
     init[0] = x0
-    best = {"x": x0, "s": s0}
+    best: dict[str, Any] = {"x": x0, "s": s0}
 
     def f(xt):  # vectorized: xt has shape (dims, candidates)
         sc = scores(xt.T)
         i = int(np.argmax(sc))
         if sc[i] > best["s"]:
             best["x"], best["s"] = xt.T[i].copy(), float(sc[i])
+        generation(best["s"])
         return -sc
 
     def stop(*_a, **_k):
-        return done[0]
+        return done()
 
     differential_evolution(
         f,
@@ -124,4 +150,19 @@ def hil_search(
         tol=0.0,
         atol=-1.0,  # never "converged": a population that all misses alike must keep searching (until maxiter)
     )
-    return np.asarray(best["x"]), float(best["s"]), history
+    return np.asarray(best["x"]), float(best["s"])
+
+
+def search_record(search_seeds: int, score: float, candidates: int, hil_runs: int, t0: float, **more: Any) -> dict:
+    """design.json's "search" entry (a chain's and a sheet's): the optimizer, the search's seeds, pushes and score,
+    the candidates scored, the hil runs, then `more` (a chain's scheduler) and wall_s (time.perf_counter() - t0)."""
+    return {
+        "optimizer": "scipy.optimize.differential_evolution (linear theory, then batched hil ensembles)",
+        "search_seeds": search_seeds,
+        "search_pushes": [list(x) for x in SEARCH_PUSHES],
+        "search_score": score,
+        "candidates_scored": candidates,
+        "hil_runs": hil_runs,
+        **more,
+        "wall_s": time.perf_counter() - t0,
+    }

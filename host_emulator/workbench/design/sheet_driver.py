@@ -19,8 +19,9 @@ from metacell_common.provenance import provenance
 from ...analysis.summary import clean
 from ...params import REACTION_KEYS, Params
 from ...scene import load_scene, scene_table
-from .constants import CONFIRM_SEED0, CROSS_MODEL, NOMINAL_PUSH, REQUIRE, SEARCH_PUSHES
+from .constants import CONFIRM_SEED0, CROSS_MODEL, NOMINAL_PUSH, REQUIRE
 from .scenefile import FIRMWARE_KEYS, assumed_options, assumes_doc
+from .search import search_record
 from .sheet_landing import LAMBDA_TOL
 from .sheet_linear import REST_SHARE_MAX, mode_rest_share, sheet_fastest_modes, sheet_first_guess, sheet_linear_score
 from .sheet_runs import sheet_scene, sheet_search, sheet_verify
@@ -227,15 +228,7 @@ def design_sheet(
         "reached": bool(pooled >= require),
         "require": require,
         "nearest_reachable": None,
-        "search": {
-            "optimizer": "scipy.optimize.differential_evolution (linear theory, then batched hil ensembles)",
-            "search_seeds": search_seeds,
-            "search_pushes": [list(x) for x in SEARCH_PUSHES],
-            "search_score": score,
-            "candidates_scored": len(hist),
-            "hil_runs": runs,
-            "wall_s": time.perf_counter() - t0,
-        },
+        "search": search_record(search_seeds, score, len(hist), runs, t0),
         "files": ["design.json", "scene.toml", "design.png"],
         "provenance": provenance(),
     }

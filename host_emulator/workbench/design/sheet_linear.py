@@ -13,6 +13,7 @@ from ...analysis.sheet_modes import sheet_modes
 from ...analysis.stability import Theory, growth_rates_at_q, theory_of
 from ...params import Params
 from .constants import MIN_GROWTH_PER_S
+from .linear import evolve_score
 from .sheet_landing import LAMBDA_TOL
 from .sheet_target import SheetTarget
 from .space import Space, _shape_ok
@@ -107,24 +108,9 @@ def sheet_linear_score(p: Params, target: SheetTarget) -> tuple[float, dict]:
 
 
 def sheet_first_guess(space: Space, target: SheetTarget, seed: int = 1, maxiter: int = 60):
-    """Differential evolution on sheet_linear_score (scipy.optimize), from the base scene's values too."""
-    from scipy.optimize import differential_evolution
-
-    def f(x):
-        return -sheet_linear_score(space.params(x), target)[0]
-
-    rng = np.random.default_rng(seed)
-    lo = np.array([b[0] for b in space.bounds])
-    hi = np.array([b[1] for b in space.bounds])
-    npop = max(15, 8 * len(lo))
-    init = lo + (hi - lo) * rng.random((npop, len(lo)))
-    init[0] = space.x0()
-    r = differential_evolution(
-        f, space.bounds, init=init, seed=seed, maxiter=maxiter, tol=1e-6, polish=False, updating="immediate"
-    )
-    x = np.asarray(r.x)
-    score, facts = sheet_linear_score(space.params(x), target)
-    return x, score, facts
+    """Differential evolution on sheet_linear_score (scipy.optimize), from the base scene's values too (the chain's
+    linear.evolve_score)."""
+    return evolve_score(space, lambda p: sheet_linear_score(p, target), seed, maxiter)
 
 
 def sheet_fastest_modes(p: Params, count: int = 2, theory: Theory | None = None) -> list[dict]:

@@ -28,6 +28,7 @@ from .constants import (
     SEARCH_SEED0,
     VERIFY_SEED0,
 )
+from .search import evolve_around
 from .sheet_landing import region_measures, sheet_closeness, sheet_miss_reason
 from .sheet_linear import sheet_linear_score
 from .sheet_target import SheetPush, SheetTarget
@@ -100,8 +101,6 @@ def sheet_search(
     landing in all its runs is run again on as many fresh draws (CHECK_SEED0..) and, landing there too,
     ends the search; else differential evolution (vectorized: one batched ensemble per generation) around it.
     Returns (x, score, history, runs)."""
-    from scipy.optimize import differential_evolution
-
     history: list[dict] = []
     runs = [0]
     done = [False]
@@ -144,37 +143,25 @@ def sheet_search(
     report(f"hil search, first guess: lands in {history[-1]['fraction']:.3f} of its runs")
     if done[0] or maxiter == 0:
         return x0, s0, history, runs[0]
-    lo = np.array([b[0] for b in space.bounds])
-    hi = np.array([b[1] for b in space.bounds])
-    rng = np.random.default_rng(seed)
-    init = np.clip(x0 + 0.1 * (hi - lo) * rng.standard_normal((popsize, len(lo))), lo, hi)
-    init[0] = x0
-    best: dict[str, Any] = {"x": x0, "s": s0}
     gen = [0]
 
-    def f(xt):
-        sc = np.array([one(x) for x in xt.T])
-        i = int(np.argmax(sc))
-        if sc[i] > best["s"]:
-            best["x"], best["s"] = xt.T[i].copy(), float(sc[i])
+    def generation(best: float) -> None:
         gen[0] += 1
-        report(f"hil search, generation {gen[0]}: best so far {best['s']:.3f}")
-        return -sc
+        report(f"hil search, generation {gen[0]}: best so far {best:.3f}")
 
-    differential_evolution(
-        f,
-        space.bounds,
-        init=init,
+    x, s = evolve_around(
+        space,
+        x0,
+        s0,
+        lambda xs: np.array([one(x) for x in xs]),
+        lambda: done[0],
+        spread=0.1,
+        popsize=popsize,
         seed=seed,
         maxiter=maxiter,
-        polish=False,
-        vectorized=True,
-        updating="deferred",
-        callback=lambda *a, **k: done[0],
-        tol=0.0,
-        atol=-1.0,
+        generation=generation,
     )
-    return np.asarray(best["x"]), float(best["s"]), history, runs[0]
+    return x, s, history, runs[0]
 
 
 def sheet_verify(
