@@ -44,18 +44,47 @@ def design(
     per_cell: Sequence[str] | None = None,
     rest: str | Sequence[int] | None = None,
     seeds: int = 20,
-    search_seeds: int = 8,
-    maxiter: int = 8,
+    search_seeds: int | None = None,
+    maxiter: int | None = None,
     require: float = REQUIRE,
     nearest: bool = True,
-    out: str | Path = "out/design",
+    out: str | Path | None = None,
     scheduler: str | None = None,
     seed: int = 1,
     quiet: bool = True,
+    sheet: str | None = None,
 ) -> dict:
     """Design parameters for a target pattern (the package docstring); writes design.json, scene.toml and design.png in
     `out` and returns design.json's content. per_cell None: none for a wavelength, sigma and k2 for a wall layout.
+    sheet "ROWSxCOLS": a square sheet's design (sheet_driver.design_sheet, as `design --sheet`: push ROWxCOL,
+    rest a region; search seeds and generations 4 by default, 8 on a chain; out out/design_sheet, else out/design).
     Raises DesignError (bad input)."""
+    if sheet is not None:
+        from .sheet_driver import design_sheet
+
+        for name, given in (("per_cell", per_cell), ("scheduler", scheduler)):
+            if given is not None:  # a sheet's ensembles run in this process; every varied parameter is per region
+                raise DesignError(f"{name} is for a chain's design, not with sheet")
+        if push is not None and not isinstance(push, str):
+            raise DesignError("push: a sheet's pushes are text, ROWxCOL[:SIGN],... such as 8x4")
+        return design_sheet(
+            target,
+            push or "",
+            sheet=sheet,
+            rest=rest if rest is None or isinstance(rest, str) else ",".join(map(str, rest)),
+            scene=scene,
+            vary=vary,
+            seeds=seeds,
+            search_seeds=4 if search_seeds is None else search_seeds,
+            maxiter=4 if maxiter is None else maxiter,
+            require=require,
+            out="out/design_sheet" if out is None else out,
+            seed=seed,
+            quiet=quiet,
+        )
+    search_seeds = 8 if search_seeds is None else search_seeds
+    maxiter = 8 if maxiter is None else maxiter
+    out = "out/design" if out is None else out
     report = (lambda s: None) if quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     t0 = time.perf_counter()
     try:

@@ -192,3 +192,27 @@ def test_written_scene_loads_back_as_designed(tmp_path):
     assert np.array_equal(back.params.per_cell("sigma"), p.per_cell("sigma")) and back.params.k2 == -0.07
     assert [(q.cell, q.row, q.col, q.torque_Nm) for q in back.perturbations] == [(5, 2, 1, 0.02), (10, 3, 2, -0.02)]
     assert back.params.bemf_comp is False and back.options.stepper == base.options.stepper
+
+
+def test_he_design_takes_a_sheet_as_the_command_does(monkeypatch, tmp_path):
+    """he.design(..., sheet="ROWSxCOLS") is `design --sheet`: design_sheet with the sheet's defaults (4 search seeds,
+    4 generations, out/design_sheet) and the caller's values; a chain's own options are refused in one line, and a
+    bad sheet is refused before anything is written."""
+    import host_emulator as he
+    from host_emulator.workbench.design import sheet_driver
+
+    got: dict = {}
+    monkeypatch.setattr(sheet_driver, "design_sheet", lambda *a, **kw: got.update(args=a, **kw) or {"ok": 1})
+    assert he.design("pattern", push="8x4", sheet="16x16", rest="cols=9-16", seeds=3) == {"ok": 1}
+    assert got["args"] == ("pattern", "8x4") and got["sheet"] == "16x16" and got["rest"] == "cols=9-16"
+    assert (got["seeds"], got["search_seeds"], got["maxiter"], got["out"]) == (3, 4, 4, "out/design_sheet")
+    he.design("lambda=6", push="2x2", sheet="4x4", maxiter=0, search_seeds=2, out=str(tmp_path / "d"))
+    assert (got["search_seeds"], got["maxiter"], got["out"]) == (2, 0, str(tmp_path / "d"))
+    for bad in ({"per_cell": ("sigma",)}, {"scheduler": "tcp://x:1"}, {"push": (8,)}):
+        with pytest.raises(DesignError) as e:
+            he.design("pattern", **{"push": "8x4", **bad}, sheet="16x16", rest="cols=9-16")
+        assert "\n" not in str(e.value)
+    monkeypatch.undo()
+    with pytest.raises(DesignError):
+        he.design("pattern", push="2x2", sheet="1x1", out=str(tmp_path / "never"))
+    assert not (tmp_path / "never").exists()
