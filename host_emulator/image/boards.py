@@ -412,6 +412,12 @@ def parser() -> argparse.ArgumentParser:
         help="start the plant once every board runs its application (default: kept at rest)",
     )
     ap.add_argument("--speed", type=float, default=1.0, help="most simulated seconds per wall second (default 1)")
+    ap.add_argument(
+        "--exit-with-parent",
+        action="store_true",
+        help="stop (as on SIGTERM) when the process that started this one is gone: a tool that brings the boards "
+        "up for its own run and is killed leaves none behind",
+    )
     return ap
 
 
@@ -504,8 +510,12 @@ def _run(args, listing: Path, dev_dir: Path) -> int:
     t_wall0, t_world0 = time.monotonic(), world.t
     control = Path(args.control) if args.control else None
     looked = 0.0
+    parent = os.getppid()
     try:
         while not stop:
+            if args.exit_with_parent and os.getppid() != parent:
+                say("the process that started the boards is gone: stopping")
+                break
             rig.service()
             if control is not None and time.monotonic() - looked > CONTROL_EVERY_S:
                 looked = time.monotonic()

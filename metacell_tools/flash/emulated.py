@@ -113,7 +113,7 @@ def emulated_boards(
     stopped on the way out. EmulationError (one line) when they do not come up."""
     with tempfile.TemporaryDirectory(prefix="mc-emulated-") as tmp:
         listing, inventory, log = Path(tmp) / "ports.json", Path(tmp) / "boards.json", Path(tmp) / "boards.log"
-        argv = [sys.executable, "-m", "host_emulator", "boards", "--blank", "--count", str(count)]
+        argv = [sys.executable, "-m", "host_emulator", "boards", "--blank", "--count", str(count), "--exit-with-parent"]
         argv += ["--ports-json", str(listing), *extra]
         if control is not None:
             argv += ["--control", str(control)]

@@ -238,3 +238,39 @@ def test_reset_from_outside_keeps_the_schedule(images):
         assert int(w.info(b).resets) == before + 1 and int(w.info(b).reset_cause) == 0x40  # PM.RCAUSE.SYST only
     w.run_to(w.t + 2.3)
     assert all(w.usb_info(b.index).configured for b in w.boards)  # every board enumerated again
+
+
+def test_exit_with_parent_stops_the_boards_when_their_parent_is_killed(images, tmp_path):
+    """`boards --exit-with-parent` (what `flash --emulated` starts) stops by itself, ptys and listing removed, when
+    the process that started it is killed outright (as a test's timeout kills the flash tool): nothing is left
+    running. Without the flag the boards run on (checked first, then stopped)."""
+    env = {k: v for k, v in os.environ.items() if k != "MC_BOOTLOADER"}
+    starter = (
+        "import subprocess, sys, time\n"
+        "p = subprocess.Popen([sys.executable, '-m', 'host_emulator', 'boards', '--count', '1', '--ports-json',"
+        " sys.argv[1], *sys.argv[2:]], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)\n"
+        "print(p.pid, flush=True)\n"
+        "time.sleep(3600)\n"
+    )
+    for flag in ([], ["--exit-with-parent"]):
+        listing = tmp_path / f"ports{len(flag)}.json"
+        parent = subprocess.Popen(
+            [sys.executable, "-c", starter, str(listing), *flag], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True
+        )
+        child = int(parent.stdout.readline())
+        until(lambda listing=listing: len(entries(listing)) == 1)
+        parent.kill()
+        parent.wait()
+
+        def alive(pid: int = child) -> bool:
+            try:
+                return "zombie" not in Path(f"/proc/{pid}/status").read_text()
+            except OSError:
+                return False
+
+        if not flag:
+            time.sleep(2.0)  # (an upper bound on nothing: the boards must simply still be there)
+            assert alive() and len(entries(listing)) == 1
+            os.kill(child, signal.SIGTERM)
+        until(lambda: not alive())
+        assert not listing.exists()
