@@ -257,7 +257,14 @@ class Flasher:
                 self._retried[id(step)] = attempt
                 return None
             failed = f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)"
-            again = next((p for p in self.list_ports() if p.serial_number == b.serial and p.in_bootloader), None)
+            now = self._listed_within(b.serial, UNPLUGGED_S)
+            if not now:  # bossac failed because its port went away, and the board did not come back
+                gone = (
+                    f"the board (serial {b.serial}) left the USB bus during bossac and did not come back within "
+                    f"{UNPLUGGED_S:g} s: unplugged? (bossac: {uploader_error(output)})"
+                )
+                return Outcome(step, UPLOAD_FAILED, gone, log=log, retries=attempt)
+            again = next((p for p in now if p.in_bootloader), None)
             if attempt >= self.retries or again is None:
                 tried = f" ({attempt + 1} attempts)" if attempt else ""
                 return Outcome(step, UPLOAD_FAILED, failed + tried + overwrote(up.offset), log=log, retries=attempt)
@@ -267,6 +274,19 @@ class Flasher:
             self.out(f"      {b.name}: {note}")
             with log.open("a") as f:
                 f.write(note + "\n")
+
+    def _listed_within(self, serial: str, timeout: float) -> list[Port]:
+        """The board's ports in the listing, waiting up to timeout for it to reappear when it is absent (a board
+        that re-enumerates is absent for a moment); empty when it stayed away."""
+        end = self.clock() + timeout
+        while True:
+            try:
+                now = [p for p in self.list_ports() if p.serial_number == serial and p.is_xiao]
+            except (OSError, ValueError):  # (a listing being replaced)
+                now = []
+            if now or self.clock() >= end:
+                return now
+            self.sleep(WATCH_EVERY_S)
 
     def _flash_gated(self, step: Step) -> Outcome:
         try:

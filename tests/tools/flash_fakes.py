@@ -153,7 +153,7 @@ print("=" * 25 + " [SUCCESS] Took 1.00 seconds " + "=" * 25)
 # records the file's content in flashed.json beside it and brings the board back in application mode, on its original
 # device name (an upload below 0x2000 leaves it gone: the bootloader is overwritten); FAKE_BOSSAC_FAIL lists serial
 # numbers whose upload fails as a real one can (FAKE_BOSSAC_FAIL_ONCE: only their first upload), leaving the board in
-# its bootloader
+# its bootloader; FAKE_BOSSAC_UNPLUG's boards leave the listing during their upload, which fails
 STANDIN_BOSSAC = r"""
 import json, os, pathlib, re, sys
 args = sys.argv[1:]
@@ -176,6 +176,11 @@ if me is None:
     sys.exit(1)
 print("Device       : ATSAMD21G18A")
 print("Version      : v1.1 [Arduino:XYZ] Nov 27 2019 16:35:08")
+if me["serial_number"] in os.environ.get("FAKE_BOSSAC_UNPLUG", "").split(","):  # the cable pulled mid-write
+    listing.write_text(json.dumps([p for p in ports if p is not me]))
+    print(f"Write {fw.stat().st_size} bytes to flash (1 pages)")
+    print("SAM-BA operation failed", file=sys.stderr)
+    sys.exit(1)
 once = here / f"failed-once-{me['serial_number']}"
 first = me["serial_number"] in os.environ.get("FAKE_BOSSAC_FAIL_ONCE", "").split(",") and not once.exists()
 if first:

@@ -264,6 +264,22 @@ def test_libfaketime_slows_the_clock_bossac_waits_on():
     assert time.monotonic() - t0 >= 0.9
 
 
+def test_a_board_unplugged_while_bossac_writes_is_named_and_not_retried(tmp_path, monkeypatch, capsys):
+    """bossac fails because the board left the bus (its port gone from the listing, not back within 5 s): the detail
+    says so, whatever bossac printed, and bossac is not run again on a port that is not there."""
+    bin_dir = pio_tools(tmp_path, monkeypatch, uploader="bossac")
+    monkeypatch.setenv("FAKE_BOSSAC_UNPLUG", "SN04")
+    rig = StandInRig(tmp_path, bin_dir, monkeypatch)
+    rc = cli_flash(tmp_path, monkeypatch, rig, "--keep-going")
+    out = capsys.readouterr().out
+    assert rc == cli.EXIT_FAILED and "retry" not in out
+    line = next(ln for ln in out.splitlines() if ln.startswith("  cell 5 (0x14)"))
+    gone = "upload failed: the board (serial SN04) left the USB bus during bossac and did not come back within 5 s: "
+    assert gone + "unplugged? (bossac: " in line
+    assert line.endswith("| Write 50 bytes to flash (1 pages) | SAM-BA operation failed)")
+    assert [Path(c["argv"][0]).name for c in calls(bin_dir)].count("bossac") == 17
+
+
 def test_retries_out_of_range_are_refused_before_any_board_is_touched(tmp_path, monkeypatch, capsys):
     bin_dir = pio_tools(tmp_path, monkeypatch, uploader="bossac")
     rig = StandInRig(tmp_path, bin_dir, monkeypatch)
