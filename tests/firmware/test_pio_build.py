@@ -65,7 +65,8 @@ def _build(tmp_path_factory):
 def build_log(tmp_path_factory):
     """The log of one real build, shared by the xdist workers: the first builds under a lock, the others read
     its log (two builds into the same .pio would delete each other's objects)."""
-    shared = tmp_path_factory.getbasetemp().parent
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # this run's, never an older run's
     log, failed = shared / "pio_build.log", shared / "pio_build.failed"
     with open(shared / "pio_build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
