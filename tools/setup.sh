@@ -28,7 +28,7 @@ have_cmd arm-none-eabi-objdump || need+=(binutils-arm-none-eabi)   # the image t
 have_cmd qemu-system-arm || need+=(qemu-system-arm)
 have_cmd clang || need+=(clang)
 have_cmd bossac || need+=(bossa-cli)   # the flash tool's uploader when PlatformIO's tool-bossac is absent (offline)
-have_cmd faketime || need+=(faketime)   # flash --emulated: bossac on a clock slowed to the emulated boards' pace
+have_pkg libfaketime || need+=(libfaketime)   # flash --emulated: bossac on a clock slowed to the emulated boards' pace (LD_PRELOAD)
 python3 -c 'import ensurepip' 2>/dev/null || need+=(python3-venv)
 apt_install "${need[@]}"
 

@@ -45,16 +45,17 @@ def wait_for_port(
     serial: str,
     list_ports: Callable[[], list[Port]],
     timeout: float,
-    bootloader: bool,
+    bootloader: bool | None,
     poll: float = 0.25,
     sleep: Callable[[float], None] = time.sleep,
     clock: Callable[[], float] = time.monotonic,
 ) -> Port | None:
-    """The port of the board with this USB serial number in bootloader (or application) mode, once it is listed."""
+    """The port of the board with this USB serial number in bootloader (or application; None: either) mode, once it
+    is listed."""
     end = clock() + timeout
     while True:
         for p in list_ports():
-            if p.serial_number == serial and p.is_xiao and p.in_bootloader == bootloader:
+            if p.serial_number == serial and p.is_xiao and bootloader in (None, p.in_bootloader):
                 return p
         if clock() >= end:
             return None

@@ -34,7 +34,7 @@ IDENTITY_TIMEOUT_S = 60.0
 # bossac's waits for an answer are fixed in wall time (0.1 s for its buffer command, 1 s, 5 s for a flash write);
 # 17 boards in one emulation on a loaded machine run at 0.1-0.3x real time, and a client that the emulation cannot
 # keep up with misses them (bossac then stops mid-upload and the bootloader is left inside a data transfer). So bossac
-# runs under libfaketime (Debian's faketime) with its clock slowed to this rate of real time: its waits are 1/rate
+# runs under libfaketime (Debian's libfaketime) with its clock slowed to this rate of real time: its waits are 1/rate
 # times longer. What it prints as durations is on that clock. 1 runs it as it is.
 BOSSAC_CLOCK_RATE = 0.05
 LIBFAKETIME = "libfaketime.so.1"
@@ -46,7 +46,7 @@ class EmulationError(RuntimeError):
 
 
 def find_libfaketime() -> str | None:
-    """libfaketime's library (Debian's faketime package: /usr/lib/<multiarch>/faketime/libfaketime.so.1)."""
+    """libfaketime's library (Debian's libfaketime package: /usr/lib/<multiarch>/faketime/libfaketime.so.1)."""
     found = sorted(Path("/usr").glob(f"lib*/**/faketime/{LIBFAKETIME}"))
     return str(found[0]) if found else None
 
@@ -60,7 +60,7 @@ def bossac_env(rate: float) -> dict[str, str]:
     lib = find_libfaketime()
     if lib is None:
         raise EmulationError(
-            f"a bossac clock rate below 1 needs libfaketime (Debian's faketime: apt-get install faketime; "
+            f"a bossac clock rate below 1 needs libfaketime (Debian's libfaketime: apt-get install libfaketime; "
             f"tools/setup.sh installs it) to run bossac at {rate:g} of real time, or --bossac-clock-rate 1"
         )
     preload = " ".join(filter(None, [lib, os.environ.get("LD_PRELOAD", "")]))

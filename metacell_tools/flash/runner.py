@@ -39,7 +39,6 @@ class Outcome:
     detail: str = ""
     identity: Identity | None = None
     log: Path | None = None
-    retries: int = 0  # bossac runs repeated after a failed one (see Flasher.retries)
 
     @property
     def ok(self) -> bool:
@@ -126,9 +125,9 @@ class Flasher:
         self.together_s = together_s
         self._gate: Gate | None = None
         # a failed bossac is run again this many times while its board is still listed in bootloader mode (what one
-        # does by hand after a USB hiccup: the bootloader holds no half-written state that a new erase does not clear)
+        # does by hand after a USB hiccup before anything was written; after a failure mid-write the bootloader may
+        # still wait for the rest of its transfer, and only a reset of the board helps)
         self.retries = retries
-        self._retried: dict[int, int] = {}
         # what bossac's environment gains (flash --emulated: libfaketime, so that bossac's clock keeps the boards' pace)
         self.bossac_env = dict(bossac_env or {})
 
@@ -211,8 +210,9 @@ class Flasher:
             f.write(output if output.endswith("\n") or not output else output + "\n")
         return p.returncode, output
 
-    def _bossac(self, step: Step, env: dict[str, str], log: Path) -> Outcome | None:
-        """Touch, bootloader port, bossac: None when the upload went through, else the failed Outcome."""
+    def _bossac(self, step: Step, env: dict[str, str], log: Path) -> Outcome | int:
+        """Touch, bootloader port, bossac: the bossac retries it took when the upload went through, else the failed
+        Outcome."""
         up, b = step.upload, step.board
         assert up is not None
         if not up.firmware.is_file():
@@ -251,42 +251,30 @@ class Flasher:
         while True:
             res = self._call(up.argv(boot.device), {**env, **self.bossac_env}, log, "bossac", serial=b.serial)
             if isinstance(res, str):  # unplugged, or too slow: not retried
-                return Outcome(step, UPLOAD_FAILED, res, log=log, retries=attempt)
+                return Outcome(step, UPLOAD_FAILED, res, log=log)
             rc, output = res
             if rc == 0:
-                self._retried[id(step)] = attempt
-                return None
+                return attempt
             failed = f"{uploader_error(output)} (bossac exited with {rc} on {boot.device}, the board's bootloader port)"
-            now = self._listed_within(b.serial, UNPLUGGED_S)
-            if not now:  # bossac failed because its port went away, and the board did not come back
+            # the board in either mode, waiting for it if it is away (a board that re-enumerates is absent a moment)
+            back = wait_for_port(
+                b.serial, self.list_ports, UNPLUGGED_S, bootloader=None, sleep=self.sleep, clock=self.clock
+            )
+            if back is None:  # bossac failed because its port went away, and the board did not come back
                 gone = (
                     f"the board (serial {b.serial}) left the USB bus during bossac and did not come back within "
                     f"{UNPLUGGED_S:g} s: unplugged? (bossac: {uploader_error(output)})"
                 )
-                return Outcome(step, UPLOAD_FAILED, gone, log=log, retries=attempt)
-            again = next((p for p in now if p.in_bootloader), None)
-            if attempt >= self.retries or again is None:
+                return Outcome(step, UPLOAD_FAILED, gone, log=log)
+            if attempt >= self.retries or not back.in_bootloader:
                 tried = f" ({attempt + 1} attempts)" if attempt else ""
-                return Outcome(step, UPLOAD_FAILED, failed + tried + overwrote(up.offset), log=log, retries=attempt)
+                return Outcome(step, UPLOAD_FAILED, failed + tried + overwrote(up.offset), log=log)
             attempt += 1
-            boot = again
+            boot = back
             note = f"bossac failed: {failed}; retry {attempt} of {self.retries} on {boot.device}"
             self.out(f"      {b.name}: {note}")
             with log.open("a") as f:
                 f.write(note + "\n")
-
-    def _listed_within(self, serial: str, timeout: float) -> list[Port]:
-        """The board's ports in the listing, waiting up to timeout for it to reappear when it is absent (a board
-        that re-enumerates is absent for a moment); empty when it stayed away."""
-        end = self.clock() + timeout
-        while True:
-            try:
-                now = [p for p in self.list_ports() if p.serial_number == serial and p.is_xiao]
-            except (OSError, ValueError):  # (a listing being replaced)
-                now = []
-            if now or self.clock() >= end:
-                return now
-            self.sleep(WATCH_EVERY_S)
 
     def _flash_gated(self, step: Step) -> Outcome:
         try:
@@ -309,10 +297,12 @@ class Flasher:
             rc, output = res
             if rc != 0:
                 return Outcome(step, failed, f"{uploader_error(output)} (pio exited with {rc})", log=log)
+        retried = 0
         if step.upload is not None:
-            bad = self._bossac(step, env, log)
-            if bad is not None:
-                return bad
+            uploaded = self._bossac(step, env, log)
+            if isinstance(uploaded, Outcome):
+                return uploaded
+            retried = uploaded
         port = wait_for_app_port(
             step.board.serial, self.list_ports, self.reappear_timeout, sleep=self.sleep, clock=self.clock
         )
@@ -338,9 +328,8 @@ class Flasher:
             diff = "; ".join(filter(None, [diff, "board reports start-up error: " + ", ".join(q.errors)]))
         if diff:
             return Outcome(step, MISMATCH, diff, q.identity, log)
-        n = self._retried.pop(id(step), 0)
-        again = f" (after {n} bossac retr{'y' if n == 1 else 'ies'})" if n else ""
-        return Outcome(step, OK, f"{q.identity.describe()} on {port.device}{again}", q.identity, log, retries=n)
+        again = f" (after {retried} bossac retr{'y' if retried == 1 else 'ies'})" if retried else ""
+        return Outcome(step, OK, f"{q.identity.describe()} on {port.device}{again}", q.identity, log)
 
     def flash(self, plan: Plan, stop_on_error: bool = False, jobs: int = 1) -> list[Outcome]:
         """Every step in the plan's order; jobs > 1 flashes that many boards at once (each its own port and
