@@ -6,6 +6,7 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#include "he_plant.h"
 
 /*
  * A bond's two bands with the cubic law g(d) = c0 + d (c1 + d (c2 + d c3)) for d > 0 (a slack band: `slack`, c0 when
@@ -17,6 +18,14 @@
 typedef struct {
     double d0, c0, c1, c2, c3, slack;
 } he_band_law_t;
+
+/* Chain ch's law from the plant (its cubic fit, delta0 and whether a slack band keeps f0). */
+static inline he_band_law_t he_band_law(const he_plant_t *p, int ch)
+{
+    const double *c = p->coef[ch];
+    he_band_law_t k = {p->delta0[ch], c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
+    return k;
+}
 
 static inline double he_band_diff(const he_band_law_t *k, double u)
 {

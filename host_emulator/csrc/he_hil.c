@@ -197,10 +197,9 @@ static int fast_bonds(const he_plant_t *p, hil_ws_t *w, const double *restrict x
 {
     int n = w->n, over_any = 0;
     for (int ch = 0; ch < 2; ch++) {
-        const double *restrict c = p->coef[ch];
         const double L = p->lever[ch], d0 = p->delta0[ch];
         const double lim = HE_BAND_STOP_FACTOR * p->delta_max[ch];
-        const he_band_law_t law = {d0, c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
+        const he_band_law_t law = he_band_law(p, ch);
         const double *restrict xc = x + ch * n;
         const double *restrict kbl = w->kbl + ch * n;
         double *restrict T = w->bond + ch * n;

@@ -248,9 +248,8 @@ static inline void cubic_bonds(const he_plant_t *p, int ch, const double *restri
     enum { BLK = 64 };
     double T[BLK];
     const int n = p->n;
-    const double *c = p->coef[ch];
     const double L = p->lever[ch], bs = p->band_scale;
-    const he_band_law_t law = {p->delta0[ch], c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
+    const he_band_law_t law = he_band_law(p, ch);
     const double *ks = p->kscale[ch];
 #ifdef __SSE2__
     const he_band_law2_t law2 = he_band_law2(&law);
@@ -286,9 +285,8 @@ static void cubic_edges(const he_plant_t *p, int ch, const double *restrict xc, 
     double T[BLK];
     const int nb = p->nbond;
     const int32_t *restrict bd = p->bonds;
-    const double *c = p->coef[ch];
     const double L = p->lever[ch], bs = p->band_scale;
-    const he_band_law_t law = {p->delta0[ch], c[0], c[1], c[2], c[3], p->slack_f0 ? c[0] : 0.0};
+    const he_band_law_t law = he_band_law(p, ch);
     const double *ks = p->kscale[ch];
 #ifdef __SSE2__
     const he_band_law2_t law2 = he_band_law2(&law);
