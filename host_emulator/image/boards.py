@@ -476,6 +476,7 @@ def _world(args):
             threads=io.threads,
             cycle_model=io.cycle_model,
             ff=io.fast_forward,
+            ff_timed=io.fast_forward_timed,
             round_s=io.round_s,
             boot=boot,
             blank=args.blank,

@@ -10,6 +10,8 @@ CELL_STATUS frames, as the laptop sees them.
 
 from __future__ import annotations
 
+import gc
+
 import math
 from collections.abc import Sequence
 
@@ -156,6 +158,7 @@ class ImageSolver(Solver):
             threads=io.threads,
             cycle_model=io.cycle_model,
             ff=io.fast_forward,
+            ff_timed=io.fast_forward_timed,
             round_s=io.round_s,
             boot=io.boot,
             pwm=io.pwm,
@@ -211,6 +214,10 @@ class ImageSolver(Solver):
             raise ConfigError(f"image: the cells refused the scene's configuration: {up['refused']}")
         self.t_start = self.world.start_plant()
         self.preamble = {"usb_enumerated_s": up["usb_enumerated_s"], "scene_start_s": self.t_start}
+        # What exists now (the world, the images, numpy and scipy) lives for the whole run: the cyclic garbage
+        # collector stops scanning it (a full collection walked all of it, 2-8 % of the run's instructions under
+        # callgrind, at times no one chose; docs/image-tier.md, "Speed").
+        gc.freeze()
 
     def _inject(self, faults: Sequence[Fault]) -> None:
         w = self.world

@@ -37,11 +37,16 @@ class NoiseOptions:
 
 @dataclass(frozen=True)
 class ImageOptions:
-    """The image model's switches ([model_options.image]). None of them changes a result but cycle_model and boot."""
+    """The image model's switches ([model_options.image]). None of them changes a result but cycle_model and boot
+    (and fast_forward_timed for an image whose polling loop branches on the time otherwise than monotonically)."""
 
     threads: int = 1  # threads the boards run on (cells that cannot affect anyone run at the same time)
     cycle_model: str = "cache"  # "cache": flash waits on NVM cache misses; "worst": a wait on every fetch
     fast_forward: bool = True  # skip loop() passes proven idle (results unchanged; a test compares)
+    # also skip the passes of a loop that polls the time (the primary's wait on its I2C bus), each skip after a probe
+    # of a later pass; exact when its branches are monotone in the time read (image/csrc/sam_ff.c): off, as it costs
+    # about what it saves on the default scene (docs/image-tier.md, "Speed")
+    fast_forward_timed: bool = False
     round_s: float = 0.0  # longest time the boards run apart before the world meets them (0: the plant window)
     # "direct" (the application starts at once) or "bootloader" (the XIAO's UF2 bootloader, found through
     # MC_BOOTLOADER, runs first and starts it: power-on +6.9 ms, other resets +0.9 s; image/bootloader.py)
@@ -169,7 +174,7 @@ def parse_image(d: dict, prefix: str = "model_options.image") -> ImageOptions:
             if v not in PWM_PATHS:
                 raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(PWM_PATHS)}")
             kw[k] = v
-        elif k in ("fast_forward", "motor_inductance"):
+        elif k in ("fast_forward", "fast_forward_timed", "motor_inductance"):
             if not isinstance(v, bool):
                 raise ConfigError(f"{key} = {v!r}: expected true or false")
             kw[k] = v

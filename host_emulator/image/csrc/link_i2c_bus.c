@@ -119,10 +119,12 @@ uint64_t sam_bus_eot_slave(sam_mcu_t *m)
     /* a step it has yet to take may be answered; but a parked board (nothing changes it before its next event)
      * does not answer an address that is not its own */
     uint64_t frozen_until = SAM_NEVER;
-    if (m->ff.parked)
+    if (m->ff.parked) {
+        frozen_until = m->ff.horizon;   /* a probed pass repeats only up to its horizon (sam_ff.c) */
         for (int k = 0; k < SAM_NSLOTS; k++)
             if (k != w->bus.slot[m->id] && m->slot[k] < frozen_until)
                 frozen_until = m->slot[k];
+    }
     for (int i = 0; i < q->n; i++) {
         const sam_busev_t *e = &q->ev[i];
         if (e->t < frozen_until && e->kind == BUS_EV_S_ADDRESS && s && !s->addressed &&

@@ -106,10 +106,30 @@ typedef struct {
  * and code the ELF's tables described is costed by the decoder from then on (sam_cost.c). */
 void sam_cost_flash_written(sam_mcu_t *m, uint32_t addr, uint32_t len);
 
-/* fast-forward of an idle main loop (sam_ff.c) */
+/* fast-forward of an idle main loop, and of a loop that polls a register or the time (sam_ff.c) */
+#define SAM_FF_REC 32      /* register accesses of a pass recorded (a longer pass is never probed) */
+#define SAM_FF_JCAP0 64u   /* passes the first probe at a polling loop may cover */
 typedef struct {
     int enabled;
+    int timed;             /* passes that read the time may be skipped (after a probe: sam_ff.c) */
     uint32_t loop_pc;      /* entry of loop() */
+    uint32_t head;         /* the boundary passes are compared at: loop_pc, or a block of a polling loop */
+    uint64_t q_act, q_t;   /* activity counter and time when the board last did something (or entered loop()) */
+    int q_dead;            /* the polling head found in this quiet stretch was given up */
+    int head_misses;       /* arrivals at a polling head with registers unlike the last */
+    int regs_valid;        /* poll_regs holds the registers at the last arrival at the polling head */
+    uint32_t poll_regs[20];
+    uint32_t snap_head;    /* the boundary the snapshot was taken at */
+    uint32_t known[2];     /* polling heads that parked: taken at once when the board reads a register there */
+    uint64_t known_period[2];   /* their pass's length (tu) */
+    uint64_t snap_tread;   /* time reads at the snapshot */
+    uint64_t horizon;      /* a parked pass that read the time repeats up to here (SAM_NEVER: until an event) */
+    uint32_t rec[SAM_FF_REC], cand[SAM_FF_REC];   /* register accesses of the pass (address << 4 | size << 1 | W) */
+    uint32_t rec_n, cand_n, probe_n;
+    int probing, probe_bad;   /* a speculative pass (the probe) runs; it went astray */
+    uint64_t pr_t1, pr_c1, pr_stop, pr_act, pr_tread, pr_end;
+    uint64_t jcap;         /* most passes one probe may cover (doubles on success, shrinks on failure) */
+    uint64_t probes, probe_fails;
     int snap_valid;        /* a snapshot of the state at a loop() entry */
     uint64_t snap_act;     /* activity counter at the snapshot */
     uint64_t snap_t, snap_cycles;
@@ -157,6 +177,8 @@ struct sam_mcu {
     uint64_t cycles;       /* CPU cycles executed (for reports) */
     uint64_t *prof;        /* cycles charged per block start (halfword index), NULL: not profiling */
     uint64_t act;          /* activity counter (events, interrupts, state-changing register accesses) */
+    uint64_t tread;        /* reads of a register that counts time (SysTick VAL): not activity (sam_ff.c) */
+    uint32_t blk;          /* start of the block running (the block hook) */
     uint64_t ep_noted;     /* bit ri % 64: an enable-protected write to register ri was noted */
     uint64_t ep_writes;    /* writes to enable-protected fields while enabled (ignored, as on silicon) */
     /* events */

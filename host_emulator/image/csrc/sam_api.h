@@ -44,6 +44,7 @@ typedef struct {
     double i2c_rise_ns;        /* SCL rise time: part of every SCL period */
     double usb_packet_us;      /* USB host: time to move one packet (full speed, with its scheduling) */
     int32_t ff;                /* 1: fast-forward provably idle loop() passes */
+    int32_t ff_timed;          /* 1: also passes that read the time, after a probe (sam_ff.c) */
     int32_t cycle_model;       /* SAM_CYCLES_CACHE (flash waits on NVM cache misses) or SAM_CYCLES_WORST (the CPU
                                   budget's bound: a wait on every fetch and refill) */
     double round_s;            /* the longest stretch of time the world lets the boards run apart before it
@@ -89,6 +90,7 @@ typedef struct {
     uint8_t reset_cause;       /* PM.RCAUSE bits of the last reset */
     int32_t lockup, halted;
     uint64_t ff_passes_skipped, ff_cycles_skipped, ff_parks, ff_checks, ff_misses;
+    uint64_t ff_probes, ff_probe_fails;   /* probes of passes that read the time, and those that failed */
     uint64_t mmio_reads, mmio_writes;
     uint64_t runs;             /* emulation starts: each costs the emulator a fixed overhead */
     uint32_t nvic_enabled, nvic_pending, nvic_active;

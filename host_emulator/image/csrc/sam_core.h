@@ -59,7 +59,11 @@ void sam_next_event(sam_mcu_t *m);
 void sam_process_events(sam_mcu_t *m);            /* every event due at or before the current block boundary */
 
 /* ---- sam_ff.c ---- */
-int sam_ff_boundary(sam_mcu_t *m);                /* at a loop() entry: 1 when parked (the pass repeats exactly) */
+void sam_ff_loop_entry(sam_mcu_t *m);             /* loop() entered: its entry is the boundary again */
+int sam_ff_boundary(sam_mcu_t *m);                /* at the boundary: 1 when parked (the pass repeats exactly) */
+void sam_ff_access(sam_mcu_t *m, uint32_t key);   /* a register access (address << 4 | size << 1 | write) */
+int sam_ff_probe_access(sam_mcu_t *m, uint32_t key);   /* in a probe: 0 when the access must not happen */
+int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped);   /* the probe ends: 1 when parked */
 void sam_ff_resume(sam_mcu_t *m);                 /* leave the park at the last loop() entry before the next event */
 
 /* ---- sam_mcu.c ---- */

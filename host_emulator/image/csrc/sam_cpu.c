@@ -150,6 +150,11 @@ static void hook_intr(uc_engine *uc, uint32_t intno, void *ud)
 {
     sam_mcu_t *m = ud;
     (void)uc;
+    if (m->ff.probing) {   /* the speculative pass went astray: nothing of it is kept (sam_ff.c) */
+        m->ff.probe_bad = 1;
+        uc_emu_stop(m->uc);
+        return;
+    }
     if (intno == EXCP_EXCEPTION_EXIT) {
         sam_nvic_return(m);
         return;
@@ -233,6 +238,17 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
         m->cycles -= back;
     }
     m->prev_end = 0xFFFFFFFFu;
+    if (m->ff.probing) {
+        /* a speculative pass (sam_ff.c): back at its boundary, astray, or past its time; no event can be due in it */
+        int at_head = addr == m->ff.head;
+        if (at_head || m->ff.probe_bad || m->t >= m->ff.pr_end || (m->irq_check | m->primask_wait) || m->err ||
+            m->in_reset || m->lockup) {
+            sam_ff_probe_end(m, at_head, 0);   /* parked, or undone by the run loop once stopped */
+            uc_emu_stop(uc);
+            return;
+        }
+        goto charge;
+    }
     if (m->t >= m->next_ev)
         sam_process_events(m);   /* those due before stop_at; an answer they send may lower stop_at */
     if (m->err || m->in_reset || m->lockup || m->t >= m->stop_at) {
@@ -242,10 +258,16 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
     if ((m->irq_check | m->primask_wait) && sam_nvic_take(m, addr))
         return;   /* the PC moved to the handler: this block does not run now */
     m->nvic.entering = 0;   /* a handler's first instruction runs: its entry can no longer be overtaken */
-    if (addr == m->ff.loop_pc && m->ff.enabled && sam_ff_boundary(m)) {
-        uc_emu_stop(uc);
-        return;
+    m->blk = addr;
+    if ((addr == m->ff.head || addr == m->ff.loop_pc) && m->ff.enabled) {
+        if (addr == m->ff.loop_pc)
+            sam_ff_loop_entry(m);
+        if (sam_ff_boundary(m)) {
+            uc_emu_stop(uc);
+            return;
+        }
     }
+charge:
     if (size == 0)
         return;
     /* the block's cost (sam_cost.c: the ELF's tables or the flash decoded), memoised per block start */
@@ -270,7 +292,7 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
     m->t_blk = m->t;
     m->t += cyc * m->cyc_tu;
     m->cycles += cyc;
-    if (m->prof)
+    if (m->prof && !m->ff.probing)
         m->prof[addr >> 1] += cyc;
     m->prev_end = addr + size;
     m->prev_refund = bc->refund;
@@ -288,6 +310,7 @@ int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len)
     sam_cost_flash_written(m, addr, len);
     memset(m->cache_tag, 0, sizeof m->cache_tag);
     m->ff.snap_valid = 0;
+    m->ff.known[0] = m->ff.known[1] = 0;   /* polling loops found in the old code */
     sam_activity(m);
     return ue == UC_ERR_OK ? 0 : -1;
 }

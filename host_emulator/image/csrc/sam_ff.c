@@ -1,8 +1,35 @@
-/* Fast-forward: a loop() pass that changed nothing and met no event repeats exactly until the next event: skip it. */
+/* Fast-forward: a pass of loop() or of a polling loop that changed nothing and met no event repeats until the next event: skip it. */
 #include <string.h>
 #include "sam_core.h"
 
-#define SAM_FF_CHUNK 1024u   /* bytes compared before a copy of the snapshot between the break and SP */
+#define SAM_FF_CHUNK 1024u     /* bytes compared before a copy of the snapshot between the break and SP */
+#define SAM_FF_QUIET 2000u     /* cycles without activity, outside loop(), after which a polling loop is looked for */
+#define SAM_FF_HEAD_MISSES 4   /* arrivals at a polling head with other registers before it is given up */
+#define SAM_FF_JCAP_MAX (1u << 20)
+#define SAM_FF_JMIN 16u        /* fewest passes a probe must cover: below, it costs more than the passes it skips */
+
+/*
+ * The boundary (f->head) is loop()'s entry, or, with timed passes on, a polling loop's block: the block that reads
+ * a register SAM_FF_QUIET cycles after the board's last activity without it entering loop() (the primary's wait
+ * for its I2C bus), or at once a block that parked before (f->known) when SAM_FF_JMIN of its passes fit before the
+ * next event. A pass is the code from one arrival at the boundary to the next. A pass that left the registers, the NVM
+ * cache and the whole RAM as they were and had no activity (no register write, no read that changes anything, no
+ * event, no interrupt) repeats exactly until the next event: the board parks and its time jumps there
+ * (sam_ff_resume).
+ *
+ * A pass that read the time (SysTick VAL: m->tread) also left everything as it was, but a later pass reads a later
+ * time and may branch otherwise (a deadline: `micros() - t0 > limit`). It is skipped only after a probe: the pass
+ * starting J passes later (the last whole one before the next event, at most f->jcap) runs speculatively, making
+ * exactly the register accesses the candidate pass made (a write, or a read the candidate did not make, stops it
+ * before it happens), and must come back to the boundary in the same time with the same registers, cache and RAM.
+ * The board is then rolled back and parked with the horizon t1 + (J + 1) P: the passes in between are those of
+ * the two ends. A probe that fails is rolled back (registers, RAM, cache, time) and the pass runs. What this
+ * assumes: each branch of the pass is a monotone function of the time it read (true of the deadline and
+ * elapsed-time checks polling loops make, not of a loop that tests a bit of SysTick VAL). It is off unless
+ * `model_options.image.fast_forward_timed` asks for it: on the default scene the primary's waits last one I2C
+ * byte (about 8 passes between bus events), where a probe and its snapshots cost about what they skip. The tier's
+ * schedule test checks every board's register changes, times and plant trajectory bit for bit with it on.
+ */
 
 /* The snapshot's RAM between the break (lo) and SP (hi) made equal to the board's, copied where it differs. */
 static void sync_mid(sam_mcu_t *m, uint32_t lo, uint32_t hi)
@@ -15,24 +42,197 @@ static void sync_mid(sam_mcu_t *m, uint32_t lo, uint32_t hi)
     }
 }
 
-int sam_ff_boundary(sam_mcu_t *m)
+static void read_regs(sam_mcu_t *m, uint32_t *regs)
 {
-    sam_ff_t *f = &m->ff;
-    if (f->resumed) {
-        f->resumed = 0;
-        return 0;
-    }
-    uint32_t regs[SAM_NCORE_REGS];
     void *ptrs[SAM_NCORE_REGS];
     for (int i = 0; i < SAM_NCORE_REGS; i++)
         ptrs[i] = &regs[i];
     uc_reg_read_batch(m->uc, (int *)sam_core_regs, ptrs, SAM_NCORE_REGS);
+}
+
+/* Give up a polling head: loop() is the boundary again, and no other head is looked for until the board does
+ * something. */
+static void drop_head(sam_ff_t *f)
+{
+    f->head = f->loop_pc;
+    f->q_dead = 1;
+}
+
+/* loop() entered: its entry is the boundary again, a new quiet stretch starts */
+void sam_ff_loop_entry(sam_mcu_t *m)
+{
+    sam_ff_t *f = &m->ff;
+    f->q_act = m->act;
+    f->q_t = m->t;
+    f->q_dead = 0;
+    f->head = f->loop_pc;
+}
+
+/* A register access (the pass's record; a polling loop is found here, where it reads its register: no cost per
+ * block). */
+void sam_ff_access(sam_mcu_t *m, uint32_t key)
+{
+    sam_ff_t *f = &m->ff;
+    if (f->rec_n < SAM_FF_REC)
+        f->rec[f->rec_n] = key;
+    f->rec_n++;
+    if (!f->timed || (key & 1u))
+        return;
+    if (m->act != f->q_act) {   /* the board did something: a new quiet stretch */
+        f->q_act = m->act;
+        f->q_t = m->t;
+        f->q_dead = 0;
+        f->head = f->loop_pc;
+    }
+    if (f->head != f->loop_pc || f->q_dead || m->blk == f->loop_pc)
+        return;
+    int k = m->blk == f->known[0] ? 0 : m->blk == f->known[1] ? 1 : -1;
+    if (k >= 0 || m->t - f->q_t > (uint64_t)SAM_FF_QUIET * m->cyc_tu) {
+        /* a known polling loop, worth it only with room for SAM_FF_JMIN passes before the next event */
+        if (k >= 0 && m->next_ev != SAM_NEVER && m->next_ev - m->t < SAM_FF_JMIN * f->known_period[k])
+            return;
+        f->head = m->blk;   /* (poll_regs stay: a known head's registers are often those of its last wait) */
+        f->head_misses = 0;
+    }
+}
+
+int sam_ff_probe_access(sam_mcu_t *m, uint32_t key)
+{
+    sam_ff_t *f = &m->ff;
+    if (!f->probe_bad && !(key & 1u) && f->probe_n < f->cand_n && f->cand[f->probe_n] == key) {
+        f->probe_n++;
+        return 1;
+    }
+    f->probe_bad = 1;   /* a write, or not the candidate's next access: it does not happen */
+    uc_emu_stop(m->uc);
+    return 0;
+}
+
+/* A polling head that parked: found again at its first register read next time. */
+static void remember(sam_ff_t *f, uint32_t head, uint64_t period)
+{
+    if (f->known[0] != head) {
+        f->known[1] = f->known[0];
+        f->known_period[1] = f->known_period[0];
+        f->known[0] = head;
+    }
+    f->known_period[0] = period;
+}
+
+/* Start the probe at a boundary where the pass just ended repeated the one before it but read the time: the pass J
+ * passes on runs now, speculatively. 0: no probe (too little time before the next event); the pass runs. */
+static int probe_start(sam_mcu_t *m, uint64_t period, uint64_t period_cycles)
+{
+    sam_ff_t *f = &m->ff;
+    uint64_t t1 = m->t;
+    if (!f->timed || f->rec_n > SAM_FF_REC || m->next_ev <= t1 + SAM_FF_JMIN * period)
+        return 0;
+    uint64_t j = (m->next_ev - 1 - t1 - period) / period;   /* t1 + (J + 1) P < next_ev: no event in the probe */
+    if (j > f->jcap)
+        j = f->jcap;
+    if (j < SAM_FF_JMIN - 1)
+        return 0;   /* a probe costs about as much as a few passes: not worth it for fewer */
+    memcpy(f->cand, f->rec, sizeof f->rec);
+    f->cand_n = f->rec_n;
+    f->probe_n = 0;
+    f->probe_bad = 0;
+    f->pr_t1 = t1;
+    f->pr_c1 = m->cycles;
+    f->pr_stop = m->stop_at;
+    f->pr_act = m->act;
+    f->pr_tread = m->tread;
+    f->period = period;
+    f->period_cycles = period_cycles;
+    m->t = t1 + j * period;
+    m->cycles += j * period_cycles;
+    f->pr_end = m->t + period;
+    f->probing = 1;
+    f->probes++;
+    return 1;
+}
+
+/* The probe ends: at the boundary (compared there), or astray. The board is back at t1 either way; parked when
+ * the probe held. One that failed is undone once the CPU has stopped (stopped = 1: from the run loop): the
+ * registers written from the block hook would not hold, Unicorn setting the PC back to the block's start when it
+ * stops there. */
+int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped)
+{
+    sam_ff_t *f = &m->ff;
+    int held = 0;
+    if (at_head && !f->probe_bad && m->t == f->pr_end && f->probe_n == f->cand_n && m->act == f->pr_act &&
+        m->cycles - f->pr_c1 == (f->pr_end - f->pr_t1) / f->period * f->period_cycles) {
+        uint32_t regs[SAM_NCORE_REGS];
+        read_regs(m, regs);
+        held = !memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
+               !memcmp(m->ram, f->snap_ram, SAM_RAM_SIZE);
+    }
+    if (!held && !stopped) {
+        f->probe_bad = 1;
+        return 0;
+    }
+    f->probing = 0;
+    m->stop_at = f->pr_stop;
+    m->t = m->t_blk = f->pr_t1;
+    m->cycles = f->pr_c1;
+    m->act = f->pr_act;
+    m->tread = f->pr_tread;
+    m->prev_end = 0xFFFFFFFFu;
+    if (held) {
+        if (f->head != f->loop_pc)
+            remember(f, f->head, f->period);
+        f->anchor = f->pr_t1;
+        f->horizon = f->pr_end;
+        f->parked = 1;
+        f->parks++;
+        f->idle = 1;
+        if (f->jcap < SAM_FF_JCAP_MAX)
+            f->jcap *= 2;
+        return 1;
+    }
+    /* astray: what the probe changed is undone (it wrote no register: each access was checked before it happened) */
+    void *ptrs[SAM_NCORE_REGS];
+    for (int i = 0; i < SAM_NCORE_REGS; i++)
+        ptrs[i] = &f->snap_regs[i];
+    uc_reg_write_batch(m->uc, (int *)sam_core_regs, ptrs, SAM_NCORE_REGS);
+    memcpy(m->cache_tag, f->snap_cache, sizeof m->cache_tag);
+    memcpy(m->ram, f->snap_ram, SAM_RAM_SIZE);
+    f->probe_fails++;
+    f->jcap = f->jcap > 16 ? f->jcap / 8 : 2;
+    f->resumed = 1;   /* the pass from t1 runs, unchecked at its first boundary */
+    return 0;
+}
+
+int sam_ff_boundary(sam_mcu_t *m)
+{
+    sam_ff_t *f = &m->ff;
+    if (f->resumed) {   /* at the snapshot's state (parked there, or a probe rolled back): a pass starts now */
+        f->resumed = 0;
+        f->rec_n = 0;
+        f->snap_t = m->t;
+        f->snap_cycles = m->cycles;
+        f->snap_tread = m->tread;
+        return 0;
+    }
+    uint32_t regs[SAM_NCORE_REGS];
+    read_regs(m, regs);
+    int poll = f->head != f->loop_pc;
+    if (poll && !(f->regs_valid && !memcmp(regs, f->poll_regs, sizeof regs))) {
+        /* a polling head: the registers alone until they repeat (a loop that computes costs a register read per
+         * arrival, never a copy of RAM) */
+        memcpy(f->poll_regs, regs, sizeof regs);
+        f->regs_valid = 1;
+        f->rec_n = 0;
+        if (++f->head_misses > SAM_FF_HEAD_MISSES)
+            drop_head(f);
+        return 0;
+    }
     /* The RAM a pass can leave changed is all of it: static data and the heap below the break, the live stack above
      * SP, and between them the free stack and objects at fixed addresses (the fault record at 0x20007800). A pass
      * parks only when the whole RAM is as it was at the previous entry. The part between the break and SP is mostly
      * free stack no pass touches and costs a compare of ~28 KB: it is kept in the snapshot (copied where it changed)
-     * only while the board looks idle (its last compared pass parked); otherwise a pass that matches elsewhere takes
-     * it then, and parks at the next entry if that pass changed nothing either (one pass later). */
+     * only while the board looks idle (its last compared pass parked) or at a polling head; otherwise a pass that
+     * matches elsewhere takes it then, and parks at the next entry if that pass changed nothing either (one pass
+     * later). */
     uint32_t lo = m->heap_base, hi = regs[13] - SAM_RAM_BASE;
     if (m->brk_var) {
         int ok = 0;
@@ -42,15 +242,29 @@ int sam_ff_boundary(sam_mcu_t *m)
     }
     if (hi > SAM_RAM_SIZE || hi < lo)
         hi = lo;   /* SP outside SRAM (the core faults soon): [0, lo) and [lo, end) are the whole RAM */
-    if (f->snap_valid && m->act == f->snap_act) {
+    if (f->snap_valid && f->snap_head == f->head && m->act == f->snap_act) {
         f->checks++;
         if (!memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
             !memcmp(m->ram, f->snap_ram, lo) && !memcmp(m->ram + hi, f->snap_ram + hi, SAM_RAM_SIZE - hi)) {
             if (f->mid_valid && !memcmp(m->ram + lo, f->snap_ram + lo, hi - lo)) {
+                uint64_t period = m->t - f->snap_t, period_cycles = m->cycles - f->snap_cycles;
+                if (m->tread != f->snap_tread) {
+                    /* it read the time: skipped only once a probe shows a later pass is the same */
+                    uint64_t t1 = m->t, c1 = m->cycles;
+                    probe_start(m, period, period_cycles);   /* when it starts, the time is the probe's from here */
+                    f->snap_t = t1;
+                    f->snap_cycles = c1;
+                    f->snap_tread = m->tread;
+                    f->rec_n = 0;
+                    return 0;
+                }
                 /* one whole pass changed nothing and met nothing: it repeats exactly until the next event */
-                f->period = m->t - f->snap_t;
-                f->period_cycles = m->cycles - f->snap_cycles;
+                if (poll)
+                    remember(f, f->head, period);
+                f->period = period;
+                f->period_cycles = period_cycles;
                 f->anchor = m->t;
+                f->horizon = SAM_NEVER;
                 f->parked = 1;
                 f->parks++;
                 f->idle = 1;
@@ -61,31 +275,42 @@ int sam_ff_boundary(sam_mcu_t *m)
                 f->mid_valid = 1;
                 f->snap_t = m->t;
                 f->snap_cycles = m->cycles;
+                f->snap_tread = m->tread;
+                f->rec_n = 0;
                 return 0;
             }
         }
         f->misses++;
         f->idle = 0;
+        if (poll && ++f->head_misses > SAM_FF_HEAD_MISSES) {
+            drop_head(f);
+            f->rec_n = 0;
+            return 0;
+        }
     }
     memcpy(f->snap_regs, regs, sizeof regs);
     memcpy(f->snap_cache, m->cache_tag, sizeof m->cache_tag);
     memcpy(f->snap_ram, m->ram, lo);
     memcpy(f->snap_ram + hi, m->ram + hi, SAM_RAM_SIZE - hi);
-    f->mid_valid = f->idle;   /* it parked last time it was compared: keep the rest of RAM in the snapshot too */
+    f->mid_valid = f->idle || poll;   /* it parked last time it was compared, or a polling loop: the rest of RAM too */
     if (f->mid_valid)
         sync_mid(m, lo, hi);
     f->snap_act = m->act;
+    f->snap_tread = m->tread;
     f->snap_t = m->t;
     f->snap_cycles = m->cycles;
     f->snap_valid = 1;
+    f->snap_head = f->head;
+    f->rec_n = 0;
     return 0;
 }
 
-/* Parked until an event: resume at the last loop() entry before it (the pass it falls in runs); the passes
- * skipped ran, as far as anyone can tell. */
+/* Parked until an event, or a probed pass's horizon: resume at the last boundary before it (the pass it falls in
+ * runs); the passes skipped ran, as far as anyone can tell. */
 void sam_ff_resume(sam_mcu_t *m)
 {
-    uint64_t k = m->next_ev > m->ff.anchor ? (m->next_ev - m->ff.anchor) / m->ff.period : 0;
+    uint64_t until = m->next_ev < m->ff.horizon ? m->next_ev : m->ff.horizon;
+    uint64_t k = until > m->ff.anchor ? (until - m->ff.anchor) / m->ff.period : 0;
     m->t = m->ff.anchor + k * m->ff.period;
     m->ff.passes_skipped += k;
     m->cycles += k * m->ff.period_cycles;

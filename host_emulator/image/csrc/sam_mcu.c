@@ -140,8 +140,11 @@ void sam_do_reset(sam_mcu_t *m, uint8_t cause)
     m->prev_end = 0xFFFFFFFFu;
     memset(m->cache_tag, 0, sizeof m->cache_tag);
     m->ff.snap_valid = 0;
+    m->ff.regs_valid = 0;
     m->ff.parked = 0;
     m->ff.resumed = 0;
+    m->ff.head = m->ff.loop_pc;
+    m->ff.horizon = SAM_NEVER;
     m->act++;
     sam_world_pins_changed(m);
 }

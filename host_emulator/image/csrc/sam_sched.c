@@ -106,6 +106,8 @@ static void run_unpowered(sam_mcu_t *m)
  * be; it stays parked when no other event comes before t_end. */
 static int stays_parked(sam_mcu_t *m, uint64_t t_end)
 {
+    if (m->ff.horizon < t_end)
+        return 0;   /* a pass that reads the time was proved the same only up to its horizon (sam_ff.c) */
     if (m->next_ev >= t_end)
         return 1;
     for (int k = 0; k < m->nsrc; k++)
@@ -153,6 +155,10 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
         uint32_t pc = sam_cpu_reg(m, UC_ARM_REG_PC);
         m->runs++;
         uc_err e = uc_emu_start(m->uc, pc | 1u, 0, 0, 0);
+        if (m->ff.probing) {   /* a speculative pass stopped astray (an access refused, a fault): undone */
+            sam_ff_probe_end(m, 0, 1);
+            continue;
+        }
         if (m->err)
             break;
         if (e == UC_ERR_FETCH_PROT && (pc = sam_cpu_reg(m, UC_ARM_REG_PC)) >= SAM_RAM_BASE &&

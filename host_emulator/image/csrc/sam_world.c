@@ -267,6 +267,10 @@ int sam_world_load(sam_world_t *w, int mcu, const sam_image_t *img, const char *
     m->brk_var = img->brk_var;
     m->ff.loop_pc = img->loop_pc;
     m->ff.enabled = w->cfg.ff && img->loop_pc != 0;
+    m->ff.timed = w->cfg.ff_timed;
+    m->ff.head = m->ff.loop_pc;
+    m->ff.horizon = SAM_NEVER;
+    m->ff.jcap = SAM_FF_JCAP0;
     nvm_rows(m);
     if (role == SAM_ROLE_CELL) {
         w->cell_mcu[cell] = mcu;
@@ -324,6 +328,8 @@ int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *o)
     o->ff_parks = m->ff.parks;
     o->ff_checks = m->ff.checks;
     o->ff_misses = m->ff.misses;
+    o->ff_probes = m->ff.probes;
+    o->ff_probe_fails = m->ff.probe_fails;
     o->mmio_reads = m->mmio_reads;
     o->mmio_writes = m->mmio_writes;
     o->nvic_enabled = m->nvic.enabled;
