@@ -1,8 +1,8 @@
 """SERCOM2 as I2C slave on the register-level harness: which 7-bit addresses it answers in each address mode
-(CTRLB.AMODE: mask, two addresses, range), with the general call (ADDR.GENCEN), and the settings the model refuses
-(ten-bit addresses, the reserved AMODE). Every address is probed on the bus against a predicate written from the
-datasheet's rule (DS40001882 28.6.3.1 "Address Match and Mask", 28.10.2 I2CS CTRLB, 28.10.9 I2CS ADDR; field
-positions from the CMSIS header the register table is made from)."""
+(CTRLB.AMODE: mask, two addresses, range), with the general call (ADDR.GENCEN), the automatic address acknowledge
+(CTRLB.AACKEN), and the settings the model refuses (ten-bit addresses, the reserved AMODE). Every address is probed
+on the bus against a predicate written from the datasheet's rule (DS40001882 28.6.3.1 "Address Match and Mask",
+28.10.2 I2CS CTRLB, 28.10.9 I2CS ADDR; field positions from the CMSIS header the register table is made from)."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ S_PREC, S_AMATCH, S_DRDY = 1 << 0, 1 << 1, 1 << 2  # I2CS.INTFLAG
 RXNACK, DIR, CLKHOLD = 1 << 2, 1 << 3, 1 << 7  # STATUS
 CMD3 = 0x3 << 16  # CTRLB.CMD 3: the slave's acknowledge action; the master's STOP
 ACKACT = 1 << 18  # CTRLB.ACKACT: NACK
+AACKEN = 1 << 10  # I2CS.CTRLB.AACKEN
 AMODE_POS = 14  # I2CS.CTRLB.AMODE[15:14]: 0 MASK, 1 2_ADDRS, 2 RANGE, 3 reserved
 GENCEN = 1 << 0  # I2CS.ADDR.GENCEN
 ADDR_POS, ADDRMASK_POS = 1, 17  # I2CS.ADDR.ADDR[10:1], ADDRMASK[26:17]
@@ -99,6 +100,54 @@ def test_each_address_mode_answers_exactly_the_addresses_of_the_datasheets_rule(
     want = {a for a in range(128) if datasheet_match(amode, addr, second, gencen, a)}
     assert got == want
     assert (0 in got) == gencen
+
+
+def test_automatic_address_acknowledge_no_amatch_no_stretch():
+    """CTRLB.AACKEN (28.10.2): a matching address is acknowledged by the slave itself. The model sets no AMATCH
+    and holds no SCL for it: the master's MB with RXNACK clear follows the address at once; STATUS.DIR tells the
+    direction; the first data byte of a write sets DRDY (SCL held until the acknowledge action, as without
+    AACKEN); a read sets DRDY (data wanted) right after the address. An address that does not match is still
+    not acknowledged."""
+    ctrlb = AACKEN  # AMODE 0
+    h = bus(ctrlb, 0x42 << ADDR_POS)
+    h.write("SERCOM2.I2CM.ADDR", 0x42 << 1, board=MASTER)
+    h.advance(12 * T)
+    assert h.read("SERCOM2.I2CM.INTFLAG", board=MASTER) & M_MB, "acknowledged without the slave's software"
+    assert not h.read("SERCOM2.I2CM.STATUS", board=MASTER) & RXNACK
+    assert not h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & (S_AMATCH | S_DRDY)
+    st = h.read("SERCOM2.I2CS.STATUS", board=SLAVE)
+    assert not st & DIR and not st & CLKHOLD
+    h.write("SERCOM2.I2CM.DATA", 0x5A, board=MASTER)
+    h.advance(10 * T)
+    assert h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_DRDY
+    assert h.read("SERCOM2.I2CS.DATA", board=SLAVE) == 0x5A
+    assert not h.read("SERCOM2.I2CM.INTFLAG", board=MASTER) & M_MB, "SCL held until the data's acknowledge"
+    h.write("SERCOM2.I2CS.CTRLB", ctrlb | CMD3, board=SLAVE)
+    h.advance(3 * T)
+    assert h.read("SERCOM2.I2CM.INTFLAG", board=MASTER) & M_MB
+    assert not h.read("SERCOM2.I2CM.STATUS", board=MASTER) & RXNACK
+    h.write("SERCOM2.I2CM.CTRLB", CMD3, board=MASTER)  # STOP
+    h.advance(4 * T)
+    assert h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_PREC
+
+    h.write("SERCOM2.I2CM.ADDR", 0x42 << 1 | 1, board=MASTER)  # a read
+    h.advance(12 * T)
+    flags = h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE)
+    assert flags & S_DRDY and not flags & S_AMATCH, "data wanted at once, no address interrupt"
+    assert h.read("SERCOM2.I2CS.STATUS", board=SLAVE) & DIR
+    h.write("SERCOM2.I2CS.DATA", 0xC3, board=SLAVE)
+    h.advance(10 * T)
+    assert h.read("SERCOM2.I2CM.INTFLAG", board=MASTER) & M_SB
+    assert h.read("SERCOM2.I2CM.DATA", board=MASTER) == 0xC3
+    h.write("SERCOM2.I2CM.CTRLB", CMD3 | ACKACT, board=MASTER)  # NACK and STOP
+    h.advance(5 * T)
+    assert h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_PREC
+
+    h.write("SERCOM2.I2CS.INTFLAG", S_PREC | S_DRDY, board=SLAVE)
+    h.write("SERCOM2.I2CM.ADDR", 0x43 << 1, board=MASTER)  # not its address
+    h.advance(12 * T)
+    assert h.read("SERCOM2.I2CM.STATUS", board=MASTER) & RXNACK
+    assert not h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & (S_AMATCH | S_DRDY)
 
 
 def test_ten_bit_addressing_is_refused():
