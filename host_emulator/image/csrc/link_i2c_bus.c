@@ -14,8 +14,10 @@
  * depend on how it schedules them. The steps, with the time they take effect (t: the cause):
  *
  *   master ADDR      ADDRESS to every other board at t + 9T (START and 8 address bits); each slave compares it
- *                    with its own ADDR: the one that matches sets AMATCH, holds SCL and CLAIMs it (the master
- *                    learns at t + 10T); the master's NACK check at t + 10T gives MB with RXNACK when none did
+ *                    with its ADDR by its CTRLB.AMODE: the one that matches sets AMATCH, holds SCL and CLAIMs it
+ *                    (the master learns at t + 10T), or with CTRLB.AACKEN CLAIMs it without holding SCL and
+ *                    acknowledges at once (MB at t + 10T; for a read its own DRDY then); the master's NACK check at
+ *                    t + 10T gives MB with RXNACK when none did
  *   slave CMD        (after AMATCH, or DRDY of a received byte) the ACK/NACK bit: the master's MB at t + T
  *                    (which also tells it SCL is free again); after AMATCH of a read: RELEASE to the master and
  *                    the slave's own DRDY (data wanted) at t + T

@@ -14,13 +14,42 @@ static const char *pin_name(int pin, char buf[8])
     return buf;
 }
 
+/* A received 7-bit address selects this slave. DS40001882 28.6.3.1 "Address Match and Mask" with CTRLB.AMODE
+ * (28.10.2): 0 MASK, ADDR.ADDR compared in the bits ADDR.ADDRMASK leaves clear; 1 2_ADDRS, ADDR.ADDR or ADDR.ADDRMASK
+ * as the second address; 2 RANGE, "the range of addresses between and including ADDR.ADDR and ADDR.ADDRMASK ...
+ * with ADDR.ADDR acting as the upper limit and ADDR.ADDRMASK acting as the lower limit" (the family's SERCOM text,
+ * Microchip online docs "Address Match and Mask"; a lower limit above the upper one matches nothing here). ADDR.GENCEN
+ * adds the general call address 0 in every mode (28.10.9). Seven-bit addresses: the low 7 bits of both 10-bit fields
+ * (ADDR.TENBITEN is refused, i2c_write). AMODE 3 (reserved) is refused when written. */
 int sam_i2c_address_matches(sam_mcu_t *m, int pi, sam_sercom_t *s, uint8_t addr7)
 {
     if (m->halted || !s->enabled || s->mode != 4 || !sam_bus_pins_connected(m))
         return 0;
     uint32_t a = sam_sercom_reg32(m, pi, SERCOM_I2CS_ADDR_OFFSET);
-    uint32_t sa = (a >> SERCOM_I2CS_ADDR_ADDR_Pos) & 0x7Fu, mask = (a >> SERCOM_I2CS_ADDR_ADDRMASK_Pos) & 0x7Fu;
-    return ((sa ^ addr7) & ~mask) == 0 || (addr7 == 0 && (a & SERCOM_I2CS_ADDR_GENCEN));
+    uint32_t amode = (sam_sercom_reg32(m, pi, SERCOM_I2CS_CTRLB_OFFSET) & SERCOM_I2CS_CTRLB_AMODE_Msk) >>
+                     SERCOM_I2CS_CTRLB_AMODE_Pos;
+    uint32_t sa = (a >> SERCOM_I2CS_ADDR_ADDR_Pos) & 0x7Fu, second = (a >> SERCOM_I2CS_ADDR_ADDRMASK_Pos) & 0x7Fu;
+    if (addr7 == 0 && (a & SERCOM_I2CS_ADDR_GENCEN))
+        return 1;
+    if (amode == 1)
+        return addr7 == sa || addr7 == second;
+    if (amode == 2)
+        return second <= addr7 && addr7 <= sa;
+    return ((sa ^ addr7) & ~second) == 0;
+}
+
+/* The slave's address settings the model does not cover: an error naming the field (0: none). */
+static int i2cs_settings_refused(sam_mcu_t *m, int pi, uint32_t ctrlb, uint32_t addr)
+{
+    if ((ctrlb & SERCOM_I2CS_CTRLB_AMODE_Msk) == SERCOM_I2CS_CTRLB_AMODE(3)) {
+        sam_fail(m, "%s.I2CS.CTRLB.AMODE 3 is reserved (0 mask, 1 two addresses, 2 range)", sam_periphs[pi].name);
+        return -1;
+    }
+    if (addr & SERCOM_I2CS_ADDR_TENBITEN) {
+        sam_fail(m, "%s.I2CS.ADDR.TENBITEN: 10-bit slave addresses are not modelled", sam_periphs[pi].name);
+        return -1;
+    }
+    return 0;
 }
 
 /* The SERCOM's state machines restart (SWRST, disable, the chip's reset): a slave lets go of the bus; a master's
@@ -75,6 +104,9 @@ static int i2c_enable(sam_mcu_t *m, int pi, uint32_t nv)
                  sam_periphs[pi].name);
         return -1;
     }
+    if (s->mode == 4 && i2cs_settings_refused(m, pi, sam_sercom_reg32(m, pi, SERCOM_I2CS_CTRLB_OFFSET),
+                                              sam_sercom_reg32(m, pi, SERCOM_I2CS_ADDR_OFFSET)))
+        return -1;
     if (s->mode == 5)
         s->busstate = BUSSTATE_UNKNOWN;
     return 0;
@@ -118,6 +150,8 @@ static int i2c_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
             sam_fail(m, "I2C smart mode (CTRLB.SMEN) is not modelled");
             return SAM_DONE;
         }
+        if (s->mode == 4 && i2cs_settings_refused(m, pi, (sam_sercom_reg32(m, pi, off) & ~mask) | (v & mask), 0))
+            return SAM_DONE;
         uint32_t cmd = (v >> 16) & 3u;
         int nack = (v & SERCOM_I2CM_CTRLB_ACKACT) != 0;
         sam_reg_put(m, ri, (sam_reg_get(m, ri) & ~mask) | (v & ~SERCOM_I2CM_CTRLB_CMD_Msk));
@@ -160,6 +194,8 @@ static int i2c_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         return SAM_DONE;
     }
     if (off == SERCOM_I2CM_ADDR_OFFSET) {
+        if (s->mode == 4 && i2cs_settings_refused(m, pi, 0, (sam_sercom_reg32(m, pi, off) & ~mask) | (v & mask)))
+            return SAM_DONE;
         sam_generic_write(m, ri, v, mask);
         if (s->mode == 5 && s->enabled) {
             sam_sercom_sync(m, pi, 4u);

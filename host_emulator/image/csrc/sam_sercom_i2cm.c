@@ -86,8 +86,9 @@ void sam_i2cm_step(sam_mcu_t *m, int pi, sam_sercom_t *s, const sam_busev_t *e)
     int own = s && s->enabled && s->mode == 5 && s->busstate == BUSSTATE_OWNER;
     uint64_t now = e->t;
     switch (e->kind) {
-    case BUS_EV_M_CLAIM:
-        view_hold(m, pi, now - e->tbit);
+    case BUS_EV_M_CLAIM:   /* a slave acknowledged the address; arg 0: it holds SCL (AMATCH), 1: it does not (AACKEN) */
+        if (!e->arg)
+            view_hold(m, pi, now - e->tbit);
         if (!own || !s->awaiting)
             break;   /* a START that was given up meanwhile */
         if (s->claims++) {

@@ -68,8 +68,26 @@ int sam_i2cs_step(sam_mcu_t *m, sam_sercom_t *s, const sam_busev_t *e)
         s->addressed = 1;
         s->master = e->src;
         s->tbit = e->tbit;
-        s->s_flags |= S_AMATCHF;
         s->s_status = (uint16_t)((s->s_status & ~(0x18u)) | (e->arg & 1u ? 0x08u : 0) | (e->arg2 ? 0x10u : 0));
+        if (sam_sercom_reg32(m, sam_bus_sercom(m), SERCOM_I2CS_CTRLB_OFFSET) & SERCOM_I2CS_CTRLB_AACKEN) {
+            /* CTRLB.AACKEN, "Automatic Address Acknowledge" (the CMSIS header's name; DS40001882 28.10.2): the slave
+             * acknowledges the matching address itself. What we could find of the datasheet does not say what
+             * becomes of AMATCH then; the model neither sets AMATCH nor holds SCL for the address (as the vendor's
+             * ASF4 slave driver, hpl_sercom.c, expects: with AACKEN it enables only DRDY and ERROR), and goes on as
+             * after an acknowledge action of ACK on AMATCH: a master write waits for its first byte (DRDY when it
+             * has come), a master read asks for data at once (DRDY). ACKACT plays no part in the address. */
+            uint64_t T = e->tbit;
+            sam_bus_push(m, s->master, e->t + T, BUS_EV_M_CLAIM, 1, 0, T);   /* 1: acknowledged, SCL not held */
+            if (e->arg & 1u) {
+                sam_bus_push(m, m->id, e->t + T, BUS_EV_S_DRDY_TX, 0, 0, T);
+                s->s_state = S_TX;
+            } else {
+                sam_bus_push(m, s->master, e->t + T, BUS_EV_M_MB, 0, 0, T);
+                s->s_state = S_RX;
+            }
+            return 1;
+        }
+        s->s_flags |= S_AMATCHF;
         s->s_state = S_AMATCH;
         stretch_begin(m, s, e->t, 1);
         return 1;
