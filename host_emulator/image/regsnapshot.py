@@ -77,6 +77,7 @@ def snapshot_data(table: Table, macros: list[str]) -> dict:
                 "base": p.base,
                 "size": p.size,
                 "irq": p.irq,
+                "pac": p.pac,
                 "views": list(p.views),
                 "registers": [
                     [r.view, r.name, r.offset, r.size, r.access, r.reset, r.key, [[f.name, f.pos, f.width] for f in fs]]
@@ -96,7 +97,7 @@ def snapshot_text(table: Table, macros: list[str]) -> str:
     data = snapshot_data(table, macros)
     lines = ["{", f'"_provenance": {json.dumps(data["_provenance"], indent=1)},', '"peripherals": [']
     for k, p in enumerate(data["peripherals"]):
-        head = {key: p[key] for key in ("name", "struct", "base", "size", "irq", "views")}
+        head = {key: p[key] for key in ("name", "struct", "base", "size", "irq", "pac", "views")}
         lines.append(json.dumps(head)[:-1] + ', "registers": [')
         lines += [json.dumps(r) + ("," if i + 1 < len(p["registers"]) else "") for i, r in enumerate(p["registers"])]
         lines.append("]}" + ("," if k + 1 < len(data["peripherals"]) else ""))
@@ -124,7 +125,9 @@ def load_snapshot() -> Table:
             Register(p["name"], v, n, o, s, a, rs, k, tuple(Field(*f) for f in fs))
             for v, n, o, s, a, rs, k, fs in p["registers"]
         ]
-        periphs.append(Peripheral(p["name"], p["struct"], p["base"], p["size"], p["irq"], tuple(p["views"]), regs))
+        periphs.append(
+            Peripheral(p["name"], p["struct"], p["base"], p["size"], p["irq"], tuple(p["views"]), regs, p["pac"])
+        )
     pinmux = [PinFunction(*f) for f in data["pinmux"]]
     table = Table(periphs, SOURCE, pinmux, tuple(data["vendor_macros"]))
     check(table)

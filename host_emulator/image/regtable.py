@@ -1,7 +1,8 @@
 """SAMD21 register table generated from the vendor's device headers (CMSIS-Atmel samd21g18a.h and CMSIS core_cm0plus.h).
 
 Nothing here is typed by hand: every peripheral instance, its base address and interrupt line come from the device
-header; every register's offset, width and access from the ``/**< \\brief Offset: 0x.. (R/W 16) ..`` comment of its
+header, and so does its PAC write-protection bit (``ID_<name>``: bit ``ID % 32`` of PAC ``ID // 32``);
+every register's offset, width and access from the ``/**< \\brief Offset: 0x.. (R/W 16) ..`` comment of its
 member in the component struct (arrays, nested groups such as ``PortGroup Group[2]`` and the mode views of unions
 such as ``Tc.COUNT16`` / ``Sercom.I2CS`` flattened); reset values from ``<REG>_RESETVALUE``; fields from
 ``<REG>_<FIELD>_Pos`` / ``_Msk``. The system control space (NVIC, SCB, SysTick) comes from CMSIS's core_cm0plus.h
@@ -46,6 +47,10 @@ PERIPHERAL_REGIONS = (
     (0x60000000, 0x1000),
     (0xE000E000, 0x1000),
 )
+# the APB bridges A, B, C: each has its PAC (PAC0, PAC1, PAC2) at its base, the 64 KiB the runtime's write-protection
+# pages cover (csrc/sam_pac.c: 1 KiB pages, a 64-bit mask per bridge)
+APB_BRIDGES = (0x40000000, 0x41000000, 0x42000000)
+APB_BRIDGE_SPAN = 0x10000
 NVIC_LINES = 32
 MAX_PERIPHERALS = 48
 MAX_VIEWS = 4
@@ -116,6 +121,7 @@ class Peripheral:
     irq: int | None  # NVIC line, or None
     views: tuple[str, ...] = ()  # mode views ("" = no views)
     registers: list[Register] = field(default_factory=list)
+    pac: int | None = None  # ID_<name>: bit pac % 32 of PAC<pac // 32>'s write-protection mask, or None
 
 
 @dataclass
@@ -382,6 +388,7 @@ class _Headers:
 
 _INSTANCE = re.compile(r"^#define\s+(\w+)\s+\(\(\s*(\w+)\s*\*\)\s*(0x[0-9A-Fa-f]+)UL\)", re.M)
 _IRQ = re.compile(r"^\s*(\w+)_IRQn\s*=\s*(-?\d+)", re.M)
+_ID = re.compile(r"^#define\s+ID_(\w+)\s+(\d+)\b", re.M)
 # core_cm0plus.h: <NAME>_BASE in the system control space
 _SCS = {"SysTick": ("SysTick_Type", 0xE000E010), "NVIC": ("NVIC_Type", 0xE000E100), "SCB": ("SCB_Type", 0xE000ED00)}
 
@@ -421,6 +428,7 @@ def load(pio_tree: str | None = None) -> Table:
     h = _Headers(atmel, core)
     dev = (atmel / DEVICE_HEADER).read_text(errors="replace")
     irqs = {m.group(1): int(m.group(2)) for m in _IRQ.finditer(dev)}
+    ids = {m.group(1): int(m.group(2)) for m in _ID.finditer(dev)}
     periphs: list[Peripheral] = []
     for m in _INSTANCE.finditer(dev):
         name, struct, base = m.group(1), m.group(2), int(m.group(3), 16)
@@ -428,7 +436,7 @@ def load(pio_tree: str | None = None) -> Table:
             raise RegTableError(f"{DEVICE_HEADER}: instance {name} of unknown type {struct}")
         what, members = h.structs[struct]
         views = tuple(mm.name for mm in members if mm.kind == "group") if what == "union" else ()
-        p = Peripheral(name, struct, base, h.sizeof(struct), irqs.get(name), views)
+        p = Peripheral(name, struct, base, h.sizeof(struct), irqs.get(name), views, pac=ids.get(name))
         h.flatten(struct, 0, "", "", name, p.registers)
         periphs.append(p)
     for name, (struct, base) in _SCS.items():
@@ -448,8 +456,9 @@ def load(pio_tree: str | None = None) -> Table:
 def check(table: Table) -> None:
     """RegTableError (one line naming the value and where it came from) unless every value of the table fits the
     chip and the runtime's C: interrupt lines 0..31 and each used once, instance windows inside a peripheral region
-    and apart, registers 1, 2 or 4 bytes wide, aligned and inside their instance's window, resets and fields inside
-    their width, views, pins and pin functions that exist, and counts the C's index types hold."""
+    and apart, each APB instance's PAC bit on its own bridge and used once, registers 1, 2 or 4 bytes wide, aligned
+    and inside their instance's window, resets and fields inside their width, views, pins and pin functions that
+    exist, and counts the C's index types hold."""
     src = table.source
 
     def bad(what: str) -> RegTableError:
@@ -458,6 +467,7 @@ def check(table: Table) -> None:
     if not 1 <= len(table.peripherals) <= MAX_PERIPHERALS:
         raise bad(f"{len(table.peripherals)} instances (1..{MAX_PERIPHERALS})")
     irqs: dict[int, str] = {}
+    pacs: dict[int, str] = {}
     windows: list[tuple[int, int, str]] = []
     nregs = nfields = 0
     for p in table.peripherals:
@@ -472,6 +482,7 @@ def check(table: Table) -> None:
         if not any(b <= p.base and 0 < p.size <= b + n - p.base for b, n in PERIPHERAL_REGIONS):
             raise bad(f"{p.name} at 0x{p.base:x} (+0x{p.size:x}): outside the chip's peripheral regions")
         windows.append((p.base, p.size, p.name))
+        _check_pac(p, pacs, bad)
         for r in p.registers:
             where = f"{r.full} at offset 0x{r.offset:x}"
             if r.size not in (1, 2, 4):
@@ -498,6 +509,23 @@ def check(table: Table) -> None:
     for pf in table.pinmux:
         if not (0 <= pf.pin < 64 and 0 <= pf.func < 8):
             raise bad(f"pin function {pf.periph}/{pf.signal}: pin {pf.pin} (0..63), function {pf.func} (0..7)")
+
+
+def _check_pac(p: Peripheral, pacs: dict[int, str], bad) -> None:
+    """An instance on an APB bridge has its bit in that bridge's PAC, once; bit 0 is the PAC itself (its own
+    registers are never write-protected: the WP field is bits 31:1, PAC_WPSET_WP_Pos)."""
+    bridge = next((k for k, b in enumerate(APB_BRIDGES) if b <= p.base < b + APB_BRIDGE_SPAN), None)
+    if p.pac is None:
+        if bridge is not None:
+            raise bad(f"{p.name} at 0x{p.base:x}: on APB bridge {'ABC'[bridge]} but no ID_{p.name} (its PAC bit)")
+        return
+    if bridge is None or p.pac // 32 != bridge or p.base + p.size > APB_BRIDGES[bridge] + APB_BRIDGE_SPAN:
+        raise bad(f"ID_{p.name} = {p.pac}: {p.name} at 0x{p.base:x} is not on APB bridge {p.pac // 32} (its PAC's)")
+    if (p.pac % 32 == 0) != (p.struct == "Pac") or (p.struct == "Pac" and p.base != APB_BRIDGES[bridge]):
+        raise bad(f"ID_{p.name} = {p.pac}: bit 0 of a bridge is its PAC, at the bridge's base, and only it")
+    if p.pac in pacs:
+        raise bad(f"ID_{p.name} = {p.pac}: the PAC bit of {pacs[p.pac]} already")
+    pacs[p.pac] = p.name
 
 
 # ---------------------------------------------------------------- C output
@@ -564,10 +592,11 @@ def emit_c(table: Table) -> str:
     lines.append(f"const sam_periph_t sam_periphs[{len(table.peripherals)}] = {{")
     for (first, last), p in zip(preg, table.peripherals):
         irq = -1 if p.irq is None else p.irq
+        pac = -1 if p.pac is None else p.pac
         view_names = "|".join(p.views)
         lines.append(
             f'    {{"{p.name}", "{p.struct}", "{view_names}", 0x{p.base:08x}u, 0x{p.size:x}u, {irq}, {len(p.views)}, '
-            f"{first}, {last}}},"
+            f"{first}, {last}, {pac}}},"
         )
     lines.append("};")
     lines.append(f"const unsigned sam_nperiphs = {len(table.peripherals)};")

@@ -198,6 +198,7 @@ struct sam_mcu {
     uint32_t resets;
     uint32_t hardfaults;
     uint32_t fault_addr;   /* address of the last bus fault */
+    uint64_t wp_pages[3];  /* per APB bridge, its 1 KiB pages a store to stops the CPU (sam_pac.c) */
     /* peripherals */
     const sam_model_t *model[SAM_MAX_PERIPH];
     void *pst[SAM_MAX_PERIPH];             /* model state */
@@ -255,10 +256,31 @@ uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
 void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
 int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* flash rewritten there (NVMCTRL, harness) */
 void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc);    /* resume at pc inside the block charged (a flash store) */
+/* The store instruction at pc, as the CPU stopped at it (ARMv6-M's 16-bit STR, STRH, STRB with an immediate or a
+ * register offset, STMIA): 1 and *s, or 0 when it is none of them. */
+typedef struct {
+    uint32_t addr, size;   /* the first address, the width of each store (1, 2, 4) */
+    uint32_t val;          /* what a single store stores (STR/STRH/STRB) */
+    uint32_t list, rn;     /* STMIA: its register list (0: a single store) and base register */
+    uint32_t r[8];         /* R0..R7 at the store */
+} sam_store_t;
+int sam_cpu_decode_store(sam_mcu_t *m, uint32_t pc, sam_store_t *s);
+/* The store at pc took a bus error: HardFault (or lockup) with pc stacked, the note saying what; the store's cycles
+ * stay charged, the rest of its block is refunded. */
+void sam_cpu_bus_error(sam_mcu_t *m, uint32_t pc, const char *what);
 
 /* ---- sam_nvmctrl.c: flash programming ---- */
 int sam_nvm_cpu_store(sam_mcu_t *m);       /* the CPU stopped at a store to flash: to the page buffer (1) or fault (0) */
 void sam_nvm_load_fuses(sam_mcu_t *m);     /* LOCK and BOOTPROT from the user row (at reset) */
+
+/* ---- sam_pac.c: peripheral write protection ---- */
+/* a store to address a stops the CPU: a page of a write-protected peripheral or of a PAC (the CPU's TLB hook) */
+static inline int sam_pac_trapped(const sam_mcu_t *m, uint32_t a)
+{
+    uint32_t bridge = (a >> 24) - 0x40u, page = (a & 0xFFFFFFu) >> 10;
+    return bridge < 3 && page < 64 && (m->wp_pages[bridge] >> page & 1u);
+}
+int sam_pac_store(sam_mcu_t *m);   /* the CPU stopped at a store there: carried out or a bus error (1), else 0 */
 
 /* ---- sam_nvic.c: exceptions ---- */
 void sam_irq_level(sam_mcu_t *m, int irq, int on);
@@ -272,6 +294,7 @@ int sam_reg_index(int pi, const char *name);
 uint32_t sam_reg_get(sam_mcu_t *m, int ri);
 void sam_reg_put(sam_mcu_t *m, int ri, uint32_t v);
 void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* the table's access rule */
+int sam_mmio_store(sam_mcu_t *m, uint32_t addr, unsigned size, uint32_t v);   /* a CPU store carried out: 0, -1 */
 /* sam_protect.c: v with the `protect` bits of register ri kept as they are when the peripheral is enabled (noted) */
 uint32_t sam_enable_protected(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask, uint32_t protect, int enabled);
 int sam_reg_at(sam_mcu_t *m, int pi, uint32_t offset);   /* register at this offset in the active view, or -1 */

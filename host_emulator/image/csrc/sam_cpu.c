@@ -203,14 +203,14 @@ static bool hook_badmem(uc_engine *uc, uc_mem_type type, uint64_t address, int s
 
 
 /* The TLB entry of a page (Unicorn's virtual TLB): flash read and execute, SRAM read and write, the NVM rows
- * read only, peripherals read and write; anywhere else the memory system reports the fault. SRAM is not
- * executable: Unicorn then lets stores to it take the fast path (it keeps pages that could hold code on a slow
- * path for every store), and code there has no cycle model anyway. */
+ * read only, peripherals read and write but the pages the PAC traps, read only (sam_pac.c); anywhere else the
+ * memory system reports the fault. SRAM is not executable: Unicorn then lets stores to it take the fast path (it
+ * keeps pages that could hold code on a slow path for every store), and code there has no cycle model anyway. */
 static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_entry *e, void *ud)
 {
     (void)uc;
     (void)type;
-    (void)ud;
+    const sam_mcu_t *m = ud;
     uint32_t a = (uint32_t)vaddr;
     e->paddr = vaddr;
     if (a < SAM_FLASH_SIZE)
@@ -220,7 +220,7 @@ static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_ent
     else if (a >= SAM_NVM_BASE && a < SAM_NVM_BASE + SAM_NVM_SIZE)
         e->perms = UC_PROT_READ;
     else if (a >= 0x40000000u && a < 0x60000000u)
-        e->perms = UC_PROT_READ | UC_PROT_WRITE;
+        e->perms = sam_pac_trapped(m, a) ? UC_PROT_READ : UC_PROT_READ | UC_PROT_WRITE;
     else
         e->perms = UC_PROT_ALL;
     return true;
@@ -328,6 +328,42 @@ void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc)
     }
     m->prev_end = 0xFFFFFFFFu;
     sam_cpu_set(m, UC_ARM_REG_PC, pc | 1u);
+}
+
+/* ---------------------------------------------------------------- stores the run loop carries out or refuses */
+
+int sam_cpu_decode_store(sam_mcu_t *m, uint32_t pc, sam_store_t *s)
+{
+    if (pc > SAM_FLASH_SIZE - 2)
+        return 0;
+    for (int i = 0; i < 8; i++)
+        s->r[i] = sam_cpu_reg(m, UC_ARM_REG_R0 + i);
+    uint32_t op = (uint32_t)m->flash[pc] | (uint32_t)m->flash[pc + 1] << 8;
+    uint32_t rn = (op >> 3) & 7u, rt = op & 7u, rm = (op >> 6) & 7u, imm = (op >> 6) & 31u;
+    const uint32_t *r = s->r;
+    s->list = 0;
+    if ((op & 0xF800) == 0x6000) { s->addr = r[rn] + imm * 4u; s->size = 4; }            /* STR imm */
+    else if ((op & 0xF800) == 0x8000) { s->addr = r[rn] + imm * 2u; s->size = 2; }       /* STRH imm */
+    else if ((op & 0xF800) == 0x7000) { s->addr = r[rn] + imm; s->size = 1; }            /* STRB imm */
+    else if ((op & 0xFE00) == 0x5000) { s->addr = r[rn] + r[rm]; s->size = 4; }          /* STR reg */
+    else if ((op & 0xFE00) == 0x5200) { s->addr = r[rn] + r[rm]; s->size = 2; }          /* STRH reg */
+    else if ((op & 0xFE00) == 0x5400) { s->addr = r[rn] + r[rm]; s->size = 1; }          /* STRB reg */
+    else if ((op & 0xF800) == 0xC000) {                                                   /* STMIA */
+        rn = (op >> 8) & 7u;
+        s->addr = r[rn];
+        s->size = 4;
+        s->list = op & 0xFFu;
+    } else
+        return 0;
+    s->rn = rn;
+    s->val = s->size == 4 ? r[rt] : r[rt] & ((1u << (8 * s->size)) - 1u);
+    return 1;
+}
+
+void sam_cpu_bus_error(sam_mcu_t *m, uint32_t pc, const char *what)
+{
+    sam_cpu_resume_after(m, pc + 2u);
+    hardfault(m, pc, what);
 }
 
 /* ---------------------------------------------------------------- set-up */

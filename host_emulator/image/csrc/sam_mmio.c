@@ -146,9 +146,15 @@ int sam_regtab_check(char *err, size_t cap)
             if (p->base >= REGION_BASE[i] && p->base - REGION_BASE[i] < REGION_SIZE[i] && p->size > 0 &&
                 p->size <= REGION_SIZE[i] - (p->base - REGION_BASE[i]))
                 inside = 1;
-        if (!inside || p->irq < -1 || p->irq > 31 || p->nviews > 4 || p->reg0 > p->reg1 || p->reg1 > sam_nregs) {
-            snprintf(err, cap, "register table: %s at 0x%x (+0x%x), IRQ %d, %u views, registers %u..%u: out of range",
-                     p->name, p->base, p->size, p->irq, p->nviews, p->reg0, p->reg1);
+        /* a PAC bit (sam_pac.c): on the instance's own bridge, inside the 64 KiB its page mask covers */
+        uint32_t bridge = 0x40000000u + ((uint32_t)(p->pac / 32) << 24);
+        int pac_ok = p->pac == -1 ||
+                     (p->pac >= 0 && p->pac < 96 && p->base >= bridge && p->base + p->size <= bridge + 0x10000u);
+        if (!inside || !pac_ok || p->irq < -1 || p->irq > 31 || p->nviews > 4 || p->reg0 > p->reg1 ||
+            p->reg1 > sam_nregs) {
+            snprintf(err, cap,
+                     "register table: %s at 0x%x (+0x%x), IRQ %d, PAC bit %d, %u views, registers %u..%u: out of range",
+                     p->name, p->base, p->size, p->irq, p->pac, p->nviews, p->reg0, p->reg1);
             return -1;
         }
         for (unsigned ri = p->reg0; ri < p->reg1; ri++) {
@@ -315,6 +321,20 @@ static void mmio_write(uc_engine *uc, uint64_t offset, unsigned size, uint64_t v
     sam_ff_access(m, key);
     m->mmio_writes++;
     reg_access(m, rg, addr, size, 1, &v);
+}
+
+/* A store the CPU stopped at and the run loop carries out (to a PAC: sam_pac.c), as the MMIO dispatch does it. */
+int sam_mmio_store(sam_mcu_t *m, uint32_t addr, unsigned size, uint32_t v)
+{
+    for (int i = 0; i < NREGIONS; i++) {
+        region_t *rg = m->regions[i];
+        if (rg && addr - rg->base < rg->size && size <= rg->size - (addr - rg->base)) {
+            m->mmio_writes++;
+            return reg_access(m, rg, addr, size, 1, &v);
+        }
+    }
+    sam_fail(m, "write of %u bytes at 0x%08x: no peripheral there", size, addr);
+    return -1;
 }
 
 /* The peripheral regions, each mapped into Unicorn with a page table of its peripherals. */

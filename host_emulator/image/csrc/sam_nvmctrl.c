@@ -180,36 +180,23 @@ static int buffer_store(sam_mcu_t *m, uint32_t addr, uint32_t size, uint32_t val
  */
 int sam_nvm_cpu_store(sam_mcu_t *m)
 {
-    uint32_t pc = cpu_reg(m, UC_ARM_REG_PC) & ~1u, r[8];
-    if (pc > SAM_FLASH_SIZE - 2 || !st(m))
+    uint32_t pc = cpu_reg(m, UC_ARM_REG_PC) & ~1u;
+    sam_store_t s;
+    if (!st(m) || !sam_cpu_decode_store(m, pc, &s) || s.addr >= SAM_FLASH_SIZE)
         return 0;
-    for (int i = 0; i < 8; i++)
-        r[i] = cpu_reg(m, UC_ARM_REG_R0 + i);
-    uint32_t op = (uint32_t)m->flash[pc] | (uint32_t)m->flash[pc + 1] << 8;
-    uint32_t rn = (op >> 3) & 7u, rt = op & 7u, rm = (op >> 6) & 7u, imm = (op >> 6) & 31u, addr, size, list = 0;
-    if ((op & 0xF800) == 0x6000) { addr = r[rn] + imm * 4u; size = 4; }            /* STR imm */
-    else if ((op & 0xF800) == 0x8000) { addr = r[rn] + imm * 2u; size = 2; }       /* STRH imm */
-    else if ((op & 0xF800) == 0x7000) { addr = r[rn] + imm; size = 1; }            /* STRB imm */
-    else if ((op & 0xFE00) == 0x5000) { addr = r[rn] + r[rm]; size = 4; }          /* STR reg */
-    else if ((op & 0xFE00) == 0x5200) { addr = r[rn] + r[rm]; size = 2; }          /* STRH reg */
-    else if ((op & 0xFE00) == 0x5400) { addr = r[rn] + r[rm]; size = 1; }          /* STRB reg */
-    else if ((op & 0xF800) == 0xC000) { rn = (op >> 8) & 7u; addr = r[rn]; size = 4; list = op & 0xFFu; }   /* STMIA */
-    else
-        return 0;
-    if (addr >= SAM_FLASH_SIZE)
-        return 0;
-    if (!list) {
-        if (!buffer_store(m, addr, size, r[rt]))
+    if (!s.list) {
+        if (!buffer_store(m, s.addr, s.size, s.val))
             return 0;
     } else {
+        uint32_t addr = s.addr;
         for (int k = 0; k < 8; k++)
-            if (list >> k & 1u) {
-                if (!buffer_store(m, addr, 4, r[k]))
+            if (s.list >> k & 1u) {
+                if (!buffer_store(m, addr, 4, s.r[k]))
                     return 0;
                 addr += 4;
             }
-        if (!(list >> rn & 1u))
-            uc_reg_write(m->uc, UC_ARM_REG_R0 + (int)rn, &addr);   /* write-back */
+        if (!(s.list >> s.rn & 1u))
+            uc_reg_write(m->uc, UC_ARM_REG_R0 + (int)s.rn, &addr);   /* write-back */
     }
     sam_cpu_resume_after(m, pc + 2u);
     sam_activity(m);

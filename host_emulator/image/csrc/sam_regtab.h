@@ -37,6 +37,7 @@ typedef struct {
     int8_t irq;          /* NVIC line, -1 for none */
     uint8_t nviews;
     uint16_t reg0, reg1; /* its registers: sam_regs[reg0 .. reg1) */
+    int8_t pac;          /* ID_<name>: bit pac % 32 of PAC<pac / 32>'s write-protection mask, -1 for none */
 } sam_periph_t;
 
 /* A pin's peripheral function (PORT PMUX letter A..H = 0..7) from the header's PIN_P<x><n><F>_<PERIPH>_<SIGNAL>. */

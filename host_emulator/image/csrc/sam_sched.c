@@ -168,6 +168,8 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
         }
         if ((e == UC_ERR_WRITE_PROT || e == UC_ERR_EXCEPTION) && sam_nvm_cpu_store(m))
             continue;   /* a store to flash: into NVMCTRL's page buffer */
+        if ((e == UC_ERR_WRITE_PROT || e == UC_ERR_EXCEPTION) && sam_pac_store(m))
+            continue;   /* a store to a page the PAC traps: to a PAC's register, or a bus error (sam_pac.c) */
         if (e != UC_ERR_OK)
             sam_cpu_enter_fault(m, e);
     }

@@ -112,6 +112,22 @@ def test_every_register_address_width_and_access_matches_the_vendors_instance_de
     )
 
 
+def test_each_apb_instances_pac_bit_is_its_peripheral_id(table):
+    """DS40001882 11.6 (PAC): bit n of PACk's WPSET/WPCLR protects the peripheral whose ID_<name> (samd21g18a.h) is
+    32 k + n; bit 0 of each bridge is its PAC. On bridge B the bit is not the peripheral's 1 KiB slot (the DSU
+    spans 8 slots): PORT at 0x41004400 is bit 3."""
+    atmel, _ = vendor.include_dirs()
+    text = (atmel / regtable.DEVICE_HEADER).read_text(errors="replace")
+    ids = {m.group(1): int(m.group(2)) for m in re.finditer(r"#define ID_([A-Z0-9_]+)\s+(\d+)", text)}
+    apb = [p for p in table.peripherals if 0x40000000 <= p.base < 0x43000000]
+    assert len(apb) > 30
+    for p in apb:
+        assert p.pac == ids[p.name], p.name
+        assert (p.pac % 32 == 0) == (p.struct == "Pac") and p.pac // 32 == (p.base >> 24) - 0x40, p.name
+    assert [p.pac for p in table.peripherals if p.base >= 0x60000000] == [None] * 4  # IOBUS, SysTick, NVIC, SCB
+    assert table.periph("PORT").pac == 32 + 3 and (table.periph("PORT").base - 0x41000000) >> 10 == 17
+
+
 def test_the_iobus_alias_of_port_has_ports_registers(table):
     port, iobus = table.periph("PORT"), table.periph("PORT_IOBUS")
     assert iobus.base == 0x6000_0000  # the Cortex-M0+ single-cycle I/O port (SAMD21 datasheet, "IOBUS")

@@ -118,6 +118,10 @@ CASES = [
     (lambda t: _set_reg(t, "TC3", "COUNT16.CTRLA", fields=(Field("BAD", 14, 4),)), "field BAD at bit 14, 4 wide"),
     (lambda t: _set_reg(t, "TC3", "COUNT16.CTRLA", fields=(Field("BAD", 3, 0),)), "field BAD at bit 3, 0 wide"),
     (lambda t: t.pinmux.append(regtable.PinFunction(64, 0, "X", "Y")), "pin 64"),
+    (lambda t: setattr(t.periph("PORT"), "pac", 66), "ID_PORT = 66: PORT at 0x41004400 is not on APB bridge 2"),
+    (lambda t: setattr(t.periph("TC4"), "pac", 75), "ID_TC4 = 75: the PAC bit of TC3 already"),
+    (lambda t: setattr(t.periph("PORT"), "pac", None), "no ID_PORT (its PAC bit)"),
+    (lambda t: setattr(t.periph("PORT"), "pac", 32), "ID_PORT = 32: bit 0 of a bridge is its PAC"),
     (lambda t: t.peripherals.extend(copy.deepcopy(t.peripherals[:12])), "instances (1..48)"),
 ]
 

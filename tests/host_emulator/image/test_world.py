@@ -20,10 +20,10 @@ from .conftest import configured
 pytestmark = pytest.mark.slow
 
 
-def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray, dict]:
+def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray, dict, dict]:
     """Three cells and the primary configured, a push on cell 2, 0.25 s of motion: every board's change of state
     (trace bit 5: each register access that changed something, each exception entry and return, with its time)
-    hashed per board, the plant's final state, and the boards' counters."""
+    hashed per board, the plant's final state, the boards' counters, and the registers each board wrote."""
     w, lap = configured(images, 3, config)
     w.trace(32, (1 << len(w.boards)) - 1)
     lap.seq = (lap.seq + 1) & 0xFF
@@ -38,7 +38,8 @@ def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray
                 digests[name].update(n.encode())
                 lines[name] += 1
     counters = {b.name: int(w.info(b.index).cycles) for b in w.boards}
-    return {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}, w.x.copy(), counters
+    written = {b.name: {r for r, _, n in w.touched(b.index) if n} for b in w.boards}
+    return {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}, w.x.copy(), counters, written
 
 
 @pytest.fixture(scope="module")
@@ -55,8 +56,8 @@ def reference(images):
     ],
 )
 def test_fast_forward_schedule_and_threads_change_nothing(images, reference, config):
-    traces, x, cycles = _run_traced(images, config)
-    ref_traces, ref_x, ref_cycles = reference
+    traces, x, cycles, _ = _run_traced(images, config)
+    ref_traces, ref_x, ref_cycles, _ = reference
     assert all(int(v.split("/")[1]) > 100 for v in ref_traces.values()), ref_traces  # every board did things
     assert traces == ref_traces
     assert np.array_equal(x, ref_x)  # bit for bit: the plant saw the same drive
@@ -72,9 +73,17 @@ def test_every_block_costed_from_the_flash_bytes_changes_nothing(images, referen
 
     load = world.load_image
     monkeypatch.setattr(world, "load_image", lambda path: dataclasses.replace(load(path), tables=None))
-    traces, x, cycles = _run_traced(images, WorldConfig())
+    traces, x, cycles, _ = _run_traced(images, WorldConfig())
     assert (traces, cycles) == (reference[0], reference[2])
     assert np.array_equal(x, reference[1])
+
+
+def test_the_images_never_write_the_pac(reference):
+    """No image sets (or clears) a peripheral's write protection (PAC0..2 WPSET/WPCLR, csrc/sam_pac.c): the runs
+    above are not shaped by the PAC model; the DSU stays protected as from reset, and no image writes it."""
+    written = reference[3]
+    assert all(len(regs) > 20 for regs in written.values()), written  # every board configured its peripherals
+    assert not {r for regs in written.values() for r in regs if r.startswith(("PAC", "DSU."))}
 
 
 # ---- the drive outputs against the library ------------------------------------------------------------------
