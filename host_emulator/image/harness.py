@@ -230,6 +230,7 @@ class Harness:
         program: Program | None = None,
         window_s: float = 100e-6,
         ff: bool = True,
+        ff_timed: bool = False,
         built: tuple[Any, Any] | None = None,
         pwm: str = "mean",
         motor_tau_s: float = 0.0,
@@ -255,6 +256,7 @@ class Harness:
         c.counts_per_rad = lib.MC_COUNTS_PER_REV / (2 * math.pi)
         c.i2c_rise_ns, c.usb_packet_us = 125.0, 50.0
         c.ff, c.cycle_model, c.round_s, c.threads = int(ff), 0, 0.0, 1
+        c.ff_timed = int(ff_timed)
         cm = cycles.CycleModel()
         c.cyc_exc_entry, c.cyc_exc_exit, c.cyc_apb = cm.exc_entry, cm.exc_exit, cm.apb_extra
         c.plant = self.plant

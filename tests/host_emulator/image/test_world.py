@@ -20,10 +20,11 @@ from .conftest import configured
 pytestmark = pytest.mark.slow
 
 
-def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray, dict, dict]:
+def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray, dict, dict, dict]:
     """Three cells and the primary configured, a push on cell 2, 0.25 s of motion: every board's change of state
     (trace bit 5: each register access that changed something, each exception entry and return, with its time)
-    hashed per board, the plant's final state, the boards' counters, and the registers each board wrote."""
+    hashed per board, the plant's final state, the boards' counters, the registers each board wrote, and each
+    board's fast-forward (probes of passes that read the time, passes skipped)."""
     w, lap = configured(images, 3, config)
     w.trace(32, (1 << len(w.boards)) - 1)
     lap.seq = (lap.seq + 1) & 0xFF
@@ -39,7 +40,9 @@ def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray
                 lines[name] += 1
     counters = {b.name: int(w.info(b.index).cycles) for b in w.boards}
     written = {b.name: {r for r, _, n in w.touched(b.index) if n} for b in w.boards}
-    return {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}, w.x.copy(), counters, written
+    ff = {b.name: (int(w.info(b.index).ff_probes), int(w.info(b.index).ff_passes_skipped)) for b in w.boards}
+    traces = {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}
+    return traces, w.x.copy(), counters, written, ff
 
 
 @pytest.fixture(scope="module")
@@ -53,17 +56,21 @@ def reference(images):
         pytest.param(WorldConfig(ff=False), id="no-fast-forward"),
         pytest.param(WorldConfig(round_s=2.6e-6), id="rounds-of-one-bit"),
         pytest.param(WorldConfig(threads=2, round_s=20e-6), id="two-threads"),
+        pytest.param(WorldConfig(ff_timed=True), id="timed-passes-fast-forwarded"),
     ],
 )
 def test_fast_forward_schedule_and_threads_change_nothing(images, reference, config):
-    traces, x, cycles, _ = _run_traced(images, config)
-    ref_traces, ref_x, ref_cycles, _ = reference
+    traces, x, cycles, _, ff = _run_traced(images, config)
+    ref_traces, ref_x, ref_cycles, _, ref_ff = reference
     assert all(int(v.split("/")[1]) > 100 for v in ref_traces.values()), ref_traces  # every board did things
     assert traces == ref_traces
     assert np.array_equal(x, ref_x)  # bit for bit: the plant saw the same drive
     assert np.any(ref_x != 0)  # the push moved it
     if config.ff:
         assert cycles == ref_cycles
+    if config.ff_timed:  # the primary's waits on its bus were probed and skipped, the reference's never
+        assert ff["primary"][0] > 10 and ff["primary"][1] > ref_ff["primary"][1], (ff, ref_ff)
+        assert ref_ff["primary"][0] == 0
 
 
 def test_every_block_costed_from_the_flash_bytes_changes_nothing(images, reference, monkeypatch):
@@ -73,7 +80,7 @@ def test_every_block_costed_from_the_flash_bytes_changes_nothing(images, referen
 
     load = world.load_image
     monkeypatch.setattr(world, "load_image", lambda path: dataclasses.replace(load(path), tables=None))
-    traces, x, cycles, _ = _run_traced(images, WorldConfig())
+    traces, x, cycles, _, _ = _run_traced(images, WorldConfig())
     assert (traces, cycles) == (reference[0], reference[2])
     assert np.array_equal(x, reference[1])
 
