@@ -11,7 +11,6 @@ CELL_STATUS frames, as the laptop sees them.
 from __future__ import annotations
 
 import gc
-
 import math
 from collections.abc import Sequence
 
