@@ -7,10 +7,11 @@ Each measurement brings a fresh world up (boot, USB, the cells configured: not t
 board time: the wall time (real-time factor = board seconds / wall seconds) and the process CPU time (every
 thread's), medians over `reps`. Machine-independent figures come first: the CPU cycles the boards executed per
 board second (fast-forwarded idle passes excluded; the same on every machine) and how often the emulator
-started and stopped the CPUs, and how often the fast-forward compared a `loop()` pass with the one before (a board
-whose passes all read the time is never compared). "full-speed": the plant at rest, all 32 encoders turning back
+started and stopped the CPUs, and how often the fast-forward compared a pass with the one before, and how often it
+probed a pass of the primary's that read the time. "full-speed": the plant at rest, all 32 encoders turning back
 and forth at the motors' no-load speed at full supply (fwcheck's cpu-budget figure), so every cell takes its worst
-edge rate.
+edge rate. "default-timed": the default scene with `fast_forward_timed` (the primary's polling loops skipped after
+probes).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ class Measurement:
     executed_cycles: dict[str, int]  # per board, executed (not fast-forwarded) over the timed interval
     runs: int  # emulation starts, all boards
     ff_checks: dict[str, int]  # per board, loop() entries the fast-forward compared with the one before
+    ff_probes: int  # the primary's probes of passes that read the time (fast_forward_timed)
     edges: int  # encoder edges the cells' pins saw (counts)
 
 
@@ -51,23 +53,26 @@ def full_speed_counts_s() -> float:
     return NO_LOAD_RAD_PER_V_S * SUPPLY_V * COUNTS_PER_RAD
 
 
-def _snapshot(world) -> tuple[dict[str, int], int, dict[str, int]]:
-    out, runs, checks = {}, 0, {}
+def _snapshot(world) -> tuple[dict[str, int], int, dict[str, int], int]:
+    out, runs, checks, probes = {}, 0, {}, 0
     for b in world.boards:
         i = world.info(b.index)
         out[b.name] = int(i.cycles) - int(i.ff_cycles_skipped)
         runs += int(i.runs)
         checks[b.name] = int(i.ff_checks)
-    return out, runs, checks
+        if b.name == "primary":
+            probes = int(i.ff_probes)
+    return out, runs, checks, probes
 
 
 def measure(scenario: str, seconds: float, threads: int) -> Measurement:
     """One measurement: a fresh world brought up (not timed), then `seconds` of board time timed."""
     edges = 0
-    if scenario == "default":
-        scene = load_scene(
-            "default", ["model=image", f"t_end_s={seconds + 1}", f"model_options.image.threads={threads}"]
-        )
+    if scenario in ("default", "default-timed"):
+        opts = ["model=image", f"t_end_s={seconds + 1}", f"model_options.image.threads={threads}"]
+        if scenario == "default-timed":
+            opts.append("model_options.image.fast_forward_timed=true")
+        scene = load_scene("default", opts)
         solver = build_solver(scene)
         assert isinstance(solver, ImageSolver)
         w = solver.world
@@ -81,17 +86,19 @@ def measure(scenario: str, seconds: float, threads: int) -> Measurement:
             for chain in ("alpha", "beta"):  # back and forth inside the firmware's runaway limit (800 counts)
                 w.spin(cell, chain, rate, t0, t0 + seconds + 0.01, back_and_forth=600)
         edges = round(32 * rate * seconds)
-    c0, r0, k0 = _snapshot(w)
+    c0, r0, k0, p0 = _snapshot(w)
     t_wall, t_cpu = time.perf_counter(), time.process_time()
-    if scenario == "default":
+    if scenario != "full-speed":
         t_end = solver.t + seconds
         while solver.t < t_end - 1e-9:
             solver.advance()
     else:
         lap.pump(seconds)
     wall, cpu = time.perf_counter() - t_wall, time.process_time() - t_cpu
-    c1, r1, k1 = _snapshot(w)
-    return Measurement(wall, cpu, {k: c1[k] - c0[k] for k in c1}, r1 - r0, {k: k1[k] - k0[k] for k in k1}, edges)
+    c1, r1, k1, p1 = _snapshot(w)
+    return Measurement(
+        wall, cpu, {k: c1[k] - c0[k] for k in c1}, r1 - r0, {k: k1[k] - k0[k] for k in k1}, p1 - p0, edges
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -107,8 +114,8 @@ def main(argv: list[str] | None = None) -> int:
         "--scenario",
         nargs="+",
         default=["default", "full-speed"],
-        choices=("default", "full-speed"),
-        help="cases (default both)",
+        choices=("default", "full-speed", "default-timed"),
+        help="cases (default: default full-speed; default-timed: the default scene with fast_forward_timed)",
     )
     args = ap.parse_args(argv)
     if not 0.1 <= args.seconds <= 60 or not 1 <= args.reps <= 20 or not all(1 <= t <= 16 for t in args.threads):
@@ -144,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
             )
             print(
                 f"  idle-pass compares per board second (fast-forward): {cell_checks:,.0f} per cell, "
-                f"{prim_checks:,.0f} the primary"
+                f"{prim_checks:,.0f} the primary; {m.ff_probes / args.seconds:,.0f} probes of the primary's "
+                "timed passes"
             )
             print(
                 f"  real-time factor {args.seconds / wall:.2f}x (wall {wall / args.seconds:.2f} s per board second, "
