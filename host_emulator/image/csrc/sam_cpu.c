@@ -228,43 +228,6 @@ static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_ent
 
 /* ---------------------------------------------------------------- the block hook */
 
-/* What a block's start rarely needs, in this order: the fast-forward's probe (sam_ff.c), events due, a stop, an
- * exception to take, the fast-forward's boundary. Out of the hook's common path, which then saves no registers and
- * keeps no stack frame. 1: the block does not run now (the emulation stops, or the PC moved to a handler). */
-static __attribute__((noinline, cold)) int block_rare(uc_engine *uc, sam_mcu_t *m, uint32_t addr)
-{
-    if (m->ff.probing) {
-        /* a speculative pass (sam_ff.c): back at its boundary, astray, or past its time; no event can be due in it */
-        int at_head = addr == m->ff.head;
-        if (at_head || m->ff.probe_bad || m->t >= m->ff.pr_end || (m->irq_check | m->primask_wait) || m->err ||
-            m->in_reset || m->lockup) {
-            sam_ff_probe_end(m, at_head, 0);   /* parked, or undone by the run loop once stopped */
-            uc_emu_stop(uc);
-            return 1;
-        }
-        return 0;
-    }
-    if (m->t >= m->next_ev)
-        sam_process_events(m);   /* those due before stop_at; an answer they send may lower stop_at */
-    if (m->err || m->in_reset || m->lockup || m->t >= m->stop_at) {
-        uc_emu_stop(uc);
-        return 1;
-    }
-    if ((m->irq_check | m->primask_wait) && sam_nvic_take(m, addr))
-        return 1;   /* the PC moved to the handler: this block does not run now */
-    m->nvic.entering = 0;   /* a handler's first instruction runs: its entry can no longer be overtaken */
-    m->blk = addr;
-    if ((addr == m->ff.head || addr == m->ff.loop_pc) && m->ff.enabled) {
-        if (addr == m->ff.loop_pc)
-            sam_ff_loop_entry(m);
-        if (sam_ff_boundary(m)) {
-            uc_emu_stop(uc);
-            return 1;
-        }
-    }
-    return 0;
-}
-
 static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
 {
     sam_mcu_t *m = ud;
@@ -275,14 +238,38 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
         m->cycles -= back;
     }
     m->prev_end = 0xFFFFFFFFu;
-    if (m->ff.probing | m->err | m->in_reset | m->lockup | m->irq_check | m->primask_wait | (m->t >= m->next_ev) |
-        (m->t >= m->stop_at) | (addr == m->ff.head) | (addr == m->ff.loop_pc)) {
-        if (block_rare(uc, m, addr))
-            return;
-    } else {
-        m->nvic.entering = 0;
-        m->blk = addr;
+    if (m->t >= m->next_ev) {
+        if (m->ff.probing) {
+            /* a speculative pass (sam_ff.c, which holds next_ev at 0 meanwhile): back at its boundary, astray, or
+             * past its time; no event can be due in it */
+            int at_head = addr == m->ff.head;
+            if (at_head || m->ff.probe_bad || m->t >= m->ff.pr_end || (m->irq_check | m->primask_wait) || m->err ||
+                m->in_reset || m->lockup) {
+                sam_ff_probe_end(m, at_head, 0);   /* parked, or undone by the run loop once stopped */
+                uc_emu_stop(uc);
+                return;
+            }
+            goto charge;
+        }
+        sam_process_events(m);   /* those due before stop_at; an answer they send may lower stop_at */
     }
+    if (m->err || m->in_reset || m->lockup || m->t >= m->stop_at) {
+        uc_emu_stop(uc);
+        return;
+    }
+    if ((m->irq_check | m->primask_wait) && sam_nvic_take(m, addr))
+        return;   /* the PC moved to the handler: this block does not run now */
+    m->nvic.entering = 0;   /* a handler's first instruction runs: its entry can no longer be overtaken */
+    m->blk = addr;
+    if (addr == m->ff.head && m->ff.enabled) {   /* (loop() entered while a polling loop is the boundary: sam_ff.c) */
+        if (addr == m->ff.loop_pc)
+            sam_ff_loop_entry(m);
+        if (sam_ff_boundary(m)) {
+            uc_emu_stop(uc);
+            return;
+        }
+    }
+charge:
     if (size == 0)
         return;
     /* the block's cost (sam_cost.c: the ELF's tables or the flash decoded), memoised per block start */

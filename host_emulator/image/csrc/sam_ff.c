@@ -147,6 +147,7 @@ static int probe_start(sam_mcu_t *m, uint64_t period, uint64_t period_cycles)
     m->cycles += j * period_cycles;
     f->pr_end = m->t + period;
     f->probing = 1;
+    m->next_ev = 0;   /* the block hook's first test then sees the probe (no event is due before pr_end) */
     f->probes++;
     return 1;
 }
@@ -171,6 +172,7 @@ int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped)
         return 0;
     }
     f->probing = 0;
+    sam_next_event(m);   /* (0 while probing) */
     m->stop_at = f->pr_stop;
     m->t = m->t_blk = f->pr_t1;
     m->cycles = f->pr_c1;
@@ -242,7 +244,7 @@ int sam_ff_boundary(sam_mcu_t *m)
     }
     if (hi > SAM_RAM_SIZE || hi < lo)
         hi = lo;   /* SP outside SRAM (the core faults soon): [0, lo) and [lo, end) are the whole RAM */
-    if (f->snap_valid && f->snap_head == f->head && m->act == f->snap_act) {
+    if (f->snap_valid && f->snap_head == f->head && m->act == f->snap_act && (f->timed || m->tread == f->snap_tread)) {
         f->checks++;
         if (!memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
             !memcmp(m->ram, f->snap_ram, lo) && !memcmp(m->ram + hi, f->snap_ram + hi, SAM_RAM_SIZE - hi)) {

@@ -301,9 +301,11 @@ static uint64_t mmio_read(uc_engine *uc, uint64_t offset, unsigned size, void *u
     uint32_t v = 0, addr = rg->base + (uint32_t)offset;
     sam_mcu_t *m = rg->m;
     uint32_t key = addr << 4 | size << 1;   /* (fast-forward: the pass's accesses, sam_ff.c) */
-    if (m->ff.probing && !sam_ff_probe_access(m, key))
-        return 0;
-    sam_ff_access(m, key);
+    if (m->ff.timed) {
+        if (m->ff.probing && !sam_ff_probe_access(m, key))
+            return 0;
+        sam_ff_access(m, key);
+    }
     m->mmio_reads++;
     reg_access(m, rg, addr, size, 0, &v);
     return v;
@@ -316,9 +318,11 @@ static void mmio_write(uc_engine *uc, uint64_t offset, unsigned size, uint64_t v
     uint32_t v = (uint32_t)value, addr = rg->base + (uint32_t)offset;
     sam_mcu_t *m = rg->m;
     uint32_t key = addr << 4 | size << 1 | 1u;
-    if (m->ff.probing && !sam_ff_probe_access(m, key))
-        return;
-    sam_ff_access(m, key);
+    if (m->ff.timed) {
+        if (m->ff.probing && !sam_ff_probe_access(m, key))
+            return;
+        sam_ff_access(m, key);
+    }
     m->mmio_writes++;
     reg_access(m, rg, addr, size, 1, &v);
 }

@@ -84,7 +84,7 @@ static int scs_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
         case 0x4: *v = s->load; break;
         case 0x8:
             *v = systick_val(m, sam_now(m));
-            m->tread++;   /* changes with time: a pass that reads it is skipped only after a probe (sam_ff.c) */
+            m->tread++;   /* changes with time: a pass that reads it is never idle, or skipped after a probe (sam_ff.c) */
             break;
         case 0xC: *v = 0x40000000u; break;   /* CALIB: no reference clock, TENMS unknown */
         default: return SAM_UNCOVERED;
