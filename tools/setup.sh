@@ -29,6 +29,7 @@ have_cmd qemu-system-arm || need+=(qemu-system-arm)
 have_cmd clang || need+=(clang)
 have_cmd bossac || need+=(bossa-cli)   # the flash tool's uploader when PlatformIO's tool-bossac is absent (offline)
 have_pkg libfaketime || need+=(libfaketime)   # flash --emulated: bossac on a clock slowed to the emulated boards' pace (LD_PRELOAD)
+have_cmd valgrind || need+=(valgrind)   # the instruction counts (benchmarks/instructions.py, image_instructions.py) and their figure tests
 python3 -c 'import ensurepip' 2>/dev/null || need+=(python3-venv)
 apt_install "${need[@]}"
 
