@@ -54,9 +54,9 @@ def test_a_push_moves_the_lattice_alike_on_both_paths(images):
     cycles is the same on both). So the angles may differ by the effect of shifting every duty step by under a tenth
     of a tick: less than a tenth of the motion, and less than a quarter of an encoder count, the firmware's own
     resolution (measured: 2.4 % of the motion, 0.07 count; 0.5 %, 0.014 count with the electrical model)."""
-    _, x_mean, _ = _run_traced(images, WorldConfig())
-    _, x_wave, _ = _run_traced(images, WorldConfig(pwm="waveform"))
-    _, x_tau, _ = _run_traced(images, WorldConfig(pwm="waveform", motor_tau_s=MOTOR_TAU_S))
+    _, x_mean, *_ = _run_traced(images, WorldConfig())
+    _, x_wave, *_ = _run_traced(images, WorldConfig(pwm="waveform"))
+    _, x_tau, *_ = _run_traced(images, WorldConfig(pwm="waveform", motor_tau_s=MOTOR_TAU_S))
     moved = np.max(np.abs(x_mean))
     assert moved > 2 * COUNT_RAD  # the push moved the lattice
     for x in (x_wave, x_tau):
@@ -97,8 +97,8 @@ def test_the_waveform_and_electrical_paths_do_not_depend_on_the_schedule(images)
     the same trace and the plant the same state, to the bit (the motors' pieces are merged per window, so where the
     integration was split does not show)."""
     base = dict(pwm="waveform", motor_tau_s=MOTOR_TAU_S)
-    ref_traces, ref_x, _ = _run_traced(images, WorldConfig(**base))
+    ref_traces, ref_x, *_ = _run_traced(images, WorldConfig(**base))
     for cfg in (WorldConfig(ff=False, **base), WorldConfig(threads=2, round_s=20e-6, **base)):
-        traces, x, _ = _run_traced(images, cfg)
+        traces, x, *_ = _run_traced(images, cfg)
         assert traces == ref_traces
         assert np.array_equal(x, ref_x)
