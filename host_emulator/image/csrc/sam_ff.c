@@ -58,8 +58,8 @@ static void drop_head(sam_ff_t *f)
     f->q_dead = 1;
 }
 
-/* loop() entered: its entry is the boundary again, a new quiet stretch starts */
-void sam_ff_loop_entry(sam_mcu_t *m)
+/* A new quiet stretch starts (the board did something, or entered loop()): loop()'s entry is the boundary again. */
+static void quiet_start(sam_mcu_t *m)
 {
     sam_ff_t *f = &m->ff;
     f->q_act = m->act;
@@ -68,22 +68,31 @@ void sam_ff_loop_entry(sam_mcu_t *m)
     f->head = f->loop_pc;
 }
 
-/* A register access (the pass's record; a polling loop is found here, where it reads its register: no cost per
- * block). */
+void sam_ff_loop_entry(sam_mcu_t *m) { quiet_start(m); }
+
+/* A pass starts at the boundary now (t, cycles): the snapshot's time and time reads are its start's, the record of
+ * its register accesses empty. */
+static void pass_starts(sam_mcu_t *m, uint64_t t, uint64_t cycles)
+{
+    sam_ff_t *f = &m->ff;
+    f->snap_t = t;
+    f->snap_cycles = cycles;
+    f->snap_tread = m->tread;
+    f->rec_n = 0;
+}
+
+/* A register access with timed passes on (the pass's record; a polling loop is found here, where it reads its
+ * register: no cost per block). */
 void sam_ff_access(sam_mcu_t *m, uint32_t key)
 {
     sam_ff_t *f = &m->ff;
     if (f->rec_n < SAM_FF_REC)
         f->rec[f->rec_n] = key;
     f->rec_n++;
-    if (!f->timed || (key & 1u))
+    if (key & 1u)
         return;
-    if (m->act != f->q_act) {   /* the board did something: a new quiet stretch */
-        f->q_act = m->act;
-        f->q_t = m->t;
-        f->q_dead = 0;
-        f->head = f->loop_pc;
-    }
+    if (m->act != f->q_act)   /* the board did something */
+        quiet_start(m);
     if (f->head != f->loop_pc || f->q_dead || m->blk == f->loop_pc)
         return;
     int k = m->blk == f->known[0] ? 0 : m->blk == f->known[1] ? 1 : -1;
@@ -125,7 +134,7 @@ static int probe_start(sam_mcu_t *m, uint64_t period, uint64_t period_cycles)
 {
     sam_ff_t *f = &m->ff;
     uint64_t t1 = m->t;
-    if (!f->timed || f->rec_n > SAM_FF_REC || m->next_ev <= t1 + SAM_FF_JMIN * period)
+    if (f->rec_n > SAM_FF_REC || m->next_ev <= t1 + SAM_FF_JMIN * period)
         return 0;
     uint64_t j = (m->next_ev - 1 - t1 - period) / period;   /* t1 + (J + 1) P < next_ev: no event in the probe */
     if (j > f->jcap)
@@ -209,10 +218,7 @@ int sam_ff_boundary(sam_mcu_t *m)
     sam_ff_t *f = &m->ff;
     if (f->resumed) {   /* at the snapshot's state (parked there, or a probe rolled back): a pass starts now */
         f->resumed = 0;
-        f->rec_n = 0;
-        f->snap_t = m->t;
-        f->snap_cycles = m->cycles;
-        f->snap_tread = m->tread;
+        pass_starts(m, m->t, m->cycles);
         return 0;
     }
     uint32_t regs[SAM_NCORE_REGS];
@@ -251,13 +257,11 @@ int sam_ff_boundary(sam_mcu_t *m)
             if (f->mid_valid && !memcmp(m->ram + lo, f->snap_ram + lo, hi - lo)) {
                 uint64_t period = m->t - f->snap_t, period_cycles = m->cycles - f->snap_cycles;
                 if (m->tread != f->snap_tread) {
-                    /* it read the time: skipped only once a probe shows a later pass is the same */
+                    /* it read the time (only compared with timed passes on): skipped only once a probe shows a
+                     * later pass is the same */
                     uint64_t t1 = m->t, c1 = m->cycles;
                     probe_start(m, period, period_cycles);   /* when it starts, the time is the probe's from here */
-                    f->snap_t = t1;
-                    f->snap_cycles = c1;
-                    f->snap_tread = m->tread;
-                    f->rec_n = 0;
+                    pass_starts(m, t1, c1);
                     return 0;
                 }
                 /* one whole pass changed nothing and met nothing: it repeats exactly until the next event */
@@ -275,10 +279,7 @@ int sam_ff_boundary(sam_mcu_t *m)
             if (!f->mid_valid) {   /* the rest of RAM from here; the snapshot is this entry's */
                 sync_mid(m, lo, hi);
                 f->mid_valid = 1;
-                f->snap_t = m->t;
-                f->snap_cycles = m->cycles;
-                f->snap_tread = m->tread;
-                f->rec_n = 0;
+                pass_starts(m, m->t, m->cycles);
                 return 0;
             }
         }
@@ -298,12 +299,9 @@ int sam_ff_boundary(sam_mcu_t *m)
     if (f->mid_valid)
         sync_mid(m, lo, hi);
     f->snap_act = m->act;
-    f->snap_tread = m->tread;
-    f->snap_t = m->t;
-    f->snap_cycles = m->cycles;
     f->snap_valid = 1;
     f->snap_head = f->head;
-    f->rec_n = 0;
+    pass_starts(m, m->t, m->cycles);
     return 0;
 }
 

@@ -294,20 +294,29 @@ static int reg_access(sam_mcu_t *m, region_t *rg, uint32_t addr, unsigned size, 
     return 0;
 }
 
-static uint64_t mmio_read(uc_engine *uc, uint64_t offset, unsigned size, void *ud)
+/* Every access by the CPU: with timed passes on, the fast-forward's record of the pass (and a probe's check before
+ * the access happens, sam_ff.c); the counters; the register layer. */
+static int cpu_access(sam_mcu_t *m, region_t *rg, uint32_t addr, unsigned size, int write, uint32_t *v)
 {
-    region_t *rg = ud;
-    (void)uc;
-    uint32_t v = 0, addr = rg->base + (uint32_t)offset;
-    sam_mcu_t *m = rg->m;
-    uint32_t key = addr << 4 | size << 1;   /* (fast-forward: the pass's accesses, sam_ff.c) */
     if (m->ff.timed) {
+        uint32_t key = addr << 4 | size << 1 | (write ? 1u : 0u);
         if (m->ff.probing && !sam_ff_probe_access(m, key))
             return 0;
         sam_ff_access(m, key);
     }
-    m->mmio_reads++;
-    reg_access(m, rg, addr, size, 0, &v);
+    if (write)
+        m->mmio_writes++;
+    else
+        m->mmio_reads++;
+    return reg_access(m, rg, addr, size, write, v);
+}
+
+static uint64_t mmio_read(uc_engine *uc, uint64_t offset, unsigned size, void *ud)
+{
+    region_t *rg = ud;
+    (void)uc;
+    uint32_t v = 0;
+    cpu_access(rg->m, rg, rg->base + (uint32_t)offset, size, 0, &v);
     return v;
 }
 
@@ -315,16 +324,8 @@ static void mmio_write(uc_engine *uc, uint64_t offset, unsigned size, uint64_t v
 {
     region_t *rg = ud;
     (void)uc;
-    uint32_t v = (uint32_t)value, addr = rg->base + (uint32_t)offset;
-    sam_mcu_t *m = rg->m;
-    uint32_t key = addr << 4 | size << 1 | 1u;
-    if (m->ff.timed) {
-        if (m->ff.probing && !sam_ff_probe_access(m, key))
-            return;
-        sam_ff_access(m, key);
-    }
-    m->mmio_writes++;
-    reg_access(m, rg, addr, size, 1, &v);
+    uint32_t v = (uint32_t)value;
+    cpu_access(rg->m, rg, rg->base + (uint32_t)offset, size, 1, &v);
 }
 
 /* A store the CPU stopped at and the run loop carries out (to a PAC: sam_pac.c), as the MMIO dispatch does it. */
@@ -332,10 +333,8 @@ int sam_mmio_store(sam_mcu_t *m, uint32_t addr, unsigned size, uint32_t v)
 {
     for (int i = 0; i < NREGIONS; i++) {
         region_t *rg = m->regions[i];
-        if (rg && addr - rg->base < rg->size && size <= rg->size - (addr - rg->base)) {
-            m->mmio_writes++;
-            return reg_access(m, rg, addr, size, 1, &v);
-        }
+        if (rg && addr - rg->base < rg->size && size <= rg->size - (addr - rg->base))
+            return cpu_access(m, rg, addr, size, 1, &v);
     }
     sam_fail(m, "write of %u bytes at 0x%08x: no peripheral there", size, addr);
     return -1;
