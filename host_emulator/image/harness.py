@@ -88,6 +88,11 @@ class Asm:
         self._fix.append((len(self.code), "b", label or f"@{self.here}"))
         self._h(0xE000, "b", label or ".")
 
+    def bcond(self, cond: int, label: str, mnem: str) -> None:
+        """B<cond> back to a label already placed (ARMv6-M T1: cond 0 EQ, 2 CS, 3 CC, ...)."""
+        here = self.here
+        self._h(0xD000 | cond << 8 | ((self.labels[label] - (here + 4)) >> 1) & 0xFF, mnem, label)
+
     def bx_lr(self) -> None:
         self._h(0x4770, "bx", "lr")
 

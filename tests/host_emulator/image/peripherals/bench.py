@@ -41,3 +41,13 @@ def pmux(h: Harness, pin: int, letter: str, *, inen: bool = False, board: int = 
     new = (old & 0x0F) | func << 4 if b & 1 else (old & 0xF0) | func
     h.write(half, new, board=board)
     h.write(f"PORT.Group[{g}].PINCFG[{b}]", 0x01 | (0x02 if inen else 0), board=board)
+
+
+def sercom2_i2c_pins(h: Harness, boards: tuple[int, ...]) -> None:
+    """SERCOM2's bus clock and core clock on each board, PA08/PA09 on its PAD[0] SDA and PAD[1] SCL (function D,
+    DS40001882 7.1 Multiplexed Signals): the boards share the I2C bus."""
+    for b in boards:
+        bus_clock(h, "SERCOM2", board=b)
+        gclk_channel(h, GCLK_SERCOM2_CORE, board=b)
+        pmux(h, 8, "D", board=b)
+        pmux(h, 9, "D", board=b)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import struct
+from collections.abc import Callable
 
 import pytest
 
@@ -22,8 +23,9 @@ SYST_CVR = 0xE000_E018
 STATUS_CCBV0 = 1 << 16
 
 
-def _program(loop: str) -> Program:
-    """Reset: wait for FLAG (set by the test), then run `loop` (loop() for the fast-forward)."""
+def _after_flag(body: Callable[[Asm], None]) -> Program:
+    """Reset: wait for FLAG (set by the test), then `body`, which places the label "loop" (loop() for the
+    fast-forward)."""
 
     def code(a: Asm) -> dict[int, str]:
         a.label("start")
@@ -32,8 +34,19 @@ def _program(loop: str) -> Program:
         a.label("wait")
         a.mem("ldr", 1, 0)
         a._h(0x2900, "cmp", "r1, #0")
-        here = a.here
-        a._h(0xD000 | ((a.labels["wait"] - (here + 4)) >> 1) & 0xFF, "beq", "wait")
+        a.bcond(0, "wait", "beq")
+        body(a)
+        a.pool()
+        return {}
+
+    p = stub(code)
+    return dataclasses.replace(p, entry=p.labels["start"], idle=p.labels["loop"], heap_base=STATIC_END)
+
+
+def _program(loop: str) -> Program:
+    """Reset: wait for FLAG, then run `loop`."""
+
+    def body(a: Asm) -> None:
         if loop == "fixed":
             a.ldr_const(0, FIXED)
             a.label("loop")  # *FIXED += 1, the registers as they were
@@ -47,19 +60,15 @@ def _program(loop: str) -> Program:
             a.label("loop")  # while (TCC0->STATUS.bit.CCBV0) {}
             a.mem("ldr", 1, 0)
             a._h(0x0C49, "lsrs", "r1, r1, #17")  # CCBV0 (bit 16) into the carry
-            here = a.here
-            a._h(0xD200 | ((a.labels["loop"] - (here + 4)) >> 1) & 0xFF, "bcs", "loop")
+            a.bcond(2, "loop", "bcs")
             a.ldr_const(2, SYST_CVR)  # taken over: when, by SysTick
             a.mem("ldr", 3, 2)
             a.ldr_const(2, RESULT)
             a.mem("str", 3, 2)
             a.label("done")
             a.b()
-        a.pool()
-        return {}
 
-    p = stub(code)
-    return dataclasses.replace(p, entry=p.labels["start"], idle=p.labels["loop"], heap_base=STATIC_END)
+    return _after_flag(body)
 
 
 def _word(h: Harness, addr: int) -> int:
@@ -121,15 +130,7 @@ def _time_program(kind: str) -> Program:
     is), or "bit": VAL's bit 9 is set (not monotone: it comes and goes every 512 cycles). What VAL said when it
     left goes to RESULT."""
 
-    def code(a: Asm) -> dict[int, str]:
-        a.label("start")
-        a.cpsid()
-        a.ldr_const(0, FLAG)
-        a.label("wait")
-        a.mem("ldr", 1, 0)
-        a._h(0x2900, "cmp", "r1, #0")
-        here = a.here
-        a._h(0xD000 | ((a.labels["wait"] - (here + 4)) >> 1) & 0xFF, "beq", "wait")
+    def body(a: Asm) -> None:
         a.ldr_const(2, SYST_CVR)
         a.ldr_const(4, DEADLINE)
         a.mem("ldr", 3, 2)  # t0
@@ -138,24 +139,17 @@ def _time_program(kind: str) -> Program:
         if kind == "deadline":
             a._h(0x1A59, "subs", "r1, r3, r1")  # elapsed = t0 - now (VAL counts down)
             a._h(0x42A1, "cmp", "r1, r4")
-            a.movs(1, 0)  # the time leaves no trace in the registers at the loop's head (MOVS keeps the carry)
-            here = a.here
-            a._h(0xD300 | ((a.labels["loop"] - (here + 4)) >> 1) & 0xFF, "bcc", "loop")
         else:
             a._h(0x0A89, "lsrs", "r1, r1, #10")  # bit 9 into the carry
-            a.movs(1, 0)
-            here = a.here
-            a._h(0xD300 | ((a.labels["loop"] - (here + 4)) >> 1) & 0xFF, "bcc", "loop")
+        a.movs(1, 0)  # the time leaves no trace in the registers at the loop's head (MOVS keeps the carry)
+        a.bcond(3, "loop", "bcc")
         a.mem("ldr", 1, 2)
         a.ldr_const(0, RESULT)
         a.mem("str", 1, 0)
         a.label("done")
         a.b()
-        a.pool()
-        return {}
 
-    p = stub(code)
-    return dataclasses.replace(p, entry=p.labels["start"], idle=p.labels["loop"], heap_base=STATIC_END)
+    return _after_flag(body)
 
 
 def _time_poll(kind: str, ff: bool, timed: bool) -> tuple[int, object]:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from host_emulator.image.harness import Harness
 
-from .bench import GCLK_SERCOM2_CORE, bus_clock, gclk_channel, pmux
+from .bench import sercom2_i2c_pins
 
 SLAVE, MASTER = 0, 1  # board indices
 ADDR = 0x42
@@ -24,11 +24,7 @@ T = 10e-6  # SCL period at GCLK 1 MHz and BAUD 0: 10 counts (28.6.2.4.1 Clock Ge
 
 def bus() -> Harness:
     h = Harness(boards=("cell", "primary"))
-    for b in (SLAVE, MASTER):
-        bus_clock(h, "SERCOM2", board=b)
-        gclk_channel(h, GCLK_SERCOM2_CORE, board=b)
-        pmux(h, 8, "D", board=b)  # PA08: SERCOM2/PAD[0] SDA (7.1 Multiplexed Signals)
-        pmux(h, 9, "D", board=b)  # PA09: SERCOM2/PAD[1] SCL
+    sercom2_i2c_pins(h, (SLAVE, MASTER))
     h.write("SERCOM2.I2CS.CTRLA", MODE_SLAVE, board=SLAVE)
     h.write("SERCOM2.I2CS.ADDR", ADDR << 1, board=SLAVE)
     h.write("SERCOM2.I2CS.CTRLA", MODE_SLAVE | ENABLE, board=SLAVE)

@@ -10,7 +10,7 @@ import pytest
 
 from host_emulator.image.harness import Harness, HarnessError
 
-from .bench import GCLK_SERCOM2_CORE, bus_clock, gclk_channel, pmux
+from .bench import bus_clock, sercom2_i2c_pins
 
 SLAVE, MASTER = 0, 1  # board indices
 ENABLE = 1 << 1
@@ -33,11 +33,7 @@ MASK, TWO_ADDRS, RANGE = 0, 1, 2
 def bus(ctrlb: int, addr_reg: int) -> Harness:
     """A cell as the slave with CTRLB and ADDR as given (written before it is enabled), a primary as the master."""
     h = Harness(boards=("cell", "primary"))
-    for b in (SLAVE, MASTER):
-        bus_clock(h, "SERCOM2", board=b)
-        gclk_channel(h, GCLK_SERCOM2_CORE, board=b)
-        pmux(h, 8, "D", board=b)  # PA08: SERCOM2/PAD[0] SDA
-        pmux(h, 9, "D", board=b)  # PA09: SERCOM2/PAD[1] SCL
+    sercom2_i2c_pins(h, (SLAVE, MASTER))
     h.write("SERCOM2.I2CS.CTRLA", MODE_SLAVE, board=SLAVE)
     h.write("SERCOM2.I2CS.CTRLB", ctrlb, board=SLAVE)
     h.write("SERCOM2.I2CS.ADDR", addr_reg, board=SLAVE)

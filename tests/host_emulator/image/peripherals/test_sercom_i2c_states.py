@@ -9,7 +9,7 @@ import pytest
 
 from host_emulator.image.harness import Harness
 
-from .bench import GCLK_SERCOM2_CORE, bus_clock, gclk_channel, pmux
+from .bench import sercom2_i2c_pins
 
 SLAVE, MASTER = 0, 1  # board indices
 ADDR = 0x42
@@ -29,11 +29,7 @@ def bus(baud: int = 0, sdahold: int = 0, osc8m_presc: int = 3, enable: bool = Tr
     """A cell as the slave at ADDR and a primary as the master (BAUD, SDAHOLD), the master's GCLK0 OSC8M >> presc
     (3: the reset value, 1 MHz; 0: 8 MHz)."""
     h = Harness(boards=("cell", "primary"))
-    for b in (SLAVE, MASTER):
-        bus_clock(h, "SERCOM2", board=b)
-        gclk_channel(h, GCLK_SERCOM2_CORE, board=b)
-        pmux(h, 8, "D", board=b)  # PA08: SERCOM2/PAD[0] SDA
-        pmux(h, 9, "D", board=b)  # PA09: SERCOM2/PAD[1] SCL
+    sercom2_i2c_pins(h, (SLAVE, MASTER))
     if osc8m_presc != 3:
         h.write("SYSCTRL.OSC8M", h.read("SYSCTRL.OSC8M", board=MASTER) & ~(3 << 8) | osc8m_presc << 8, board=MASTER)
     h.write("SERCOM2.I2CS.CTRLA", MODE_SLAVE, board=SLAVE)
