@@ -270,6 +270,15 @@ void sam_tcc_pieces(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, sam
     walk(s, tcc_lupd(m, pi), wo % s->nch, t0, t1, piece_seg, &p);
 }
 
+uint64_t sam_tcc_period_held(sam_mcu_t *m, int tcc)
+{
+    int pi;
+    tcc_t *s = tcc_state(m, tcc, &pi);
+    if (!s || !s->running)
+        return 1;
+    return s->ready_per != SAM_NEVER ? 0 : (uint64_t)s->per + 1u;
+}
+
 int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out)
 {
     int pi;
