@@ -67,12 +67,12 @@ static int pin_has(int pin, int f, int pi, const char *signal)
     return 0;
 }
 
-/* SDA and SCL muxed to the bus SERCOM's PAD0/PAD1 (the generated pin table names the function) */
+/* SDA and SCL muxed to the bus SERCOM's PAD0/PAD1 (the functions the generated pin table names: sam_bus_init) */
 int sam_bus_pins_connected(sam_mcu_t *m)
 {
     sam_world_t *w = m->w;
-    return pin_has(w->cfg.pin_sda, sam_pin_function(m, w->cfg.pin_sda), w->bus.pi, "PAD0") &&
-           pin_has(w->cfg.pin_scl, sam_pin_function(m, w->cfg.pin_scl), w->bus.pi, "PAD1");
+    int fa = sam_pin_function(m, w->cfg.pin_sda), fl = sam_pin_function(m, w->cfg.pin_scl);
+    return fa >= 0 && (w->bus.sda_funcs >> fa & 1u) && fl >= 0 && (w->bus.scl_funcs >> fl & 1u);
 }
 
 /* ---------------------------------------------------------------- bus steps */
@@ -266,12 +266,11 @@ int sam_bus_init(sam_world_t *w)
     w->bus.pi = w->cfg.bus_sercom >= 0 && w->cfg.bus_sercom < 10 ? sam_periph_index(name) : -1;
     if (w->bus.pi < 0)
         return -1;
-    int sda = 0, scl = 0;
     for (int f = 0; f < 8; f++) {
-        sda |= pin_has(w->cfg.pin_sda, f, w->bus.pi, "PAD0");
-        scl |= pin_has(w->cfg.pin_scl, f, w->bus.pi, "PAD1");
+        w->bus.sda_funcs |= (uint8_t)(pin_has(w->cfg.pin_sda, f, w->bus.pi, "PAD0") << f);
+        w->bus.scl_funcs |= (uint8_t)(pin_has(w->cfg.pin_scl, f, w->bus.pi, "PAD1") << f);
     }
-    return sda && scl ? 0 : -1;
+    return w->bus.sda_funcs && w->bus.scl_funcs ? 0 : -1;
 }
 
 /* The bus's event source on a board (registered when the world loads it). */

@@ -294,6 +294,7 @@ int sam_reg_index(int pi, const char *name);
 uint32_t sam_reg_get(sam_mcu_t *m, int ri);
 void sam_reg_put(sam_mcu_t *m, int ri, uint32_t v);
 void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* the table's access rule */
+int sam_generic_changes(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask);  /* whether that write changes a bit */
 int sam_mmio_store(sam_mcu_t *m, uint32_t addr, unsigned size, uint32_t v);   /* a CPU store carried out: 0, -1 */
 /* sam_protect.c: v with the `protect` bits of register ri kept as they are when the peripheral is enabled (noted) */
 uint32_t sam_enable_protected(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask, uint32_t protect, int enabled);
@@ -337,6 +338,9 @@ uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, i
 typedef void (*sam_tcc_piece_fn)(void *ctx, int level, uint64_t dt);
 void sam_tcc_pieces(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, sam_tcc_piece_fn fn, void *ctx);
 int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out);   /* the counter at t; -1: none */
+/* PER + 1 while the counter runs and no buffered PER is pending (the period holds until a write or event), 1 while it
+ * is stopped or absent, 0 while a PERB waits for an UPDATE */
+uint64_t sam_tcc_period_held(sam_mcu_t *m, int tcc);
 
 /* A step to another board takes effect at t: this board stops before t + SAM_BUS_TMIN, when the other may answer. */
 static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)
@@ -348,6 +352,7 @@ static inline void sam_stop_before(sam_mcu_t *m, uint64_t t)
 /* ---- sam_world.c, sam_world_plant.c: what the boards do to the world ---- */
 void sam_world_pins_will_change(sam_mcu_t *m);            /* before a pin's level or mux changes: motors integrate */
 void sam_world_pins_changed(sam_mcu_t *m);                /* after: the bus lines are re-read */
+void sam_world_pins_unchanged(sam_mcu_t *m);              /* a PORT write changed nothing: motors integrate if needed */
 void sam_world_tcc_will_change(sam_mcu_t *m, int tcc);    /* before a TCC's duty changes (now or later) */
 void sam_world_note(sam_world_t *w, const char *fmt, ...); /* a log line from the world, read by Python */
 void sam_note(sam_mcu_t *m, const char *fmt, ...);         /* a log line from a board (resets, faults, traces) */

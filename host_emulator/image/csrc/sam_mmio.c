@@ -99,18 +99,30 @@ static uint32_t generic_read(sam_mcu_t *m, int ri)
     return sam_reg_get(m, sam_regs[ri].alias != ri ? sam_regs[ri].alias : ri);
 }
 
+/* what the table's access rule leaves in a register's storage that holds old, after a write of v under mask */
+static uint32_t generic_next(const sam_reg_t *r, uint32_t old, uint32_t v, uint32_t mask)
+{
+    switch (r->kind) {
+    case SAM_KIND_W1C: return old & ~(v & mask);
+    case SAM_KIND_SET: return old | (v & mask);
+    case SAM_KIND_CLR: return old & ~(v & mask);
+    case SAM_KIND_TGL: return old ^ (v & mask);
+    default: return (old & ~mask) | (v & mask);
+    }
+}
+
+int sam_generic_changes(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask)
+{
+    const sam_reg_t *r = &sam_regs[ri];
+    uint32_t old = sam_reg_get(m, r->alias);
+    return generic_next(r, old, v, mask) != old;
+}
+
 void sam_generic_write(sam_mcu_t *m, int ri, uint32_t v, uint32_t mask)
 {
     const sam_reg_t *r = &sam_regs[ri];
     int target = r->alias;
-    uint32_t old = sam_reg_get(m, target), nv;
-    switch (r->kind) {
-    case SAM_KIND_W1C: nv = old & ~(v & mask); break;
-    case SAM_KIND_SET: nv = old | (v & mask); break;
-    case SAM_KIND_CLR: nv = old & ~(v & mask); break;
-    case SAM_KIND_TGL: nv = old ^ (v & mask); break;
-    default: nv = (old & ~mask) | (v & mask); break;
-    }
+    uint32_t old = sam_reg_get(m, target), nv = generic_next(r, old, v, mask);
     if (nv != old) {
         sam_reg_put(m, target, nv);
         m->act++;

@@ -3,28 +3,29 @@
 #include "sam.h"
 #include "sam_vendor_gen.h"
 
-/* (register index, mask) of a peripheral's bus clock enable, from the PM APBxMASK field of the same name */
-static int apb_reg[SAM_MAX_PERIPH];
-static uint32_t apb_mask[SAM_MAX_PERIPH];
-static int apb_ready;
+/* a peripheral's bus clock enable, from the PM APBxMASK field of the same name: the byte of PM's registers that
+ * holds it (-1: not gated) and its bit there */
+static int apb_byte[SAM_MAX_PERIPH];
+static uint8_t apb_bit[SAM_MAX_PERIPH];
+static int apb_pm, apb_ready;
 
 static void apb_table(void)
 {
     if (apb_ready)
         return;
-    int pm = sam_periph_index("PM");
+    int pm = apb_pm = sam_periph_index("PM");
     const char *regs[3] = {"APBAMASK", "APBBMASK", "APBCMASK"};
     for (unsigned pi = 0; pi < sam_nperiphs; pi++) {
-        apb_reg[pi] = -1;
+        apb_byte[pi] = -1;
         const char *name = sam_periphs[pi].name;
         if (!strcmp(name, "PORT_IOBUS"))
             name = "PORT";
         for (int k = 0; k < 3; k++) {
             int ri = sam_reg_index(pm, regs[k]);
             const sam_field_t *f = ri >= 0 ? sam_field(ri, name) : NULL;
-            if (f) {
-                apb_reg[pi] = ri;
-                apb_mask[pi] = 1u << f->pos;
+            if (f) {   /* the field's bit in the register's little-endian bytes */
+                apb_byte[pi] = (int)(sam_regs[ri].offset + f->pos / 8u);
+                apb_bit[pi] = (uint8_t)(1u << f->pos % 8u);
             }
         }
     }
@@ -34,9 +35,9 @@ static void apb_table(void)
 int sam_apb_on(sam_mcu_t *m, int pi)
 {
     apb_table();
-    if (apb_reg[pi] < 0)
+    if (apb_byte[pi] < 0)
         return 1;   /* not gated by PM (system control space, the DSU's debug side) */
-    return (sam_reg_get(m, apb_reg[pi]) & apb_mask[pi]) != 0;
+    return (m->regs[apb_pm][apb_byte[pi]] & apb_bit[pi]) != 0;
 }
 
 static int pm_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)

@@ -147,41 +147,66 @@ static int port_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
     return SAM_DONE;
 }
 
-static void port_config_write(sam_mcu_t *m, int g, uint32_t wc)
+/* WRCONFIG: PINMASK selects pins of the half HWSEL names; WRPINCFG / WRPMUX update their PINCFG / PMUX. Whether a
+ * byte of them differs from what it holds; `apply`: stored (else only compared) */
+static int port_config_write(sam_mcu_t *m, int g, uint32_t wc, int apply)
 {
-    /* WRCONFIG: PINMASK selects pins of the half HWSEL names; WRPINCFG / WRPMUX update their PINCFG / PMUX */
     uint32_t mask = wc & 0xFFFFu, base = wc & PORT_WRCONFIG_HWSEL ? 16u : 0u;
+    int changes = 0;
     for (uint32_t k = 0; k < 16; k++) {
         if (!(mask >> k & 1u))
             continue;
         uint32_t pin = base + k;
         uint8_t *cfg = &grp(m, g)[PORT_PINCFG_OFFSET + pin];
-        if (wc & PORT_WRCONFIG_WRPINCFG)
-            *cfg = (uint8_t)(((wc & PORT_WRCONFIG_PMUXEN) ? PORT_PINCFG_PMUXEN : 0) |
-                             ((wc & PORT_WRCONFIG_INEN) ? PORT_PINCFG_INEN : 0) |
-                             ((wc & PORT_WRCONFIG_PULLEN) ? PORT_PINCFG_PULLEN : 0) |
-                             ((wc & PORT_WRCONFIG_DRVSTR) ? PORT_PINCFG_DRVSTR : 0));
+        if (wc & PORT_WRCONFIG_WRPINCFG) {
+            uint8_t val = (uint8_t)(((wc & PORT_WRCONFIG_PMUXEN) ? PORT_PINCFG_PMUXEN : 0) |
+                                    ((wc & PORT_WRCONFIG_INEN) ? PORT_PINCFG_INEN : 0) |
+                                    ((wc & PORT_WRCONFIG_PULLEN) ? PORT_PINCFG_PULLEN : 0) |
+                                    ((wc & PORT_WRCONFIG_DRVSTR) ? PORT_PINCFG_DRVSTR : 0));
+            changes |= *cfg != val;
+            if (apply)
+                *cfg = val;
+        }
         if (wc & PORT_WRCONFIG_WRPMUX) {
             uint8_t *pm = &grp(m, g)[PORT_PMUX_OFFSET + (pin >> 1)];
             uint8_t val = (uint8_t)((wc >> PORT_WRCONFIG_PMUX_Pos) & 15u);
-            *pm = pin & 1 ? (uint8_t)((*pm & 0x0F) | val << 4) : (uint8_t)((*pm & 0xF0) | val);
+            val = pin & 1 ? (uint8_t)((*pm & 0x0F) | val << 4) : (uint8_t)((*pm & 0xF0) | val);
+            changes |= *pm != val;
+            if (apply)
+                *pm = val;
         }
     }
+    return changes;
 }
 
 static int port_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
 {
     (void)pi;
     uint32_t off = sam_regs[ri].offset, g = off / 0x80, r = off % 0x80;
+    int config = r >= PORT_PMUX_OFFSET || r == PORT_WRCONFIG_OFFSET;   /* the pins' mux or configuration */
+    if (r == PORT_WRCONFIG_OFFSET ? !port_config_write(m, (int)g, v & mask, 0) : !sam_generic_changes(m, ri, v, mask)) {
+        /* No byte of the group's registers changes (digitalWrite of a level the pin has): the pad levels are what
+         * port_levels last found (every change of a register, a board's drive or a reset recomputes them), so the
+         * EIC sees no edge; the motors integrate only where splitting their stretch here could change a bit
+         * (sam_world_pins_unchanged). As before: WRCONFIG counts as activity, a mux or configuration write re-reads
+         * the EIC's lines, and the bus lines are re-read (they also hold a slave's SCL and a stuck SDA). */
+        if (r == PORT_WRCONFIG_OFFSET)
+            sam_activity(m);
+        sam_world_pins_unchanged(m);
+        if (config)
+            sam_eic_lines_update(m);
+        sam_world_pins_changed(m);
+        return SAM_DONE;
+    }
     sam_world_pins_will_change(m);
     if (r == PORT_WRCONFIG_OFFSET) {
-        port_config_write(m, (int)g, v & mask);
+        port_config_write(m, (int)g, v & mask, 1);
         sam_activity(m);
     } else {
         sam_generic_write(m, ri, v, mask);
     }
     port_levels(m, (int)g);
-    if (r >= PORT_PMUX_OFFSET || r == PORT_WRCONFIG_OFFSET)
+    if (config)
         sam_eic_lines_update(m);
     sam_world_pins_changed(m);
     return SAM_DONE;

@@ -111,16 +111,21 @@ static void update_at(tcc_t *s, uint64_t u, int lupd)
     s->top = s->per;
 }
 
-/* bring the counter to time t: every change up to t made, za the start of the cycle holding t */
-static void advance(tcc_t *s, int lupd, uint64_t t)
+/* bring the counter to time t: every change up to t made, za the start of the cycle holding t. Returns the next
+ * change after t, next_change's value then: moving za by whole periods (top = PER: no long cycle) leaves it, as a
+ * buffer is taken over at the first wrap after its ready time and at or after za + one period, and the wrap found
+ * before the move is past t, so at or after the new za + one period too. */
+static uint64_t advance(tcc_t *s, int lupd, uint64_t t)
 {
     if (!s->running || t < s->za)
-        return;
-    for (uint64_t u; (u = next_change(s, lupd)) <= t;)
+        return next_change(s, lupd);
+    uint64_t u;
+    while ((u = next_change(s, lupd)) <= t)
         update_at(s, u, lupd);
     uint64_t P = cycle_len(s);
     if (s->top == s->per && t - s->za >= P)
         s->za += (t - s->za) / P * P;
+    return u;
 }
 
 /* ---------------------------------------------------------------- the outputs */
@@ -159,17 +164,16 @@ static void walk(const tcc_t *s0, int lupd, int c, uint64_t t0, uint64_t t1, tcc
 {
     tcc_t s = *s0;
     uint64_t a = t0 < s.t_start ? s.t_start : t0;
-    if (a < s.za)   /* nothing changed between a and za: the same cycles before it */
-        ;
-    else
-        advance(&s, lupd, a);
+    /* before za nothing changed between a and za: the same cycles before it */
+    uint64_t u = a < s.za ? next_change(&s, lupd) : advance(&s, lupd, a);
     while (a < t1) {
-        uint64_t u = next_change(&s, lupd), b = u < t1 ? u : t1;
+        uint64_t b = u < t1 ? u : t1;
         seg(&s, c, a, b, ctx);
         if (u >= t1)
             break;
         update_at(&s, u, lupd);
         a = u;
+        u = next_change(&s, lupd);
     }
 }
 
@@ -268,6 +272,15 @@ void sam_tcc_pieces(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, sam
     }
     piece_acc_t p = {fn, ctx};
     walk(s, tcc_lupd(m, pi), wo % s->nch, t0, t1, piece_seg, &p);
+}
+
+uint64_t sam_tcc_period_held(sam_mcu_t *m, int tcc)
+{
+    int pi;
+    tcc_t *s = tcc_state(m, tcc, &pi);
+    if (!s || !s->running)
+        return 1;
+    return s->ready_per != SAM_NEVER ? 0 : (uint64_t)s->per + 1u;
 }
 
 int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out)

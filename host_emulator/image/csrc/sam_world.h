@@ -76,6 +76,7 @@ typedef struct {
 
 typedef struct {
     int pi;               /* the SERCOM on the bus (the board's wiring: cfg.bus_sercom), -1 none */
+    uint8_t sda_funcs, scl_funcs;   /* the PMUX functions that put SDA on its PAD0, SCL on its PAD1 (bit f) */
     int slot[SAM_MAX_MCU];   /* its event source on each board */
     int sda_stuck;        /* fault (world level, changed only at a round boundary) */
     int timing_noted;     /* the master's SCL timing violation has been noted (once per bus) */

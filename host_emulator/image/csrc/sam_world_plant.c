@@ -208,6 +208,51 @@ void sam_world_pins_will_change(sam_mcu_t *m)
         motor_integrate(m->w, m->cell, sam_now(m));
 }
 
+/* Whether motor_integrate(w, j, now) may be left to the cell's next integration at t (a pin change, a TCC write or
+ * catch-up, the window's end) when no pin, mux or TCC register changes in between: the sums over [t_last, now) and
+ * [now, t) then add up to the sum over [t_last, t) bit for bit, checked path by path:
+ * - awake_tu, t_last: integers, additive; PH and NSLEEP (GPIO levels) and `halted` hold (a halt integrates first).
+ * - EN as GPIO, a function other than a TCC output, a stopped TCC (it starts at an event that integrates first), a
+ *   halted board: enable_high's numerator is a whole number of tu with den 1, added to mo->hi (times mo->den when
+ *   that is a PWM period): integer arithmetic, additive.
+ * - the waveform path (cfg.pwm_waveform): the waveform's exact high time in tu, den 1, other 0: additive (the
+ *   measure of the set of high instants; walk's copy of the counter cuts it at the same changes either way).
+ * - the mean path: each stretch of constant PER adds CC * dt to the integer numerator when its period is the first
+ *   stretch's (den) and that is mo->den, otherwise (double) numerator / den to hi_other, or `other`, in double:
+ *   rounded, so not additive. It is exact when the period cannot change over [t_last, t) and mo->den is 0, 1 or
+ *   that period: PER changes by a write (integrates first) or by a buffered PERB taken over at an UPDATE, which is
+ *   no event, so only while no PERB is pending (sam_tcc_period_held; a pending one is seen in the counter's state
+ *   until an integration's catch-up takes it over). CC changes inside it stay in the integer numerator.
+ * - the electrical model (cfg.motor_tau_s > 0): its pieces merge to the same runs of constant voltage either way,
+ *   but a full piece table is followed with the back-EMF of w->cfg.v read then, which Python may set between two
+ *   runs: not proven here, so it integrates now. */
+static int split_exact(sam_world_t *w, int j)
+{
+    int mi = w->cell_mcu[j];
+    if (mi < 0)
+        return 1;   /* motor_integrate does nothing */
+    if (w->cfg.motor_tau_s > 0.0)
+        return 0;
+    sam_mcu_t *m = w->mcu[mi];
+    if (w->cfg.pwm_waveform || m->halted)
+        return 1;
+    for (int ch = 0; ch < 2; ch++) {
+        int pin = w->cfg.pin_en[ch], f = sam_pin_function(m, pin);
+        if (f < 0 || pin_tcc[pin][f] < 0)
+            continue;
+        uint64_t per = sam_tcc_period_held(m, pin_tcc[pin][f] >> 8), den = w->motor[j][ch].den;
+        if (!per || (per > 1 && den > 1 && den != per))   /* per 1: den 1, the integer path */
+            return 0;
+    }
+    return 1;
+}
+
+void sam_world_pins_unchanged(sam_mcu_t *m)
+{
+    if (m->role == SAM_ROLE_CELL && m->cell >= 0 && !split_exact(m->w, m->cell))
+        motor_integrate(m->w, m->cell, sam_now(m));
+}
+
 void sam_world_pins_changed(sam_mcu_t *m) { sam_bus_lines_changed(m); }
 
 void sam_world_tcc_will_change(sam_mcu_t *m, int tcc)
