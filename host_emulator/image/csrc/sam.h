@@ -142,6 +142,12 @@ typedef struct {
     int resumed;           /* just resumed at a loop() entry: that pass runs (its event is due inside it) */
     uint64_t anchor, period, period_cycles;
     uint64_t passes_skipped, cycles_skipped, parks, checks, misses;
+    /* SRAM pages the CPU may not store to without notice: [prot_lo, prot_hi) (SRAM offsets, whole 1 KiB pages; empty
+     * when lo == hi), read only in its TLB (hook_tlb), from the snapshot's reference point (sam_ff.c) */
+    uint32_t prot_lo, prot_hi;
+    uint32_t ref_lo, ref_hi;   /* the pages protected since the reference point, which the compares skip */
+    int mid_dirty;         /* a store reached them since (the CPU's, stopped and let through; or one from C) */
+    uint64_t traps;        /* stores the protection stopped */
 } sam_ff_t;
 
 struct sam_mcu {
@@ -173,6 +179,8 @@ struct sam_mcu {
     uint32_t cyc_tu;       /* tu per CPU cycle */
     uint32_t rws;          /* NVMCTRL.CTRLB.RWS: flash wait states */
     uint32_t prev_end;     /* end of the previous block, for the untaken-branch refund */
+    uint32_t cont_pc;      /* a store to a protected SRAM page stopped the CPU here, inside a block charged whole: the
+                              block starting here is its rest (sam_ff.c), 0xFFFFFFFF: none */
     uint8_t prev_refund;
     uint64_t cycles;       /* CPU cycles executed (for reports) */
     uint64_t *prof;        /* cycles charged per block start (halfword index), NULL: not profiling */
@@ -256,6 +264,8 @@ uint32_t sam_mem_read32(sam_mcu_t *m, uint32_t addr, int *ok);
 void sam_set_cpu_clock(sam_mcu_t *m);                     /* after GCLK0 or PM.CPUSEL changed */
 int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len);   /* flash rewritten there (NVMCTRL, harness) */
 void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc);    /* resume at pc inside the block charged (a flash store) */
+void sam_ff_ram_written(sam_mcu_t *m);   /* SRAM written from C (exception frames, USB): the fast-forward's next
+                                            compare a miss (sam_ff.c) */
 /* The store instruction at pc, as the CPU stopped at it (ARMv6-M's 16-bit STR, STRH, STRB with an immediate or a
  * register offset, STMIA): 1 and *s, or 0 when it is none of them. */
 typedef struct {

@@ -91,6 +91,7 @@ typedef struct {
     int32_t lockup, halted;
     uint64_t ff_passes_skipped, ff_cycles_skipped, ff_parks, ff_checks, ff_misses;
     uint64_t ff_probes, ff_probe_fails;   /* probes of passes that read the time, and those that failed */
+    uint64_t ff_traps;     /* stores to SRAM pages the fast-forward protected, stopped and let through */
     uint64_t mmio_reads, mmio_writes;
     uint64_t runs;             /* emulation starts: each costs the emulator a fixed overhead */
     uint32_t nvic_enabled, nvic_pending, nvic_active;

@@ -64,6 +64,7 @@ int sam_ff_boundary(sam_mcu_t *m);                /* at the boundary: 1 when par
 void sam_ff_access(sam_mcu_t *m, uint32_t key);   /* a register access (address << 4 | size << 1 | write) */
 int sam_ff_probe_access(sam_mcu_t *m, uint32_t key);   /* in a probe: 0 when the access must not happen */
 int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped);   /* the probe ends: 1 when parked */
+int sam_ff_ram_trap(sam_mcu_t *m);   /* the CPU stopped at a store to a protected SRAM page: 1 when it was that */
 void sam_ff_resume(sam_mcu_t *m);                 /* leave the park at the last loop() entry before the next event */
 
 /* ---- sam_mcu.c ---- */

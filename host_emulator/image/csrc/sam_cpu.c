@@ -53,6 +53,7 @@ int sam_cpu_ram_write32(sam_mcu_t *m, uint32_t addr, uint32_t v)
     if (addr < SAM_RAM_BASE || addr - SAM_RAM_BASE > SAM_RAM_SIZE - 4 || (addr & 3))
         return 0;
     uint8_t *p = m->ram + (addr - SAM_RAM_BASE);
+    sam_ff_ram_written(m);
     p[0] = (uint8_t)v;
     p[1] = (uint8_t)(v >> 8);
     p[2] = (uint8_t)(v >> 16);
@@ -202,7 +203,8 @@ static bool hook_badmem(uc_engine *uc, uc_mem_type type, uint64_t address, int s
 }
 
 
-/* The TLB entry of a page (Unicorn's virtual TLB): flash read and execute, SRAM read and write, the NVM rows
+/* The TLB entry of a page (Unicorn's virtual TLB): flash read and execute, SRAM read and write (but the pages the
+ * fast-forward protects, read only: sam_ff.c), the NVM rows
  * read only, peripherals read and write but the pages the PAC traps, read only (sam_pac.c); anywhere else the
  * memory system reports the fault. SRAM is not executable: Unicorn then lets stores to it take the fast path (it
  * keeps pages that could hold code on a slow path for every store), and code there has no cycle model anyway. */
@@ -215,8 +217,9 @@ static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_ent
     e->paddr = vaddr;
     if (a < SAM_FLASH_SIZE)
         e->perms = UC_PROT_READ | UC_PROT_EXEC;
-    else if (a >= SAM_RAM_BASE && a < SAM_RAM_BASE + SAM_RAM_SIZE)
-        e->perms = UC_PROT_READ | UC_PROT_WRITE;
+    else if (a >= SAM_RAM_BASE && a < SAM_RAM_BASE + SAM_RAM_SIZE)   /* but the fast-forward's protected pages */
+        e->perms = a - SAM_RAM_BASE >= m->ff.prot_lo && a - SAM_RAM_BASE < m->ff.prot_hi ? UC_PROT_READ
+                                                                                       : UC_PROT_READ | UC_PROT_WRITE;
     else if (a >= SAM_NVM_BASE && a < SAM_NVM_BASE + SAM_NVM_SIZE)
         e->perms = UC_PROT_READ;
     else if (a >= 0x40000000u && a < 0x60000000u)
@@ -236,6 +239,19 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
         uint32_t back = (m->prev_refund & 15u) + (m->cycle_model == SAM_CYCLES_WORST ? m->rws * (m->prev_refund >> 4) : 0u);
         m->t -= (uint64_t)back * m->cyc_tu;
         m->cycles -= back;
+    }
+    if (m->t >= m->next_ev && m->cont_pc != 0xFFFFFFFFu) {   /* (next_ev is held at 0 meanwhile: sam_next_event) */
+        uint32_t cont = m->cont_pc;
+        m->cont_pc = 0xFFFFFFFFu;
+        sam_next_event(m);
+        if (addr == cont && addr + size == m->prev_end)
+            return;   /* the rest of the block a store to a protected page stopped (sam_ff.c): charged with it */
+        if (addr == cont && m->prev_end != 0xFFFFFFFFu && addr < m->prev_end) {
+            /* translated otherwise: the rest refunded (as sam_cpu_resume_after does), this block charged */
+            uint64_t back = sam_cost_tail(m, addr, m->prev_end);
+            m->t -= back * m->cyc_tu;
+            m->cycles -= back;
+        }
     }
     m->prev_end = 0xFFFFFFFFu;
     if (m->t >= m->next_ev) {

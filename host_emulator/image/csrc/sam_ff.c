@@ -7,6 +7,8 @@
 #define SAM_FF_HEAD_MISSES 4   /* arrivals at a polling head with other registers before it is given up */
 #define SAM_FF_JCAP_MAX (1u << 20)
 #define SAM_FF_JMIN 16u        /* fewest passes a probe must cover: below, it costs more than the passes it skips */
+#define SAM_FF_KEEP 2048u      /* bytes below SP at the boundary never protected: a pass's calls and interrupts use them */
+#define SAM_FF_PAGE 1024u      /* the CPU's TLB page (Unicorn's ARM: 1 KiB) */
 
 /*
  * The boundary (f->head) is loop()'s entry, or, with timed passes on, a polling loop's block: the block that reads
@@ -29,10 +31,69 @@
  * `model_options.image.fast_forward_timed` asks for it: on the default scene the primary's waits last one I2C
  * byte (about 8 passes between bus events), where a probe and its snapshots cost about what they skip. The tier's
  * schedule test checks every board's register changes, times and plant trajectory bit for bit with it on.
+ *
+ * Most of the RAM compare is the free stack between the break and SP, which a pass hardly touches. From each
+ * reference point (the state a compare is against) the whole 1 KiB pages of [break, SP - SAM_FF_KEEP) are read only
+ * in the CPU's TLB (hook_tlb), and the compare skips them: a store there stops the CPU (UC_ERR_EXCEPTION, PC at the
+ * store), sam_ff_ram_trap notes it (the next compare is a miss), lifts the protection and lets the store run; the
+ * block it stopped in was charged whole before it ran, so its rest, translated as a block of its own, is not charged
+ * again, nor is anything due taken before it (sam_cpu.c: cont_pc): the board's times are those of a run without the
+ * stop. Writes into SRAM from C (exception frames, the USB controller's) count as such a store
+ * (sam_ff_ram_written). Off with timed passes, whose probes restore the whole snapshot.
  */
 
-/* The snapshot's RAM between the break (lo) and SP (hi) made equal to the board's, copied where it differs. */
-static void sync_mid(sam_mcu_t *m, uint32_t lo, uint32_t hi)
+/* The protected pages (the header comment): none from here (a store reached one, or a reset). */
+static void unprotect(sam_mcu_t *m)
+{
+    sam_ff_t *f = &m->ff;
+    if (f->prot_lo < f->prot_hi) {
+        f->prot_lo = f->prot_hi = 0;
+        uc_ctl_flush_tlb(m->uc);
+    }
+}
+
+/* A reference point (the state the next compare is against): the whole pages of [lo, hi - SAM_FF_KEEP) read only
+ * from here, lo the break and hi SP (none with timed passes, whose probes restore the whole snapshot). */
+static void protect(sam_mcu_t *m, uint32_t lo, uint32_t hi)
+{
+    sam_ff_t *f = &m->ff;
+    uint32_t plo = 0, phi = 0;
+    if (!f->timed && hi >= lo + SAM_FF_KEEP) {
+        plo = (lo + SAM_FF_PAGE - 1u) & ~(SAM_FF_PAGE - 1u);
+        phi = (hi - SAM_FF_KEEP) & ~(SAM_FF_PAGE - 1u);
+        if (phi <= plo)
+            plo = phi = 0;
+    }
+    if (plo != f->prot_lo || phi != f->prot_hi) {
+        int flush = f->prot_lo < f->prot_hi || plo < phi;   /* TLB entries made under the old pages go */
+        f->prot_lo = plo;
+        f->prot_hi = phi;
+        if (flush)
+            uc_ctl_flush_tlb(m->uc);
+    }
+    f->ref_lo = plo;
+    f->ref_hi = phi;
+    f->mid_dirty = 0;
+}
+
+void sam_ff_ram_written(sam_mcu_t *m) { m->ff.mid_dirty = 1; }
+
+int sam_ff_ram_trap(sam_mcu_t *m)
+{
+    sam_ff_t *f = &m->ff;
+    if (f->prot_lo >= f->prot_hi)
+        return 0;
+    /* the store runs when the CPU starts again, the pages writable (any other cause of the stop recurs then, and
+     * is taken as it would have been); the rest of its block was charged with it (sam_cpu.c: cont_pc) */
+    unprotect(m);
+    f->mid_dirty = 1;
+    f->traps++;
+    m->cont_pc = sam_cpu_reg(m, UC_ARM_REG_PC) & ~1u;
+    m->next_ev = 0;   /* (sam_next_event keeps it there until the block hook has seen the rest) */
+    return 1;
+}
+
+static void sync_range(sam_mcu_t *m, uint32_t lo, uint32_t hi)
 {
     uint8_t *snap = m->ff.snap_ram;
     for (uint32_t a = lo; a < hi; a += SAM_FF_CHUNK) {
@@ -40,6 +101,39 @@ static void sync_mid(sam_mcu_t *m, uint32_t lo, uint32_t hi)
         if (memcmp(m->ram + a, snap + a, n))
             memcpy(snap + a, m->ram + a, n);
     }
+}
+
+/* The pages protected since the reference point, inside [lo, hi): whether there are any. */
+static int protected_in(const sam_ff_t *f, uint32_t lo, uint32_t hi)
+{
+    return f->ref_lo < f->ref_hi && lo <= f->ref_lo && f->ref_hi <= hi;
+}
+
+/* The snapshot's RAM between the break (lo) and SP (hi) made equal to the board's, copied where it differs; the
+ * pages protected from this reference point on need no copy: they are compared by their protection. */
+static void sync_mid(sam_mcu_t *m, uint32_t lo, uint32_t hi)
+{
+    sam_ff_t *f = &m->ff;
+    if (protected_in(f, lo, hi)) {
+        sync_range(m, lo, f->ref_lo);
+        sync_range(m, f->ref_hi, hi);
+    } else {
+        sync_range(m, lo, hi);
+    }
+}
+
+/* RAM between the break and SP as the snapshot holds it: outside the protected pages, which no store reached since
+ * the reference point (a stopped store, or one from C, makes it a miss), or all of it when none were. */
+static int mid_same(sam_mcu_t *m, uint32_t lo, uint32_t hi)
+{
+    sam_ff_t *f = &m->ff;
+    if (f->ref_lo < f->ref_hi) {
+        if (f->mid_dirty || !protected_in(f, lo, hi))
+            return 0;
+        return !memcmp(m->ram + lo, f->snap_ram + lo, f->ref_lo - lo) &&
+               !memcmp(m->ram + f->ref_hi, f->snap_ram + f->ref_hi, hi - f->ref_hi);
+    }
+    return !memcmp(m->ram + lo, f->snap_ram + lo, hi - lo);
 }
 
 static void read_regs(sam_mcu_t *m, uint32_t *regs)
@@ -254,7 +348,7 @@ int sam_ff_boundary(sam_mcu_t *m)
         f->checks++;
         if (!memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
             !memcmp(m->ram, f->snap_ram, lo) && !memcmp(m->ram + hi, f->snap_ram + hi, SAM_RAM_SIZE - hi)) {
-            if (f->mid_valid && !memcmp(m->ram + lo, f->snap_ram + lo, hi - lo)) {
+            if (f->mid_valid && mid_same(m, lo, hi)) {
                 uint64_t period = m->t - f->snap_t, period_cycles = m->cycles - f->snap_cycles;
                 if (m->tread != f->snap_tread) {
                     /* it read the time (only compared with timed passes on): skipped only once a probe shows a
@@ -277,6 +371,7 @@ int sam_ff_boundary(sam_mcu_t *m)
                 return 1;
             }
             if (!f->mid_valid) {   /* the rest of RAM from here; the snapshot is this entry's */
+                protect(m, lo, hi);
                 sync_mid(m, lo, hi);
                 f->mid_valid = 1;
                 pass_starts(m, m->t, m->cycles);
@@ -295,6 +390,7 @@ int sam_ff_boundary(sam_mcu_t *m)
     memcpy(f->snap_cache, m->cache_tag, sizeof m->cache_tag);
     memcpy(f->snap_ram, m->ram, lo);
     memcpy(f->snap_ram + hi, m->ram + hi, SAM_RAM_SIZE - hi);
+    protect(m, lo, hi);
     f->mid_valid = f->idle || poll;   /* it parked last time it was compared, or a polling loop: the rest of RAM too */
     if (f->mid_valid)
         sync_mid(m, lo, hi);

@@ -24,6 +24,7 @@ int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id)
     m->ram = calloc(1, SAM_RAM_SIZE);
     m->nvm = calloc(1, SAM_NVM_SIZE);
     m->ff.snap_ram = calloc(1, SAM_RAM_SIZE);
+    m->cont_pc = 0xFFFFFFFFu;
     m->touch = calloc(2 * (size_t)sam_nregs, sizeof(uint32_t));
     m->notes = malloc(SAM_BOARD_NOTES);
     if (!m->flash || !m->ram || !m->nvm || !m->ff.snap_ram || !m->touch || !m->notes)
@@ -138,6 +139,8 @@ void sam_do_reset(sam_mcu_t *m, uint8_t cause)
         sam_cpu_set(m, UC_ARM_REG_PC, m->entry_pc | 1u);
     }
     m->prev_end = 0xFFFFFFFFu;
+    m->cont_pc = 0xFFFFFFFFu;
+    sam_ff_ram_written(m);   /* (a reset keeps SRAM, but ends what the protection's reference point was) */
     memset(m->cache_tag, 0, sizeof m->cache_tag);
     m->ff.snap_valid = 0;
     m->ff.regs_valid = 0;

@@ -9,7 +9,9 @@ void sam_next_event(sam_mcu_t *m)
     for (int s = 0; s < SAM_NSLOTS; s++)
         if (m->slot[s] < t)
             t = m->slot[s];
-    m->next_ev = m->ff.probing ? 0 : t;   /* a probe holds it at 0: the block hook sees the probe there (sam_ff.c) */
+    /* a probe, or the rest of a block to come after a stopped store, holds it at 0: the block hook sees them there
+     * (sam_ff.c) */
+    m->next_ev = m->ff.probing || m->cont_pc != 0xFFFFFFFFu ? 0 : t;
 }
 
 void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t)
@@ -142,8 +144,8 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
                 break;   /* the pass repeats unchanged up to stop_at */
             sam_ff_resume(m);
         }
-        if (m->t >= m->stop_at)
-            break;
+        if (m->t >= m->stop_at && m->cont_pc == 0xFFFFFFFFu)
+            break;   /* (the rest of a block a stopped store split runs first: it was charged with the block) */
         if (m->in_reset) {
             sam_do_reset(m, (uint8_t)m->in_reset);
             continue;
@@ -170,6 +172,8 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
             continue;   /* a store to flash: into NVMCTRL's page buffer */
         if ((e == UC_ERR_WRITE_PROT || e == UC_ERR_EXCEPTION) && sam_pac_store(m))
             continue;   /* a store to a page the PAC traps: to a PAC's register, or a bus error (sam_pac.c) */
+        if ((e == UC_ERR_WRITE_PROT || e == UC_ERR_EXCEPTION) && sam_ff_ram_trap(m))
+            continue;   /* a store to an SRAM page the fast-forward protects: noted, let through (sam_ff.c) */
         if (e != UC_ERR_OK)
             sam_cpu_enter_fault(m, e);
     }

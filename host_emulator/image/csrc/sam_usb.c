@@ -50,6 +50,7 @@ uint8_t *sam_usb_ram(sam_mcu_t *m, uint32_t a, uint32_t n)
 {
     if (a < SAM_RAM_BASE || a - SAM_RAM_BASE > SAM_RAM_SIZE || n > SAM_RAM_SIZE - (a - SAM_RAM_BASE))
         return NULL;
+    sam_ff_ram_written(m);   /* (the controller's DMA, or the host's copy: taken as a write either way) */
     return m->ram + (a - SAM_RAM_BASE);
 }
 

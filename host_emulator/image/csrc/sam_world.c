@@ -330,6 +330,7 @@ int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *o)
     o->ff_misses = m->ff.misses;
     o->ff_probes = m->ff.probes;
     o->ff_probe_fails = m->ff.probe_fails;
+    o->ff_traps = m->ff.traps;
     o->mmio_reads = m->mmio_reads;
     o->mmio_writes = m->mmio_writes;
     o->nvic_enabled = m->nvic.enabled;
