@@ -1,12 +1,12 @@
 """Read-synchronised counters on the register-level harness: TC3's COUNT through READREQ and TCC0's COUNT through the
 READSYNC command return the value of the last read synchronisation, against the SAMD21 datasheet (Microchip
-DS40001882, 30.6.6 and 30.10.2 for the TC, 31.6.8 and 31.8.3 for the TCC)."""
+DS40001882, 30.6.6 and 30.10.2 for the TC, 31.6.6 and 31.8.3 for the TCC)."""
 
 from __future__ import annotations
 
 from host_emulator.image.harness import Harness
 
-from .bench import GCLK_TCC2_TC3, bus_clock, gclk_channel
+from .bench import CMD_READSYNC, GCLK_TCC0_TCC1, GCLK_TCC2_TC3, SYNCBUSY_CTRLB, bus_clock, gclk_channel
 
 TU_HZ = 1_536_000_000
 ULP_HZ = 32_768  # OSCULP32K: a slow clock, so a synchronisation outlasts several CPU accesses
@@ -15,12 +15,12 @@ SYNC_TU = -(-3 * TU_HZ // ULP_HZ)  # 3 GCLK cycles (the tier's synchronisation t
 CC0 = 59_999  # MFRQ's period: 60000 counts (1.8 s at 32 kHz), so a few ms never wrap
 MFRQ, ENABLE = 1 << 5, 1 << 1
 RREQ, RCONT = 1 << 15, 1 << 14
-ADDR_COUNT, ADDR_CC0, ADDR_INTFLAG = 0x10, 0x18, 0x0E  # COUNT16's offsets (30.10 Register Summary, 16-bit mode)
-SYNCBUSY = 1 << 7  # STATUS.SYNCBUSY (30.10.13)
+ADDR_COUNT, ADDR_CC0, ADDR_INTFLAG = 0x10, 0x18, 0x0E  # COUNT16's offsets (30.10, the 16-bit mode's registers)
+SYNCBUSY = 1 << 7  # STATUS.SYNCBUSY
 
 
 def slow_generator(h: Harness) -> None:
-    """GCLK generator 2 from OSCULP32K, undivided (15.8.4 GENCTRL, 15.8.5 GENDIV)."""
+    """GCLK generator 2 from OSCULP32K, undivided."""
     h.write("GCLK.GENDIV", 2)
     h.write("GCLK.GENCTRL", 2 | 0x03 << 8 | 1 << 16)
 
@@ -108,3 +108,62 @@ def test_a_tc_read_request_for_another_register_does_not_synchronise_count():
         assert counted(t_start, h.t_access) > 0
         assert h.read("TC3.COUNT16.COUNT") == 0
     assert h.read("TC3.COUNT16.CC[0]") == CC0
+
+
+TCC_PER = 59_999  # 60000 counts per period on the 32 kHz clock
+
+
+def tcc0_counting() -> tuple[Harness, int]:
+    """TCC0 in normal PWM on the 32 kHz clock, prescaler DIV1; returns when it starts counting from 0: when the enable
+    has synchronised (31.6.2.1, SYNCBUSY.ENABLE)."""
+    h = Harness()
+    bus_clock(h, "TCC0")
+    slow_generator(h)
+    gclk_channel(h, GCLK_TCC0_TCC1, gen=2)
+    h.write("TCC0.WAVE", 0x2)  # NPWM
+    h.write("TCC0.PER", TCC_PER)
+    h.advance(1e-3)
+    h.write("TCC0.CTRLA", ENABLE)
+    t_start = h.t_access + SYNC_TU
+    h.advance(1e-3)
+    assert h.tcc_info().running
+    return h, t_start
+
+
+def tcc_counted(t_start: int, t: int) -> int:
+    return (t - t_start) // ULP_TICK % (TCC_PER + 1)
+
+
+def test_a_tcc_count_read_without_readsync_returns_the_reset_value_while_the_counter_runs():
+    """DS40001882 31.6.6 Synchronization and 31.8.3 CTRLBSET.CMD: COUNT is read-synchronised on demand, by the READSYNC
+    command; without one, a read returns its reset value 0 however far the counter has run."""
+    h, t_start = tcc0_counting()
+    for dt in (2e-3, 7e-3, 31e-3):
+        h.advance(dt)
+        assert tcc_counted(t_start, h.now()) > 0
+        assert h.read("TCC0.COUNT") == 0
+
+
+def test_the_readsync_command_holds_syncbusy_ctrlb_then_count_reads_the_count_when_it_was_carried_out():
+    """DS40001882 31.8.3 CTRLBSET.CMD = READSYNC, the command that synchronises COUNT for reading: it is written
+    through CTRLB's synchronisation (SYNCBUSY.CTRLB set meanwhile) and reads back as zero once carried out;
+    COUNT then reads the counter's value at that time, the same until the next command."""
+    h, t_start = tcc0_counting()
+    h.advance(3e-3)
+    h.write("TCC0.CTRLBSET", CMD_READSYNC)
+    t_sync = h.t_access + SYNC_TU
+    assert h.read("TCC0.SYNCBUSY") & SYNCBUSY_CTRLB and h.t_access < t_sync
+    assert h.read("TCC0.CTRLBSET") & 0xE0 == CMD_READSYNC, "not yet carried out"
+    assert h.read("TCC0.COUNT") == 0
+    h.advance_to(t_sync + 1)
+    assert not h.read("TCC0.SYNCBUSY") & SYNCBUSY_CTRLB
+    assert h.read("TCC0.CTRLBSET") & 0xE0 == 0
+    want = tcc_counted(t_start, t_sync)
+    assert want > 50
+    assert h.read("TCC0.COUNT") == want
+    h.advance(5e-3)
+    assert h.read("TCC0.COUNT") == want, "no new command: the same value"
+    h.write("TCC0.CTRLBSET", CMD_READSYNC)
+    t_sync = h.t_access + SYNC_TU
+    h.advance_to(t_sync + 1)
+    assert h.read("TCC0.COUNT") == tcc_counted(t_start, t_sync) > want
