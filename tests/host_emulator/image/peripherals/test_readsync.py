@@ -4,9 +4,10 @@ DS40001882, 30.6.6 and 30.10.2 for the TC, 31.6.6 and 31.8.3 for the TCC)."""
 
 from __future__ import annotations
 
-from host_emulator.image.harness import Harness
+from host_emulator.image.harness import Asm, Harness, Program
 
 from .bench import CMD_READSYNC, GCLK_TCC0_TCC1, GCLK_TCC2_TC3, SYNCBUSY_CTRLB, bus_clock, gclk_channel
+from .test_fast_forward import FLAG, RESULT, SYST_CVR, _after_flag, _word
 
 TU_HZ = 1_536_000_000
 ULP_HZ = 32_768  # OSCULP32K: a slow clock, so a synchronisation outlasts several CPU accesses
@@ -108,6 +109,59 @@ def test_a_tc_read_request_for_another_register_does_not_synchronise_count():
         assert counted(t_start, h.t_access) > 0
         assert h.read("TC3.COUNT16.COUNT") == 0
     assert h.read("TC3.COUNT16.CC[0]") == CC0
+
+
+TC3_COUNT = 0x4200_2C00 + ADDR_COUNT
+TARGET = 500  # counts of the 1 MHz clock: the loop below leaves after about 0.5 ms
+
+
+def _count_poll_program() -> Program:
+    """Reset: wait for FLAG, then poll TC3's COUNT in loop() until it reaches TARGET; SysTick's VAL when it left goes
+    to RESULT."""
+
+    def body(a: Asm) -> None:
+        a.ldr_const(0, TC3_COUNT)
+        a.ldr_const(4, TARGET)
+        a.label("loop")  # while (TC3->COUNT16.COUNT.reg < TARGET) {}
+        a.mem("ldrh", 1, 0)
+        a._h(0x42A1, "cmp", "r1, r4")
+        a.movs(1, 0)  # the count leaves no trace in the registers at the loop's head (MOVS keeps the carry)
+        a.bcond(3, "loop", "bcc")
+        a.ldr_const(2, SYST_CVR)
+        a.mem("ldr", 3, 2)
+        a.ldr_const(2, RESULT)
+        a.mem("str", 3, 2)
+        a.label("done")
+        a.b()
+
+    return _after_flag(body)
+
+
+def _count_poll(ff: bool) -> int:
+    h = Harness(program=_count_poll_program(), ff=ff)
+    h.write("SysTick.LOAD", 0xFFFFFF)
+    h.write("SysTick.VAL", 0)
+    h.write("SysTick.CTRL", 0x5)
+    bus_clock(h, "TC3")
+    gclk_channel(h, GCLK_TCC2_TC3)  # GCLK0: 1 MHz
+    h.write("TC3.COUNT16.CC[0]", CC0)
+    h.advance(20e-6)
+    h.write("TC3.COUNT16.CTRLA", MFRQ | ENABLE)
+    h.advance(20e-6)
+    h.write("TC3.COUNT16.READREQ", RREQ | RCONT | ADDR_COUNT)
+    h.advance(20e-6)
+    h.write(FLAG, 1)
+    h.advance(3e-3)
+    return _word(h, RESULT)
+
+
+def test_a_loop_polling_a_continuously_synchronised_tc_count_leaves_at_the_same_cycle_fast_forwarded():
+    """DS40001882 30.10.2 READREQ.RCONT: COUNT read live changes with time but by no event of the board's, so its read
+    is activity and no pass of a loop() polling it is skipped: the loop leaves at the same cycle with fast-forwarding
+    on as off (SysTick's VAL when it left). (A COUNT not synchronised continuously reads a constant: no activity.)"""
+    on, off = _count_poll(True), _count_poll(False)
+    assert off != 0
+    assert on == off
 
 
 TCC_PER = 59_999  # 60000 counts per period on the 32 kHz clock
