@@ -223,8 +223,9 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
          * time a write's synchronisation takes (a request while one is under way waits for it, as a write does);
          * RREQ reads as zero. RCONT keeps the register synchronised from the request's completion on; clearing
          * it, or pointing ADDR elsewhere, leaves the value the continuous synchronisation had last. */
-        uint32_t addr = v & TC_READREQ_ADDR_Msk;
-        if (s->rs_live && (!(v & TC_READREQ_RCONT) || addr != TC_COUNT16_COUNT_OFFSET)) {
+        uint32_t full = (tc_reg(m, pi, TC_READREQ_OFFSET, 2) & ~mask) | v;   /* a byte write keeps the other byte */
+        uint32_t addr = full & TC_READREQ_ADDR_Msk;
+        if (s->rs_live && (!(full & TC_READREQ_RCONT) || addr != TC_COUNT16_COUNT_OFFSET)) {
             s->rs_count = tc_count(m, s, pi, now);
             s->rs_live = 0;
         }
@@ -233,7 +234,7 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
             s->rs_pending = 1;
             s->rs_until = s->sync_until;
             s->rs_addr = addr;
-            s->rs_cont = (v & TC_READREQ_RCONT) != 0;
+            s->rs_cont = (full & TC_READREQ_RCONT) != 0;
         }
         sam_generic_write(m, ri, v & ~TC_READREQ_RREQ, mask);
         tc_schedule(m, pi);

@@ -221,3 +221,13 @@ def test_the_readsync_command_holds_syncbusy_ctrlb_then_count_reads_the_count_wh
     t_sync = h.t_access + SYNC_TU
     h.advance_to(t_sync + 1)
     assert h.read("TCC0.COUNT") == tcc_counted(t_start, t_sync) > want
+
+
+def test_a_tc_read_request_written_as_its_high_byte_uses_the_address_written_before():
+    """DS40001882 30.10.2 READREQ: ADDR (bits 4:0) and RREQ (bit 15) lie in different bytes; a byte write of RREQ
+    (with RCONT) after ADDR was written synchronises COUNT, continuously, as the 16-bit write would."""
+    h, t_start = tc3_counting()
+    h.write("TC3.COUNT16.READREQ", ADDR_COUNT, size=1)
+    h.write(h.address("TC3.COUNT16.READREQ")[0] + 1, (RREQ | RCONT) >> 8, size=1)
+    h.advance(1e-3)
+    assert h.read("TC3.COUNT16.COUNT") == counted(t_start, h.t_access) > 0
