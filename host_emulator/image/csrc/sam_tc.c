@@ -1,4 +1,4 @@
-/* TC: the 16-bit timer/counter in match-frequency mode (COUNT16), prescaler, CC0, overflow flag and interrupt. */
+/* TC: the 16-bit timer/counter in match-frequency mode (COUNT16): prescaler, CC0, overflow flag and interrupt, READREQ. */
 #include <stdlib.h>
 #include <string.h>
 #include "sam.h"
@@ -13,6 +13,14 @@ typedef struct {
     uint32_t cb;           /* ... and the count there */
     uint64_t t_wrap;       /* next overflow */
     int gclk_id;
+    /* read synchronisation (DS40001882 30.6.6 Synchronization, 30.10.2 READREQ): COUNT and CCx live in the TC's
+     * clock domain; a CPU read returns what the last read synchronisation brought over */
+    int rs_pending;        /* READREQ.RREQ written: the synchronisation completes at rs_until ... */
+    uint64_t rs_until;
+    uint32_t rs_addr;      /* ... of the register at this offset (READREQ.ADDR) */
+    int rs_cont;           /* ... with READREQ.RCONT: continuous from then on */
+    int rs_live;           /* COUNT synchronised continuously: its reads are live */
+    uint32_t rs_count;     /* COUNT as the last synchronisation left it (its reset value before any) */
 } tc_t;
 
 static const int TC_PRESC[8] = {1, 2, 4, 8, 16, 64, 256, 1024};
@@ -46,6 +54,20 @@ static uint32_t tc_count(sam_mcu_t *m, tc_t *s, int pi, uint64_t t)
     if (s->cb <= top)
         return (uint32_t)(c <= top ? c : (c - top - 1) % (top + 1));
     return (uint32_t)(c <= 0xFFFFu ? c : (c - 0x10000u) % (top + 1));
+}
+
+/* a read synchronisation whose time has come takes the counter's value at its completion (COUNT; CCx hold what
+ * was written, capture not being modelled, so theirs changes nothing). Called before anything else looks at or
+ * changes the counter, so the value is the one the counter had then. */
+static void tc_settle(sam_mcu_t *m, tc_t *s, int pi)
+{
+    if (!s->rs_pending || sam_now(m) < s->rs_until)
+        return;
+    s->rs_pending = 0;
+    if (s->rs_addr == TC_COUNT16_COUNT_OFFSET) {
+        s->rs_count = tc_count(m, s, pi, s->rs_until);
+        s->rs_live = s->rs_cont;
+    }
 }
 
 static void tc_schedule(sam_mcu_t *m, int pi)
@@ -91,7 +113,7 @@ static void tc_reset(sam_mcu_t *m, int pi)
     sam_slot_set(m, pi, SAM_NEVER);
 }
 
-static void tc_sync(sam_mcu_t *m, tc_t *s)
+static void tc_sync(sam_mcu_t *m, tc_t *s, int pi)
 {
     uint64_t hz = sam_gclk_hz(m, s->gclk_id);
     uint64_t now = sam_now(m);
@@ -102,6 +124,7 @@ static void tc_sync(sam_mcu_t *m, tc_t *s)
         }
         m->t += s->sync_until - now;
         now = s->sync_until;
+        tc_settle(m, s, pi);   /* a read synchronisation the stall waited for completed first */
     }
     s->sync_until = hz ? now + (SAM_SYNC_GCLK_CYCLES * SAM_TU_HZ + hz - 1) / hz : SAM_NEVER;
 }
@@ -122,13 +145,21 @@ static int tc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
 {
     tc_t *s = m->pst[pi];
     uint32_t off = sam_regs[ri].offset;
+    tc_settle(m, s, pi);
     if (off == TC_STATUS_OFFSET) {
         *v = (sam_now(m) < s->sync_until ? TC_STATUS_SYNCBUSY : 0) | (s->running ? 0 : TC_STATUS_STOP);
         return SAM_DONE;
     }
     if (off == TC_COUNT16_COUNT_OFFSET && tc_view(m, pi) == 2) {
-        *v = tc_count(m, s, pi, sam_now(m));
-        sam_activity(m);   /* changes with time */
+        /* DS40001882 30.6.6, 30.10.2 READREQ: the value of the last read synchronisation. Synchronised
+         * continuously (RCONT), the live count: it changes with time, so its read is activity (no fast-forward past
+         * it, sam_ff.c); else a constant until the next READREQ.RREQ (a write, itself activity), so it is not. */
+        if (s->rs_live) {
+            *v = tc_count(m, s, pi, sam_now(m));
+            sam_activity(m);
+        } else {
+            *v = s->rs_count;
+        }
         return SAM_DONE;
     }
     return SAM_GENERIC;
@@ -140,6 +171,7 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
     uint32_t off = sam_regs[ri].offset;
     uint64_t now = sam_now(m);
     v &= mask;
+    tc_settle(m, s, pi);
     if (off == TC_CTRLA_OFFSET) {
         if (v & TC_CTRLA_SWRST) {
             memset(m->regs[pi], 0, sam_periphs[pi].size);
@@ -147,7 +179,7 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
                 if (sam_regs[r].view == 2 && sam_regs[r].kind == SAM_KIND_PLAIN)
                     sam_reg_put(m, (int)r, sam_regs[r].reset);
             tc_reset(m, pi);
-            tc_sync(m, s);
+            tc_sync(m, s, pi);
             tc_irq(m, pi);
             tc_schedule(m, pi);
             sam_activity(m);
@@ -156,7 +188,7 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         uint32_t old = tc_reg(m, pi, TC_CTRLA_OFFSET, 2);
         /* PRESCSYNC, RUNSTDBY, PRESCALER, WAVEGEN, MODE: enable-protected (sam_protect.c) */
         v = sam_enable_protected(m, ri, v, mask, 0x3F0Cu | 0x60u, (old & TC_CTRLA_ENABLE) != 0);
-        tc_sync(m, s);
+        tc_sync(m, s, pi);
         sam_generic_write(m, ri, v, mask);
         uint32_t nv = tc_reg(m, pi, TC_CTRLA_OFFSET, 2);
         if ((nv & TC_CTRLA_ENABLE) && !(old & TC_CTRLA_ENABLE)) {
@@ -181,14 +213,37 @@ static int tc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         return SAM_DONE;
     }
     if ((off == TC_CTRLBSET_OFFSET && (v & TC_CTRLBSET_DIR)) || (off == TC_CTRLC_OFFSET && v) ||
-        (off == TC_EVCTRL_OFFSET && v) || (off == TC_READREQ_OFFSET && (v & TC_READREQ_RCONT))) {
-        sam_fail(m, "%s = 0x%x: counting down, capture, events and continuous read are not modelled",
-                 sam_regs[ri].name, v);
+        (off == TC_EVCTRL_OFFSET && v)) {
+        sam_fail(m, "%s = 0x%x: counting down, capture and events are not modelled", sam_regs[ri].name, v);
+        return SAM_DONE;
+    }
+    if (off == TC_READREQ_OFFSET) {
+        /* DS40001882 30.10.2 READREQ: RREQ requests the read synchronisation of the register at ADDR (only COUNT
+         * and CCx can be: any other offset synchronises nothing) and sets STATUS.SYNCBUSY until it completes, the
+         * time a write's synchronisation takes (a request while one is under way waits for it, as a write does);
+         * RREQ reads as zero. RCONT keeps the register synchronised from the request's completion on; clearing
+         * it, or pointing ADDR elsewhere, leaves the value the continuous synchronisation had last. */
+        uint32_t full = (tc_reg(m, pi, TC_READREQ_OFFSET, 2) & ~mask) | v;   /* a byte write keeps the other byte */
+        uint32_t addr = full & TC_READREQ_ADDR_Msk;
+        if (s->rs_live && (!(full & TC_READREQ_RCONT) || addr != TC_COUNT16_COUNT_OFFSET)) {
+            s->rs_count = tc_count(m, s, pi, now);
+            s->rs_live = 0;
+        }
+        if (v & TC_READREQ_RREQ) {
+            tc_sync(m, s, pi);
+            s->rs_pending = 1;
+            s->rs_until = s->sync_until;
+            s->rs_addr = addr;
+            s->rs_cont = (full & TC_READREQ_RCONT) != 0;
+        }
+        sam_generic_write(m, ri, v & ~TC_READREQ_RREQ, mask);
+        tc_schedule(m, pi);
+        sam_activity(m);
         return SAM_DONE;
     }
     if (off == TC_COUNT16_CC_OFFSET || off == TC_COUNT16_CC_OFFSET + 2 || off == TC_COUNT16_COUNT_OFFSET) {
         tc_anchor(m, s, pi, now);
-        tc_sync(m, s);
+        tc_sync(m, s, pi);
         sam_generic_write(m, ri, v, mask);
         if (off == TC_COUNT16_COUNT_OFFSET && s->running) {
             s->tb = now;
@@ -207,6 +262,7 @@ static void tc_fire(sam_mcu_t *m, int pi)
 {
     tc_t *s = m->pst[pi];
     uint64_t now = sam_now(m);
+    tc_settle(m, s, pi);
     if (s->pending_enable && now >= s->sync_until) {
         s->pending_enable = 0;
         tc_start(m, pi, now);

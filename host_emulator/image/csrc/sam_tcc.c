@@ -28,6 +28,9 @@ typedef struct {
     uint64_t ready_per, ready_cc[4];   /* the buffer is valid from then on (STATUS.PERBV, CCBVn); SAM_NEVER: not */
     int nch;
     int gclk_id;
+    int rs_pending;              /* CTRLBSET.CMD = READSYNC written: COUNT is brought over at rs_at */
+    uint64_t rs_at;
+    uint32_t rs_count;           /* COUNT as the last read synchronisation left it (its reset value 0 before any) */
 } tcc_t;
 
 /* Enable-protected (sam_protect.c's table, DS40001882 31.8.1 CTRLA): RESOLUTION, PRESCALER, RUNSTDBY, PRESCSYNC,
@@ -309,8 +312,25 @@ int sam_tcc_state(sam_mcu_t *m, int tcc, uint64_t t, sam_tcc_info_t *out)
 
 #define TCC_CTRLBCLR_OFFSET 0x04   /* CTRLBCLR, beside CTRLBSET (0x05): the same bits */
 
-static void tcc_sync(sam_mcu_t *m, tcc_t *s, uint32_t bits)
+/* COUNT is read-synchronised on demand (DS40001882 31.6.6 Synchronization; 31.8.3 CTRLBSET.CMD = READSYNC): the
+ * command, carried out once its write has synchronised (SYNCBUSY.CTRLB, CMD reading back non-zero until then), brings
+ * the counter's value over; COUNT reads it until the next command (before any, its reset value 0). PER and CCx are
+ * not read-synchronised on the SAMD21 (31.6.6 lists only CTRLB and COUNT) and read as they are. Called
+ * first by every access and event, before the counter's state moves past rs_at, so the value is the one it had then. */
+static void tcc_settle(sam_mcu_t *m, int pi)
 {
+    tcc_t *s = m->pst[pi];
+    if (!s->rs_pending || sam_now(m) < s->rs_at)
+        return;
+    tcc_t st = *s;
+    advance(&st, tcc_lupd(m, pi), s->rs_at);
+    s->rs_count = st.running && s->rs_at >= st.za ? (uint32_t)((s->rs_at - st.za) / st.tick) : 0;
+    s->rs_pending = 0;
+}
+
+static void tcc_sync(sam_mcu_t *m, int pi, uint32_t bits)
+{
+    tcc_t *s = m->pst[pi];
     uint64_t hz = sam_gclk_hz(m, s->gclk_id), now = sam_now(m);
     if (now < s->sync_until && (s->sync_bits & bits)) {
         if (s->sync_until == SAM_NEVER) {
@@ -319,6 +339,7 @@ static void tcc_sync(sam_mcu_t *m, tcc_t *s, uint32_t bits)
         }
         m->t += s->sync_until - now;
         now = s->sync_until;
+        tcc_settle(m, pi);   /* a READSYNC the stall waited for was carried out first */
     }
     if (now >= s->sync_until)
         s->sync_bits = 0;
@@ -352,6 +373,7 @@ static int tcc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
     tcc_t *s = m->pst[pi];
     uint32_t off = sam_regs[ri].offset;
     uint64_t now = sam_now(m);
+    tcc_settle(m, pi);
     tcc_catch_up(m, pi, 0);
     int pending = next_change(s, tcc_lupd(m, pi)) != SAM_NEVER;
     if (off == TCC_SYNCBUSY_OFFSET) {
@@ -390,8 +412,13 @@ static int tcc_read(sam_mcu_t *m, int pi, int ri, uint32_t *v)
         return SAM_DONE;
     }
     if (off == TCC_COUNT_OFFSET) {
-        *v = s->running && now >= s->za ? (uint32_t)((now - s->za) / s->tick) : 0;
-        sam_activity(m);
+        /* the last read synchronisation's value (tcc_settle): a constant until the next READSYNC, a write that is
+         * itself activity, so the read is not (the TCC has no continuous read synchronisation) */
+        *v = s->rs_count;
+        return SAM_DONE;
+    }
+    if ((off == TCC_CTRLBSET_OFFSET || off == TCC_CTRLBCLR_OFFSET) && s->rs_pending) {
+        *v = (tcc_reg(m, pi, TCC_CTRLBSET_OFFSET) & 0xFFu) | TCC_CTRLBSET_CMD_READSYNC;   /* not yet carried out */
         return SAM_DONE;
     }
     if (off == TCC_INTFLAG_OFFSET)
@@ -418,6 +445,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
     tcc_t *s = m->pst[pi];
     uint32_t off = sam_regs[ri].offset;
     v &= mask;
+    tcc_settle(m, pi);
     tcc_catch_up(m, pi, 1);   /* the motors integrate up to now with the old parameters */
     if (off == TCC_CTRLA_OFFSET) {
         if (v & TCC_CTRLA_SWRST) {
@@ -426,7 +454,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
                 if (sam_regs[r].kind == SAM_KIND_PLAIN)
                     sam_reg_put(m, (int)r, sam_regs[r].reset);
             tcc_reset(m, pi);
-            tcc_sync(m, s, TCC_SYNCBUSY_SWRST);
+            tcc_sync(m, pi, TCC_SYNCBUSY_SWRST);
             tcc_schedule(m, pi);
             sam_activity(m);
             return SAM_DONE;
@@ -437,7 +465,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
             sam_fail(m, "%s capture channels (CTRLA.CPTEN) are not modelled", sam_periphs[pi].name);
             return SAM_DONE;
         }
-        tcc_sync(m, s, TCC_SYNCBUSY_ENABLE);
+        tcc_sync(m, pi, TCC_SYNCBUSY_ENABLE);
         sam_generic_write(m, ri, v, mask);
         uint32_t nv = tcc_reg(m, pi, TCC_CTRLA_OFFSET);
         if ((nv & TCC_CTRLA_ENABLE) && !(old & TCC_CTRLA_ENABLE)) {
@@ -456,11 +484,11 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
         return SAM_DONE;
     }
     if (off == TCC_WAVE_OFFSET) {
-        tcc_sync(m, s, TCC_SYNCBUSY_WAVE);
+        tcc_sync(m, pi, TCC_SYNCBUSY_WAVE);
         return SAM_GENERIC;
     }
     if (off == TCC_PER_OFFSET) {
-        tcc_sync(m, s, TCC_SYNCBUSY_PER);
+        tcc_sync(m, pi, TCC_SYNCBUSY_PER);
         tcc_set_per(m, s, v & s->max);
         sam_generic_write(m, ri, v, mask);
         sam_activity(m);
@@ -468,7 +496,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
     }
     if (off == TCC_PERB_OFFSET) {
         /* buffered: copied to PER at the first UPDATE after the write has synchronised (not while LUPD is set) */
-        tcc_sync(m, s, TCC_SYNCBUSY_PERB);
+        tcc_sync(m, pi, TCC_SYNCBUSY_PERB);
         s->perb = v & s->max;
         s->ready_per = s->sync_until;
         sam_generic_write(m, ri, v, mask);
@@ -478,7 +506,7 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
     }
     if (off >= TCC_CC_OFFSET && off < TCC_CC_OFFSET + 16) {
         int c = (int)(off - TCC_CC_OFFSET) / 4;
-        tcc_sync(m, s, TCC_SYNCBUSY_CC0 << c);
+        tcc_sync(m, pi, TCC_SYNCBUSY_CC0 << c);
         s->cc[c] = v & s->max;
         s->ccb[c] = s->cc[c];
         s->ready_cc[c] = SAM_NEVER;
@@ -488,9 +516,20 @@ static int tcc_write(sam_mcu_t *m, int pi, int ri, uint32_t v, uint32_t mask)
     }
     if (off >= TCC_CCB_OFFSET && off < TCC_CCB_OFFSET + 16) {
         int c = (int)(off - TCC_CCB_OFFSET) / 4;
-        tcc_sync(m, s, TCC_SYNCBUSY_CCB0 << c);
+        tcc_sync(m, pi, TCC_SYNCBUSY_CCB0 << c);
         s->ccb[c] = v & s->max;
         s->ready_cc[c] = s->sync_until;   /* valid (STATUS.CCBVn) until copied at an UPDATE */
+        sam_activity(m);
+        tcc_schedule(m, pi);
+        return SAM_DONE;
+    }
+    if (off == TCC_CTRLBSET_OFFSET && (v & TCC_CTRLBSET_CMD_Msk) == TCC_CTRLBSET_CMD_READSYNC &&
+        !(v & ~(TCC_CTRLBSET_CMD_Msk | TCC_CTRLBSET_LUPD))) {
+        tcc_sync(m, pi, TCC_SYNCBUSY_CTRLB);   /* tcc_settle: COUNT brought over once this has synchronised */
+        s->rs_pending = 1;
+        s->rs_at = s->sync_until;
+        if (v & TCC_CTRLBSET_LUPD)
+            sam_generic_write(m, ri, TCC_CTRLBSET_LUPD, mask);
         sam_activity(m);
         tcc_schedule(m, pi);
         return SAM_DONE;
@@ -526,6 +565,7 @@ static void tcc_fire(sam_mcu_t *m, int pi)
 {
     tcc_t *s = m->pst[pi];
     uint64_t now = sam_now(m);
+    tcc_settle(m, pi);
     if (s->pending_enable && now >= s->sync_until) {
         uint32_t presc = (uint32_t)TCC_PRESC[(tcc_reg(m, pi, TCC_CTRLA_OFFSET) >> TCC_CTRLA_PRESCALER_Pos) & 7u];
         sam_world_tcc_will_change(m, tcc_index(pi));

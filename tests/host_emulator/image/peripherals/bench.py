@@ -14,6 +14,8 @@ GCLK_TCC2_TC3 = 0x1B
 CLKCTRL_CLKEN = 1 << 14
 CLKCTRL_GEN_POS = 8
 TU_PER_US_AT_1MHZ = 1536  # tu of one cycle of the 1 MHz reset clock (GCLK0 = OSC8M / 8)
+CMD_READSYNC = 0x4 << 5  # TCC CTRLBSET.CMD = READSYNC (DS40001882 31.8.3)
+SYNCBUSY_CTRLB = 1 << 2  # TCC SYNCBUSY.CTRLB
 
 
 def bus_clock(h: Harness, periph: str, *, board: int = 0) -> None:
@@ -30,6 +32,17 @@ def bus_clock(h: Harness, periph: str, *, board: int = 0) -> None:
 def gclk_channel(h: Harness, channel: int, gen: int = 0, *, board: int = 0) -> None:
     """Feed a generic clock channel from a generator (GCLK0 after reset: OSC8M / 8 = 1 MHz)."""
     h.write("GCLK.CLKCTRL", channel | gen << CLKCTRL_GEN_POS | CLKCTRL_CLKEN, board=board)
+
+
+def tcc_count(h: Harness, tcc: str = "TCC0", *, sync_tu: int = 3 * TU_PER_US_AT_1MHZ) -> tuple[int, int]:
+    """COUNT read as firmware must read it: after the READSYNC command (31.8.3 CTRLBSET.CMD) has brought it over.
+    Returns the count and the time (tu) it is the count of: when the command's synchronisation completed, 3 GCLK
+    cycles after its write (of the 1 MHz reset clock unless sync_tu says otherwise)."""
+    h.write(f"{tcc}.CTRLBSET", CMD_READSYNC)
+    t = h.t_access + sync_tu
+    while h.read(f"{tcc}.SYNCBUSY") & SYNCBUSY_CTRLB:
+        pass
+    return h.read(f"{tcc}.COUNT"), t
 
 
 def pmux(h: Harness, pin: int, letter: str, *, inen: bool = False, board: int = 0) -> None:

@@ -10,7 +10,17 @@ import pytest
 from host_emulator.image.harness import Harness
 from tests.host_emulator.image.conftest import configured
 
-from .bench import GCLK_SERCOM2_CORE, GCLK_TCC0_TCC1, GCLK_TCC2_TC3, GCLK_WDT, bus_clock, gclk_channel, pmux
+from .bench import (
+    GCLK_SERCOM2_CORE,
+    GCLK_TCC0_TCC1,
+    GCLK_TCC2_TC3,
+    GCLK_WDT,
+    TU_PER_US_AT_1MHZ,
+    bus_clock,
+    gclk_channel,
+    pmux,
+    tcc_count,
+)
 from .test_wdt import CTRL_ENABLE, HZ, TIMEOUT_S
 
 ENABLE = 1 << 1
@@ -107,14 +117,17 @@ def _tcc0_enabled() -> Harness:
 def test_tcc_ctrla_prescaler_written_while_counting_is_kept_and_the_counter_runs_on_at_its_rate():
     """31.8.1 CTRLA (Enable-Protected: RESOLUTION, PRESCALER, RUNSTDBY, PRESCSYNC, ALOCK, CPTENn; not ENABLE,
     SWRST): PRESCALER = DIV64 written with ENABLE still set is ignored, the counter still counts at GCLK rate
-    (1 MHz: about 100 counts in 100 us, not 1.5), and the write is noted; disabled, the same write is taken."""
+    (1 MHz: one count per microsecond between two READSYNCs, not one per 64), and the write is noted; disabled, the
+    same write is taken."""
     h = _tcc0_enabled()
     h.write("TCC0.CTRLA", ENABLE | TCC_PRESCALER_DIV64)
     assert h.read("TCC0.CTRLA") & 0x0F007F60 == 0
     assert _noted(h, "TCC0.CTRLA")
-    c0 = h.read("TCC0.COUNT")
+    c0, t0 = tcc_count(h)
     h.advance(100e-6)
-    assert 90 <= (h.read("TCC0.COUNT") - c0) % 1000 <= 110
+    c1, t1 = tcc_count(h)
+    assert 100 <= (t1 - t0) // TU_PER_US_AT_1MHZ <= 150  # the counts are those of the READSYNCs' times
+    assert abs((c1 - c0) % 1000 - (t1 - t0) // TU_PER_US_AT_1MHZ) <= 1  # one count per GCLK cycle
     h.write("TCC0.CTRLA", 0)
     h.advance(20e-6)
     h.write("TCC0.CTRLA", TCC_PRESCALER_DIV64)

@@ -13,6 +13,13 @@ TICK = TU_PER_US_AT_1MHZ  # TC3 on GCLK0 (1 MHz), prescaler DIV1
 CTRLA_ENABLE = 1 << 1
 CTRLA_MFRQ = 1 << 5  # WAVEGEN = MFRQ; MODE = COUNT16 (0)
 OVF, MC0 = 1 << 0, 1 << 4
+READREQ_COUNT_CONTINUOUS = 1 << 15 | 1 << 14 | 0x10  # RREQ, RCONT, ADDR = COUNT's offset
+
+
+def count_synchronised(h: Harness) -> None:
+    """COUNT synchronised continuously (30.10.2 READREQ: RREQ with RCONT, ADDR = COUNT), so its reads are live."""
+    h.write("TC3.COUNT16.READREQ", READREQ_COUNT_CONTINUOUS)
+    h.advance(20e-6)  # the read synchronisation completes (3 GCLK cycles)
 
 
 def started(cc0: int) -> Harness:
@@ -22,6 +29,7 @@ def started(cc0: int) -> Harness:
     h.write("TC3.COUNT16.CC[0]", cc0)
     h.write("TC3.COUNT16.CTRLA", CTRLA_MFRQ | CTRLA_ENABLE)
     h.advance(20e-6)  # the enable synchronises (30.6.6 Synchronization)
+    count_synchronised(h)
     return h
 
 
@@ -34,7 +42,7 @@ def next_wrap(h: Harness, cc0: int) -> int:
 def test_the_count_runs_from_zero_to_cc0_and_wraps_with_ovf_and_mc0():
     """DS40001882 30.6.2.5.1 Waveform Output Operations, "Match Frequency (MFRQ)": the counter counts up to CC0
     (the period is CC0 + 1 ticks), is cleared on the match and sets INTFLAG.OVF and MC0 (30.8.12 INTFLAG);
-    30.6.2.3 Counter Mode: COUNT reads the running count."""
+    30.6.2.3 Counter Mode: COUNT reads the running count (synchronised continuously, 30.10.2 READREQ.RCONT)."""
     cc0 = 199
     h = started(cc0)
     h.write("TC3.COUNT16.INTFLAG", OVF | MC0)
@@ -64,6 +72,7 @@ def test_the_counter_starts_from_count_at_the_enable_with_no_flag():
     h.write("TC3.COUNT16.CTRLA", CTRLA_MFRQ | CTRLA_ENABLE)
     t_enable = h.t_access
     h.advance(20e-6)
+    count_synchronised(h)
     assert h.read("TC3.COUNT16.INTFLAG") & (OVF | MC0) == 0
     assert h.read("TC3.COUNT16.COUNT") <= (h.t_access - t_enable) // TICK
 

@@ -9,7 +9,7 @@ import pytest
 from host_emulator.image import board as wiring
 from host_emulator.image.harness import Harness
 
-from .bench import GCLK_TCC0_TCC1, TU_PER_US_AT_1MHZ, bus_clock, gclk_channel, pmux
+from .bench import GCLK_TCC0_TCC1, TU_PER_US_AT_1MHZ, bus_clock, gclk_channel, pmux, tcc_count
 
 TICK = TU_PER_US_AT_1MHZ  # TCC0 on GCLK0 (1 MHz), prescaler DIV1
 PER = 999  # 1 ms periods
@@ -40,9 +40,9 @@ def pwm(cc2: int) -> Harness:
 
 
 def next_update(h: Harness) -> int:
-    """When the counter next wraps (the UPDATE condition), from a COUNT read (31.8.16 COUNT)."""
-    c = h.read("TCC0.COUNT")
-    return h.t_access + (PER + 1 - c) * TICK
+    """When the counter next wraps (the UPDATE condition), from COUNT (31.8.16) synchronised by READSYNC (31.8.3)."""
+    c, t = tcc_count(h)
+    return t + (PER + 1 - c) * TICK
 
 
 def window_of(h: Harness, t: int) -> tuple[int, int]:
