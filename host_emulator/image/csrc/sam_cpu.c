@@ -231,15 +231,32 @@ static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_ent
 
 /* ---------------------------------------------------------------- the block hook */
 
-static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
+/* A block's cycles by the cycle model (its memoised cost; with the cache model the NVM cache's lines it fetches,
+ * filled). */
+static inline uint64_t block_cycles(sam_mcu_t *m, uint32_t addr, uint32_t size, const sam_blkcost_t *bc)
 {
-    sam_mcu_t *m = ud;
-    uint32_t addr = (uint32_t)address;
-    if (addr == m->prev_end) {   /* the previous block ended in a conditional branch that was not taken */
-        uint32_t back = (m->prev_refund & 15u) + (m->cycle_model == SAM_CYCLES_WORST ? m->rws * (m->prev_refund >> 4) : 0u);
-        m->t -= (uint64_t)back * m->cyc_tu;
-        m->cycles -= back;
+    uint64_t cyc = bc->core;
+    if (m->cycle_model == SAM_CYCLES_WORST) {
+        cyc += (uint64_t)m->rws * bc->wait;
+    } else if (m->rws) {
+        /* the NVM cache: a fetch of a 64-bit line that is not cached waits RWS cycles and fills its line */
+        uint32_t waits = bc->lit;
+        for (uint32_t a = addr & ~7u; a < addr + size; a += 8) {
+            uint32_t idx = (a >> 3) & 7u, tag = (a >> 6) | 0x80000000u;
+            if (m->cache_tag[idx] != tag) {
+                m->cache_tag[idx] = tag;
+                waits++;
+            }
+        }
+        cyc += (uint64_t)m->rws * waits;
     }
+    return cyc;
+}
+
+/* The block hook's whole work after the untaken-branch refund (hook_block takes the common case itself). Kept out
+ * of it: its calls would give every block their frame. */
+__attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, uint32_t size, sam_mcu_t *m)
+{
     if (m->t >= m->next_ev && m->cont_pc != 0xFFFFFFFFu) {   /* (next_ev is held at 0 meanwhile: sam_next_event) */
         uint32_t cont = m->cont_pc;
         m->cont_pc = 0xFFFFFFFFu;
@@ -292,26 +309,41 @@ charge:
     sam_blkcost_t *bc = &m->memo[(addr >> 1) & (SAM_MEMO - 1)];
     if ((bc->addr != addr || bc->size != size) && sam_cost_block(m, addr, size, bc))
         return;   /* no cycle model for an instruction of it: the board halted */
-    uint64_t cyc = bc->core;
-    if (m->cycle_model == SAM_CYCLES_WORST) {
-        cyc += (uint64_t)m->rws * bc->wait;
-    } else if (m->rws) {
-        /* the NVM cache: a fetch of a 64-bit line that is not cached waits RWS cycles and fills its line */
-        uint32_t waits = bc->lit;
-        for (uint32_t a = addr & ~7u; a < addr + size; a += 8) {
-            uint32_t idx = (a >> 3) & 7u, tag = (a >> 6) | 0x80000000u;
-            if (m->cache_tag[idx] != tag) {
-                m->cache_tag[idx] = tag;
-                waits++;
-            }
-        }
-        cyc += (uint64_t)m->rws * waits;
-    }
+    uint64_t cyc = block_cycles(m, addr, size, bc);
     m->t_blk = m->t;
     m->t += cyc * m->cyc_tu;
     m->cycles += cyc;
     if (m->prof && !m->ff.probing)
         m->prof[addr >> 1] += cyc;
+    m->prev_end = addr + size;
+    m->prev_refund = bc->refund;
+}
+
+/* The block hook: the refund of an untaken branch, then the common case charged here (no event due, nothing to stop
+ * for or to take, not the fast-forward's boundary, the block's cost memoised, no profile: what hook_rest would do
+ * then), anything else in hook_rest. */
+static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
+{
+    sam_mcu_t *m = ud;
+    uint32_t addr = (uint32_t)address;
+    if (addr == m->prev_end) {   /* the previous block ended in a conditional branch that was not taken */
+        uint32_t back = (m->prev_refund & 15u) + (m->cycle_model == SAM_CYCLES_WORST ? m->rws * (m->prev_refund >> 4) : 0u);
+        m->t -= (uint64_t)back * m->cyc_tu;
+        m->cycles -= back;
+    }
+    const sam_blkcost_t *bc = &m->memo[(addr >> 1) & (SAM_MEMO - 1)];
+    if (m->t >= m->next_ev || m->t >= m->stop_at ||
+        (m->err | m->in_reset | m->lockup | m->irq_check | m->primask_wait) || addr == m->ff.head ||
+        bc->addr != addr || bc->size != size || size == 0 || m->prof) {
+        hook_rest(uc, addr, size, m);
+        return;
+    }
+    m->nvic.entering = 0;
+    m->blk = addr;
+    uint64_t cyc = block_cycles(m, addr, size, bc);
+    m->t_blk = m->t;
+    m->t += cyc * m->cyc_tu;
+    m->cycles += cyc;
     m->prev_end = addr + size;
     m->prev_refund = bc->refund;
 }
