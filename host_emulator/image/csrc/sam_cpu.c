@@ -231,6 +231,19 @@ static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_ent
 
 /* ---------------------------------------------------------------- the block hook */
 
+/* The block charged whole ran only up to pc (its rest runs as a block of its own, charged then): the rest's cycles
+ * refunded (costed as the block was: the ELF's tables or the decoder), and no untaken-branch refund after it. */
+static void refund_rest(sam_mcu_t *m, uint32_t pc)
+{
+    uint32_t end = m->prev_end;
+    if (end != 0xFFFFFFFFu && pc < end) {
+        uint64_t back = sam_cost_tail(m, pc, end);
+        m->t -= back * m->cyc_tu;
+        m->cycles -= back;
+    }
+    m->prev_end = 0xFFFFFFFFu;
+}
+
 /* A block's cycles by the cycle model (its memoised cost; with the cache model the NVM cache's lines it fetches,
  * filled). */
 static inline uint64_t block_cycles(sam_mcu_t *m, uint32_t addr, uint32_t size, const sam_blkcost_t *bc)
@@ -253,6 +266,19 @@ static inline uint64_t block_cycles(sam_mcu_t *m, uint32_t addr, uint32_t size, 
     return cyc;
 }
 
+/* The block starting at addr runs now: its cycles charged (its register accesses are at its start, t_blk), and its
+ * end kept for the untaken-branch refund. Its cycles. */
+static inline uint64_t charge(sam_mcu_t *m, uint32_t addr, uint32_t size, const sam_blkcost_t *bc)
+{
+    uint64_t cyc = block_cycles(m, addr, size, bc);
+    m->t_blk = m->t;
+    m->t += cyc * m->cyc_tu;
+    m->cycles += cyc;
+    m->prev_end = addr + size;
+    m->prev_refund = bc->refund;
+    return cyc;
+}
+
 /* The block hook's whole work after the untaken-branch refund (hook_block takes the common case itself). Kept out
  * of it: its calls would give every block their frame. */
 __attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, uint32_t size, sam_mcu_t *m)
@@ -263,12 +289,8 @@ __attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, ui
         sam_next_event(m);
         if (addr == cont && addr + size == m->prev_end)
             return;   /* the rest of the block a store to a protected page stopped (sam_ff.c): charged with it */
-        if (addr == cont && m->prev_end != 0xFFFFFFFFu && addr < m->prev_end) {
-            /* translated otherwise: the rest refunded (as sam_cpu_resume_after does), this block charged */
-            uint64_t back = sam_cost_tail(m, addr, m->prev_end);
-            m->t -= back * m->cyc_tu;
-            m->cycles -= back;
-        }
+        if (addr == cont)
+            refund_rest(m, addr);   /* translated otherwise: this block charged as it is */
     }
     m->prev_end = 0xFFFFFFFFu;
     if (m->t >= m->next_ev) {
@@ -309,14 +331,9 @@ charge:
     sam_blkcost_t *bc = &m->memo[(addr >> 1) & (SAM_MEMO - 1)];
     if ((bc->addr != addr || bc->size != size) && sam_cost_block(m, addr, size, bc))
         return;   /* no cycle model for an instruction of it: the board halted */
-    uint64_t cyc = block_cycles(m, addr, size, bc);
-    m->t_blk = m->t;
-    m->t += cyc * m->cyc_tu;
-    m->cycles += cyc;
+    uint64_t cyc = charge(m, addr, size, bc);
     if (m->prof && !m->ff.probing)
         m->prof[addr >> 1] += cyc;
-    m->prev_end = addr + size;
-    m->prev_refund = bc->refund;
 }
 
 /* The block hook: the refund of an untaken branch, then the common case charged here (no event due, nothing to stop
@@ -340,12 +357,7 @@ static void hook_block(uc_engine *uc, uint64_t address, uint32_t size, void *ud)
     }
     m->nvic.entering = 0;
     m->blk = addr;
-    uint64_t cyc = block_cycles(m, addr, size, bc);
-    m->t_blk = m->t;
-    m->t += cyc * m->cyc_tu;
-    m->cycles += cyc;
-    m->prev_end = addr + size;
-    m->prev_refund = bc->refund;
+    charge(m, addr, size, bc);
 }
 
 /* ---------------------------------------------------------------- flash rewritten by NVMCTRL (sam_nvmctrl.c) */
@@ -370,13 +382,7 @@ int sam_cpu_flash_changed(sam_mcu_t *m, uint32_t addr, uint32_t len)
  * the ELF's tables or the decoder). */
 void sam_cpu_resume_after(sam_mcu_t *m, uint32_t pc)
 {
-    uint32_t end = m->prev_end;
-    if (end != 0xFFFFFFFFu && pc < end) {
-        uint64_t back = sam_cost_tail(m, pc, end);
-        m->t -= back * m->cyc_tu;
-        m->cycles -= back;
-    }
-    m->prev_end = 0xFFFFFFFFu;
+    refund_rest(m, pc);
     sam_cpu_set(m, UC_ARM_REG_PC, pc | 1u);
 }
 

@@ -29,6 +29,14 @@ def bus_clock(h: Harness, periph: str, *, board: int = 0) -> None:
     raise KeyError(f"{periph}: no APB mask bit")
 
 
+def systick_free_running(h: Harness, load: int = 0xFFFFFF) -> None:
+    """SysTick counting down from `load` on the processor clock, VAL cleared, no interrupt (CTRL = ENABLE |
+    CLKSOURCE): a clock the program reads."""
+    h.write("SysTick.LOAD", load)
+    h.write("SysTick.VAL", 0)
+    h.write("SysTick.CTRL", 0x5)
+
+
 def gclk_channel(h: Harness, channel: int, gen: int = 0, *, board: int = 0) -> None:
     """Feed a generic clock channel from a generator (GCLK0 after reset: OSC8M / 8 = 1 MHz)."""
     h.write("GCLK.CLKCTRL", channel | gen << CLKCTRL_GEN_POS | CLKCTRL_CLKEN, board=board)

@@ -13,7 +13,7 @@ import pytest
 
 from host_emulator.image.harness import Asm, Harness, Program, stub
 
-from .bench import GCLK_TCC0_TCC1, bus_clock, gclk_channel
+from .bench import GCLK_TCC0_TCC1, bus_clock, gclk_channel, systick_free_running
 
 FLAG = 0x2000_0000  # the harness sets it to start the loop
 RESULT = 0x2000_0004
@@ -66,14 +66,19 @@ def _program(loop: str, fixed: int = FIXED) -> Program:
             a.mem("ldr", 1, 0)
             a._h(0x0C49, "lsrs", "r1, r1, #17")  # CCBV0 (bit 16) into the carry
             a.bcond(2, "loop", "bcs")
-            a.ldr_const(2, SYST_CVR)  # taken over: when, by SysTick
-            a.mem("ldr", 3, 2)
-            a.ldr_const(2, RESULT)
-            a.mem("str", 3, 2)
-            a.label("done")
-            a.b()
+            leave_with_the_time(a)  # taken over: when, by SysTick
 
     return _after_flag(body)
+
+
+def leave_with_the_time(a: Asm) -> None:
+    """SysTick's VAL to RESULT, then stop ("done"): when a polling loop left."""
+    a.ldr_const(2, SYST_CVR)
+    a.mem("ldr", 3, 2)
+    a.ldr_const(2, RESULT)
+    a.mem("str", 3, 2)
+    a.label("done")
+    a.b()
 
 
 def _word(h: Harness, addr: int) -> int:
@@ -82,9 +87,7 @@ def _word(h: Harness, addr: int) -> int:
 
 def _fixed(ff: bool, fixed: int = FIXED) -> tuple[tuple[int, int], object]:
     h = Harness(program=_program("fixed", fixed), ff=ff)
-    h.write("SysTick.LOAD", 0xFFFFFF)
-    h.write("SysTick.VAL", 0)
-    h.write("SysTick.CTRL", 0x5)
+    systick_free_running(h)
     h.write(FLAG, 1)
     h.advance(2e-3)
     return (_word(h, fixed), _word(h, fixed + 4)), h.info()
@@ -105,9 +108,7 @@ def test_a_pass_that_writes_only_a_fixed_address_object_is_never_skipped(fixed):
 
 def _tcc_poll(ff: bool) -> tuple[int, int]:
     h = Harness(program=_program("tcc"), ff=ff)
-    h.write("SysTick.LOAD", 0xFFFFFF)
-    h.write("SysTick.VAL", 0)
-    h.write("SysTick.CTRL", 0x5)
+    systick_free_running(h)
     bus_clock(h, "TCC0")
     gclk_channel(h, GCLK_TCC0_TCC1)
     h.write("TCC0.WAVE", 0x2)
@@ -167,9 +168,7 @@ def _time_program(kind: str) -> Program:
 
 def _time_poll(kind: str, ff: bool, timed: bool) -> tuple[int, object]:
     h = Harness(program=_time_program(kind), ff=ff, ff_timed=timed)
-    h.write("SysTick.LOAD", 0xFFFDFF)  # VAL starts with bit 9 clear: 0xFFFDFF down to 0xFFFC00
-    h.write("SysTick.VAL", 0)
-    h.write("SysTick.CTRL", 0x5)
+    systick_free_running(h, 0xFFFDFF)  # VAL starts with bit 9 clear: 0xFFFDFF down to 0xFFFC00
     h.advance(20e-6)
     h.write(FLAG, 1)
     h.advance(3e-3)

@@ -12,6 +12,8 @@ import pytest
 from host_emulator.image import cycles
 from host_emulator.image.harness import Asm, Harness, stub
 
+from .bench import systick_free_running
+
 LOGP, LOG = 0x2000_0000, 0x2000_0100  # the log pointer and the log: (tag, SysTick VAL) per entry
 ISPR = 0xE000_E200
 SYST_CVR = 0xE000_E018
@@ -51,9 +53,7 @@ def handlers(a: Asm) -> dict[int, str]:
 def board(prio_a: int, prio_b: int) -> Harness:
     h = Harness(program=stub(handlers, irqs_enabled=True))
     h.write(LOGP, LOG)
-    h.write("SysTick.LOAD", 0xFFFFFF)
-    h.write("SysTick.VAL", 0)
-    h.write("SysTick.CTRL", 0x5)  # ENABLE, the processor clock
+    systick_free_running(h)
     ip = {A: prio_a, B: prio_b}
     for n, p in ip.items():
         reg = f"NVIC.IP[{n // 4}]"

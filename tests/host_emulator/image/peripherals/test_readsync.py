@@ -6,8 +6,16 @@ from __future__ import annotations
 
 from host_emulator.image.harness import Asm, Harness, Program
 
-from .bench import CMD_READSYNC, GCLK_TCC0_TCC1, GCLK_TCC2_TC3, SYNCBUSY_CTRLB, bus_clock, gclk_channel
-from .test_fast_forward import FLAG, RESULT, SYST_CVR, _after_flag, _word
+from .bench import (
+    CMD_READSYNC,
+    GCLK_TCC0_TCC1,
+    GCLK_TCC2_TC3,
+    SYNCBUSY_CTRLB,
+    bus_clock,
+    gclk_channel,
+    systick_free_running,
+)
+from .test_fast_forward import FLAG, RESULT, _after_flag, _word, leave_with_the_time
 
 TU_HZ = 1_536_000_000
 ULP_HZ = 32_768  # OSCULP32K: a slow clock, so a synchronisation outlasts several CPU accesses
@@ -127,21 +135,14 @@ def _count_poll_program() -> Program:
         a._h(0x42A1, "cmp", "r1, r4")
         a.movs(1, 0)  # the count leaves no trace in the registers at the loop's head (MOVS keeps the carry)
         a.bcond(3, "loop", "bcc")
-        a.ldr_const(2, SYST_CVR)
-        a.mem("ldr", 3, 2)
-        a.ldr_const(2, RESULT)
-        a.mem("str", 3, 2)
-        a.label("done")
-        a.b()
+        leave_with_the_time(a)
 
     return _after_flag(body)
 
 
 def _count_poll(ff: bool) -> int:
     h = Harness(program=_count_poll_program(), ff=ff)
-    h.write("SysTick.LOAD", 0xFFFFFF)
-    h.write("SysTick.VAL", 0)
-    h.write("SysTick.CTRL", 0x5)
+    systick_free_running(h)
     bus_clock(h, "TC3")
     gclk_channel(h, GCLK_TCC2_TC3)  # GCLK0: 1 MHz
     h.write("TC3.COUNT16.CC[0]", CC0)
