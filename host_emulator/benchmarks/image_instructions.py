@@ -1,13 +1,14 @@
 """Machine-independent cost of the image tier: x86 instructions per board second of the default scene, by callgrind.
 
-    python -m host_emulator.benchmarks.image_instructions                     # default and default-timed, 0.1 s
+    python -m host_emulator.benchmarks.image_instructions                     # default and default-untimed, 0.1 s
     python -m host_emulator.benchmarks.image_instructions --case default --seconds 0.2 --top 12
 
 Each case runs in a fresh Python process under ``valgrind --tool=callgrind --instr-atstart=no``: the world is
 built and brought up (boot, USB, the cells configured) uninstrumented, then this process switches callgrind's
 instrumentation on (``callgrind_control -i on PID``) for `seconds` of board time of the scene and off again, so
 the count is the instructions those board seconds took, the rest of the process excluded. Cases: "default" (the
-default scene, model = image) and "default-timed" (the same with model_options.image.fast_forward_timed). Both run
+default scene, model = image) and "default-untimed" (the same with model_options.image.fast_forward_timed off:
+the primary's polling loops run in full). Both run
 with PYTHONHASHSEED=0, one BLAS/OpenMP thread and the cyclic garbage collector frozen after bring-up, as the image
 solver does; the counts still move by about 2 % between runs of one build (Unicorn's translation cache and hash
 tables), so compare cases within one run and read differences under that as none. With `--top N` the N functions
@@ -26,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-CASES = ("default", "default-timed")
+CASES = ("default", "default-untimed")
 
 # The measured process: bring-up uninstrumented, then `seconds` of board time between the files "go" and "done".
 _CHILD = """
@@ -35,8 +36,8 @@ from host_emulator.construct import build_solver
 from host_emulator.scene import load_scene
 case, seconds, d = sys.argv[1], float(sys.argv[2]), sys.argv[3]
 opts = ["model=image", f"t_end_s={seconds + 1}", "model_options.image.threads=1"]
-if case == "default-timed":
-    opts.append("model_options.image.fast_forward_timed=true")
+if case == "default-untimed":
+    opts.append("model_options.image.fast_forward_timed=false")
 solver = build_solver(load_scene("default", opts))
 solver.advance()
 gc.freeze()
@@ -124,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"    {ln}")
     if len(counts) == 2:
         a, b = counts[CASES[0]], counts[CASES[1]]
-        print(f"default-timed / default: {b / a:.3f}")
+        print(f"default-untimed / default: {b / a:.3f}")
     return 0
 
 

@@ -58,7 +58,7 @@ class WorldConfig:
     substeps: int = 1  # plant steps per window
     round_s: float = 0.0  # longest time boards run apart before the world meets them again; 0: the window
     ff: bool = True  # fast-forward provably idle loop() passes
-    ff_timed: bool = False  # and passes that read the time (a polling loop's), each after a probe (csrc/sam_ff.c)
+    ff_timed: bool = True  # and passes that read the time (a polling loop's), each after a probe (csrc/sam_ff.c)
     cycle_model: str = "cache"  # "cache": flash waits on NVM cache misses; "worst": the CPU budget's bound
     i2c_rise_ns: float = 125.0  # SCL rise time on the rig's bus (part of each SCL period)
     usb_packet_us: float = 50.0  # the laptop's USB host: time to move one packet

@@ -44,9 +44,10 @@ class ImageOptions:
     cycle_model: str = "cache"  # "cache": flash waits on NVM cache misses; "worst": a wait on every fetch
     fast_forward: bool = True  # skip loop() passes proven idle (results unchanged; a test compares)
     # also skip the passes of a loop that polls the time (the primary's wait on its I2C bus), each skip after a probe
-    # of a later pass; exact when its branches are monotone in the time read (image/csrc/sam_ff.c): off, as it costs
-    # about what it saves on the default scene (docs/image-tier.md, "Speed")
-    fast_forward_timed: bool = False
+    # of a later pass; exact when its branches are monotone in the time read, as deadlines and elapsed-time checks
+    # are (image/csrc/sam_ff.c; docs/image-tier.md, "Passes that read the time"): off for an image whose polling
+    # loop branches on a bit of the time
+    fast_forward_timed: bool = True
     round_s: float = 0.0  # longest time the boards run apart before the world meets them (0: the plant window)
     # "direct" (the application starts at once) or "bootloader" (the XIAO's UF2 bootloader, found through
     # MC_BOOTLOADER, runs first and starts it: power-on +6.9 ms, other resets +0.9 s; image/bootloader.py)

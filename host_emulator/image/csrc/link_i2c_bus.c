@@ -158,6 +158,46 @@ uint64_t sam_bus_eot_master(sam_mcu_t *m)
     return SAM_NEVER;
 }
 
+static void note_step(sam_mcu_t *m, const sam_busev_t *e)
+{
+    static const char *const names[BUS_EV_COUNT] = {
+        "-", "S_ADDRESS", "S_DRDY_RX", "S_DRDY_TX", "S_PREC", "S_RESET", "M_CLAIM", "M_HOLD", "M_RELEASE",
+        "M_MB", "M_SB", "M_NACKCHECK", "M_IDLE", "M_ARBLOST", "M_TIMEOUT", "M_BUSERR", "M_SDA"};
+    sam_note(m, "bus %.3f us %s <- %s %s arg %u", (double)e->t * 1e6 / (double)SAM_TU_HZ, m->name,
+             m->w->mcu[e->src]->name, names[e->kind], e->arg);
+}
+
+/* A step the board takes without any effect its software could see, given whether it (as a master) sees SCL held
+ * then: an address that is not its own, to a slave; a slave holding or letting go of SCL with nothing waiting on
+ * it, to a master (sam_i2cm_step_quiet). */
+static int step_quiet(sam_mcu_t *m, sam_sercom_t *s, const sam_busev_t *e, int held)
+{
+    if (e->kind == BUS_EV_S_ADDRESS)
+        return s && !s->addressed && !sam_i2c_address_matches(m, m->w->bus.pi, s, (uint8_t)(e->arg >> 1));
+    if (e->kind == BUS_EV_M_HOLD || e->kind == BUS_EV_M_RELEASE)
+        return sam_i2cm_step_quiet(m, m->w->bus.pi, s, e->kind, held);
+    return 0;
+}
+
+/* When the first step in the board's queue that is not quiet takes effect (SAM_NEVER: none is queued). The quiet
+ * ones before it change only the master's view of SCL, followed here as they would change it. */
+uint64_t sam_bus_next_loud(sam_mcu_t *m)
+{
+    sam_busq_t *q = &m->w->bus.q[m->id];
+    sam_sercom_t *s = bus_sercom(m);
+    int held = view(m)->held;
+    for (int i = 0; i < q->n; i++) {
+        const sam_busev_t *e = &q->ev[i];
+        if (!step_quiet(m, s, e, held))
+            return e->t;
+        if (e->kind == BUS_EV_M_HOLD)
+            held = 1;
+        else if (e->kind == BUS_EV_M_RELEASE)
+            held = 0;
+    }
+    return SAM_NEVER;
+}
+
 /* The bus's event source: the steps due now, each at its own time. */
 static void bus_fire(sam_mcu_t *m, void *ctx)
 {
@@ -171,20 +211,15 @@ static void bus_fire(sam_mcu_t *m, void *ctx)
         sam_busev_t e = q->ev[0];
         memmove(q->ev, q->ev + 1, sizeof q->ev[0] * (size_t)(q->n - 1));
         q->n--;
-        if (w->cfg.trace & 1) {
-            static const char *const names[BUS_EV_COUNT] = {
-                "-", "S_ADDRESS", "S_DRDY_RX", "S_DRDY_TX", "S_PREC", "S_RESET", "M_CLAIM", "M_HOLD", "M_RELEASE",
-                "M_MB", "M_SB", "M_NACKCHECK", "M_IDLE", "M_ARBLOST", "M_TIMEOUT", "M_BUSERR", "M_SDA"};
-            sam_note(m, "bus %.3f us %s <- %s %s arg %u", (double)e.t * 1e6 / (double)SAM_TU_HZ, m->name,
-                           w->mcu[e.src]->name, names[e.kind], e.arg);
-        }
+        if (w->cfg.trace & 1)
+            note_step(m, &e);
         uint64_t saved = m->t_blk;
         m->t_blk = e.t;
         if (e.kind < BUS_EV_M_CLAIM) {
             changed |= sam_i2cs_step(m, s, &e);
         } else {
+            changed |= !step_quiet(m, s, &e, view(m)->held);
             sam_i2cm_step(m, w->bus.pi, s, &e);
-            changed = 1;
         }
         m->t_blk = saved;
         if (s && !m->halted)
@@ -197,8 +232,9 @@ static void bus_fire(sam_mcu_t *m, void *ctx)
     sam_slot_set(m, w->bus.slot[m->id], q->n ? q->ev[0].t : SAM_NEVER);
 }
 
-/* Steps a parked board would take without any effect (addresses that are not its own), due before t_end and
- * before anything else happens to it: taken now, without waking it (its state cannot change before them). */
+/* Steps a parked board would take without any effect its software could see (step_quiet), due before t_end and
+ * before anything else happens to it: taken now, each at its own time, without waking it (its state cannot change
+ * before them). */
 static void bus_quiet(sam_mcu_t *m, void *ctx, uint64_t t_end)
 {
     (void)ctx;
@@ -208,14 +244,16 @@ static void bus_quiet(sam_mcu_t *m, void *ctx, uint64_t t_end)
         if (k != m->w->bus.slot[m->id] && m->slot[k] < t_end)
             t_end = m->slot[k];
     int k = 0;
-    while (k < q->n && q->ev[k].t < t_end) {
+    while (k < q->n && q->ev[k].t < t_end && step_quiet(m, s, &q->ev[k], view(m)->held)) {
         const sam_busev_t *e = &q->ev[k];
-        if (e->kind != BUS_EV_S_ADDRESS ||
-            (s && (s->addressed || sam_i2c_address_matches(m, m->w->bus.pi, s, (uint8_t)(e->arg >> 1)))))
-            break;
         if (m->w->cfg.trace & 1)
-            sam_note(m, "bus %.3f us %s <- %s S_ADDRESS arg %u", (double)e->t * 1e6 / (double)SAM_TU_HZ,
-                           m->name, m->w->mcu[e->src]->name, e->arg);
+            note_step(m, e);
+        if (e->kind != BUS_EV_S_ADDRESS) {   /* a master's view of SCL follows it */
+            uint64_t saved = m->t_blk;
+            m->t_blk = e->t;
+            sam_i2cm_step(m, m->w->bus.pi, s, e);
+            m->t_blk = saved;
+        }
         k++;
     }
     if (k) {

@@ -56,6 +56,7 @@ void sam_mmio_free(sam_mcu_t *m);
 
 /* ---- sam_sched.c ---- */
 void sam_next_event(sam_mcu_t *m);
+uint64_t sam_next_loud(sam_mcu_t *m);             /* the next event that may change what its software sees */
 void sam_process_events(sam_mcu_t *m);            /* every event due at or before the current block boundary */
 
 /* ---- sam_ff.c ---- */

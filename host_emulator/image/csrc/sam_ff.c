@@ -6,7 +6,7 @@
 #define SAM_FF_QUIET 2000u     /* cycles without activity, outside loop(), after which a polling loop is looked for */
 #define SAM_FF_HEAD_MISSES 4   /* arrivals at a polling head with other registers before it is given up */
 #define SAM_FF_JCAP_MAX (1u << 20)
-#define SAM_FF_JMIN 16u        /* fewest passes a probe must cover: below, it costs more than the passes it skips */
+#define SAM_FF_JMIN 4u         /* fewest passes a probe must cover: below, it costs more than the passes it skips */
 #define SAM_FF_KEEP 2048u      /* bytes below SP at the boundary never protected: a pass's calls and interrupts use them */
 #define SAM_FF_PAGE 1024u      /* the CPU's TLB page (Unicorn's ARM: 1 KiB) */
 
@@ -14,7 +14,7 @@
  * The boundary (f->head) is loop()'s entry, or, with timed passes on, a polling loop's block: the block that reads
  * a register SAM_FF_QUIET cycles after the board's last activity without it entering loop() (the primary's wait
  * for its I2C bus), or at once a block that parked before (f->known) when SAM_FF_JMIN of its passes fit before the
- * next event. A pass is the code from one arrival at the boundary to the next. A pass that left the registers, the NVM
+ * next event that may change what it reads (sam_next_loud). A pass is the code from one arrival at the boundary to the next. A pass that left the registers, the NVM
  * cache and the whole RAM as they were and had no activity (no register write, no read that changes anything, no
  * event, no interrupt) repeats exactly until the next event: the board parks and its time jumps there
  * (sam_ff_resume).
@@ -27,10 +27,12 @@
  * The board is then rolled back and parked with the horizon t1 + (J + 1) P: the passes in between are those of
  * the two ends. A probe that fails is rolled back (registers, RAM, cache, time) and the pass runs. What this
  * assumes: each branch of the pass is a monotone function of the time it read (true of the deadline and
- * elapsed-time checks polling loops make, not of a loop that tests a bit of SysTick VAL). It is off unless
- * `model_options.image.fast_forward_timed` asks for it: on the default scene the primary's waits last one I2C
- * byte (about 8 passes between bus events), where a probe and its snapshots cost about what they skip. The tier's
- * schedule test checks every board's register changes, times and plant trajectory bit for bit with it on.
+ * elapsed-time checks polling loops make, not of a loop that tests a bit of SysTick VAL); off with
+ * `model_options.image.fast_forward_timed = false`. The probe runs before the events in its time are taken, so
+ * none may be in it but bus steps that change nothing the pass can read (a slave holding SCL, or letting go of
+ * it: link_i2c_bus.c, step_quiet), which a parked board takes without running: "the next event" above is the
+ * next other one (sam_sched.c: sam_next_loud). The tier's schedule test checks every board's register changes,
+ * times and plant trajectory bit for bit with it on and off.
  *
  * Most of the RAM compare is the free stack between the break and SP, which a pass hardly touches. From each
  * reference point (the state a compare is against) the whole 1 KiB pages of [break, SP - SAM_FF_KEEP) are read only
@@ -39,7 +41,9 @@
  * block it stopped in was charged whole before it ran, so its rest, translated as a block of its own, is not charged
  * again, nor is anything due taken before it (sam_cpu.c: cont_pc): the board's times are those of a run without the
  * stop. Writes into SRAM from C (exception frames, the USB controller's) count as such a store
- * (sam_ff_ram_written). Off with timed passes, whose probes restore the whole snapshot.
+ * (sam_ff_ram_written). A probe that stores there is stopped before the store happens and undone (the run loop),
+ * so the protected pages are as they were: its compare and its rollback are of the rest of RAM (probe_ram_same,
+ * probe_ram_restore).
  */
 
 /* The protected pages (the header comment): none from here (a store reached one, or a reset). */
@@ -53,12 +57,12 @@ static void unprotect(sam_mcu_t *m)
 }
 
 /* A reference point (the state the next compare is against): the whole pages of [lo, hi - SAM_FF_KEEP) read only
- * from here, lo the break and hi SP (none with timed passes, whose probes restore the whole snapshot). */
+ * from here, lo the break and hi SP. */
 static void protect(sam_mcu_t *m, uint32_t lo, uint32_t hi)
 {
     sam_ff_t *f = &m->ff;
     uint32_t plo = 0, phi = 0;
-    if (!f->timed && hi >= lo + SAM_FF_KEEP) {
+    if (hi >= lo + SAM_FF_KEEP) {
         plo = (lo + SAM_FF_PAGE - 1u) & ~(SAM_FF_PAGE - 1u);
         phi = (hi - SAM_FF_KEEP) & ~(SAM_FF_PAGE - 1u);
         if (phi <= plo)
@@ -136,6 +140,28 @@ static int mid_same(sam_mcu_t *m, uint32_t lo, uint32_t hi)
     return !memcmp(m->ram + lo, f->snap_ram + lo, hi - lo);
 }
 
+/* The RAM a probe may have changed, as the snapshot holds it: all of it but the pages protected since the reference
+ * point, where a store stops the probe before it happens (the run loop), so they are as they were. */
+static int probe_ram_same(sam_mcu_t *m)
+{
+    const sam_ff_t *f = &m->ff;
+    if (f->ref_lo < f->ref_hi)
+        return !f->mid_dirty && !memcmp(m->ram, f->snap_ram, f->ref_lo) &&
+               !memcmp(m->ram + f->ref_hi, f->snap_ram + f->ref_hi, SAM_RAM_SIZE - f->ref_hi);
+    return !memcmp(m->ram, f->snap_ram, SAM_RAM_SIZE);
+}
+
+static void probe_ram_restore(sam_mcu_t *m)
+{
+    const sam_ff_t *f = &m->ff;
+    if (f->ref_lo < f->ref_hi) {
+        memcpy(m->ram, f->snap_ram, f->ref_lo);
+        memcpy(m->ram + f->ref_hi, f->snap_ram + f->ref_hi, SAM_RAM_SIZE - f->ref_hi);
+    } else {
+        memcpy(m->ram, f->snap_ram, SAM_RAM_SIZE);
+    }
+}
+
 static void read_regs(sam_mcu_t *m, uint32_t *regs)
 {
     void *ptrs[SAM_NCORE_REGS];
@@ -192,7 +218,8 @@ void sam_ff_access(sam_mcu_t *m, uint32_t key)
     int k = m->blk == f->known[0] ? 0 : m->blk == f->known[1] ? 1 : -1;
     if (k >= 0 || m->t - f->q_t > (uint64_t)SAM_FF_QUIET * m->cyc_tu) {
         /* a known polling loop, worth it only with room for SAM_FF_JMIN passes before the next event */
-        if (k >= 0 && m->next_ev != SAM_NEVER && m->next_ev - m->t < SAM_FF_JMIN * f->known_period[k])
+        uint64_t loud = sam_next_loud(m);
+        if (k >= 0 && loud != SAM_NEVER && loud - m->t < SAM_FF_JMIN * f->known_period[k])
             return;
         f->head = m->blk;   /* (poll_regs stay: a known head's registers are often those of its last wait) */
         f->head_misses = 0;
@@ -227,10 +254,12 @@ static void remember(sam_ff_t *f, uint32_t head, uint64_t period)
 static int probe_start(sam_mcu_t *m, uint64_t period, uint64_t period_cycles)
 {
     sam_ff_t *f = &m->ff;
-    uint64_t t1 = m->t;
-    if (f->rec_n > SAM_FF_REC || m->next_ev <= t1 + SAM_FF_JMIN * period)
+    uint64_t t1 = m->t, loud = sam_next_loud(m);
+    if (f->rec_n > SAM_FF_REC || loud <= t1 + SAM_FF_JMIN * period)
         return 0;
-    uint64_t j = (m->next_ev - 1 - t1 - period) / period;   /* t1 + (J + 1) P < next_ev: no event in the probe */
+    /* t1 + (J + 1) P < loud: nothing in the probe's time but steps that change nothing the pass can see (sam_sched.c:
+     * sam_next_loud), which it then need not have taken */
+    uint64_t j = (loud - 1 - t1 - period) / period;
     if (j > f->jcap)
         j = f->jcap;
     if (j < SAM_FF_JMIN - 1)
@@ -268,7 +297,7 @@ int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped)
         uint32_t regs[SAM_NCORE_REGS];
         read_regs(m, regs);
         held = !memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
-               !memcmp(m->ram, f->snap_ram, SAM_RAM_SIZE);
+               probe_ram_same(m);
     }
     if (!held && !stopped) {
         f->probe_bad = 1;
@@ -300,7 +329,7 @@ int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped)
         ptrs[i] = &f->snap_regs[i];
     uc_reg_write_batch(m->uc, (int *)sam_core_regs, ptrs, SAM_NCORE_REGS);
     memcpy(m->cache_tag, f->snap_cache, sizeof m->cache_tag);
-    memcpy(m->ram, f->snap_ram, SAM_RAM_SIZE);
+    probe_ram_restore(m);
     f->probe_fails++;
     f->jcap = f->jcap > 16 ? f->jcap / 8 : 2;
     f->resumed = 1;   /* the pass from t1 runs, unchecked at its first boundary */

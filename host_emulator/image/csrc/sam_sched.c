@@ -14,6 +14,23 @@ void sam_next_event(sam_mcu_t *m)
     m->next_ev = m->ff.probing || m->cont_pc != 0xFFFFFFFFu ? 0 : t;
 }
 
+/* When the next event that may change what the board's software sees is due: the next event, past the bus steps
+ * that are quiet (link_i2c_bus.c: sam_bus_next_loud), which a parked board takes without running (stays_parked). */
+uint64_t sam_next_loud(sam_mcu_t *m)
+{
+    int bs = m->w->bus.slot[m->id];
+    uint64_t t = SAM_NEVER;
+    for (int s = 0; s < SAM_NSLOTS; s++)
+        if (s != bs && m->slot[s] < t)
+            t = m->slot[s];
+    if (bs >= SAM_SLOT_SOURCE0 && m->slot[bs] < t) {
+        uint64_t b = sam_bus_next_loud(m);
+        if (b < t)
+            t = b;
+    }
+    return t;
+}
+
 void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t)
 {
     uint64_t old = m->slot[slot];
@@ -108,14 +125,14 @@ static void run_unpowered(sam_mcu_t *m)
  * be; it stays parked when no other event comes before t_end. */
 static int stays_parked(sam_mcu_t *m, uint64_t t_end)
 {
-    if (m->ff.horizon < t_end)
-        return 0;   /* a pass that reads the time was proved the same only up to its horizon (sam_ff.c) */
-    if (m->next_ev >= t_end)
-        return 1;
-    for (int k = 0; k < m->nsrc; k++)
-        if (m->src[k].quiet)
-            m->src[k].quiet(m, m->src[k].ctx, t_end);
-    return m->next_ev >= t_end;
+    /* a pass that reads the time was proved the same only up to its horizon (sam_ff.c): the quiet steps before it
+     * are taken, and the board runs from there */
+    uint64_t lim = m->ff.horizon < t_end ? m->ff.horizon : t_end;
+    if (m->next_ev < lim)
+        for (int k = 0; k < m->nsrc; k++)
+            if (m->src[k].quiet)
+                m->src[k].quiet(m, m->src[k].ctx, lim);
+    return m->ff.horizon >= t_end && m->next_ev >= t_end;
 }
 
 /* A parked board that stays parked until t_end has run to it (1); 0: it needs to run. */
@@ -157,7 +174,8 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
         uint32_t pc = sam_cpu_reg(m, UC_ARM_REG_PC);
         m->runs++;
         uc_err e = uc_emu_start(m->uc, pc | 1u, 0, 0, 0);
-        if (m->ff.probing) {   /* a speculative pass stopped astray (an access refused, a fault): undone */
+        if (m->ff.probing) {   /* a speculative pass stopped astray (an access refused, a fault, a store to a page the
+                                * fast-forward protects, which does not happen): undone */
             sam_ff_probe_end(m, 0, 1);
             continue;
         }

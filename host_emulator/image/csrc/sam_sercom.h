@@ -74,6 +74,7 @@ void sam_i2cm_data(sam_mcu_t *m, int pi, uint8_t b);
 void sam_i2cm_cmd(sam_mcu_t *m, int pi, uint32_t cmd, int nack);
 void sam_i2cm_end(sam_sercom_t *s);                         /* the transaction is over */
 void sam_i2cm_step(sam_mcu_t *m, int pi, sam_sercom_t *s, const sam_busev_t *e);   /* a bus step to the master */
+int sam_i2cm_step_quiet(sam_mcu_t *m, int pi, const sam_sercom_t *s, int kind, int held);   /* one that changes nothing seen */
 void sam_i2cm_bus_idle(sam_mcu_t *m, int pi, sam_sercom_t *s);   /* the bus state becomes IDLE: a waiting START goes */
 
 /* ---- sam_sercom_i2c_timing.c: the master's SCL timing against the I2C-bus specification ---- */

@@ -51,6 +51,24 @@ static void view_release(sam_mcu_t *m, int pi)
     }
 }
 
+/* A step that would change nothing the master's software can see or that starts anything (a slave holding SCL
+ * with no time-out to arm, or letting go of it with no START waiting): a board can take it without running
+ * (link_i2c_bus.c: bus_quiet), and the fast-forward's proofs need not stop at it. What it does change, the
+ * master's view of SCL, no register shows (the view only delays a START, and a parked pass writes none). */
+int sam_i2cm_step_quiet(sam_mcu_t *m, int pi, const sam_sercom_t *s, int kind, int held)
+{
+    if (kind == BUS_EV_M_HOLD) {
+        if (held || !s || s->mode != 5 || s->busstate != BUSSTATE_OWNER)
+            return 1;   /* nothing to arm (timeouts_arm) */
+        uint32_t ctrla = sam_sercom_reg32(m, pi, SERCOM_I2CM_CTRLA_OFFSET);
+        return !((ctrla >> SERCOM_I2CM_CTRLA_INACTOUT_Pos) & 3u) &&
+               !((ctrla & SERCOM_I2CM_CTRLA_LOWTOUTEN) && sam_gclk_hz(m, s->gclk_slow));
+    }
+    if (kind == BUS_EV_M_RELEASE)
+        return !held || !s || !(s->pending_start && s->enabled && s->mode == 5);   /* (view_release) */
+    return 0;
+}
+
 /* ---------------------------------------------------------------- steps from the bus */
 
 void sam_i2cm_end(sam_sercom_t *s)

@@ -194,6 +194,7 @@ void sam_bus_port_init(sam_mcu_t *m);                     /* the bus's event sou
 uint64_t sam_bus_tmin(void);                              /* shortest SCL period modelled: every step takes >= it */
 uint64_t sam_bus_eot_slave(sam_mcu_t *m);                 /* earliest effect of this slave on a master, SAM_NEVER */
 uint64_t sam_bus_eot_master(sam_mcu_t *m);                /* earliest effect of this master on a slave, SAM_NEVER */
+uint64_t sam_bus_next_loud(sam_mcu_t *m);                 /* its first queued step that is not quiet, SAM_NEVER */
 void sam_bus_power_lost(sam_mcu_t *m);                    /* it lets go of the bus */
 void sam_bus_lines_changed(sam_mcu_t *m);                 /* the primary's SDA/SCL pins or the SDA fault changed */
 void sam_bus_sda_fault(sam_mcu_t *m, int stuck);          /* the SDA fault began or ended: the primary's monitor */

@@ -22,7 +22,7 @@ from host_emulator.scene import list_scenes, load_scene
 from metacell_tools.rigtools import proto
 
 ROOT = proto.ROOT
-CPU_HZ = 48_000_000  # the SAMD21's core clock (the primary polls in a busy loop: every cycle is executed)
+CPU_HZ = 48_000_000  # the SAMD21's core clock
 
 
 def cli(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
@@ -159,12 +159,13 @@ def test_profile_top_must_be_positive():
 
 @pytest.mark.slow
 def test_profile_counts_only_the_time_after_configuration(images):
-    """The primary executes every one of its 48 M cycles a second (it polls the bus in a busy loop): 0.01 s after
-    configuration is 480,000 cycles, not the bring-up's ~21.7 M besides."""
+    """The primary executes about half of its 48 M cycles a second (it polls the bus in a busy loop, whose passes
+    the fast-forward skips between a probe and the byte's end): 0.01 s after configuration is at most 480,000
+    cycles, and far more than its transactions' own share, not the bring-up's ~21.7 M besides."""
     r = cli("image", "profile", "--board", "primary", "--seconds", "0.01", "--top", "3")
     assert r.returncode == 0, r.stderr
     m = re.search(r"primary: ([\d,]+) cycles in 0.01 s after configuration", r.stdout)
     assert m, r.stdout
     total = int(m.group(1).replace(",", ""))
-    assert 0.95 * CPU_HZ * 0.01 <= total <= 1.001 * CPU_HZ * 0.01, total
+    assert 0.3 * CPU_HZ * 0.01 <= total <= 1.001 * CPU_HZ * 0.01, total
     assert len(r.stdout.strip().splitlines()) == 1 + 3

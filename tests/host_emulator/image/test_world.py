@@ -24,7 +24,7 @@ def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray
     """Three cells and the primary configured, a push on cell 2, 0.25 s of motion: every board's change of state
     (trace bit 5: each register access that changed something, each exception entry and return, with its time)
     hashed per board, the plant's final state, the boards' counters, the registers each board wrote, and each
-    board's fast-forward (probes of passes that read the time, passes skipped)."""
+    board's fast-forward (probes of passes that read the time, passes and cycles skipped)."""
     w, lap = configured(images, 3, config)
     w.trace(32, (1 << len(w.boards)) - 1)
     lap.seq = (lap.seq + 1) & 0xFF
@@ -40,7 +40,14 @@ def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray
                 lines[name] += 1
     counters = {b.name: int(w.info(b.index).cycles) for b in w.boards}
     written = {b.name: {r for r, _, n in w.touched(b.index) if n} for b in w.boards}
-    ff = {b.name: (int(w.info(b.index).ff_probes), int(w.info(b.index).ff_passes_skipped)) for b in w.boards}
+    ff = {
+        b.name: (
+            int(w.info(b.index).ff_probes),
+            int(w.info(b.index).ff_passes_skipped),
+            int(w.info(b.index).ff_cycles_skipped),
+        )
+        for b in w.boards
+    }
     traces = {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}
     return traces, w.x.copy(), counters, written, ff
 
@@ -56,7 +63,7 @@ def reference(images):
         pytest.param(WorldConfig(ff=False), id="no-fast-forward"),
         pytest.param(WorldConfig(round_s=2.6e-6), id="rounds-of-one-bit"),
         pytest.param(WorldConfig(threads=2, round_s=20e-6), id="two-threads"),
-        pytest.param(WorldConfig(ff_timed=True), id="timed-passes-fast-forwarded"),
+        pytest.param(WorldConfig(ff_timed=False), id="timed-passes-run"),
     ],
 )
 def test_fast_forward_schedule_and_threads_change_nothing(images, reference, config):
@@ -68,9 +75,12 @@ def test_fast_forward_schedule_and_threads_change_nothing(images, reference, con
     assert np.any(ref_x != 0)  # the push moved it
     if config.ff:
         assert cycles == ref_cycles
-    if config.ff_timed:  # the primary's waits on its bus were probed and skipped, the reference's never
-        assert ff["primary"][0] > 10 and ff["primary"][1] > ref_ff["primary"][1], (ff, ref_ff)
-        assert ref_ff["primary"][0] == 0
+    if not config.ff_timed:  # the reference's primary probed and skipped its waits on the bus, this one never
+        assert ref_ff["primary"][0] > 10 and ref_ff["primary"][1] > ff["primary"][1], (ff, ref_ff)
+        assert ff["primary"][0] == 0
+        # a slave holding SCL and letting go are quiet steps (csrc/link_i2c_bus.c): a probe spans them, and most of
+        # the primary's waits are skipped (0.44 of its cycles; 0.30 when each of them ends the probes)
+        assert ref_ff["primary"][2] > 0.38 * ref_cycles["primary"], (ref_ff, ref_cycles)
 
 
 def test_every_block_costed_from_the_flash_bytes_changes_nothing(images, reference, monkeypatch):

@@ -142,7 +142,7 @@ def _time_program(kind: str) -> Program:
     """Reset: wait for FLAG, then poll SysTick VAL in loop() (its head: the fast-forward's boundary) until
     "deadline": DEADLINE cycles have passed since the first read (monotone in the time, as `micros() - t0 > limit`
     is), or "bit": VAL's bit 9 is set (not monotone: it comes and goes every 512 cycles). What VAL said when it
-    left goes to RESULT."""
+    left goes to RESULT; "deadline-deep" also adds one to the word at DEEP first."""
 
     def body(a: Asm) -> None:
         a.ldr_const(2, SYST_CVR)
@@ -150,13 +150,18 @@ def _time_program(kind: str) -> Program:
         a.mem("ldr", 3, 2)  # t0
         a.label("loop")
         a.mem("ldr", 1, 2)  # now
-        if kind == "deadline":
+        if kind.startswith("deadline"):
             a._h(0x1A59, "subs", "r1, r3, r1")  # elapsed = t0 - now (VAL counts down)
             a._h(0x42A1, "cmp", "r1, r4")
         else:
             a._h(0x0A89, "lsrs", "r1, r1, #10")  # bit 9 into the carry
         a.movs(1, 0)  # the time leaves no trace in the registers at the loop's head (MOVS keeps the carry)
         a.bcond(3, "loop", "bcc")
+        if kind == "deadline-deep":  # leaving, it counts once at DEEP, on a page the fast-forward protects
+            a.ldr_const(0, DEEP)
+            a.mem("ldr", 1, 0)
+            a.adds(1, 1)
+            a.mem("str", 1, 0)
         a.mem("ldr", 1, 2)
         a.ldr_const(0, RESULT)
         a.mem("str", 1, 0)
@@ -166,12 +171,14 @@ def _time_program(kind: str) -> Program:
     return _after_flag(body)
 
 
-def _time_poll(kind: str, ff: bool, timed: bool) -> tuple[int, object]:
+def _time_poll(kind: str, ff: bool, timed: bool) -> tuple[object, object]:
     h = Harness(program=_time_program(kind), ff=ff, ff_timed=timed)
     systick_free_running(h, 0xFFFDFF)  # VAL starts with bit 9 clear: 0xFFFDFF down to 0xFFFC00
     h.advance(20e-6)
     h.write(FLAG, 1)
     h.advance(3e-3)
+    if kind == "deadline-deep":
+        return (_word(h, RESULT), _word(h, DEEP)), h.info()
     return _word(h, RESULT), h.info()
 
 
@@ -187,6 +194,19 @@ def test_a_loop_polling_a_deadline_leaves_at_the_same_cycle_when_its_passes_are_
     assert info_untimed.ff_probes == 0 and info_untimed.ff_passes_skipped == 0  # reading the time: never parked
     assert info.ff_probes > 0 and info.ff_probe_fails > 0  # the probe past the deadline failed, and was undone
     assert info.ff_passes_skipped > 100  # most of the ~300 passes were skipped
+
+
+def test_a_probe_that_leaves_the_loop_stores_nothing_on_the_protected_pages():
+    """The probe past the deadline leaves the loop and stores to a page the fast-forward protects (DEEP, far below
+    SP): the store stops the probe before it happens, and the probe is undone. The loop then leaves once, at the
+    cycle it leaves at without fast-forwarding, and counts once at DEEP (a store let through, or restored from a
+    snapshot that does not hold the protected pages, would count twice)."""
+    off, _ = _time_poll("deadline-deep", False, False)
+    on, info = _time_poll("deadline-deep", True, True)
+    assert off[0] != 0 and off[1] == 1
+    assert on == off
+    assert info.ff_probe_fails > 0 and info.ff_passes_skipped > 100
+    assert info.ff_traps == 1  # the loop's one store there, let through when it came (the probe's was not)
 
 
 @pytest.mark.xfail(
