@@ -14,10 +14,10 @@
  * The boundary (f->head) is loop()'s entry, or, with timed passes on, a polling loop's block: the block that reads
  * a register SAM_FF_QUIET cycles after the board's last activity without it entering loop() (the primary's wait
  * for its I2C bus), or at once a block that parked before (f->known) when SAM_FF_JMIN of its passes fit before the
- * next event that may change what it reads (sam_next_loud). A pass is the code from one arrival at the boundary to the next. A pass that left the registers, the NVM
- * cache and the whole RAM as they were and had no activity (no register write, no read that changes anything, no
- * event, no interrupt) repeats exactly until the next event: the board parks and its time jumps there
- * (sam_ff_resume).
+ * next event that may change what it reads (sam_next_loud). A pass is the code from one arrival at the boundary to
+ * the next. A pass that left the registers, the NVM cache and the whole RAM as they were and had no activity (no
+ * register write, no read that changes anything, no event, no interrupt) repeats exactly until the next event: the
+ * board parks and its time jumps there (sam_ff_resume).
  *
  * A pass that read the time (SysTick VAL: m->tread) also left everything as it was, but a later pass reads a later
  * time and may branch otherwise (a deadline: `micros() - t0 > limit`). It is skipped only after a probe: the pass
