@@ -113,19 +113,19 @@ uint64_t sam_bus_eot_slave(sam_mcu_t *m)
 {
     sam_world_t *w = m->w;
     sam_busq_t *q = &w->bus.q[m->id];
-    uint64_t t = SAM_NEVER;
-    uint64_t T = sam_bus_tmin();   /* every answer takes at least this */
     sam_sercom_t *s = bus_sercom(m);
     if (!q->n && !(s && s->addressed))
         return SAM_NEVER;   /* the common case: nothing to answer, not addressed */
+    uint64_t t = SAM_NEVER;
+    uint64_t T = sam_bus_tmin();   /* every answer takes at least this */
     /* a step it has yet to take may be answered; but a parked board (nothing changes it before its next event)
      * does not answer an address that is not its own */
     uint64_t frozen_until = SAM_NEVER;
     if (m->ff.parked) {
         frozen_until = m->ff.horizon;   /* a probed pass repeats only up to its horizon (sam_ff.c) */
-        for (int k = 0; k < SAM_NSLOTS; k++)
-            if (k != w->bus.slot[m->id] && m->slot[k] < frozen_until)
-                frozen_until = m->slot[k];
+        int k = sam_slot_first(m, w->bus.slot[m->id]);
+        if (k >= 0 && m->slot[k] < frozen_until)
+            frozen_until = m->slot[k];
     }
     for (int i = 0; i < q->n; i++) {
         const sam_busev_t *e = &q->ev[i];
@@ -239,10 +239,12 @@ static void bus_quiet(sam_mcu_t *m, void *ctx, uint64_t t_end)
 {
     (void)ctx;
     sam_busq_t *q = &m->w->bus.q[m->id];
+    if (!q->n)
+        return;
     sam_sercom_t *s = bus_sercom(m);
-    for (int k = 0; k < SAM_NSLOTS; k++)
-        if (k != m->w->bus.slot[m->id] && m->slot[k] < t_end)
-            t_end = m->slot[k];
+    int o = sam_slot_first(m, m->w->bus.slot[m->id]);
+    if (o >= 0 && m->slot[o] < t_end)
+        t_end = m->slot[o];
     int k = 0;
     while (k < q->n && q->ev[k].t < t_end && step_quiet(m, s, &q->ev[k], view(m)->held)) {
         const sam_busev_t *e = &q->ev[k];

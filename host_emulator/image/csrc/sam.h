@@ -191,6 +191,7 @@ struct sam_mcu {
     uint64_t ep_writes;    /* writes to enable-protected fields while enabled (ignored, as on silicon) */
     /* events */
     uint64_t slot[SAM_NSLOTS];
+    uint64_t slot_live;    /* bit s: slot[s] is set (not SAM_NEVER); the scans for the earliest walk these only */
     uint64_t next_ev;
     sam_source_t src[SAM_MAX_SOURCES];   /* slot SAM_SLOT_SOURCE0 + k */
     int nsrc;
@@ -256,6 +257,25 @@ void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t);
 int sam_source_add(sam_mcu_t *m, void (*fire)(sam_mcu_t *m, void *ctx),
                    void (*quiet)(sam_mcu_t *m, void *ctx, uint64_t t_end), void *ctx, unsigned flags);
 static inline uint64_t sam_now(const sam_mcu_t *m) { return m->t_blk; }
+_Static_assert(SAM_NSLOTS <= 64, "slot_live holds one bit per event slot");
+
+/* The board's earliest event slot but `skip` (-1: none): its index, the lowest of equal times; -1 when none is set. */
+static inline int sam_slot_first(const sam_mcu_t *m, int skip)
+{
+    uint64_t live = m->slot_live & ~(skip >= 0 ? 1ull << skip : 0ull);
+    int best = -1;
+    uint64_t bt = SAM_NEVER;
+    while (live) {
+        int s = __builtin_ctzll(live);
+        live &= live - 1u;
+        if (m->slot[s] < bt) {
+            bt = m->slot[s];
+            best = s;
+        }
+    }
+    return best;
+}
+
 static inline void sam_activity(sam_mcu_t *m) { m->act++; }
 
 /* ---- sam_cpu.c: the CPU (Unicorn), cycle charging, memory ---- */

@@ -60,6 +60,7 @@ int sam_mcu_init(sam_mcu_t *m, sam_world_t *w, int id)
         return -1;
     for (int s = 0; s < SAM_NSLOTS; s++)
         m->slot[s] = SAM_NEVER;
+    m->slot_live = 0;
     m->next_ev = SAM_NEVER;
     return 0;
 }
@@ -102,6 +103,7 @@ void sam_do_reset(sam_mcu_t *m, uint8_t cause)
     m->nvic.vtor = m->boot ? 0u : SAM_APP_BASE;
     for (int s = 0; s < SAM_SLOT_SOURCE0; s++)   /* the chip's events; the world's sources keep theirs */
         m->slot[s] = SAM_NEVER;
+    m->slot_live &= ~((1ull << SAM_SLOT_SOURCE0) - 1u);
     sam_next_event(m);
     m->rws = 0;
     m->cyc_tu = (uint32_t)(SAM_TU_HZ / 1000000u);   /* GCLK0 = OSC8M / 8 = 1 MHz after reset */

@@ -5,10 +5,8 @@
 
 void sam_next_event(sam_mcu_t *m)
 {
-    uint64_t t = SAM_NEVER;
-    for (int s = 0; s < SAM_NSLOTS; s++)
-        if (m->slot[s] < t)
-            t = m->slot[s];
+    int s = sam_slot_first(m, -1);
+    uint64_t t = s >= 0 ? m->slot[s] : SAM_NEVER;
     /* a probe, or the rest of a block to come after a stopped store, holds it at 0: the block hook sees them there
      * (sam_ff.c) */
     m->next_ev = m->ff.probing || m->cont_pc != 0xFFFFFFFFu ? 0 : t;
@@ -19,10 +17,8 @@ void sam_next_event(sam_mcu_t *m)
 uint64_t sam_next_loud(sam_mcu_t *m)
 {
     int bs = m->w->bus.slot[m->id];
-    uint64_t t = SAM_NEVER;
-    for (int s = 0; s < SAM_NSLOTS; s++)
-        if (s != bs && m->slot[s] < t)
-            t = m->slot[s];
+    int s = sam_slot_first(m, bs >= SAM_SLOT_SOURCE0 ? bs : -1);
+    uint64_t t = s >= 0 ? m->slot[s] : SAM_NEVER;
     if (bs >= SAM_SLOT_SOURCE0 && m->slot[bs] < t) {
         uint64_t b = sam_bus_next_loud(m);
         if (b < t)
@@ -35,6 +31,10 @@ void sam_slot_set(sam_mcu_t *m, int slot, uint64_t t)
 {
     uint64_t old = m->slot[slot];
     m->slot[slot] = t;
+    if (t != SAM_NEVER)
+        m->slot_live |= 1ull << slot;
+    else
+        m->slot_live &= ~(1ull << slot);
     if (t < m->next_ev)
         m->next_ev = t;
     else if (old == m->next_ev && t != old)
@@ -72,12 +72,10 @@ void sam_process_events(sam_mcu_t *m)
 {
     uint64_t saved = m->t_blk;
     while (m->next_ev <= m->t && m->next_ev < m->stop_at && !m->err && !m->in_reset) {
-        int s = 0;
-        for (int k = 1; k < SAM_NSLOTS; k++)
-            if (m->slot[k] < m->slot[s])
-                s = k;
+        int s = sam_slot_first(m, -1);   /* (one is set: next_ev <= t) */
         uint64_t ts = m->slot[s];
         m->slot[s] = SAM_NEVER;
+        m->slot_live &= ~(1ull << s);
         sam_next_event(m);
         m->t_blk = ts;
         m->ev_quiet = 0;
