@@ -217,7 +217,7 @@ def parse_options(d: dict, prefix: str = "model_options") -> ModelOptions:
                 raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(_CHOICES[k])}")
             kw[k] = v
         elif k == "stepper":
-            if v not in STEPPERS:
+            if not isinstance(v, str) or v not in STEPPERS:
                 raise ConfigError(f"{key} = {v!r}: expected one of {', '.join(sorted(STEPPERS))}")
             kw[k] = v
         elif k in ("dt", "dt_out"):
@@ -366,7 +366,7 @@ def parse_fault(d: dict, cells: Any, where: str) -> Fault:
     if not isinstance(d, dict):
         raise ConfigError(f"{where}: expected a table")
     kind = d.get("kind")
-    if kind not in FAULT_KINDS:
+    if not isinstance(kind, str) or kind not in FAULT_KINDS:  # (a table or an array is no kind, and no dict key)
         raise ConfigError(f"{where}.kind = {kind!r}: expected one of {', '.join(FAULT_KINDS)}")
     takes = FAULT_KINDS[kind][1]
     allowed = {"kind", "start_s", *takes} | ({"cell"} if "board" in takes else set())

@@ -43,6 +43,8 @@ def test_shipped_scenes_load():
         ({"t_end_s": -1}, "t_end_s"),
         ({"model_options": {"bands": "rubber"}}, "model_options.bands"),
         ({"model_options": {"stepper": "leapfrog"}}, "model_options.stepper"),
+        ({"model_options": {"stepper": {"sigma": 1}}}, "model_options.stepper"),  # a table: unhashable, no TypeError
+        ({"model": "image", "fault": [{"kind": {"sigma": 0.05}, "start_s": 0}]}, "fault[1].kind"),  # found by atheris
         ({"model_options": {"inertia": 1}}, "model_options.inertia"),
         ({"model_options": {"noise": {"seeed": 1}}}, "model_options.noise.seeed"),
         ({"model_options": {"noise": {"encoder_glitch_prob": 2.0}}}, "model_options.noise.encoder_glitch_prob"),
