@@ -123,9 +123,9 @@ uint64_t sam_bus_eot_slave(sam_mcu_t *m)
     uint64_t frozen_until = SAM_NEVER;
     if (m->ff.parked) {
         frozen_until = m->ff.horizon;   /* a probed pass repeats only up to its horizon (sam_ff.c) */
-        int k = sam_slot_first(m, w->bus.slot[m->id]);
-        if (k >= 0 && m->slot[k] < frozen_until)
-            frozen_until = m->slot[k];
+        uint64_t other = sam_slot_earliest(m, w->bus.slot[m->id]);
+        if (other < frozen_until)
+            frozen_until = other;
     }
     for (int i = 0; i < q->n; i++) {
         const sam_busev_t *e = &q->ev[i];
@@ -242,9 +242,9 @@ static void bus_quiet(sam_mcu_t *m, void *ctx, uint64_t t_end)
     if (!q->n)
         return;
     sam_sercom_t *s = bus_sercom(m);
-    int o = sam_slot_first(m, m->w->bus.slot[m->id]);
-    if (o >= 0 && m->slot[o] < t_end)
-        t_end = m->slot[o];
+    uint64_t other = sam_slot_earliest(m, m->w->bus.slot[m->id]);
+    if (other < t_end)
+        t_end = other;
     int k = 0;
     while (k < q->n && q->ev[k].t < t_end && step_quiet(m, s, &q->ev[k], view(m)->held)) {
         const sam_busev_t *e = &q->ev[k];

@@ -276,6 +276,13 @@ static inline int sam_slot_first(const sam_mcu_t *m, int skip)
     return best;
 }
 
+/* When that slot is due (SAM_NEVER: none is set). */
+static inline uint64_t sam_slot_earliest(const sam_mcu_t *m, int skip)
+{
+    int s = sam_slot_first(m, skip);
+    return s >= 0 ? m->slot[s] : SAM_NEVER;
+}
+
 static inline void sam_activity(sam_mcu_t *m) { m->act++; }
 
 /* ---- sam_cpu.c: the CPU (Unicorn), cycle charging, memory ---- */

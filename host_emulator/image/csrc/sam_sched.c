@@ -5,8 +5,7 @@
 
 void sam_next_event(sam_mcu_t *m)
 {
-    int s = sam_slot_first(m, -1);
-    uint64_t t = s >= 0 ? m->slot[s] : SAM_NEVER;
+    uint64_t t = sam_slot_earliest(m, -1);
     /* a probe, or the rest of a block to come after a stopped store, holds it at 0: the block hook sees them there
      * (sam_ff.c) */
     m->next_ev = m->ff.probing || m->cont_pc != 0xFFFFFFFFu ? 0 : t;
@@ -17,8 +16,7 @@ void sam_next_event(sam_mcu_t *m)
 uint64_t sam_next_loud(sam_mcu_t *m)
 {
     int bs = m->w->bus.slot[m->id];
-    int s = sam_slot_first(m, bs >= SAM_SLOT_SOURCE0 ? bs : -1);
-    uint64_t t = s >= 0 ? m->slot[s] : SAM_NEVER;
+    uint64_t t = sam_slot_earliest(m, bs >= SAM_SLOT_SOURCE0 ? bs : -1);
     if (bs >= SAM_SLOT_SOURCE0 && m->slot[bs] < t) {
         uint64_t b = sam_bus_next_loud(m);
         if (b < t)

@@ -38,16 +38,10 @@ def _run_traced(images, config: WorldConfig) -> tuple[dict[str, str], np.ndarray
                 name = " ".join(n.split(" ")[2:4]) if n.split(" ")[2] == "cell" else n.split(" ")[2]
                 digests[name].update(n.encode())
                 lines[name] += 1
-    counters = {b.name: int(w.info(b.index).cycles) for b in w.boards}
+    infos = {b.name: w.info(b.index) for b in w.boards}
+    counters = {k: int(i.cycles) for k, i in infos.items()}
     written = {b.name: {r for r, _, n in w.touched(b.index) if n} for b in w.boards}
-    ff = {
-        b.name: (
-            int(w.info(b.index).ff_probes),
-            int(w.info(b.index).ff_passes_skipped),
-            int(w.info(b.index).ff_cycles_skipped),
-        )
-        for b in w.boards
-    }
+    ff = {k: (int(i.ff_probes), int(i.ff_passes_skipped), int(i.ff_cycles_skipped)) for k, i in infos.items()}
     traces = {k: f"{h.hexdigest()[:16]}/{lines[k]}" for k, h in digests.items()}
     return traces, w.x.copy(), counters, written, ff
 
