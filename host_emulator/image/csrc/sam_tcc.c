@@ -218,16 +218,8 @@ uint64_t sam_tcc_high(sam_mcu_t *m, int tcc, int wo, uint64_t t0, uint64_t t1, i
     *other = 0.0;
     if (!s || !s->running || t1 <= t0)
         return 0;
-    int lupd = tcc_lupd(m, pi), c = wo % s->nch;
-    if (!waveform && next_change(s, lupd) >= t1) {
-        /* the mean path with no change before t1 (the plant's window, most times): walk's one stretch, from the
-         * state as it is (advance would move za alone, which the mean does not use) */
-        uint64_t a = t0 < s->t_start ? s->t_start : t0, per = (uint64_t)s->per + 1u;
-        *top = per;
-        return a < t1 ? (s->cc[c] >= per ? per : s->cc[c]) * (t1 - a) : 0;
-    }
     high_acc_t h = {waveform, 0, 0, 0.0};
-    walk(s, lupd, c, t0, t1, high_seg, &h);
+    walk(s, tcc_lupd(m, pi), wo % s->nch, t0, t1, high_seg, &h);
     *other = h.other;
     *top = waveform ? 1u : h.den ? h.den : (uint64_t)s->per + 1u;
     return h.hi;

@@ -109,7 +109,8 @@ def test_the_high_time_over_any_interval_is_the_waveforms(presc, per, cc_frac, s
 def test_the_mean_path_over_any_interval_is_the_duty_times_its_time(per, cc_frac, cc2_frac, start, length, buffered):
     """The mean path's figure over any interval (before the counter starts, across a buffered CC change or not):
     min(CC, PER + 1) / (PER + 1) of the time the counter runs in it, stretch by stretch, against a reference that
-    knows only the start and the UPDATE that takes the buffer over (the single-stretch shortcut and the walk)."""
+    knows only the counter's start and the UPDATE that takes the buffer over (the first wrap after the write has
+    synchronised, DS40001882 31.6.2.6)."""
     cc, cc2 = round(cc_frac * (per + 1)), round(cc2_frac * (per + 1))
     h, t_enable = pwm(per, cc, window_s=1e-3)
     h.advance(10e-6)  # the enable synchronised (3 GCLK cycles), the first cycle (>= 20 us) not over
@@ -118,10 +119,10 @@ def test_the_mean_path_over_any_interval_is_the_duty_times_its_time(per, cc_frac
     assert t_enable < t_start < h.now()
     h.advance(50e-6)
     t_upd = None
-    if buffered:
+    if buffered:  # valid once its write has synchronised (3 GCLK cycles, SYNCBUSY.CCB2), taken at the next wrap
         h.write("TCC0.CCB[2]", cc2)
-        c, t = tcc_count(h)
-        t_upd = t + (per + 1 - c) * tick
+        ready = h.t_access + 3 * tick
+        t_upd = t_start + ((ready - t_start) // period + 1) * period
     t0 = max(0, h.now() + int(start * period))
     t1 = t0 + int(length * period)
     hi, den, other = h.tcc_mean(2, t0, t1)
