@@ -184,8 +184,7 @@ def test_a_stop_in_the_middle_of_the_masters_transaction_is_a_bus_error():
 
 def first_time(h: Harness, cond, step: float, limit: float) -> int:
     """The master's time (tu) at the check that first finds cond(h), stepping the world by `step` seconds between
-    checks (steps of half an SCL period: finer ones let the harness's register accesses, each a few microseconds of
-    one board's time, run a board past a bus step the other has yet to send)."""
+    checks."""
     t_end = h.now(MASTER) + h.tu(limit)
     while h.now(MASTER) < t_end:
         t = h.now(MASTER)
@@ -218,3 +217,15 @@ def test_without_the_time_out_the_master_keeps_the_bus_while_the_slave_holds_scl
     assert h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_AMATCH
     h.advance(60 * T1)
     assert busstate(h) == OWNER
+
+
+def test_polling_the_slave_finer_than_a_bit_does_not_stall_the_world():
+    """Harness accesses run one board on alone, a few microseconds of its time each (here at 1 MHz): the slave polled
+    every eighth of an SCL period ran past the time of the address byte the master then sent it, and the world,
+    waiting for the slave's answer to a step it never took, stopped with "the boards wait for each other". The step
+    is taken as the board's next block would take it; the match and the hold follow, and the time-out after it."""
+    h = bus(inactout=1)
+    h.write("SERCOM2.I2CM.ADDR", ADDR << 1, board=MASTER)
+    t_match = first_time(h, lambda h: h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_AMATCH, T1 / 8, 20 * T1)
+    t_idle = first_time(h, lambda h: busstate(h) == IDLE, T1 / 8, 40 * T1)
+    assert 4 * h.tu(T1) <= t_idle - t_match <= 7 * h.tu(T1)
