@@ -422,6 +422,13 @@ class Harness:
         """High time (tu) of TCCn/WO[wo] over [t0, t1) from the counter's edges (the waveform path's figure)."""
         return int(self.lib.sam_world_tcc_high(self._w, board, tcc, wo, t0, t1))
 
+    def tcc_mean(self, wo: int, t0: int, t1: int, *, tcc: int = 0, board: int = 0) -> tuple[int, int, float]:
+        """The mean path's figure for TCCn/WO[wo] over [t0, t1): (numerator, den, other), the mean high time being
+        numerator / den + other tu (den: the first stretch's period in counts)."""
+        den, other = self.ffi.new("uint64_t *"), self.ffi.new("double *")
+        hi = int(self.lib.sam_world_tcc_mean(self._w, board, tcc, wo, t0, t1, den, other))
+        return hi, int(den[0]), float(other[0])
+
     # ---- the core ----------------------------------------------------------------------------------------
     def nvic(self, *, board: int = 0):
         n = self.ffi.new("sam_nvic_info_t *")

@@ -203,6 +203,10 @@ int sam_world_tcc_info(const sam_world_t *w, int mcu, int tcc, sam_tcc_info_t *o
 /* High time (tu) of TCCn/WO[wo] of a board over [t0, t1), edge by edge (the waveform path's figure); [t0, t1) within
  * the board's past since the counter's parameters last changed by a register write. */
 uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1);
+/* The mean path's figure over the same [t0, t1): the numerator of the mean high time, in tu x counts over *den (the
+ * first stretch's period, PER + 1 counts), and *other (tu) for stretches with another period. */
+uint64_t sam_world_tcc_mean(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *den,
+                            double *other);
 /* Log lines (resets, faults, USB errors) since the last call, '\n'-separated; returns bytes written. */
 uint32_t sam_world_notes(sam_world_t *w, char *buf, uint32_t cap);
 /* Change what is traced into the notes (sam_world_cfg_t.trace, .trace_boards) from now on. */

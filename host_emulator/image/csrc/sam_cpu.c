@@ -279,6 +279,17 @@ static inline uint64_t charge(sam_mcu_t *m, uint32_t addr, uint32_t size, const 
     return cyc;
 }
 
+/* Stop the CPU at the start of the block the hook runs for (addr): the block does not run. Unicorn would otherwise
+ * find the PC again from the translated code when it stops (a search of its blocks by host address, then a walk of
+ * the block's instruction starts: about as much as a hundred hooked blocks); the PC written here is that block's
+ * start, which Unicorn synced before the hook, and a PC written from a hook spares that search (Unicorn 2.1:
+ * skip_sync_pc_on_exit). */
+static void stop_at_block(uc_engine *uc, sam_mcu_t *m, uint32_t addr)
+{
+    uc_emu_stop(uc);
+    sam_cpu_set(m, UC_ARM_REG_PC, addr | 1u);
+}
+
 /* The block hook's whole work after the untaken-branch refund (hook_block takes the common case itself). Kept out
  * of it: its calls would give every block their frame. */
 __attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, uint32_t size, sam_mcu_t *m)
@@ -301,7 +312,7 @@ __attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, ui
             if (at_head || m->ff.probe_bad || m->t >= m->ff.pr_end || (m->irq_check | m->primask_wait) || m->err ||
                 m->in_reset || m->lockup) {
                 sam_ff_probe_end(m, at_head, 0);   /* parked, or undone by the run loop once stopped */
-                uc_emu_stop(uc);
+                stop_at_block(uc, m, addr);
                 return;
             }
             goto charge;
@@ -309,7 +320,7 @@ __attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, ui
         sam_process_events(m);   /* those due before stop_at; an answer they send may lower stop_at */
     }
     if (m->err || m->in_reset || m->lockup || m->t >= m->stop_at) {
-        uc_emu_stop(uc);
+        stop_at_block(uc, m, addr);
         return;
     }
     if ((m->irq_check | m->primask_wait) && sam_nvic_take(m, addr))
@@ -320,7 +331,7 @@ __attribute__((noinline)) static void hook_rest(uc_engine *uc, uint32_t addr, ui
         if (addr == m->ff.loop_pc)
             sam_ff_loop_entry(m);
         if (sam_ff_boundary(m)) {
-            uc_emu_stop(uc);
+            stop_at_block(uc, m, addr);
             return;
         }
     }

@@ -157,8 +157,15 @@ int sam_mcu_run(sam_mcu_t *m, uint64_t t_end)
                 break;   /* the pass repeats unchanged up to stop_at */
             sam_ff_resume(m);
         }
-        if (m->t >= m->stop_at && m->cont_pc == 0xFFFFFFFFu)
-            break;   /* (the rest of a block a stopped store split runs first: it was charged with the block) */
+        if (m->t >= m->stop_at && m->cont_pc == 0xFFFFFFFFu) {
+            /* (the rest of a block a stopped store split runs first: it was charged with the block) A step that
+             * arrived behind the board's time (its last block ran past the time it was let run to, or the harness
+             * ran it on alone) is taken now, as the next block's hook would: otherwise its answer, which others
+             * may wait for, would wait for a run that never comes */
+            if (m->next_ev <= m->t)
+                sam_process_events(m);
+            break;
+        }
         if (m->in_reset) {
             sam_do_reset(m, (uint8_t)m->in_reset);
             continue;

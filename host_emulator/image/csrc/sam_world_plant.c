@@ -357,3 +357,13 @@ uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint
         return 0;
     return sam_tcc_high(w->mcu[mcu], tcc, wo, t0, t1, 1, &den, &other);
 }
+
+uint64_t sam_world_tcc_mean(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *den,
+                            double *other)
+{
+    *den = 1;
+    *other = 0.0;
+    if (mcu < 0 || mcu >= w->nmcu || !w->mcu[mcu])
+        return 0;
+    return sam_tcc_high(w->mcu[mcu], tcc, wo, t0, t1, 0, den, other);
+}

@@ -16,6 +16,7 @@ ADDR = 0x42
 ENABLE = 1 << 1
 MODE_SLAVE, MODE_MASTER = 0x4 << 2, 0x5 << 2  # CTRLA.MODE
 SDAHOLD_POS = 20  # CTRLA.SDAHOLD[21:20]: 0 off, 1 50-100 ns, 2 300-600 ns, 3 400-800 ns
+INACTOUT_POS = 28  # CTRLA.INACTOUT[29:28]: 0 off, 1 5-6, 2 10-11, 3 20-21 SCL cycles
 M_MB, M_SB, M_ERROR = 1 << 0, 1 << 1, 1 << 7  # I2CM.INTFLAG
 S_AMATCH = 1 << 1  # I2CS.INTFLAG
 BUSERR, ARBLOST, RXNACK = 1 << 0, 1 << 1, 1 << 2  # I2CM.STATUS
@@ -25,9 +26,11 @@ RISE = 125e-9  # the harness's bus rise time (cfg.i2c_rise_ns)
 T1 = 10e-6 + RISE  # SCL period at 1 MHz with BAUD 0
 
 
-def bus(baud: int = 0, sdahold: int = 0, osc8m_presc: int = 3, enable: bool = True, force: bool = True) -> Harness:
-    """A cell as the slave at ADDR and a primary as the master (BAUD, SDAHOLD), the master's GCLK0 OSC8M >> presc
-    (3: the reset value, 1 MHz; 0: 8 MHz)."""
+def bus(
+    baud: int = 0, sdahold: int = 0, osc8m_presc: int = 3, enable: bool = True, force: bool = True, inactout: int = 0
+) -> Harness:
+    """A cell as the slave at ADDR and a primary as the master (BAUD, SDAHOLD, INACTOUT), the master's GCLK0 OSC8M >>
+    presc (3: the reset value, 1 MHz; 0: 8 MHz)."""
     h = Harness(boards=("cell", "primary"))
     sercom2_i2c_pins(h, (SLAVE, MASTER))
     if osc8m_presc != 3:
@@ -35,10 +38,11 @@ def bus(baud: int = 0, sdahold: int = 0, osc8m_presc: int = 3, enable: bool = Tr
     h.write("SERCOM2.I2CS.CTRLA", MODE_SLAVE, board=SLAVE)
     h.write("SERCOM2.I2CS.ADDR", ADDR << 1, board=SLAVE)
     h.write("SERCOM2.I2CS.CTRLA", MODE_SLAVE | ENABLE, board=SLAVE)
-    h.write("SERCOM2.I2CM.CTRLA", MODE_MASTER | sdahold << SDAHOLD_POS, board=MASTER)
+    ctrla = MODE_MASTER | sdahold << SDAHOLD_POS | inactout << INACTOUT_POS
+    h.write("SERCOM2.I2CM.CTRLA", ctrla, board=MASTER)
     h.write("SERCOM2.I2CM.BAUD", baud, board=MASTER)
     if enable:
-        h.write("SERCOM2.I2CM.CTRLA", MODE_MASTER | sdahold << SDAHOLD_POS | ENABLE, board=MASTER)
+        h.write("SERCOM2.I2CM.CTRLA", ctrla | ENABLE, board=MASTER)
         h.advance(20e-6)
         if force:
             h.write("SERCOM2.I2CM.STATUS", IDLE << 4, board=MASTER)
@@ -176,3 +180,52 @@ def test_a_stop_in_the_middle_of_the_masters_transaction_is_a_bus_error():
     st = h.read("SERCOM2.I2CM.STATUS", board=MASTER)
     assert st & BUSERR and st & ARBLOST and st >> 4 & 3 == IDLE
     assert h.read("SERCOM2.I2CM.INTFLAG", board=MASTER) & M_MB
+
+
+def first_time(h: Harness, cond, step: float, limit: float) -> int:
+    """The master's time (tu) at the check that first finds cond(h), stepping the world by `step` seconds between
+    checks."""
+    t_end = h.now(MASTER) + h.tu(limit)
+    while h.now(MASTER) < t_end:
+        t = h.now(MASTER)
+        if cond(h):
+            return t
+        h.advance(step)
+    raise AssertionError("never held")
+
+
+@pytest.mark.parametrize("inactout, periods", [(1, 5), (2, 10), (3, 20)])
+def test_the_inactive_bus_time_out_gives_the_bus_up_after_its_scl_periods(inactout, periods):
+    """DS40001882 28.6.2.4.3 / 28.8.1 CTRLA.INACTOUT: while the addressed slave holds SCL low (its software has not
+    answered AMATCH), the master that owns the bus counts the bus inactive and, after INACTOUT's SCL periods (5, 10 or
+    20 of its own), gives it up: the bus state goes from OWNER to IDLE. Measured from the slave's AMATCH (the start
+    of its hold), to half a period's steps: within one period of the count."""
+    h = bus(inactout=inactout)
+    h.write("SERCOM2.I2CM.ADDR", ADDR << 1, board=MASTER)
+    t_match = first_time(h, lambda h: h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_AMATCH, T1 / 2, 20 * T1)
+    seen = []
+    t_idle = first_time(h, lambda h: seen.append(busstate(h)) or seen[-1] == IDLE, T1 / 2, 40 * T1)
+    assert set(seen[:-1]) == {OWNER}  # the master's until then
+    assert periods * h.tu(T1) <= t_idle - t_match < (periods + 0.9) * h.tu(T1), (t_idle - t_match) / h.tu(T1)
+
+
+def test_without_the_time_out_the_master_keeps_the_bus_while_the_slave_holds_scl():
+    """INACTOUT 0 (off): the slave's hold lasts as long as its software lets it; the master stays OWNER."""
+    h = bus()
+    h.write("SERCOM2.I2CM.ADDR", ADDR << 1, board=MASTER)
+    h.advance(12 * T1)
+    assert h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_AMATCH
+    h.advance(60 * T1)
+    assert busstate(h) == OWNER
+
+
+def test_polling_the_slave_finer_than_a_bit_does_not_stall_the_world():
+    """Harness accesses run one board on alone, a few microseconds of its time each (here at 1 MHz): the slave polled
+    every eighth of an SCL period ran past the time of the address byte the master then sent it, and the world,
+    waiting for the slave's answer to a step it never took, stopped with "the boards wait for each other". The step
+    is taken as the board's next block would take it; the match and the hold follow, and the time-out after it."""
+    h = bus(inactout=1)
+    h.write("SERCOM2.I2CM.ADDR", ADDR << 1, board=MASTER)
+    t_match = first_time(h, lambda h: h.read("SERCOM2.I2CS.INTFLAG", board=SLAVE) & S_AMATCH, T1 / 8, 20 * T1)
+    t_idle = first_time(h, lambda h: busstate(h) == IDLE, T1 / 8, 40 * T1)
+    assert 4 * h.tu(T1) <= t_idle - t_match <= 7 * h.tu(T1)

@@ -97,6 +97,47 @@ def test_the_high_time_over_any_interval_is_the_waveforms(presc, per, cc_frac, s
     assert h.tcc_high(2, t0, t1) == reference_high(t_start, tick, per, cc, t0, t1)
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    per=st.integers(19, 300),
+    cc_frac=st.floats(0.0, 1.02),
+    cc2_frac=st.floats(0.0, 1.02),
+    start=st.floats(-4.0, 3.0),
+    length=st.floats(0.0, 3.5),
+    buffered=st.booleans(),
+)
+def test_the_mean_path_over_any_interval_is_the_duty_times_its_time(per, cc_frac, cc2_frac, start, length, buffered):
+    """The mean path's figure over any interval (before the counter starts, across a buffered CC change or not):
+    min(CC, PER + 1) / (PER + 1) of the time the counter runs in it, stretch by stretch, against a reference that
+    knows only the counter's start and the UPDATE that takes the buffer over (the first wrap after the write has
+    synchronised, DS40001882 31.6.2.6)."""
+    cc, cc2 = round(cc_frac * (per + 1)), round(cc2_frac * (per + 1))
+    h, t_enable = pwm(per, cc, window_s=1e-3)
+    h.advance(10e-6)  # the enable synchronised (3 GCLK cycles), the first cycle (>= 20 us) not over
+    info = h.tcc_info()
+    t_start, tick, period = int(info.cycle_start_tu), int(info.tick_tu), int(info.period_tu)
+    assert t_enable < t_start < h.now()
+    h.advance(50e-6)
+    t_upd = None
+    if buffered:  # valid once its write has synchronised (3 GCLK cycles, SYNCBUSY.CCB2), taken at the next wrap
+        h.write("TCC0.CCB[2]", cc2)
+        ready = h.t_access + 3 * tick
+        t_upd = t_start + ((ready - t_start) // period + 1) * period
+    t0 = max(0, h.now() + int(start * period))
+    t1 = t0 + int(length * period)
+    hi, den, other = h.tcc_mean(2, t0, t1)
+
+    def duty_time(c: int, a: int, b: int) -> int:
+        return min(c, per + 1) * max(0, b - max(a, t_start))
+
+    if t_upd is None or t1 <= t_upd:
+        want = duty_time(cc, t0, t1)
+    else:
+        want = duty_time(cc, t0, max(t0, t_upd)) + duty_time(cc2, max(t0, t_upd), t1)
+    assert (hi, other) == (want, 0.0)
+    assert den == (per + 1 if t1 > t0 else 1)  # (an empty interval: no period to speak of)
+
+
 def test_the_plant_sees_the_waveform_path_high_time_and_the_mean_path_the_mean():
     """One plant window of 0.37 PWM periods: the waveform path gives the driver the window's real high time (all
     or nothing in a window inside the high or the low part), the mean path CC / (PER + 1) whatever the phase."""
