@@ -138,6 +138,26 @@ def test_the_mean_path_over_any_interval_is_the_duty_times_its_time(per, cc_frac
     assert den == (per + 1 if t1 > t0 else 1)  # (an empty interval: no period to speak of)
 
 
+@pytest.mark.parametrize("ticks_before", range(8))
+def test_a_buffered_cc_written_near_a_wrap_is_taken_at_the_first_wrap_after_its_sync(ticks_before):
+    """The edge the random intervals above rarely reach: CCB written a few counts before a wrap. It is valid once its
+    write has synchronised (3 GCLK cycles) and taken at the first wrap after that (DS40001882 31.6.2.6): at the wrap
+    ahead when it is ready before it, at the one after when it is ready at or past it. The mean path's figure over
+    two periods each side of the wrap follows, written at eight phases a count apart."""
+    per, cc, cc2 = 39, 10, 30
+    h, _ = pwm(per, cc, window_s=1e-3)
+    h.advance(10e-6)
+    info = h.tcc_info()
+    t_start, tick, period = int(info.cycle_start_tu), int(info.tick_tu), int(info.period_tu)
+    wrap = t_start + ((h.now() - t_start) // period + 3) * period
+    h.advance_to(wrap - (ticks_before + 1) * tick)
+    h.write("TCC0.CCB[2]", cc2)
+    ready = h.t_access + 3 * tick
+    t_upd = t_start + ((ready - t_start) // period + 1) * period
+    t0, t1 = wrap - 2 * period, wrap + 2 * period
+    assert h.tcc_mean(2, t0, t1) == (cc * (t_upd - t0) + cc2 * (t1 - t_upd), per + 1, 0.0)
+
+
 def test_the_plant_sees_the_waveform_path_high_time_and_the_mean_path_the_mean():
     """One plant window of 0.37 PWM periods: the waveform path gives the driver the window's real high time (all
     or nothing in a window inside the high or the low part), the mean path CC / (PER + 1) whatever the phase."""
