@@ -349,21 +349,26 @@ int sam_world_tcc_info(const sam_world_t *w, int mcu, int tcc, sam_tcc_info_t *o
     return sam_tcc_state(w->mcu[mcu], tcc, m->ff.parked && m->t < w->t ? w->t : m->t, out);
 }
 
-uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1)
-{
-    uint64_t den;
-    double other;
-    if (mcu < 0 || mcu >= w->nmcu || !w->mcu[mcu])
-        return 0;
-    return sam_tcc_high(w->mcu[mcu], tcc, wo, t0, t1, 1, &den, &other);
-}
-
-uint64_t sam_world_tcc_mean(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *den,
-                            double *other)
+/* A board's TCC output high time over [t0, t1) on either path (sam_tcc_high); 0 for no such board. */
+static uint64_t tcc_figure(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1, int waveform,
+                           uint64_t *den, double *other)
 {
     *den = 1;
     *other = 0.0;
     if (mcu < 0 || mcu >= w->nmcu || !w->mcu[mcu])
         return 0;
-    return sam_tcc_high(w->mcu[mcu], tcc, wo, t0, t1, 0, den, other);
+    return sam_tcc_high(w->mcu[mcu], tcc, wo, t0, t1, waveform, den, other);
+}
+
+uint64_t sam_world_tcc_high(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1)
+{
+    uint64_t den;
+    double other;
+    return tcc_figure(w, mcu, tcc, wo, t0, t1, 1, &den, &other);
+}
+
+uint64_t sam_world_tcc_mean(const sam_world_t *w, int mcu, int tcc, int wo, uint64_t t0, uint64_t t1, uint64_t *den,
+                            double *other)
+{
+    return tcc_figure(w, mcu, tcc, wo, t0, t1, 0, den, other);
 }

@@ -97,6 +97,13 @@ def test_the_high_time_over_any_interval_is_the_waveforms(presc, per, cc_frac, s
     assert h.tcc_high(2, t0, t1) == reference_high(t_start, tick, per, cc, t0, t1)
 
 
+def buffer_taken_at(t_write: int, t_start: int, tick: int, period: int) -> int:
+    """When a buffered CC written at t_write takes over (DS40001882 31.6.2.6): valid once its write has synchronised
+    (3 GCLK cycles, SYNCBUSY.CCBn; a count each here), copied at the first wrap after that."""
+    ready = t_write + 3 * tick
+    return t_start + ((ready - t_start) // period + 1) * period
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     per=st.integers(19, 300),
@@ -119,10 +126,9 @@ def test_the_mean_path_over_any_interval_is_the_duty_times_its_time(per, cc_frac
     assert t_enable < t_start < h.now()
     h.advance(50e-6)
     t_upd = None
-    if buffered:  # valid once its write has synchronised (3 GCLK cycles, SYNCBUSY.CCB2), taken at the next wrap
+    if buffered:
         h.write("TCC0.CCB[2]", cc2)
-        ready = h.t_access + 3 * tick
-        t_upd = t_start + ((ready - t_start) // period + 1) * period
+        t_upd = buffer_taken_at(h.t_access, t_start, tick, period)
     t0 = max(0, h.now() + int(start * period))
     t1 = t0 + int(length * period)
     hi, den, other = h.tcc_mean(2, t0, t1)
@@ -152,8 +158,7 @@ def test_a_buffered_cc_written_near_a_wrap_is_taken_at_the_first_wrap_after_its_
     wrap = t_start + ((h.now() - t_start) // period + 3) * period
     h.advance_to(wrap - (ticks_before + 1) * tick)
     h.write("TCC0.CCB[2]", cc2)
-    ready = h.t_access + 3 * tick
-    t_upd = t_start + ((ready - t_start) // period + 1) * period
+    t_upd = buffer_taken_at(h.t_access, t_start, tick, period)
     t0, t1 = wrap - 2 * period, wrap + 2 * period
     assert h.tcc_mean(2, t0, t1) == (cc * (t_upd - t0) + cc2 * (t1 - t_upd), per + 1, 0.0)
 
