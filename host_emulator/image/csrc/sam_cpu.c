@@ -212,8 +212,9 @@ static bool hook_tlb(uc_engine *uc, uint64_t vaddr, uc_mem_type type, uc_tlb_ent
 {
     (void)uc;
     (void)type;
-    const sam_mcu_t *m = ud;
+    sam_mcu_t *m = ud;
     uint32_t a = (uint32_t)vaddr;
+    m->tlb_fills++;
     e->paddr = vaddr;
     if (a < SAM_FLASH_SIZE)
         e->perms = UC_PROT_READ | UC_PROT_EXEC;
