@@ -12,8 +12,8 @@ found in the victim TLB, and every function return in Handler mode goes back thr
 
 The source is the release's source distribution, fetched with pip (the package index the project's other
 dependencies come from) and checked against SDIST_SHA256; only ARM is compiled (about a minute on two cores). The
-result, libunicorn.a and its headers, goes to build/unicorn/<key>/ (the key hashes the release, the patches and
-the build options: a changed patch builds anew, the old build stays until `make clean`).
+result, libunicorn.a and its headers, goes to build/unicorn/<key>/ (MC_UNICORN_DIR moves it; the key hashes the
+release, the patches and the build options: a changed patch builds anew, the old build stays until `make clean`).
 """
 
 from __future__ import annotations
@@ -57,8 +57,11 @@ def key() -> str:
 
 
 def prefix() -> Path:
-    """Where this source tree's patched Unicorn is (or goes): build/unicorn/<key>."""
-    return firmware.BUILD_DIR.parent / "unicorn" / key()
+    """Where this source tree's patched Unicorn is (or goes): build/unicorn/<key> in a checkout, the user's cache
+    from a wheel; MC_UNICORN_DIR moves it. MC_BUILD_DIR does not: the library is a part of the toolchain the builds
+    under it use, not one of them."""
+    where = os.environ.get("MC_UNICORN_DIR")
+    return (Path(where) if where else firmware._default_build_dir().parent / "unicorn") / key()
 
 
 def installed() -> tuple[Path, Path] | None:

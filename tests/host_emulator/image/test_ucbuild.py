@@ -60,9 +60,7 @@ def _fake_sdist(tmp_path: Path) -> Path:
 def test_an_sdist_that_is_not_the_pinned_one_is_refused_and_nothing_installed(tmp_path, monkeypatch):
     """A source archive whose sha256 is not the pinned one stops the build in one line naming both digests, before
     anything is extracted or compiled; no build appears where the runtime looks."""
-    from metacell_common import firmware
-
-    monkeypatch.setattr(firmware, "BUILD_DIR", tmp_path / "build" / "host")
+    monkeypatch.setenv("MC_UNICORN_DIR", str(tmp_path / "build" / "unicorn"))
     fake = _fake_sdist(tmp_path)
     with pytest.raises(ucbuild.UnicornBuildError) as e:
         ucbuild.build(sdist=fake, quiet=True)
