@@ -30,6 +30,8 @@ have_cmd clang || need+=(clang)
 have_cmd bossac || need+=(bossa-cli)   # the flash tool's uploader when PlatformIO's tool-bossac is absent (offline)
 have_pkg libfaketime || need+=(libfaketime)   # flash --emulated: bossac on a clock slowed to the emulated boards' pace (LD_PRELOAD)
 have_cmd valgrind || need+=(valgrind)   # the instruction counts (benchmarks/instructions.py, image_instructions.py) and their figure tests
+have_cmd cmake || need+=(cmake)   # the image tier's patched Unicorn (host_emulator/image/ucbuild.py)
+have_cmd patch || need+=(patch)
 python3 -c 'import ensurepip' 2>/dev/null || need+=(python3-venv)
 apt_install "${need[@]}"
 
@@ -59,3 +61,7 @@ if [ ! -f "$stamp" ]; then
     rm -f .venv/.installed-*
     touch "$stamp"
 fi
+
+# the image tier's Unicorn: the pinned release's source with the project's patches, built once for ARM into
+# build/unicorn/ (about a minute; nothing to do when it is built)
+.venv/bin/python -m host_emulator.image.ucbuild

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import os
 import shutil
 import sys
 import tempfile
@@ -31,8 +32,27 @@ class RuntimeBuildError(ImageTierUnavailable):
     """The runtime cannot be built (Unicorn, the device headers or a C compiler missing)."""
 
 
+UNICORN_ENV = "MC_UNICORN"  # which Unicorn the runtime links: "patched" (the default) or "stock"
+
+
 def unicorn_paths() -> tuple[Path, Path]:
-    """(include dir, static library) of the installed unicorn wheel."""
+    """(include dir, static library) of the Unicorn the runtime links (RuntimeBuildError).
+
+    MC_UNICORN=patched (the default): the pinned release with this project's patches (ucbuild: `make setup` builds
+    it), the same results faster. MC_UNICORN=stock: the released wheel's library, as published."""
+    which = os.environ.get(UNICORN_ENV) or "patched"
+    if which == "patched":
+        from host_emulator.image import ucbuild
+
+        got = ucbuild.installed()
+        if got is None:
+            raise RuntimeBuildError(
+                f"the image tier's Unicorn ({ucbuild.VERSION} with the project's patches) is not built: run `make "
+                f"setup` or `python -m host_emulator.image.ucbuild` (or {UNICORN_ENV}=stock for the released wheel)"
+            )
+        return got
+    if which != "stock":
+        raise RuntimeBuildError(f"{UNICORN_ENV}={which!r}: expected 'patched' or 'stock'")
     spec = importlib.util.find_spec("unicorn")
     if spec is None or not spec.origin:
         raise RuntimeBuildError(
@@ -44,6 +64,18 @@ def unicorn_paths() -> tuple[Path, Path]:
     if not (inc / "unicorn" / "unicorn.h").is_file() or not lib.is_file():
         raise RuntimeBuildError(f"the unicorn package at {root} lacks include/unicorn/unicorn.h or lib/libunicorn.a")
     return inc, lib
+
+
+_digests: dict[tuple[str, int, int], str] = {}
+
+
+def _file_digest(path: Path) -> str:
+    """sha256 of a file, remembered by (path, size, mtime): the whole library enters the runtime's key."""
+    st = path.stat()
+    k = (str(path), st.st_size, st.st_mtime_ns)
+    if k not in _digests:
+        _digests[k] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return _digests[k]
 
 
 _lock = threading.Lock()
@@ -82,8 +114,7 @@ def load(
     h.update(gen_c.encode())
     h.update(gen_h.encode())
     h.update(gen_cost.encode())
-    h.update(libuc.read_bytes()[:4096])
-    h.update(str(libuc.stat().st_size).encode())
+    h.update(_file_digest(libuc).encode())
     h.update(" ".join(firmware.CFLAGS + firmware.LDFLAGS).encode())
     h.update(sys.version.encode())
     key = h.hexdigest()[:16]

@@ -216,6 +216,7 @@ struct sam_mcu {
     uint32_t *touch;                         /* [2 * sam_nregs]: reads, writes per register */
     uint64_t mmio_reads, mmio_writes;
     uint64_t runs;         /* emulation starts (uc_emu_start calls) */
+    uint64_t tlb_fills;    /* Unicorn TLB refills (hook_tlb calls): each costs it a CPU-state restore */
     void *regions[8];      /* the peripheral regions mapped into Unicorn (sam_mmio.c) */
     /* fast-forward */
     sam_ff_t ff;

@@ -94,6 +94,7 @@ typedef struct {
     uint64_t ff_traps;     /* stores to SRAM pages the fast-forward protected, stopped and let through */
     uint64_t mmio_reads, mmio_writes;
     uint64_t runs;             /* emulation starts: each costs the emulator a fixed overhead */
+    uint64_t tlb_fills;        /* Unicorn TLB refills (a page not in its TLB nor victim TLB) */
     uint32_t nvic_enabled, nvic_pending, nvic_active;
     uint8_t nvic_prio[32];
     uint32_t nvm_erases, nvm_writes;   /* flash rows erased, pages written by NVMCTRL */

@@ -325,6 +325,7 @@ int sam_world_mcu_info(const sam_world_t *w, int mcu, sam_mcu_info_t *o)
     o->ff_passes_skipped = m->ff.passes_skipped;
     o->ff_cycles_skipped = m->ff.cycles_skipped;
     o->runs = m->runs;
+    o->tlb_fills = m->tlb_fills;
     o->ff_parks = m->ff.parks;
     o->ff_checks = m->ff.checks;
     o->ff_misses = m->ff.misses;

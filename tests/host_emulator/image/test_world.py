@@ -89,6 +89,32 @@ def test_every_block_costed_from_the_flash_bytes_changes_nothing(images, referen
     assert np.array_equal(x, reference[1])
 
 
+def test_the_released_unicorn_gives_the_same_run(images, reference, monkeypatch):
+    """The tier's Unicorn carries patches that change how fast it gets somewhere, never where (image/ucpatches/):
+    the released wheel's library (MC_UNICORN=stock) gives the same change of state on every board, cycle counts,
+    fast-forward and plant, bit for bit. Its one visible difference, the TLB refills the first patch removes, is
+    counted: the released library refills peripheral pages all the time, the patched one only once per page."""
+    from host_emulator.image import runtime
+
+    def refills(config_env: str | None) -> list[int]:
+        if config_env:
+            monkeypatch.setenv(runtime.UNICORN_ENV, config_env)
+        else:
+            monkeypatch.delenv(runtime.UNICORN_ENV, raising=False)
+        w, lap = configured(images, 3)
+        before = [int(w.info(b.index).tlb_fills) for b in w.boards]
+        lap.pump(0.1)
+        return [int(w.info(b.index).tlb_fills) - n for b, n in zip(w.boards, before, strict=True)]
+
+    monkeypatch.setenv(runtime.UNICORN_ENV, "stock")
+    traces, x, cycles, written, ff = _run_traced(images, WorldConfig())
+    assert (traces, cycles, written, ff) == (reference[0], reference[2], reference[3], reference[4])
+    assert np.array_equal(x, reference[1])
+    stock, patched = refills("stock"), refills(None)
+    assert all(n > 200 for n in stock), stock  # 0.1 board second: thousands per cell (docs/image-tier.md)
+    assert all(n <= 2 for n in patched), patched
+
+
 def test_the_images_never_write_the_pac(reference):
     """No image sets (or clears) a peripheral's write protection (PAC0..2 WPSET/WPCLR, csrc/sam_pac.c): the runs
     above are not shaped by the PAC model; the DSU stays protected as from reset, and no image writes it."""
