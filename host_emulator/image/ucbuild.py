@@ -31,6 +31,8 @@ from pathlib import Path
 
 from metacell_common import firmware
 
+from .build import sha256_file
+
 VERSION = "2.1.4"
 SDIST = f"unicorn-{VERSION}.tar.gz"
 SDIST_SHA256 = "00567a70e323f749b419cd86bee4f9115beab7ebba32194581c090cbb7c59cff"
@@ -71,14 +73,6 @@ def installed() -> tuple[Path, Path] | None:
     return (inc, lib) if (inc / "unicorn" / "unicorn.h").is_file() and lib.is_file() else None
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _run(cmd: list[str], cwd: Path, what: str, log: Path) -> None:
     with open(log, "ab") as out:
         r = subprocess.run(cmd, cwd=cwd, stdout=out, stderr=subprocess.STDOUT)
@@ -95,7 +89,7 @@ def fetch_sdist(dest: Path, sdist: Path | None = None) -> Path:
         sdist = dest / SDIST
         if not sdist.is_file():
             raise UnicornBuildError(f"unicorn: pip download left no {SDIST} in {dest}")
-    digest = _sha256(sdist)
+    digest = sha256_file(sdist)
     if digest != SDIST_SHA256:
         raise UnicornBuildError(f"unicorn: {sdist} has sha256 {digest}, not the pinned {SDIST_SHA256}")
     return sdist
