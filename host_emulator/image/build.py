@@ -55,7 +55,7 @@ class CorruptCacheError(ImageError):
     """A cached ELF is not the file that was built (its SHA-256 differs from the one recorded beside it)."""
 
 
-def _sha256(path: Path) -> str:
+def sha256_file(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
@@ -67,7 +67,7 @@ def record_digest(elf: Path) -> None:
     """Write the ELF's SHA-256 beside it (atomically: parallel test workers may record the same file)."""
     rec = digest_record(elf)
     tmp = rec.with_name(f"{rec.name}.{os.getpid()}.tmp")
-    tmp.write_text(f"{_sha256(elf)}  {elf.name}\n")
+    tmp.write_text(f"{sha256_file(elf)}  {elf.name}\n")
     os.replace(tmp, rec)
 
 
@@ -79,7 +79,7 @@ def check_cached(elf: Path) -> None:
         record_digest(elf)
         return
     want = rec.read_text(errors="replace").split(maxsplit=1)
-    got = _sha256(elf)
+    got = sha256_file(elf)
     if not want or want[0] != got:
         raise CorruptCacheError(
             f"{elf}: SHA-256 {got[:16]}... is not the {want[0][:16] if want else 'empty'}... recorded when it was "

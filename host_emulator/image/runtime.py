@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import firmware
-from . import ImageTierUnavailable, costtable, regsnapshot, regtable
+from . import ImageTierUnavailable, build, costtable, regsnapshot, regtable
 
 IMAGE_CSRC = Path(__file__).resolve().parent / "csrc"
 RUNTIME_HEADERS = ("sam_regtab.h", "sam_api.h")  # the cffi-visible part of the runtime
@@ -74,7 +74,7 @@ def _file_digest(path: Path) -> str:
     st = path.stat()
     k = (str(path), st.st_size, st.st_mtime_ns)
     if k not in _digests:
-        _digests[k] = hashlib.sha256(path.read_bytes()).hexdigest()
+        _digests[k] = build.sha256_file(path)
     return _digests[k]
 
 

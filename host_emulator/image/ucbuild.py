@@ -3,12 +3,13 @@
     python -m host_emulator.image.ucbuild            # build it if it is missing (make setup runs this)
     python -m host_emulator.image.ucbuild --where    # print where it is, or exit 1 when it is not built
 
-Unicorn 2.1.4 as released spends much of the image tier's time in two places this tier cannot reach through its
-API (docs/image-tier.md, Figures): a peripheral page evicted from its TLB is refilled at every access instead of
-found in the victim TLB, and every function return in Handler mode goes back through the main loop. The patches
-(one file each, a header saying what and why) change only how fast Unicorn reaches a result, never the result:
-`tests/host_emulator/image/test_ucbuild.py` runs the default scene on this build and on the released wheel
-(MC_UNICORN=stock) and compares every board's counters and RAM byte for byte.
+Unicorn 2.1.4 as released spends much of the image tier's time where this tier cannot reach through its API
+(docs/image-tier.md, "The tier's Unicorn"): peripheral pages refilled in its TLB, Handler-mode returns through its
+main loop, block lookups across 1 KiB pages, and an exit check after every load and store and at every block's
+start. The patches (one file each, a header saying what and why) change only how fast Unicorn reaches a result,
+never the result: tests/host_emulator/image/test_world.py::test_the_released_unicorn_gives_the_same_run runs three
+cells and the primary on this build and on the released wheel (MC_UNICORN=stock) and compares every board's change
+of state, cycle counts, fast-forward counters and the plant, bit for bit.
 
 The source is the release's source distribution, fetched with pip (the package index the project's other
 dependencies come from) and checked against SDIST_SHA256; only ARM is compiled (about a minute on two cores). The
@@ -30,6 +31,8 @@ import tempfile
 from pathlib import Path
 
 from metacell_common import firmware
+
+from .build import sha256_file
 
 VERSION = "2.1.4"
 SDIST = f"unicorn-{VERSION}.tar.gz"
@@ -71,14 +74,6 @@ def installed() -> tuple[Path, Path] | None:
     return (inc, lib) if (inc / "unicorn" / "unicorn.h").is_file() and lib.is_file() else None
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _run(cmd: list[str], cwd: Path, what: str, log: Path) -> None:
     with open(log, "ab") as out:
         r = subprocess.run(cmd, cwd=cwd, stdout=out, stderr=subprocess.STDOUT)
@@ -95,7 +90,7 @@ def fetch_sdist(dest: Path, sdist: Path | None = None) -> Path:
         sdist = dest / SDIST
         if not sdist.is_file():
             raise UnicornBuildError(f"unicorn: pip download left no {SDIST} in {dest}")
-    digest = _sha256(sdist)
+    digest = sha256_file(sdist)
     if digest != SDIST_SHA256:
         raise UnicornBuildError(f"unicorn: {sdist} has sha256 {digest}, not the pinned {SDIST_SHA256}")
     return sdist

@@ -190,7 +190,7 @@ def test_the_cache_checks_each_elf_against_its_record(cache_copy, monkeypatch):
     rec = build.digest_record(digest / "cell02" / "firmware.elf")
     rec.unlink()  # a cache from before the records: recorded at first use
     build.build_images(3, primary=False)
-    assert rec.read_text().split()[0] == build._sha256(digest / "cell02" / "firmware.elf")
+    assert rec.read_text().split()[0] == build.sha256_file(digest / "cell02" / "firmware.elf")
     elf = digest / "cell03" / "firmware.elf"
     data = elf.read_bytes()
     elf.write_bytes(data[:-1] + bytes([data[-1] ^ 1]))  # one bit of the last byte
