@@ -28,6 +28,7 @@ from protocol.codec import COUNTS_PER_RAD
 from ..construct import build_solver
 from ..image import ImageTierUnavailable
 from ..image.build import build_images
+from ..image.laptop import Laptop
 from ..image.model import ImageSolver, bring_up
 from ..image.world import World, WorldConfig
 from ..models.options import ConfigError
@@ -53,6 +54,20 @@ def full_speed_counts_s() -> float:
     return NO_LOAD_RAD_PER_V_S * SUPPLY_V * COUNTS_PER_RAD
 
 
+def full_speed_world(seconds: float, threads: int) -> tuple[World, Laptop]:
+    """The "full-speed" scenario brought up: 16 cells and the primary, the plant at rest, every encoder turning
+    back and forth at full speed for `seconds` (and 10 ms more) from 1 ms after bring-up. (world, laptop)."""
+    p = Params(cells=16)
+    w = World(p, build_images(16), config=WorldConfig(threads=threads))
+    lap, _ = bring_up(w, p)
+    rate = full_speed_counts_s()
+    t0 = w.t + 0.001
+    for cell in range(1, 17):
+        for chain in ("alpha", "beta"):  # back and forth inside the firmware's runaway limit (800 counts)
+            w.spin(cell, chain, rate, t0, t0 + seconds + 0.01, back_and_forth=600)
+    return w, lap
+
+
 def _snapshot(world) -> tuple[dict[str, int], int, dict[str, int], int]:
     out, runs, checks, probes = {}, 0, {}, 0
     for b in world.boards:
@@ -76,16 +91,9 @@ def measure(scenario: str, seconds: float, threads: int) -> Measurement:
         solver = build_solver(scene)
         assert isinstance(solver, ImageSolver)
         w = solver.world
-    else:  # the plant at rest, every encoder at full speed
-        p = Params(cells=16)
-        w = World(p, build_images(16), config=WorldConfig(threads=threads))
-        lap, _ = bring_up(w, p)
-        rate = full_speed_counts_s()
-        t0 = w.t + 0.001
-        for cell in range(1, 17):
-            for chain in ("alpha", "beta"):  # back and forth inside the firmware's runaway limit (800 counts)
-                w.spin(cell, chain, rate, t0, t0 + seconds + 0.01, back_and_forth=600)
-        edges = round(32 * rate * seconds)
+    else:
+        w, lap = full_speed_world(seconds, threads)
+        edges = round(32 * full_speed_counts_s() * seconds)
     c0, r0, k0, p0 = _snapshot(w)
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     if scenario != "full-speed":

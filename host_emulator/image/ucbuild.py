@@ -5,11 +5,14 @@
 
 Unicorn 2.1.4 as released spends much of the image tier's time where this tier cannot reach through its API
 (docs/image-tier.md, "The tier's Unicorn"): peripheral pages refilled in its TLB, Handler-mode returns through its
-main loop, block lookups across 1 KiB pages, and an exit check after every load and store and at every block's
-start. The patches (one file each, a header saying what and why) change only how fast Unicorn reaches a result,
-never the result: tests/host_emulator/image/test_world.py::test_the_released_unicorn_gives_the_same_run runs three
-cells and the primary on this build and on the released wheel (MC_UNICORN=stock) and compares every board's change
-of state, cycle counts, fast-forward counters and the plant, bit for bit.
+main loop, block lookups across 1 KiB pages, an exit check after every load and store and at every block's
+start, a page-map walk and QEMU's generic dispatch at every peripheral access, and a dispatch per register where
+the tier reads the core's registers (0007 adds uc_arm_m_core_read to the public header, the one addition; the
+tier's code uses the batch read where the header lacks it). The patches (one file each, a header saying what and why)
+change only how fast Unicorn reaches a result, never the result:
+tests/host_emulator/image/test_world.py::test_the_released_unicorn_gives_the_same_run runs three cells and the
+primary on this build and on the released wheel (MC_UNICORN=stock) and compares every board's change of state,
+cycle counts, fast-forward counters and the plant, bit for bit.
 
 The source is the release's source distribution, fetched with pip (the package index the project's other
 dependencies come from) and checked against SDIST_SHA256; only ARM is compiled (about a minute on two cores). The

@@ -15,12 +15,18 @@
 #define EXC_RETURN_THREAD 0xFFFFFFF9u
 #define EXC_RETURN_HANDLER 0xFFFFFFF1u
 
-/* the core registers a fast-forward snapshot compares (the first 13, R0..R12, are zeroed by a reset) */
+/* the core registers a fast-forward snapshot compares (the first 13, R0..R12, are zeroed by a reset), in this order:
+ * R0..R12, SP, LR, PC, XPSR, PRIMASK, CONTROL (SAM_CORE_SP .. SAM_CORE_CONTROL index them) */
 #define SAM_NCORE_REGS 19
+#define SAM_CORE_R12 12
+#define SAM_CORE_SP 13
+#define SAM_CORE_LR 14
+#define SAM_CORE_XPSR 16
 extern const int sam_core_regs[SAM_NCORE_REGS];
 
 /* ---- sam_cpu.c ---- */
 uint32_t sam_cpu_reg(sam_mcu_t *m, int id);
+void sam_cpu_core_read(sam_mcu_t *m, uint32_t *regs);   /* the SAM_NCORE_REGS core registers, in their order */
 void sam_cpu_set(sam_mcu_t *m, int id, uint32_t v);
 void sam_cpu_rebuild_hflags(sam_mcu_t *m);
 void sam_cpu_lockup(sam_mcu_t *m, const char *why);

@@ -72,6 +72,21 @@ uint32_t sam_cpu_reg(sam_mcu_t *m, int id)
 
 void sam_cpu_set(sam_mcu_t *m, int id, uint32_t v) { uc_reg_write(m->uc, id, &v); }
 
+/* The core registers (sam_core_regs' order) in one call where the library has it (the tier's own build,
+ * ucpatches/0007: the same values, without a dispatch per register), else as a batch (the released library). */
+void sam_cpu_core_read(sam_mcu_t *m, uint32_t *regs)
+{
+#ifdef UC_ARM_M_CORE_NREGS
+    _Static_assert(UC_ARM_M_CORE_NREGS == SAM_NCORE_REGS, "the library's core registers are the snapshot's");
+    if (uc_arm_m_core_read(m->uc, regs) == UC_ERR_OK)
+        return;
+#endif
+    void *ptrs[SAM_NCORE_REGS];
+    for (int i = 0; i < SAM_NCORE_REGS; i++)
+        ptrs[i] = &regs[i];
+    uc_reg_read_batch(m->uc, (int *)sam_core_regs, ptrs, SAM_NCORE_REGS);
+}
+
 /* Unicorn caches the handler-mode flag of the TB state (hflags); an IPSR/XPSR write does not rebuild it, a write
  * of APSR's NZCV does (and changes nothing when it writes the flags back as they are). */
 void sam_cpu_rebuild_hflags(sam_mcu_t *m)

@@ -162,13 +162,7 @@ static void probe_ram_restore(sam_mcu_t *m)
     }
 }
 
-static void read_regs(sam_mcu_t *m, uint32_t *regs)
-{
-    void *ptrs[SAM_NCORE_REGS];
-    for (int i = 0; i < SAM_NCORE_REGS; i++)
-        ptrs[i] = &regs[i];
-    uc_reg_read_batch(m->uc, (int *)sam_core_regs, ptrs, SAM_NCORE_REGS);
-}
+static void read_regs(sam_mcu_t *m, uint32_t *regs) { sam_cpu_core_read(m, regs); }
 
 /* Give up a polling head: loop() is the boundary again, and no other head is looked for until the board does
  * something. */

@@ -145,20 +145,15 @@ static void trace_enter(sam_mcu_t *m, int e, uint32_t from, uint32_t ret, int la
 /* Stack the caller-saved frame and enter exception e; ret = address of the next instruction. 1 on success. */
 int sam_nvic_enter(sam_mcu_t *m, int e, uint32_t ret)
 {
-    uint32_t r[8];
-    int ids[8] = {UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12, UC_ARM_REG_LR,
-                  UC_ARM_REG_SP, UC_ARM_REG_XPSR};
-    void *ptrs[8];
-    for (int i = 0; i < 8; i++)
-        ptrs[i] = &r[i];
-    uc_reg_read_batch(m->uc, ids, ptrs, 8);
-    uint32_t sp = r[6], xpsr = r[7], ipsr = xpsr & 0x3Fu;
+    uint32_t r[SAM_NCORE_REGS];
+    sam_cpu_core_read(m, r);
+    uint32_t sp = r[SAM_CORE_SP], xpsr = r[SAM_CORE_XPSR], ipsr = xpsr & 0x3Fu;
     uint32_t frame = sp - 32u, stacked_xpsr = (xpsr & ~(1u << 9)) | (1u << 24);
     if (frame & 4u) {   /* 8-byte aligned frames (CCR.STKALIGN): xPSR bit 9 records the padding */
         frame -= 4u;
         stacked_xpsr |= 1u << 9;
     }
-    const uint32_t words[8] = {r[0], r[1], r[2], r[3], r[4], r[5], ret & ~1u, stacked_xpsr};
+    const uint32_t words[8] = {r[0], r[1], r[2], r[3], r[SAM_CORE_R12], r[SAM_CORE_LR], ret & ~1u, stacked_xpsr};
     for (int i = 0; i < 8; i++)
         if (!sam_cpu_ram_write32(m, frame + 4u * (uint32_t)i, words[i])) {
             sam_cpu_lockup(m, "exception stack frame outside SRAM");

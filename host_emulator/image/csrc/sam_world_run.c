@@ -15,10 +15,11 @@
  * (conservative parallel simulation). Boards affect each other only through bus steps that take effect at least
  * T_MIN (the shortest SCL period, link_i2c_bus.c) after their cause, and a board that sends a step stops T_MIN after
  * the step takes effect (the receiver may answer then). The primary runs as far as the cells let it (a cell that
- * holds SCL may answer any time from T_MIN on; one with a step to take may answer it); each cell then runs as far
- * as the primary lets it: T_MIN past the primary, or to the window's end while the primary sees SCL held and has
- * no release to take. So no step ever reaches a board that has run past it (checked), and results do not depend
- * on how far boards run at a time (round_s), nor on fast-forwarding, nor on the order cells run in.
+ * holds SCL may answer any time from T_MIN on; one with a step to take may answer it); each cell that may answer
+ * then runs as far as the primary lets it: T_MIN past the primary, or to the window's end while the primary sees SCL
+ * held and has no release to take; the others run once the primary lets them reach the round's end. So no step
+ * ever reaches a board that has run past it (checked), and results do not depend on how far boards run at a time
+ * (round_s), nor on fast-forwarding, nor on the order cells run in.
  * World-level faults start and end at round boundaries placed at their times.
  */
 
@@ -169,7 +170,10 @@ static int round_to(sam_world_t *w, uint64_t target)
                 return -1;
         }
         /* first, one at a time, the cells that may answer the primary (what they send may let the others run
-         * further); then the others, which cannot send anything before their target, together */
+         * further); then the others, which cannot send anything before their target, together, and only once the
+         * primary lets them reach the target: while it and a cell it addressed answer each other in steps of T_MIN,
+         * the rest wait (nothing they could do bounds the primary, and a board that is behind takes what reaches it
+         * in time order when it runs), so that they run the round in one go rather than in a step per answer */
         for (int i = 0; i < w->nmcu; i++) {
             sam_mcu_t *m = w->mcu[i];
             if (!m || m == p || sam_bus_eot_slave(m) == SAM_NEVER)
@@ -181,7 +185,7 @@ static int round_to(sam_world_t *w, uint64_t target)
         uint64_t h = p ? sam_bus_eot_master(p) : SAM_NEVER;
         h = h < target ? h : target;
         pl->njobs = 0;
-        for (int i = 0; i < w->nmcu; i++) {
+        for (int i = 0; h >= target && i < w->nmcu; i++) {   /* (h < target: they wait, see above) */
             sam_mcu_t *m = w->mcu[i];
             if (!m || m == p || m->pos >= h || sam_bus_eot_slave(m) != SAM_NEVER)
                 continue;
