@@ -126,17 +126,18 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.01 <= args.seconds <= 2 or not 0 <= args.top <= 50:
         print("benchmark: --seconds 0.01..2, --top 0..50", file=sys.stderr)
         return 2
+    keeps = {case: None if args.keep is None else Path(f"{args.keep}.{case}") for case in args.case}
+    for path in keeps.values():
+        if path is not None and path.exists():
+            print(f"benchmark: {path} exists; not overwritten", file=sys.stderr)
+            return 2
     for tool in ("valgrind", "callgrind_control"):
         if not shutil.which(tool):
             print(f"benchmark: {tool} is not on the PATH (Debian: valgrind)", file=sys.stderr)
             return 3
     counts = {}
     for case in args.case:
-        keep = None if args.keep is None else Path(f"{args.keep}.{case}")
-        if keep is not None and keep.exists():
-            print(f"benchmark: {keep} exists; not overwritten", file=sys.stderr)
-            return 2
-        n, lines = measure(case, args.seconds, args.top, keep)
+        n, lines = measure(case, args.seconds, args.top, keeps[case])
         counts[case] = n
         rate = n / args.seconds / 1e9
         print(f"{case}: {rate:.3f} G x86 instructions per board second ({n:,} over {args.seconds:g} s)")

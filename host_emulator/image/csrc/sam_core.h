@@ -16,7 +16,8 @@
 #define EXC_RETURN_HANDLER 0xFFFFFFF1u
 
 /* the core registers a fast-forward snapshot compares (the first 13, R0..R12, are zeroed by a reset), in this order:
- * R0..R12, SP, LR, PC, XPSR, PRIMASK, CONTROL (SAM_CORE_SP .. SAM_CORE_CONTROL index them) */
+ * R0..R12, SP, LR, PC, XPSR, PRIMASK, CONTROL (SAM_CORE_R12, _SP, _LR and _XPSR index the ones the exception entry
+ * stacks) */
 #define SAM_NCORE_REGS 19
 #define SAM_CORE_R12 12
 #define SAM_CORE_SP 13

@@ -22,3 +22,13 @@ def test_bad_arguments_exit_2(main, argv, capsys):
     out = capsys.readouterr()
     assert out.out == ""
     assert out.err.count("\n") == 1 and out.err.startswith("benchmark:")
+
+
+def test_a_kept_output_is_never_overwritten(tmp_path, capsys):
+    """--keep PREFIX refuses, before anything runs, when PREFIX.CASE already holds a recorded output."""
+    kept = tmp_path / "cg.full-speed"
+    kept.write_text("recorded")
+    assert ii.main(["--case", "default", "full-speed", "--keep", str(tmp_path / "cg")]) == 2
+    out = capsys.readouterr()
+    assert out.out == "" and out.err.count("\n") == 1 and "not overwritten" in out.err
+    assert kept.read_text() == "recorded" and not (tmp_path / "cg.default").exists()
