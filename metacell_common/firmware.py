@@ -36,7 +36,7 @@ ROOT = PKG.parent if IN_CHECKOUT else PKG  # source paths in the build hash are 
 HOST_CSRC = PKG / "csrc"
 
 
-def _default_build_dir() -> Path:
+def default_build_dir() -> Path:
     """build/host in a checkout; from a wheel, the user's cache (site-packages may not be writable)."""
     if IN_CHECKOUT:
         return ROOT / "build" / "host"
@@ -44,7 +44,7 @@ def _default_build_dir() -> Path:
     return Path(cache) / "metacell-emulator" / "host"
 
 
-BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR") or _default_build_dir())
+BUILD_DIR = Path(os.environ.get("MC_BUILD_DIR") or default_build_dir())
 
 
 class FirmwareBuildError(RuntimeError):

@@ -67,7 +67,7 @@ def prefix() -> Path:
     from a wheel; MC_UNICORN_DIR moves it. MC_BUILD_DIR does not: the library is a part of the toolchain the builds
     under it use, not one of them."""
     where = os.environ.get("MC_UNICORN_DIR")
-    return (Path(where) if where else firmware._default_build_dir().parent / "unicorn") / key()
+    return (Path(where) if where else firmware.default_build_dir().parent / "unicorn") / key()
 
 
 def installed() -> tuple[Path, Path] | None:

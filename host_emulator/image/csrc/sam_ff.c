@@ -162,8 +162,6 @@ static void probe_ram_restore(sam_mcu_t *m)
     }
 }
 
-static void read_regs(sam_mcu_t *m, uint32_t *regs) { sam_cpu_core_read(m, regs); }
-
 /* Give up a polling head: loop() is the boundary again, and no other head is looked for until the board does
  * something. */
 static void drop_head(sam_ff_t *f)
@@ -289,7 +287,7 @@ int sam_ff_probe_end(sam_mcu_t *m, int at_head, int stopped)
     if (at_head && !f->probe_bad && m->t == f->pr_end && f->probe_n == f->cand_n && m->act == f->pr_act &&
         m->cycles - f->pr_c1 == (f->pr_end - f->pr_t1) / f->period * f->period_cycles) {
         uint32_t regs[SAM_NCORE_REGS];
-        read_regs(m, regs);
+        sam_cpu_core_read(m, regs);
         held = !memcmp(regs, f->snap_regs, sizeof regs) && !memcmp(m->cache_tag, f->snap_cache, sizeof m->cache_tag) &&
                probe_ram_same(m);
     }
@@ -339,7 +337,7 @@ int sam_ff_boundary(sam_mcu_t *m)
         return 0;
     }
     uint32_t regs[SAM_NCORE_REGS];
-    read_regs(m, regs);
+    sam_cpu_core_read(m, regs);
     int poll = f->head != f->loop_pc;
     if (poll && !(f->regs_valid && !memcmp(regs, f->poll_regs, sizeof regs))) {
         /* a polling head: the registers alone until they repeat (a loop that computes costs a register read per

@@ -33,7 +33,7 @@ def test_the_key_follows_every_patch_and_nothing_else(tmp_path, monkeypatch):
     assert len({k0, k1, k2, k3}) == 4
 
 
-def test_the_patches_are_headed_and_touch_only_qemu_sources():
+def test_the_patches_are_headed_edit_qemu_and_only_add_to_the_public_header():
     """Each patch opens with a line saying what it changes and a paragraph saying why, and edits files of the
     release's QEMU tree (the -p1 paths under src/ that the build applies them in); the public header only gains
     lines (an addition the tier's code uses where it is defined, the released library staying usable), never loses
